@@ -1,0 +1,18 @@
+//! tissue: real-time deformable models of soft tissue for surgery simulation.
+//!
+//! Load an organ mesh (`io::read`), build a model by kind (`model::build`) or directly,
+//! fix the attachments, touch it with instruments, and step it: the deformed surface for
+//! drawing and the instrument force for a haptic device come out. Every model implements
+//! `model::Deformable`. SI units (m, kg, s, Pa, N) and `f64` throughout.
+
+pub mod error;
+pub mod interact;
+pub mod io;
+pub mod material;
+pub mod math;
+pub mod mesh;
+pub mod model;
+
+pub use error::{Error, IoError, MeshError, SceneError, SimError};
+pub use material::Material;
+pub use math::{Mat3, Real, Vec3};

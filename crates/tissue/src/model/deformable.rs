@@ -1,0 +1,126 @@
+//! The one interface every model implements.
+
+use crate::error::SimError;
+use crate::interact::{Constraints, Loads};
+use crate::math::{Real, Vec3};
+
+/// The surface as it is now: what to draw and what instruments touch.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceView<'a> {
+    pub positions: &'a [Vec3],
+    pub triangles: &'a [[u32; 3]],
+}
+
+/// The mechanical volume mesh as it is now, for models that have one (written to VTU).
+#[derive(Clone, Copy, Debug)]
+pub struct VolumeView<'a> {
+    pub positions: &'a [Vec3],
+    pub rest_positions: &'a [Vec3],
+    pub tets: &'a [[u32; 4]],
+}
+
+/// Forces the tissue exerts on its constraints, in N, in the order the constraints were
+/// given. For an instrument, the force it feels is the sum over its prescribed vertices;
+/// for supports, the sum over fixed vertices balances the applied loads.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Reactions<'a> {
+    pub fixed: &'a [Vec3],
+    pub prescribed: &'a [Vec3],
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepInfo {
+    /// Iterations of the inner solver (0 for a direct solve or an explicit step).
+    pub iterations: usize,
+    /// Final relative residual of an iterative solver (0 for a direct solve).
+    pub residual: Real,
+}
+
+/// A description of a built model, for `tissue run` summaries and comparisons.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ModelInfo {
+    /// The model kind, as in `tissue models`.
+    pub kind: &'static str,
+    /// Mechanical nodes (tetrahedron nodes, masses, control points, voxels).
+    pub nodes: usize,
+    /// Unknowns of the mechanical system.
+    pub dofs: usize,
+    /// Mechanical elements (tetrahedra, springs, links...).
+    pub elements: usize,
+    /// Vertices of the rendered surface.
+    pub surface_vertices: usize,
+    /// Memory held by the model's rest data and factorisations, in bytes (estimate).
+    pub memory_bytes: usize,
+    /// Time spent building the model (assembly, factorisation, pre-computation), in s.
+    pub precompute_seconds: Real,
+    /// True for models that solve for equilibrium in `step` (time plays no role).
+    pub is_static: bool,
+    /// Model-specific facts as (name, value) pairs, e.g. ("order", "quadratic").
+    pub details: Vec<(String, String)>,
+}
+
+/// A scalpel sweep: the blade segment (tip, heel) at the start and at the end of the motion.
+/// The cut surface is the ruled quad between them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CutPath {
+    pub start: [Vec3; 2],
+    pub end: [Vec3; 2],
+}
+
+/// What a cut changed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CutInfo {
+    pub removed_elements: usize,
+    pub added_vertices: usize,
+    /// Bumped on every topological change; anything built from the topology rebuilds.
+    pub topology_version: u32,
+}
+
+/// A deformable model of soft tissue.
+///
+/// Constraints and loads refer to surface vertices (indices into `surface().positions`).
+/// `step` either integrates over `dt` (dynamic models) or solves for equilibrium (static
+/// models, which ignore `dt`). On failure the model keeps its last good state.
+pub trait Deformable: Send {
+    /// The kind name, as in `tissue models`.
+    fn kind(&self) -> &'static str;
+
+    /// The current surface.
+    fn surface(&self) -> SurfaceView<'_>;
+
+    /// Surface positions at rest, to compute displacements.
+    fn rest_surface(&self) -> &[Vec3];
+
+    /// The volume mesh, for models that have tetrahedra.
+    fn volume(&self) -> Option<VolumeView<'_>> {
+        None
+    }
+
+    /// Replaces all constraints. Fixed wins where a vertex is both fixed and prescribed.
+    fn set_constraints(&mut self, constraints: &Constraints) -> Result<(), SimError>;
+
+    /// Replaces the external loads (gravity, point loads).
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError>;
+
+    /// Advances the model by `dt` seconds (or solves for equilibrium).
+    fn step(&mut self, dt: Real) -> Result<StepInfo, SimError>;
+
+    /// Forces at the constraints after the last step.
+    fn reactions(&self) -> Reactions<'_>;
+
+    /// Cuts along a scalpel sweep; models that cannot cut say so.
+    fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
+        let _ = blade;
+        Err(SimError::Unsupported {
+            model: self.kind(),
+            operation: "cutting",
+            reason: "its topology is fixed when it is built".into(),
+        })
+    }
+
+    /// Returns to the rest state, keeping constraints and loads.
+    fn reset(&mut self);
+
+    fn info(&self) -> ModelInfo;
+}

@@ -1,0 +1,16 @@
+//! The deformable models, one module per family, all behind the `Deformable` interface.
+//!
+//! The survey's view of interaction, shared by every model: an instrument touches the
+//! surface; the touched surface vertices get prescribed positions; the model computes the
+//! deformation of everything else and the reaction force at each constrained vertex. Fixed
+//! vertices are constraints with zero displacement. Cutting is accepted or refused with
+//! `SimError::Unsupported`.
+
+mod deformable;
+pub mod fem;
+pub mod registry;
+
+pub use deformable::{
+    CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
+};
+pub use registry::{BuildInput, KINDS, KindInfo, build};

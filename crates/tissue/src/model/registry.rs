@@ -1,0 +1,55 @@
+//! The model kinds built in, by name: the names are a contract kept across the project.
+
+use crate::error::{Error, SimError};
+use crate::material::Material;
+use crate::mesh::MeshData;
+use crate::model::Deformable;
+use crate::model::fem;
+
+/// A model kind and what it is, for `tissue models`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KindInfo {
+    pub name: &'static str,
+    pub summary: &'static str,
+}
+
+/// Every model kind that `build` accepts.
+pub const KINDS: &[KindInfo] = &[KindInfo {
+    name: "fem-static",
+    summary: "linear elastostatics on 4- or 10-node tetrahedra, sparse Cholesky (the reference)",
+}];
+
+/// What a model is built from.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildInput<'a> {
+    pub mesh: &'a MeshData,
+    /// Names the mesh's origin (a file path) in error messages.
+    pub source: &'a str,
+    pub material: Material,
+    /// The model's own settings (the scene's `[model]` table without `kind`).
+    pub params: &'a toml::Table,
+}
+
+/// Builds a model by kind name.
+pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, Error> {
+    match kind {
+        "fem-static" => Ok(Box::new(fem::FemStatic::from_input(input)?)),
+        _ => Err(SimError::UnknownModel {
+            kind: kind.to_string(),
+            known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),
+        }
+        .into()),
+    }
+}
+
+/// Deserialises a model's settings table, naming the bad or unknown key on failure.
+pub fn parse_params<T: serde::de::DeserializeOwned>(
+    kind: &'static str,
+    params: &toml::Table,
+) -> Result<T, SimError> {
+    T::deserialize(toml::Value::Table(params.clone())).map_err(|e| SimError::BadParameter {
+        name: "model",
+        value: kind.to_string(),
+        reason: e.to_string().trim().to_string(),
+    })
+}
