@@ -47,13 +47,23 @@ pub struct IoError {
 
 impl IoError {
     pub fn new(path: impl Into<PathBuf>, location: Location, message: impl Into<String>) -> Self {
-        Self { path: path.into(), location, message: message.into(), source: None }
+        Self {
+            path: path.into(),
+            location,
+            message: message.into(),
+            source: None,
+        }
     }
 
     /// Wraps an operating-system error (missing file, permission, disk full).
     pub fn os(path: impl Into<PathBuf>, action: &str, source: std::io::Error) -> Self {
         let message = format!("cannot {action}: {source}");
-        Self { path: path.into(), location: Location::File, message, source: Some(source) }
+        Self {
+            path: path.into(),
+            location: Location::File,
+            message,
+            source: Some(source),
+        }
     }
 }
 
@@ -62,22 +72,46 @@ impl IoError {
 pub enum MeshError {
     #[error("the mesh has no {what}")]
     Empty { what: &'static str },
-    #[error("{element_kind} {element} refers to vertex {index}, but the mesh has {vertex_count} vertices")]
-    IndexOutOfRange { element_kind: &'static str, element: usize, index: usize, vertex_count: usize },
+    #[error(
+        "{element_kind} {element} refers to vertex {index}, but the mesh has {vertex_count} vertices"
+    )]
+    IndexOutOfRange {
+        element_kind: &'static str,
+        element: usize,
+        index: usize,
+        vertex_count: usize,
+    },
     #[error("vertex {vertex} has a non-finite coordinate ({x}, {y}, {z})")]
-    NonFiniteVertex { vertex: usize, x: Real, y: Real, z: Real },
+    NonFiniteVertex {
+        vertex: usize,
+        x: Real,
+        y: Real,
+        z: Real,
+    },
     #[error("tetrahedron {tet} is inverted (signed volume {volume:.3e})")]
     InvertedTet { tet: usize, volume: Real },
     #[error("tetrahedron {tet} is degenerate (volume {volume:.3e}, quality {quality:.2e})")]
-    DegenerateTet { tet: usize, volume: Real, quality: Real },
+    DegenerateTet {
+        tet: usize,
+        volume: Real,
+        quality: Real,
+    },
     #[error("triangle {triangle} is degenerate (area {area:.3e})")]
     DegenerateTriangle { triangle: usize, area: Real },
     #[error("{element_kind} {element} repeats vertex {vertex}")]
-    RepeatedVertex { element_kind: &'static str, element: usize, vertex: usize },
+    RepeatedVertex {
+        element_kind: &'static str,
+        element: usize,
+        vertex: usize,
+    },
     #[error("this model needs a tetrahedral volume mesh, but {source_desc} has only a surface")]
     NeedsVolume { source_desc: String },
     #[error("the surface is not closed: {border_edges} border edges, e.g. ({a}, {b})")]
-    NotClosed { border_edges: usize, a: usize, b: usize },
+    NotClosed {
+        border_edges: usize,
+        a: usize,
+        b: usize,
+    },
     #[error("edge ({a}, {b}) is shared by {faces} faces (non-manifold)")]
     NonManifoldEdge { a: usize, b: usize, faces: usize },
     #[error("{0}")]
@@ -88,7 +122,11 @@ pub enum MeshError {
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum MaterialError {
     #[error("material {name} = {value}: {reason}")]
-    OutOfRange { name: &'static str, value: Real, reason: &'static str },
+    OutOfRange {
+        name: &'static str,
+        value: Real,
+        reason: &'static str,
+    },
 }
 
 /// A failure while building or stepping a model.
@@ -96,10 +134,18 @@ pub enum MaterialError {
 pub enum SimError {
     /// The model refuses the operation (e.g. a pre-computed model asked to cut).
     #[error("model `{model}` does not support {operation}: {reason}")]
-    Unsupported { model: &'static str, operation: &'static str, reason: String },
+    Unsupported {
+        model: &'static str,
+        operation: &'static str,
+        reason: String,
+    },
     /// The state became non-finite or blew up; the model kept its last good state.
     #[error("step {step} diverged at node {node}: {reason}; the last good state was kept")]
-    Diverged { step: u64, node: usize, reason: String },
+    Diverged {
+        step: u64,
+        node: usize,
+        reason: String,
+    },
     /// A matrix that must be symmetric positive definite is not (e.g. a body left free to move).
     #[error("the system matrix is not positive definite near row {row}: {hint}")]
     NotPositiveDefinite { row: usize, hint: String },
@@ -116,7 +162,11 @@ pub enum SimError {
     #[error("unknown model kind `{kind}`; built in: {known}")]
     UnknownModel { kind: String, known: String },
     #[error("invalid parameter `{name}` = {value}: {reason}")]
-    BadParameter { name: &'static str, value: String, reason: String },
+    BadParameter {
+        name: &'static str,
+        value: String,
+        reason: String,
+    },
 }
 
 /// A scene file that cannot be turned into a simulation.
@@ -149,7 +199,11 @@ mod tests {
 
     #[test]
     fn io_error_names_file_and_line() {
-        let e = IoError::new("liver.msh", Location::Line(12), "expected 4 node ids, found 3");
+        let e = IoError::new(
+            "liver.msh",
+            Location::Line(12),
+            "expected 4 node ids, found 3",
+        );
         assert_eq!(e.to_string(), "liver.msh:12: expected 4 node ids, found 3");
     }
 }

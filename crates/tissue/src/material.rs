@@ -50,12 +50,22 @@ impl Material {
     /// Checks every constant, naming the first one that is out of its physical range.
     pub fn validated(self) -> Result<Self, MaterialError> {
         let bad = |name: &'static str, value: Real, reason: &'static str| {
-            Err(MaterialError::OutOfRange { name, value, reason })
+            Err(MaterialError::OutOfRange {
+                name,
+                value,
+                reason,
+            })
         };
         if !(self.young_modulus.is_finite() && self.young_modulus > 0.0) {
-            return bad("young_modulus", self.young_modulus, "must be a finite value > 0 Pa");
+            return bad(
+                "young_modulus",
+                self.young_modulus,
+                "must be a finite value > 0 Pa",
+            );
         }
-        if !(self.poisson_ratio.is_finite() && self.poisson_ratio > -1.0 && self.poisson_ratio < 0.5)
+        if !(self.poisson_ratio.is_finite()
+            && self.poisson_ratio > -1.0
+            && self.poisson_ratio < 0.5)
         {
             return bad(
                 "poisson_ratio",
@@ -70,7 +80,11 @@ impl Material {
             return bad("damping", self.damping, "must be a finite value >= 0 1/s");
         }
         if !(self.stiffness_damping.is_finite() && self.stiffness_damping >= 0.0) {
-            return bad("stiffness_damping", self.stiffness_damping, "must be a finite value >= 0 s");
+            return bad(
+                "stiffness_damping",
+                self.stiffness_damping,
+                "must be a finite value >= 0 s",
+            );
         }
         Ok(self)
     }

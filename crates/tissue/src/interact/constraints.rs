@@ -20,7 +20,10 @@ pub struct Constraints {
 
 impl Constraints {
     pub fn fixed(fixed: Vec<u32>) -> Self {
-        Self { fixed, prescribed: Vec::new() }
+        Self {
+            fixed,
+            prescribed: Vec::new(),
+        }
     }
 }
 

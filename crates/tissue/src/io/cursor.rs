@@ -17,7 +17,12 @@ pub(crate) struct Cursor<'a> {
 
 impl<'a> Cursor<'a> {
     pub fn new(path: &'a Path, data: &'a [u8]) -> Self {
-        Self { path, data, pos: 0, line: 0 }
+        Self {
+            path,
+            data,
+            pos: 0,
+            line: 0,
+        }
     }
 
     pub fn path(&self) -> &'a Path {
@@ -112,7 +117,9 @@ impl<'a> Cursor<'a> {
 
     /// Parses one token, naming what it should have been on failure.
     pub fn parse<T: FromStr>(&self, token: &str, what: &str) -> Result<T, IoError> {
-        token.parse::<T>().map_err(|_| self.error(format!("expected {what}, found `{token}`")))
+        token
+            .parse::<T>()
+            .map_err(|_| self.error(format!("expected {what}, found `{token}`")))
     }
 
     /// Parses a finite real number.
@@ -133,9 +140,9 @@ impl<'a> Cursor<'a> {
     ) -> Result<[T; N], IoError> {
         let mut out = [T::default(); N];
         for (k, slot) in out.iter_mut().enumerate() {
-            let tok = tokens.next().ok_or_else(|| {
-                self.error(format!("expected {N} values for {what}, found {k}"))
-            })?;
+            let tok = tokens
+                .next()
+                .ok_or_else(|| self.error(format!("expected {N} values for {what}, found {k}")))?;
             *slot = self.parse(tok, what)?;
         }
         Ok(out)
@@ -155,7 +162,10 @@ mod tests {
         assert_eq!(c.line(), 3);
         assert_eq!(c.expect_line("x").unwrap(), "last");
         let e = c.expect_line("the node count").unwrap_err();
-        assert_eq!(e.to_string(), "t.txt:4: unexpected end of file, expected the node count");
+        assert_eq!(
+            e.to_string(),
+            "t.txt:4: unexpected end of file, expected the node count"
+        );
     }
 
     #[test]

@@ -59,14 +59,20 @@ pub struct WriteOptions {
 
 impl Default for WriteOptions {
     fn default() -> Self {
-        Self { msh_version: MshVersion::V4, binary: true }
+        Self {
+            msh_version: MshVersion::V4,
+            binary: true,
+        }
     }
 }
 
 impl Format {
     /// The format named by a path's extension.
     pub fn from_path(path: &Path) -> Result<Self, IoError> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("obj") => Ok(Format::Obj),
             Some("stl") => Ok(Format::Stl),
@@ -190,7 +196,10 @@ fn check_indices(mesh: &MeshData, path: &Path) -> Result<(), IoError> {
             return Err(IoError::new(
                 path,
                 Location::File,
-                format!("vertex {v} has a non-finite coordinate ({}, {}, {})", p.x, p.y, p.z),
+                format!(
+                    "vertex {v} has a non-finite coordinate ({}, {}, {})",
+                    p.x, p.y, p.z
+                ),
             ));
         }
     }

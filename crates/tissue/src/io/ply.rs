@@ -1,5 +1,7 @@
 //! (being written)
-use std::path::Path;
 use crate::error::IoError;
 use crate::mesh::MeshData;
-pub fn parse(_b: &[u8], _p: &Path) -> Result<MeshData, IoError> { todo!() }
+use std::path::Path;
+pub fn parse(_b: &[u8], _p: &Path) -> Result<MeshData, IoError> {
+    todo!()
+}

@@ -25,7 +25,9 @@ pub fn boundary_surface(mesh: &TetMesh) -> Boundary {
     let mut count: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.tets.len() * 2);
     for tet in &mesh.tets {
         for f in TET_FACES {
-            *count.entry(sorted([tet[f[0]], tet[f[1]], tet[f[2]]])).or_insert(0) += 1;
+            *count
+                .entry(sorted([tet[f[0]], tet[f[1]], tet[f[2]]]))
+                .or_insert(0) += 1;
         }
     }
     let mut node_to_surface = vec![u32::MAX; mesh.vertices.len()];
@@ -55,7 +57,11 @@ pub fn boundary_surface(mesh: &TetMesh) -> Boundary {
         }
     }
     let vertices = nodes.iter().map(|&n| mesh.vertices[n as usize]).collect();
-    Boundary { surface: SurfaceMesh::new(vertices, triangles), nodes, face_tets }
+    Boundary {
+        surface: SurfaceMesh::new(vertices, triangles),
+        nodes,
+        face_tets,
+    }
 }
 
 #[inline]
@@ -71,7 +77,10 @@ mod tests {
 
     #[test]
     fn single_tet_boundary_is_outward_and_closed() {
-        let m = TetMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z], vec![[0, 1, 2, 3]]);
+        let m = TetMesh::new(
+            vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            vec![[0, 1, 2, 3]],
+        );
         let b = boundary_surface(&m);
         assert_eq!(b.surface.triangles.len(), 4);
         assert!((b.surface.signed_volume() - 1.0 / 6.0).abs() < 1e-15);

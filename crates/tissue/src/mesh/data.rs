@@ -46,12 +46,20 @@ pub struct MeshData {
 impl MeshData {
     /// A surface-only mesh.
     pub fn from_surface(s: &SurfaceMesh) -> Self {
-        Self { vertices: s.vertices.clone(), triangles: s.triangles.clone(), ..Self::default() }
+        Self {
+            vertices: s.vertices.clone(),
+            triangles: s.triangles.clone(),
+            ..Self::default()
+        }
     }
 
     /// A volume-only mesh.
     pub fn from_tets(t: &TetMesh) -> Self {
-        Self { vertices: t.vertices.clone(), tets: t.tets.clone(), ..Self::default() }
+        Self {
+            vertices: t.vertices.clone(),
+            tets: t.tets.clone(),
+            ..Self::default()
+        }
     }
 
     pub fn has_volume(&self) -> bool {
@@ -62,7 +70,9 @@ impl MeshData {
     /// Vertices are kept as they are (mid-edge nodes stay, unused).
     pub fn tet_mesh(&self, source_desc: &str) -> Result<TetMesh, MeshError> {
         if !self.has_volume() {
-            return Err(MeshError::NeedsVolume { source_desc: source_desc.to_string() });
+            return Err(MeshError::NeedsVolume {
+                source_desc: source_desc.to_string(),
+            });
         }
         let mut tets = self.tets.clone();
         tets.extend(self.tets10.iter().map(|t| [t[0], t[1], t[2], t[3]]));
@@ -78,7 +88,9 @@ impl MeshData {
             return Ok(boundary_surface(&tets).surface);
         }
         if self.triangles.is_empty() {
-            return Err(MeshError::Empty { what: "triangles or tetrahedra" });
+            return Err(MeshError::Empty {
+                what: "triangles or tetrahedra",
+            });
         }
         let s = SurfaceMesh::new(self.vertices.clone(), self.triangles.clone());
         s.validate_indices()?;

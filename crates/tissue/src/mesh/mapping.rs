@@ -11,7 +11,10 @@ pub enum SurfaceMapping {
     Nodes(Vec<u32>),
     /// Surface vertex i is Σ_k weights[i][k] · x[nodes[i][k]] (barycentric in a tetrahedron,
     /// or any other four-node interpolation). Weights sum to 1.
-    Embedded { nodes: Vec<[u32; 4]>, weights: Vec<[Real; 4]> },
+    Embedded {
+        nodes: Vec<[u32; 4]>,
+        weights: Vec<[Real; 4]>,
+    },
 }
 
 impl SurfaceMapping {
@@ -73,7 +76,9 @@ mod tests {
             nodes: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
             weights: vec![[0.1, 0.2, 0.3, 0.4], [0.25, 0.25, 0.25, 0.25]],
         };
-        let x: Vec<Vec3> = (0..5).map(|i| Vec3::new(i as f64, 1.0 - i as f64, 0.5 * i as f64)).collect();
+        let x: Vec<Vec3> = (0..5)
+            .map(|i| Vec3::new(i as f64, 1.0 - i as f64, 0.5 * i as f64))
+            .collect();
         let f = vec![Vec3::new(1.0, -2.0, 0.5), Vec3::new(0.3, 0.7, -1.1)];
         let mut s = vec![Vec3::ZERO; 2];
         m.apply(&x, &mut s);

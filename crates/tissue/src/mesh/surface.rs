@@ -13,7 +13,10 @@ pub struct SurfaceMesh {
 
 impl SurfaceMesh {
     pub fn new(vertices: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Self {
-        Self { vertices, triangles }
+        Self {
+            vertices,
+            triangles,
+        }
     }
 
     /// Checks indices and coordinates; the cheapest checks every consumer relies on.
@@ -30,7 +33,11 @@ impl SurfaceMesh {
     #[inline]
     pub fn corners(&self, t: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[t];
-        [self.vertices[a as usize], self.vertices[b as usize], self.vertices[c as usize]]
+        [
+            self.vertices[a as usize],
+            self.vertices[b as usize],
+            self.vertices[c as usize],
+        ]
     }
 
     /// Total area, in m².
@@ -76,7 +83,11 @@ pub fn signed_volume_of(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Real {
     triangles
         .iter()
         .map(|&[a, b, c]| {
-            let (a, b, c) = (vertices[a as usize], vertices[b as usize], vertices[c as usize]);
+            let (a, b, c) = (
+                vertices[a as usize],
+                vertices[b as usize],
+                vertices[c as usize],
+            );
             a.dot(b.cross(c))
         })
         .sum::<Real>()
@@ -85,13 +96,22 @@ pub fn signed_volume_of(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Real {
 
 pub(crate) fn bounds_of(vertices: &[Vec3]) -> Option<(Vec3, Vec3)> {
     let first = *vertices.first()?;
-    Some(vertices.iter().fold((first, first), |(lo, hi), &v| (lo.min(v), hi.max(v))))
+    Some(
+        vertices
+            .iter()
+            .fold((first, first), |(lo, hi), &v| (lo.min(v), hi.max(v))),
+    )
 }
 
 pub(crate) fn validate_vertices(vertices: &[Vec3]) -> Result<(), MeshError> {
     for (i, v) in vertices.iter().enumerate() {
         if !crate::math::is_finite_vec(*v) {
-            return Err(MeshError::NonFiniteVertex { vertex: i, x: v.x, y: v.y, z: v.z });
+            return Err(MeshError::NonFiniteVertex {
+                vertex: i,
+                x: v.x,
+                y: v.y,
+                z: v.z,
+            });
         }
     }
     Ok(())
@@ -113,7 +133,11 @@ pub(crate) fn check_element(
             });
         }
         if ids[..k].contains(&i) {
-            return Err(MeshError::RepeatedVertex { element_kind, element, vertex: i as usize });
+            return Err(MeshError::RepeatedVertex {
+                element_kind,
+                element,
+                vertex: i as usize,
+            });
         }
     }
     Ok(())

@@ -42,7 +42,11 @@ impl TetMesh {
                 .map(|e| e.length())
                 .fold(0.0, Real::max);
             if v.abs() <= 1e-12 * l * l * l {
-                return Err(MeshError::DegenerateTet { tet: t, volume: v, quality: 0.0 });
+                return Err(MeshError::DegenerateTet {
+                    tet: t,
+                    volume: v,
+                    quality: 0.0,
+                });
             }
             if v < 0.0 {
                 return Err(MeshError::InvertedTet { tet: t, volume: v });
