@@ -1,1 +1,108 @@
-fn main() {}
+//! `tissue`: run, inspect and convert deformable tissue models from the command line.
+
+mod demo;
+mod mesh_cmd;
+mod run;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+
+/// Real-time deformable models of soft tissue for surgery simulation.
+#[derive(Parser, Debug)]
+#[command(name = "tissue", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run a scene file: writes a VTU time series (+ .pvd for ParaView), forces.csv and
+    /// summary.json into the output directory.
+    Run(RunArgs),
+    /// Run the built-in liver scene (a probe pressing on a liver held at its ligaments) and
+    /// print a short summary.
+    Demo(DemoArgs),
+    /// Inspect, convert and repair mesh files.
+    #[command(subcommand)]
+    Mesh(MeshCommand),
+    /// List the model kinds built in: name, then a one-line description.
+    Models,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// Output directory (created if missing).
+    #[arg(long, short, default_value = "out")]
+    pub out: PathBuf,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    /// Also write the run's outputs (VTU series, forces.csv, summary.json) here.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Print the built-in scene file and exit.
+    #[arg(long)]
+    pub print_scene: bool,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum MeshCommand {
+    /// Counts, bounds, volume, quality histogram and problems of a mesh file.
+    Inspect {
+        file: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Convert between formats (chosen by the extensions): .obj .stl .ply(read) .msh .vtk .vtu .mesh
+    Convert {
+        input: PathBuf,
+        output: PathBuf,
+        /// Gmsh version to write: 2 or 4 (4.1).
+        #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(2..=4))]
+        msh_version: u8,
+        /// Write text where the format also has binary (STL, VTU).
+        #[arg(long)]
+        ascii: bool,
+    },
+    /// Merge duplicate vertices, drop unused ones and degenerate or duplicate elements, and
+    /// orient everything outward; prints what was fixed.
+    Repair {
+        input: PathBuf,
+        output: PathBuf,
+        /// Distance below which vertices are merged, relative to the bounding-box diagonal.
+        #[arg(long, default_value_t = 1e-9)]
+        tolerance: f64,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run(args) => run::run(&args),
+        Command::Demo(args) => demo::demo(&args),
+        Command::Mesh(cmd) => mesh_cmd::mesh(&cmd),
+        Command::Models => {
+            for k in tissue::model::KINDS {
+                println!("{:<26} {}", k.name, k.summary);
+            }
+            Ok(())
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
