@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Every check CI runs, in the order CI runs them. Run it before pushing.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+echo "== format"
+cargo fmt --all -- --check
+
+echo "== lint"
+cargo clippy --workspace --all-targets --locked -- -D warnings
+
+echo "== tests (release: faer's generic code is very slow unoptimised)"
+cargo test --release --workspace --locked
+
+echo "== benches compile"
+cargo bench --workspace --locked --no-run
