@@ -57,9 +57,9 @@ pub fn parse_with_report(bytes: &[u8], path: &Path) -> Result<(MeshData, MshRepo
             match (major, version, file_type) {
                 ("2", _, 0 | 1) => v2::parse(&mut c, bytes.len(), file_type == 1),
                 (_, "4.1", 0) => v4::parse(&mut c, bytes.len()),
-                (_, "4.1", _) => Err(c.error(
-                    "binary Gmsh 4.1 is not supported; save as ascii 4.1 or as 2.2",
-                )),
+                (_, "4.1", _) => {
+                    Err(c.error("binary Gmsh 4.1 is not supported; save as ascii 4.1 or as 2.2"))
+                }
                 _ => Err(c.error(format!(
                     "Gmsh format version `{version}` (file type {file_type}) is not supported; \
                      supported: 1, 2.x ascii and binary, 4.1 ascii"

@@ -58,7 +58,11 @@ fn binary_v2_unknown_type_is_an_error_at_its_byte() {
         f.extend(v.to_le_bytes());
     }
     let e = parse(&f, p()).unwrap_err();
-    assert!(e.to_string().starts_with(&format!("t.msh: byte {at}: unknown element type 77")), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with(&format!("t.msh: byte {at}: unknown element type 77")),
+        "{e}"
+    );
 }
 
 #[test]

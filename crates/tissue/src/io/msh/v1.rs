@@ -48,8 +48,7 @@ pub(super) fn read_nodes(
         let mut tok = l.split_ascii_whitespace();
         let id: i64 = c.parse(tok.next().unwrap_or(""), "a node id")?;
         let [x, y, z] = read_xyz(c, &mut tok)?;
-        b.add_node(id, Vec3::new(x, y, z))
-            .map_err(|m| c.error(m))?;
+        b.add_node(id, Vec3::new(x, y, z)).map_err(|m| c.error(m))?;
     }
     expect_marker(c, end)
 }
@@ -81,8 +80,10 @@ fn read_elements(c: &mut Cursor<'_>, b: &mut Builder) -> Result<(), IoError> {
             )));
         }
         let mut tok = l.split_ascii_whitespace();
-        let [_id, ty, phys, _elem, count]: [i64; 5] =
-            c.parse_n(&mut tok, "an element header `id type physical elementary nodes`")?;
+        let [_id, ty, phys, _elem, count]: [i64; 5] = c.parse_n(
+            &mut tok,
+            "an element header `id type physical elementary nodes`",
+        )?;
         let ty = i32::try_from(ty).map_err(|_| c.error(format!("bad element type {ty}")))?;
         let phys = i32::try_from(phys)
             .map_err(|_| c.error(format!("physical region {phys} is out of range")))?;

@@ -54,7 +54,9 @@ pub(super) fn parse(
             return Err(IoError::new(
                 c.path(),
                 crate::error::Location::Byte(at as u64),
-                format!("the binary endianness check should be the integer 1, found bytes {raw:02x?}"),
+                format!(
+                    "the binary endianness check should be the integer 1, found bytes {raw:02x?}"
+                ),
             ));
         };
         c.skip_newline();
@@ -103,7 +105,9 @@ fn ascii_elements(c: &mut Cursor<'_>, b: &mut Builder) -> Result<(), IoError> {
         let mut phys = None;
         for k in 0..ntags.max(0) {
             let t = tok.next().ok_or_else(|| {
-                c.error(format!("the element declares {ntags} tags but has only {k}"))
+                c.error(format!(
+                    "the element declares {ntags} tags but has only {k}"
+                ))
             })?;
             let v: i32 = c.parse(t, "an integer tag")?;
             if k == 0 {
@@ -119,12 +123,7 @@ fn ascii_elements(c: &mut Cursor<'_>, b: &mut Builder) -> Result<(), IoError> {
     expect_marker(c, "$EndElements")
 }
 
-fn binary_nodes(
-    c: &mut Cursor<'_>,
-    b: &mut Builder,
-    len: usize,
-    e: Endian,
-) -> Result<(), IoError> {
+fn binary_nodes(c: &mut Cursor<'_>, b: &mut Builder, len: usize, e: Endian) -> Result<(), IoError> {
     let n = read_count(c, "the node count")?;
     b.reserve_nodes(capped(n, len - c.position(), 28));
     for _ in 0..n {
@@ -133,7 +132,11 @@ fn binary_nodes(
         let id = e.i32(r);
         let p = [e.f64(&r[4..]), e.f64(&r[12..]), e.f64(&r[20..])];
         if p.iter().any(|v| !v.is_finite()) {
-            return Err(byte_error(c, at, format!("node {id} has a non-finite coordinate")));
+            return Err(byte_error(
+                c,
+                at,
+                format!("node {id} has a non-finite coordinate"),
+            ));
         }
         b.add_node(i64::from(id), Vec3::from_array(p))
             .map_err(|m| byte_error(c, at, m))?;
@@ -153,12 +156,18 @@ fn binary_elements(c: &mut Cursor<'_>, b: &mut Builder, e: Endian) -> Result<(),
         let nn = node_count(ty).ok_or_else(|| {
             byte_error(c, at, format!("unknown element type {ty}: its node count is unknown, so the binary block cannot be skipped"))
         })?;
-        let count = usize::try_from(count).ok().filter(|&k| k > 0 && k <= n - done);
+        let count = usize::try_from(count)
+            .ok()
+            .filter(|&k| k > 0 && k <= n - done);
         let (Some(count), Ok(ntags)) = (count, usize::try_from(ntags)) else {
             return Err(byte_error(
                 c,
                 at,
-                format!("bad element block header: type {ty}, {} elements, {ntags} tags ({} of {n} elements left)", e.i32(&h[4..]), n - done),
+                format!(
+                    "bad element block header: type {ty}, {} elements, {ntags} tags ({} of {n} elements left)",
+                    e.i32(&h[4..]),
+                    n - done
+                ),
             ));
         };
         let ints = 1 + ntags + nn;
@@ -167,8 +176,13 @@ fn binary_elements(c: &mut Cursor<'_>, b: &mut Builder, e: Endian) -> Result<(),
             let r = c.take(ints.saturating_mul(4))?;
             let phys = (ntags > 0).then(|| e.i32(&r[4..]));
             nodes.clear();
-            nodes.extend(r[4 * (1 + ntags)..].chunks_exact(4).map(|q| i64::from(e.i32(q))));
-            b.add_element(ty, phys, &nodes).map_err(|m| byte_error(c, at, m))?;
+            nodes.extend(
+                r[4 * (1 + ntags)..]
+                    .chunks_exact(4)
+                    .map(|q| i64::from(e.i32(q))),
+            );
+            b.add_element(ty, phys, &nodes)
+                .map_err(|m| byte_error(c, at, m))?;
         }
         done += count;
     }

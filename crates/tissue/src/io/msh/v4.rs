@@ -90,7 +90,10 @@ fn nodes(c: &mut Cursor<'_>, b: &mut Builder, len: usize) -> Result<(), IoError>
                 tags.push(c.parse(t, "a node tag")?);
             }
             if tags.len() > n {
-                return Err(c.error(format!("the block declares {n} nodes but lists {} tags", tags.len())));
+                return Err(c.error(format!(
+                    "the block declares {n} nodes but lists {} tags",
+                    tags.len()
+                )));
             }
         }
         for &id in &tags {
@@ -101,7 +104,9 @@ fn nodes(c: &mut Cursor<'_>, b: &mut Builder, len: usize) -> Result<(), IoError>
         seen += n;
     }
     if seen != total {
-        return Err(c.error(format!("the header declares {total} nodes but the blocks hold {seen}")));
+        return Err(c.error(format!(
+            "the header declares {total} nodes but the blocks hold {seen}"
+        )));
     }
     expect_marker(c, "$EndNodes")
 }

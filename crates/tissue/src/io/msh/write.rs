@@ -28,15 +28,30 @@ fn elements(mesh: &MeshData) -> Vec<Elem> {
     for (i, t) in mesh.triangles.iter().enumerate() {
         let mut nodes = [0; 10];
         nodes[..3].copy_from_slice(t);
-        out.push(Elem { ty: 2, phys: tag(&mesh.triangle_tags, i), nodes, n: 3 });
+        out.push(Elem {
+            ty: 2,
+            phys: tag(&mesh.triangle_tags, i),
+            nodes,
+            n: 3,
+        });
     }
     for (i, t) in mesh.tets.iter().enumerate() {
         let mut nodes = [0; 10];
         nodes[..4].copy_from_slice(t);
-        out.push(Elem { ty: 4, phys: tag(&mesh.tet_tags, i), nodes, n: 4 });
+        out.push(Elem {
+            ty: 4,
+            phys: tag(&mesh.tet_tags, i),
+            nodes,
+            n: 4,
+        });
     }
     for t in &mesh.tets10 {
-        out.push(Elem { ty: 11, phys: 0, nodes: swap_tet10_order(*t), n: 10 });
+        out.push(Elem {
+            ty: 11,
+            phys: 0,
+            nodes: swap_tet10_order(*t),
+            n: 10,
+        });
     }
     out
 }
@@ -70,7 +85,14 @@ pub(super) fn encode_v2(mesh: &MeshData) -> Result<Vec<u8>, String> {
     let elems = elements(mesh);
     let _ = writeln!(out, "{}", elems.len());
     for (i, e) in elems.iter().enumerate() {
-        let _ = write!(out, "{} {} 2 {} {}", i + 1, e.ty, e.phys, elementary(e.phys));
+        let _ = write!(
+            out,
+            "{} {} 2 {} {}",
+            i + 1,
+            e.ty,
+            e.phys,
+            elementary(e.phys)
+        );
         for &v in e.nodes() {
             let _ = write!(out, " {}", u64::from(v) + 1);
         }
@@ -82,7 +104,8 @@ pub(super) fn encode_v2(mesh: &MeshData) -> Result<Vec<u8>, String> {
 
 /// Gmsh v2.2 binary, little-endian: the same content as the ascii writer.
 pub fn encode_v2_binary(mesh: &MeshData) -> Result<Vec<u8>, String> {
-    let int = |v: usize| i32::try_from(v).map_err(|_| format!("{v} does not fit a Gmsh binary int"));
+    let int =
+        |v: usize| i32::try_from(v).map_err(|_| format!("{v} does not fit a Gmsh binary int"));
     let mut out = b"$MeshFormat\n2.2 1 8\n".to_vec();
     out.extend(1i32.to_le_bytes());
     out.extend(b"\n$EndMeshFormat\n$Nodes\n");
@@ -126,7 +149,12 @@ fn entity_tags(phys: impl Iterator<Item = i32>) -> Vec<(i32, i32)> {
             distinct.push(p);
         }
     }
-    let mut next = distinct.iter().copied().filter(|&p| p > 0).max().unwrap_or(0);
+    let mut next = distinct
+        .iter()
+        .copied()
+        .filter(|&p| p > 0)
+        .max()
+        .unwrap_or(0);
     distinct
         .into_iter()
         .map(|p| {
@@ -150,7 +178,9 @@ pub(super) fn encode_v4(mesh: &MeshData) -> Result<Vec<u8>, String> {
     }
     let entity_of = |d: i32, phys: i32| {
         let list = if d == 2 { &surfaces } else { &volumes };
-        list.iter().find(|&&(_, p)| p == phys).map_or(1, |&(t, _)| t)
+        list.iter()
+            .find(|&&(_, p)| p == phys)
+            .map_or(1, |&(t, _)| t)
     };
 
     let (lo, hi) = bounds(mesh);
@@ -198,7 +228,10 @@ pub(super) fn encode_v4(mesh: &MeshData) -> Result<Vec<u8>, String> {
     let mut start = 0;
     while start < elems.len() {
         let (ty, phys) = (elems[start].ty, elems[start].phys);
-        let len = elems[start..].iter().take_while(|e| e.ty == ty && e.phys == phys).count();
+        let len = elems[start..]
+            .iter()
+            .take_while(|e| e.ty == ty && e.phys == phys)
+            .count();
         blocks.push((start, len));
         start += len;
     }
