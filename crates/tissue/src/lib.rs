@@ -12,6 +12,7 @@ pub mod material;
 pub mod math;
 pub mod mesh;
 pub mod model;
+pub mod solve;
 
 pub use error::{Error, IoError, MeshError, SceneError, SimError};
 pub use material::Material;

@@ -1,36 +1,32 @@
-//! (being written)
-use crate::error::Error;
-use crate::model::BuildInput;
-pub struct FemStatic;
-impl FemStatic {
-    pub fn from_input(_i: &BuildInput<'_>) -> Result<Self, Error> {
-        todo!()
-    }
-}
-impl crate::model::Deformable for FemStatic {
-    fn kind(&self) -> &'static str {
-        "fem-static"
-    }
-    fn surface(&self) -> crate::model::SurfaceView<'_> {
-        todo!()
-    }
-    fn rest_surface(&self) -> &[crate::Vec3] {
-        todo!()
-    }
-    fn set_constraints(&mut self, _: &crate::interact::Constraints) -> Result<(), crate::SimError> {
-        todo!()
-    }
-    fn set_loads(&mut self, _: &crate::interact::Loads) -> Result<(), crate::SimError> {
-        todo!()
-    }
-    fn step(&mut self, _: f64) -> Result<crate::model::StepInfo, crate::SimError> {
-        todo!()
-    }
-    fn reactions(&self) -> crate::model::Reactions<'_> {
-        todo!()
-    }
-    fn reset(&mut self) {}
-    fn info(&self) -> crate::model::ModelInfo {
-        todo!()
-    }
-}
+//! `fem-static`: linear elastostatics on tetrahedra, the reference every other model is
+//! compared with.
+//!
+//! It solves K u = f (eq. (4) of the survey): small strains, linear isotropic elasticity,
+//! 4-node (constant strain) or 10-node (linear strain) tetrahedra, constraints eliminated,
+//! sparse Cholesky factorised once per set of constrained vertices. Because the strain is
+//! linearised, large rotations are not rigid: a rotated body gains volume and spurious
+//! stress (the corotational and hyperelastic models fix that). It cannot cut: its matrix and
+//! factorisation are built for a fixed topology.
+//!
+//! - `element_linear`: the 4-node tetrahedron (gradients, B and D, 12×12 stiffness, body load)
+//! - `element_quadratic`: the 10-node tetrahedron (VTK order, 4-point rule, 30×30 stiffness)
+//! - `quadratic_mesh`: 10-node mesh from a linear one (one node per unique edge)
+//! - `assembly`: sparsity pattern once, element-to-slot table, scatter-add
+//! - `system`: constraint elimination keeping the pattern, factorisation cache, rigid-mode check
+//! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
+
+mod assembly;
+mod deformable_impl;
+pub mod element_linear;
+pub mod element_quadratic;
+pub mod quadratic_mesh;
+mod static_model;
+mod system;
+
+pub use assembly::Assembler;
+pub use quadratic_mesh::QuadraticMesh;
+pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};
+pub use system::DofProblem;
+
+#[cfg(test)]
+mod tests;
