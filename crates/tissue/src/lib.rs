@@ -12,6 +12,8 @@ pub mod material;
 pub mod math;
 pub mod mesh;
 pub mod model;
+pub mod scene;
+pub mod sim;
 pub mod solve;
 
 pub use error::{Error, IoError, MeshError, SceneError, SimError};

@@ -1,8 +1,16 @@
 //! Instruments and their contact with the surface: constraints, regions, the probe,
 //! contact detection with a bounding-volume hierarchy.
 
+pub mod bvh;
 pub mod constraints;
+pub mod contact;
+pub mod instrument;
 pub mod region;
+pub mod trajectory;
 
+pub use bvh::Bvh;
 pub use constraints::{Constraints, Loads, Prescribed};
+pub use contact::Contact;
+pub use instrument::{Instrument, InstrumentKind};
 pub use region::Region;
+pub use trajectory::{Keyframe, Trajectory, TrajectoryError};

@@ -1,0 +1,407 @@
+//! A running simulation: one model, its fixed vertices and loads, the instruments that touch
+//! it, and the clock.
+//!
+//! Each step moves the instruments along their paths, lets scalpels cut, refits the contact
+//! hierarchy, turns touched vertices into prescribed ones and steps the model. Static models
+//! get an active-set loop inside the step (add vertices that now penetrate a probe, release
+//! contacts that would pull the probe in) so that no vertex is left inside a probe and no
+//! contact is adhesive. A failed step leaves time and instruments as they were.
+
+use crate::error::SimError;
+use crate::interact::bvh::Bvh;
+use crate::interact::contact::{
+    Contact, PENETRATION_TOLERANCE, is_adhesive, project_to_sphere, vertices_in_ball,
+};
+use crate::interact::instrument::{Instrument, InstrumentKind};
+use crate::interact::{Constraints, Loads, Prescribed};
+use crate::math::{Real, Vec3};
+use crate::model::{Deformable, StepInfo};
+
+/// Default cap of the static contact loop (solves per step).
+pub const DEFAULT_CONTACT_ITERATIONS: usize = 8;
+
+/// What one simulation step did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepReport {
+    /// Time after the step, in s.
+    pub time: Real,
+    /// Number of steps done, this one included.
+    pub step: u64,
+    /// Vertices held by each instrument.
+    pub contacts: Vec<usize>,
+    /// Force on each instrument, in N.
+    pub forces: Vec<Vec3>,
+    /// Model solves in this step (1 for dynamic models).
+    pub contact_iterations: usize,
+    /// False when the static contact loop hit its cap with the contact set still changing.
+    pub contact_converged: bool,
+    /// The last inner solve.
+    pub info: StepInfo,
+}
+
+/// A model with its supports, loads, instruments and clock.
+pub struct Simulation {
+    model: Box<dyn Deformable>,
+    fixed: Vec<u32>,
+    loads: Loads,
+    instruments: Vec<Instrument>,
+    time: Real,
+    steps: u64,
+    bvh: Bvh,
+    is_static: bool,
+    max_contact_iterations: usize,
+    /// The constraints the model holds now (restored when a step fails).
+    constraints: Constraints,
+}
+
+impl Simulation {
+    /// Fixes `fixed` (surface vertices, kept at rest) and applies `loads`.
+    pub fn new(
+        mut model: Box<dyn Deformable>,
+        fixed: Vec<u32>,
+        loads: Loads,
+    ) -> Result<Self, SimError> {
+        let constraints = Constraints::fixed(fixed.clone());
+        model.set_constraints(&constraints)?;
+        model.set_loads(&loads)?;
+        let s = model.surface();
+        let bvh = Bvh::build(s.positions, s.triangles);
+        let is_static = model.info().is_static;
+        Ok(Self {
+            model,
+            fixed,
+            loads,
+            instruments: Vec::new(),
+            time: 0.0,
+            steps: 0,
+            bvh,
+            is_static,
+            max_contact_iterations: DEFAULT_CONTACT_ITERATIONS,
+            constraints,
+        })
+    }
+
+    /// Adds an instrument, placed where its path is now.
+    pub fn add_instrument(&mut self, mut instrument: Instrument) {
+        instrument.position = instrument.position_at(self.time);
+        self.instruments.push(instrument);
+    }
+
+    /// Caps the solves per step of the static contact loop (at least 1).
+    pub fn set_max_contact_iterations(&mut self, n: usize) {
+        self.max_contact_iterations = n.max(1);
+    }
+
+    pub fn max_contact_iterations(&self) -> usize {
+        self.max_contact_iterations
+    }
+
+    /// Replaces the loads (gravity, point loads).
+    pub fn set_loads(&mut self, loads: Loads) -> Result<(), SimError> {
+        self.model.set_loads(&loads)?;
+        self.loads = loads;
+        Ok(())
+    }
+
+    pub fn time(&self) -> Real {
+        self.time
+    }
+
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    pub fn model(&self) -> &dyn Deformable {
+        self.model.as_ref()
+    }
+
+    /// The model, e.g. to reset it. Changing its constraints here is undone by the next step.
+    pub fn model_mut(&mut self) -> &mut dyn Deformable {
+        self.model.as_mut()
+    }
+
+    pub fn fixed(&self) -> &[u32] {
+        &self.fixed
+    }
+
+    pub fn loads(&self) -> &Loads {
+        &self.loads
+    }
+
+    pub fn instruments(&self) -> &[Instrument] {
+        &self.instruments
+    }
+
+    /// Force on each instrument after the last step, in N.
+    pub fn instrument_forces(&self) -> Vec<Vec3> {
+        self.instruments.iter().map(|i| i.force).collect()
+    }
+
+    /// Sum of the reactions at the fixed vertices after the last step, in N.
+    pub fn fixed_reaction_total(&self) -> Vec3 {
+        self.model.reactions().fixed.iter().copied().sum()
+    }
+
+    /// Moves instrument `index` to a live position from the next step on (viewer, haptic
+    /// device); `None` returns it to its path.
+    pub fn set_instrument_position(
+        &mut self,
+        index: usize,
+        position: Option<Vec3>,
+    ) -> Result<(), SimError> {
+        let count = self.instruments.len();
+        let bad = |reason: String| SimError::BadParameter {
+            name: "instrument",
+            value: index.to_string(),
+            reason,
+        };
+        if position.is_some_and(|p| !crate::math::is_finite_vec(p)) {
+            return Err(bad("the position is not finite".into()));
+        }
+        let inst = self
+            .instruments
+            .get_mut(index)
+            .ok_or_else(|| bad(format!("there are {count} instruments")))?;
+        inst.set_live_position(position);
+        Ok(())
+    }
+
+    /// Advances by `dt` seconds. On error, time and instruments stay as they were and the
+    /// model gets its previous constraints back.
+    pub fn step(&mut self, dt: Real) -> Result<StepReport, SimError> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(SimError::BadTimeStep { dt });
+        }
+        let mut next = self.instruments.clone();
+        match self.advance(dt, &mut next) {
+            Ok(report) => {
+                self.instruments = next;
+                self.time = report.time;
+                self.steps = report.step;
+                Ok(report)
+            }
+            Err(e) => {
+                // Best effort: the model already kept its last good state; give it back the
+                // constraints that belong to that state.
+                let _ = self.model.set_constraints(&self.constraints);
+                Err(e)
+            }
+        }
+    }
+
+    fn advance(&mut self, dt: Real, next: &mut [Instrument]) -> Result<StepReport, SimError> {
+        let t1 = self.time + dt;
+        for (inst, old) in next.iter_mut().zip(&self.instruments) {
+            inst.position = inst.position_at(t1);
+            if let Some(cut) = inst.sweep(old.position) {
+                self.model.cut(&cut)?;
+            }
+        }
+        self.refresh_bvh();
+        let n = self.model.surface().positions.len();
+        let mut taken = vec![false; n];
+        for &v in &self.fixed {
+            if let Some(t) = taken.get_mut(v as usize) {
+                *t = true;
+            }
+        }
+        self.place_contacts(t1, next, &mut taken);
+
+        let cap = if self.is_static {
+            self.max_contact_iterations.max(1)
+        } else {
+            1
+        };
+        let mut iterations = 0;
+        let mut converged = true;
+        let info = loop {
+            iterations += 1;
+            let constraints = self.constraints_for(next);
+            self.model.set_constraints(&constraints)?;
+            let info = self.model.step(dt)?;
+            self.constraints = constraints;
+            self.refresh_bvh();
+            self.collect_forces(next);
+            if !self.is_static {
+                break info;
+            }
+            let changed = self.update_active_set(next, &mut taken);
+            if !changed {
+                break info;
+            }
+            if iterations >= cap {
+                converged = false;
+                break info;
+            }
+        };
+        Ok(StepReport {
+            time: t1,
+            step: self.steps + 1,
+            contacts: next.iter().map(|i| i.contacts.len()).collect(),
+            forces: next.iter().map(|i| i.force).collect(),
+            contact_iterations: iterations,
+            contact_converged: converged,
+            info,
+        })
+    }
+
+    fn refresh_bvh(&mut self) {
+        let s = self.model.surface();
+        if s.triangles.len() == self.bvh.triangle_count() {
+            self.bvh.refit(s.positions, s.triangles);
+        } else {
+            self.bvh = Bvh::build(s.positions, s.triangles);
+        }
+    }
+
+    /// The contact sets at the start of a step, from the surface as the last step left it.
+    fn place_contacts(&self, t1: Real, next: &mut [Instrument], taken: &mut [bool]) {
+        let s = self.model.surface();
+        let (positions, triangles) = (s.positions, s.triangles);
+        for (inst, old) in next.iter_mut().zip(&self.instruments) {
+            let (c, r) = (inst.position, inst.radius());
+            match *inst.kind() {
+                InstrumentKind::Probe => {
+                    // Keep the previous contacts still on the sphere that did not stick, so a
+                    // resting probe does not let go and grab again every step.
+                    let scale = force_scale(&old.reactions);
+                    let mut contacts: Vec<Contact> = old
+                        .contacts
+                        .iter()
+                        .zip(&old.reactions)
+                        .filter(|(k, f)| {
+                            !is_taken(taken, k.vertex)
+                                && !is_adhesive(**f, k.target, old.position, scale)
+                        })
+                        .filter_map(|(k, _)| {
+                            let p = *positions.get(k.vertex as usize)?;
+                            (p.distance(c) <= r * (1.0 + PENETRATION_TOLERANCE)).then(|| Contact {
+                                vertex: k.vertex,
+                                target: project_to_sphere(p, c, r, k.target - old.position),
+                            })
+                        })
+                        .collect();
+                    mark(taken, &contacts);
+                    let fresh = vertices_in_ball(&self.bvh, positions, triangles, c, r, &|v| {
+                        is_taken(taken, v)
+                    });
+                    mark(taken, &fresh);
+                    contacts.extend(fresh);
+                    contacts.sort_unstable_by_key(|k| k.vertex);
+                    inst.contacts = contacts;
+                }
+                InstrumentKind::Grasper {
+                    grasp_at,
+                    release_at,
+                } => {
+                    if !inst.grasp_done && t1 >= grasp_at {
+                        inst.grasp_done = true;
+                        let inside = vertices_in_ball(&self.bvh, positions, triangles, c, r, &|v| {
+                            is_taken(taken, v)
+                        });
+                        inst.grasped = inside
+                            .iter()
+                            .map(|k| (k.vertex, positions[k.vertex as usize] - c))
+                            .collect();
+                    }
+                    if release_at.is_some_and(|t| t1 >= t) {
+                        inst.grasped.clear();
+                    }
+                    inst.contacts = inst
+                        .grasped
+                        .iter()
+                        .filter(|(v, _)| !is_taken(taken, *v))
+                        .map(|&(vertex, offset)| Contact {
+                            vertex,
+                            target: c + offset,
+                        })
+                        .collect();
+                    mark(taken, &inst.contacts);
+                }
+                InstrumentKind::Scalpel { .. } => inst.contacts.clear(),
+            }
+            inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
+        }
+    }
+
+    /// Fixed vertices plus every instrument's contacts, in instrument order.
+    fn constraints_for(&self, next: &[Instrument]) -> Constraints {
+        Constraints {
+            fixed: self.fixed.clone(),
+            prescribed: next
+                .iter()
+                .flat_map(|i| &i.contacts)
+                .map(|k| Prescribed {
+                    vertex: k.vertex,
+                    position: k.target,
+                })
+                .collect(),
+        }
+    }
+
+    /// Splits the prescribed reactions among the instruments and sums them.
+    fn collect_forces(&self, next: &mut [Instrument]) {
+        let all = self.model.reactions().prescribed;
+        let mut at = 0;
+        for inst in next.iter_mut() {
+            let n = inst.contacts.len();
+            inst.reactions = (at..at + n)
+                .map(|j| all.get(j).copied().unwrap_or(Vec3::ZERO))
+                .collect();
+            inst.force = inst.reactions.iter().copied().sum();
+            at += n;
+        }
+    }
+
+    /// One round of the static active set: release adhesive probe contacts, add vertices
+    /// that now penetrate a probe. Returns whether anything changed.
+    fn update_active_set(&self, next: &mut [Instrument], taken: &mut [bool]) -> bool {
+        let s = self.model.surface();
+        let mut changed = false;
+        for inst in next.iter_mut() {
+            if *inst.kind() != InstrumentKind::Probe {
+                continue;
+            }
+            let (c, r) = (inst.position, inst.radius());
+            let scale = force_scale(&inst.reactions);
+            let before = inst.contacts.len();
+            let mut kept = Vec::with_capacity(before);
+            for (k, f) in inst.contacts.iter().zip(&inst.reactions) {
+                if is_adhesive(*f, k.target, c, scale) {
+                    if let Some(t) = taken.get_mut(k.vertex as usize) {
+                        *t = false;
+                    }
+                } else {
+                    kept.push(*k);
+                }
+            }
+            let fresh = vertices_in_ball(&self.bvh, s.positions, s.triangles, c, r, &|v| {
+                is_taken(taken, v)
+            });
+            changed |= kept.len() != before || !fresh.is_empty();
+            mark(taken, &fresh);
+            kept.extend(fresh);
+            kept.sort_unstable_by_key(|k| k.vertex);
+            inst.contacts = kept;
+            inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
+        }
+        changed
+    }
+}
+
+fn is_taken(taken: &[bool], v: u32) -> bool {
+    taken.get(v as usize).copied().unwrap_or(true)
+}
+
+fn mark(taken: &mut [bool], contacts: &[Contact]) {
+    for k in contacts {
+        if let Some(t) = taken.get_mut(k.vertex as usize) {
+            *t = true;
+        }
+    }
+}
+
+/// The largest contact force magnitude: the scale below which a pull is rounding.
+fn force_scale(reactions: &[Vec3]) -> Real {
+    reactions.iter().map(|f| f.length()).fold(0.0, Real::max)
+}
