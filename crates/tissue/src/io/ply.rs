@@ -160,8 +160,11 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
             };
             match role {
                 Role::Vertex([x, y, z]) => {
-                    mesh.vertices
-                        .push(Vec3::new(rec.scalar(x), rec.scalar(y), rec.scalar(z)))
+                    let v = Vec3::new(rec.scalar(x), rec.scalar(y), rec.scalar(z));
+                    if !crate::math::is_finite_vec(v) {
+                        return Err(err(format!("vertex {i} has a non-finite coordinate")));
+                    }
+                    mesh.vertices.push(v);
                 }
                 Role::Face(p) => {
                     let poly = rec.indices(p).map_err(|m| err(format!("face {i}: {m}")))?;
