@@ -122,7 +122,12 @@ property list uint uint vertex_indices\nend_header\n\xff\xff\xff\xff\0\0\0\0";
 
 #[test]
 fn header_and_data_errors_name_the_line() {
-    let cases: [(&[u8], &str); 8] = [
+    let cases: [(&[u8], &str); 9] = [
+        (
+            b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+property float z\nend_header\n0 0 0\n\n0 nan 0\n",
+            "t.ply:10: vertex 1 has a non-finite coordinate",
+        ),
         (b"plx\nformat ascii 1.0\nend_header\n", "t.ply:1:"),
         (b"ply\nformat ascii 1.0\nelement vertex 1\nproperty flot x\nend_header\n", "t.ply:4:"),
         (b"ply\nformat ascii 1.0\nelement vertex x\n", "t.ply:3:"),
