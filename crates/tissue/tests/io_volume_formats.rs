@@ -287,7 +287,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
         "a.msh",
     );
     assert_starts(&e, "a.msh:7: unexpected end of file, expected a node line");
-    // $EndNodes too early, on line 7.
+    // $EndNodes too early, on line 8.
     let e = err(
         Format::Msh,
         v2_text("3\n1 0 0 0\n2 1 0 0\n", "0\n").as_bytes(),
@@ -295,7 +295,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     );
     assert_starts(
         &e,
-        "b.msh:7: the section declares 3 nodes but `$EndNodes` follows node 2",
+        "b.msh:8: the section declares 3 nodes but `$EndNodes` follows node 2",
     );
     // Missing $EndElements: the file ends on line 12.
     let f = format!(
@@ -303,7 +303,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     );
     assert_starts(
         &err(Format::Msh, f.as_bytes(), "c.msh"),
-        "c.msh:13: unexpected end of file, expected `$EndElements`",
+        "c.msh:12: unexpected end of file, expected `$EndElements`",
     );
     // An element naming an undefined node, on line 13.
     let e = err(
@@ -340,7 +340,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     let bad = V41.replace("$Nodes\n2 11 3 100", "$Nodes\n2 12 3 100");
     assert_starts(
         &err(Format::Msh, bad.as_bytes(), "h.msh"),
-        "h.msh:35: the header declares 12 nodes but the blocks hold 11",
+        "h.msh:17: the header declares 12 nodes but the blocks hold 11",
     );
     // Binary v2 truncated inside the third node record.
     let tri = MeshData {
@@ -378,7 +378,7 @@ fn malformed_vtk_files_name_the_line() {
     let e = err(Format::Vtk, bad.as_bytes(), "a.vtk");
     assert_starts(
         &e,
-        "a.vtk:12: expected a number for CELLS (value 10 of 10), found `CELL_TYPES`",
+        "a.vtk:13: expected a number for CELLS (value 10 of 10), found `CELL_TYPES`",
     );
     let bad = VTK_OK.replace("CELLS 2 9", "CELLS 3 9");
     assert_starts(
