@@ -779,7 +779,7 @@ mod tests {
     #[test]
     fn version_5_offsets_and_polydata() {
         let f = "# vtk DataFile Version 5.1\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\n\
-                 CELLS 3 7\nOFFSETS vtktypeint64\n0 4 6\nCONNECTIVITY vtktypeint64\n0 1 2 3 0 1\nCELL_TYPES 2\n10\n3\n\
+                 CELLS 3 6\nOFFSETS vtktypeint64\n0 4 6\nCONNECTIVITY vtktypeint64\n0 1 2 3 0 1\nCELL_TYPES 2\n10\n3\n\
                  CELL_DATA 2\nSCALARS gmsh:physical int 1\nLOOKUP_TABLE default\n7 8\n";
         let m = parse(f.as_bytes(), p()).unwrap();
         assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
