@@ -342,7 +342,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
         &err(Format::Msh, bad.as_bytes(), "h.msh"),
         "h.msh:17: the header declares 12 nodes but the blocks hold 11",
     );
-    // Binary v2 truncated inside the third node record.
+    // Binary v2 truncated inside the third node record: caught before reading the nodes.
     let tri = MeshData {
         vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
         triangles: vec![[0, 1, 2]],
@@ -354,8 +354,21 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     assert_eq!(
         e,
         format!(
-            "i.msh: byte {}: unexpected end of file: 28 bytes of binary data needed, 10 left",
-            start + 56
+            "i.msh: byte {start}: the section declares 3 binary nodes (84 bytes) but only 66 bytes are left"
+        )
+    );
+    // Binary v2 truncated inside the element record, after its 12-byte block header.
+    let start = full
+        .windows(12)
+        .position(|w| w == b"$Elements\n1\n")
+        .unwrap()
+        + 12;
+    let e = err(Format::Msh, &full[..start + 12 + 10], "k.msh");
+    assert_eq!(
+        e,
+        format!(
+            "k.msh: byte {}: unexpected end of file: 24 bytes of binary data needed, 10 left",
+            start + 12
         )
     );
     // Binary v2 whose endianness check is not 1.

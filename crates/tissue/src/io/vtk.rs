@@ -161,7 +161,7 @@ impl<'a> Reader<'a> {
         let size =
             type_size(ty).ok_or_else(|| self.c.error(format!("unsupported data type `{ty}`")))?;
         if self.binary {
-            let bytes = self.c.take(n.checked_mul(size).unwrap_or(usize::MAX))?;
+            let bytes = self.c.take(n.saturating_mul(size))?;
             let v = bytes.chunks_exact(size).map(|b| decode_be(b, ty)).collect();
             self.c.skip_newline();
             return Ok(v);
@@ -736,7 +736,7 @@ pub fn encode(mesh: &MeshData) -> Result<Vec<u8>, String> {
         let _ = writeln!(out, "POINT_DATA {n}");
     }
     for f in &mesh.point_data {
-        if f.components == 0 || f.values.len() != f.components * n {
+        if f.components == 0 || Some(f.values.len()) != f.components.checked_mul(n) {
             return Err(format!(
                 "field `{}` has {} values, expected {} components x {n} vertices",
                 f.name,

@@ -280,8 +280,8 @@ impl Parser<'_> {
             )
         };
         let points = match self.array(Section::Points, None) {
-            Some(a) if a.values.len() == 3 * npts && a.head.components == 3 => a,
-            Some(a) => return Err(count_error(a, "Points", 3 * npts)),
+            Some(a) if a.values.len() == npts.saturating_mul(3) && a.head.components == 3 => a,
+            Some(a) => return Err(count_error(a, "Points", npts.saturating_mul(3))),
             None if npts == 0 => &Array {
                 head: Head {
                     section: Section::Points,
@@ -410,11 +410,11 @@ impl Parser<'_> {
             .iter()
             .filter(|a| a.head.section == Section::PointData)
         {
-            if a.values.len() != npts * a.head.components {
+            if a.values.len() != npts.saturating_mul(a.head.components) {
                 return Err(count_error(
                     a,
                     &format!("PointData `{}`", a.head.name),
-                    npts * a.head.components,
+                    npts.saturating_mul(a.head.components),
                 ));
             }
             mesh.point_data.push(Field {
@@ -622,7 +622,7 @@ fn data_array(
 pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
     let n = mesh.vertices.len();
     for f in &mesh.point_data {
-        if f.components == 0 || f.values.len() != f.components * n {
+        if f.components == 0 || Some(f.values.len()) != f.components.checked_mul(n) {
             return Err(format!(
                 "field `{}` has {} values, expected {} components x {n} vertices",
                 f.name,
