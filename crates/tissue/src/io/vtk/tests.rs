@@ -50,3 +50,22 @@ fn binary_big_endian_points_and_scalars() {
 fn names_with_spaces_survive() {
     assert_eq!(decode_name(&encode_name("von Mises %")), "von Mises %");
 }
+
+#[test]
+fn metadata_field_arrays_and_a_missing_lookup_table() {
+    let f = "# vtk DataFile Version 5.1\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 2 float\n0 0 0 1 2 3\n\
+             METADATA\nINFORMATION 1\nNAME L2_NORM_RANGE LOCATION vtkDataArray\nDATA 2 0 3.74\n\n\
+             CELLS 0 0\nOFFSETS vtktypeint64\nCONNECTIVITY vtktypeint64\nCELL_TYPES 0\n\
+             POINT_DATA 2\nSCALARS s double\n1.5 2.5\nFIELD FieldData 2\nw 2 2 int\n1 2 3 4\nother 1 1 float\n9\n";
+    let m = parse(f.as_bytes(), p()).unwrap();
+    assert_eq!(m.vertices.len(), 2);
+    assert_eq!(m.point_data.len(), 2);
+    assert_eq!(
+        (m.point_data[0].name.as_str(), &m.point_data[0].values),
+        ("s", &vec![1.5, 2.5])
+    );
+    assert_eq!(
+        (m.point_data[1].components, &m.point_data[1].values),
+        (2, &vec![1.0, 2.0, 3.0, 4.0])
+    );
+}
