@@ -62,11 +62,7 @@ impl Parser<'_> {
         IoError::new(self.path, Location::Line(self.line_of(at)), message)
     }
 
-    fn attrs(
-        &self,
-        e: &BytesStart<'_>,
-        at: usize,
-    ) -> Result<Vec<(String, String)>, IoError> {
+    fn attrs(&self, e: &BytesStart<'_>, at: usize) -> Result<Vec<(String, String)>, IoError> {
         let mut out = Vec::new();
         for a in e.attributes() {
             let a = a.map_err(|err| self.error(at, format!("bad XML attribute: {err}")))?;
