@@ -287,7 +287,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
         "a.msh",
     );
     assert_starts(&e, "a.msh:7: unexpected end of file, expected a node line");
-    // $EndNodes too early, on line 7.
+    // $EndNodes too early, on line 8.
     let e = err(
         Format::Msh,
         v2_text("3\n1 0 0 0\n2 1 0 0\n", "0\n").as_bytes(),
@@ -295,7 +295,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     );
     assert_starts(
         &e,
-        "b.msh:7: the section declares 3 nodes but `$EndNodes` follows node 2",
+        "b.msh:8: the section declares 3 nodes but `$EndNodes` follows node 2",
     );
     // Missing $EndElements: the file ends on line 12.
     let f = format!(
@@ -303,7 +303,7 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     );
     assert_starts(
         &err(Format::Msh, f.as_bytes(), "c.msh"),
-        "c.msh:13: unexpected end of file, expected `$EndElements`",
+        "c.msh:12: unexpected end of file, expected `$EndElements`",
     );
     // An element naming an undefined node, on line 13.
     let e = err(
@@ -340,9 +340,9 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     let bad = V41.replace("$Nodes\n2 11 3 100", "$Nodes\n2 12 3 100");
     assert_starts(
         &err(Format::Msh, bad.as_bytes(), "h.msh"),
-        "h.msh:35: the header declares 12 nodes but the blocks hold 11",
+        "h.msh:17: the header declares 12 nodes but the blocks hold 11",
     );
-    // Binary v2 truncated inside the third node record.
+    // Binary v2 truncated inside the third node record: caught before reading the nodes.
     let tri = MeshData {
         vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
         triangles: vec![[0, 1, 2]],
@@ -354,8 +354,21 @@ fn malformed_gmsh_files_name_the_line_or_byte() {
     assert_eq!(
         e,
         format!(
-            "i.msh: byte {}: unexpected end of file: 28 bytes of binary data needed, 10 left",
-            start + 56
+            "i.msh: byte {start}: the section declares 3 binary nodes (84 bytes) but only 66 bytes are left"
+        )
+    );
+    // Binary v2 truncated inside the element record, after its 12-byte block header.
+    let start = full
+        .windows(12)
+        .position(|w| w == b"$Elements\n1\n")
+        .unwrap()
+        + 12;
+    let e = err(Format::Msh, &full[..start + 12 + 10], "k.msh");
+    assert_eq!(
+        e,
+        format!(
+            "k.msh: byte {}: unexpected end of file: 24 bytes of binary data needed, 10 left",
+            start + 12
         )
     );
     // Binary v2 whose endianness check is not 1.
@@ -378,7 +391,7 @@ fn malformed_vtk_files_name_the_line() {
     let e = err(Format::Vtk, bad.as_bytes(), "a.vtk");
     assert_starts(
         &e,
-        "a.vtk:12: expected a number for CELLS (value 10 of 10), found `CELL_TYPES`",
+        "a.vtk:13: expected a number for CELLS (value 10 of 10), found `CELL_TYPES`",
     );
     let bad = VTK_OK.replace("CELLS 2 9", "CELLS 3 9");
     assert_starts(

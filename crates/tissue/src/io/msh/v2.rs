@@ -125,7 +125,14 @@ fn ascii_elements(c: &mut Cursor<'_>, b: &mut Builder) -> Result<(), IoError> {
 
 fn binary_nodes(c: &mut Cursor<'_>, b: &mut Builder, len: usize, e: Endian) -> Result<(), IoError> {
     let n = read_count(c, "the node count")?;
-    b.reserve_nodes(capped(n, len - c.position(), 28));
+    let left = len - c.position();
+    if n.saturating_mul(28) > left {
+        return Err(c.byte_error(format!(
+            "the section declares {n} binary nodes ({} bytes) but only {left} bytes are left",
+            n.saturating_mul(28)
+        )));
+    }
+    b.reserve_nodes(n);
     for _ in 0..n {
         let at = c.position();
         let r = c.take(28)?;

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 
 use super::v1::read_xyz;
 use super::{Builder, MshReport, capped, expect_marker, shorten, skip_section};
-use crate::error::IoError;
+use crate::error::{IoError, Location};
 use crate::io::cursor::Cursor;
 use crate::math::Vec3;
 use crate::mesh::MeshData;
@@ -75,6 +75,7 @@ fn nodes(c: &mut Cursor<'_>, b: &mut Builder, len: usize) -> Result<(), IoError>
     let l = data_line(c, "the node header `blocks nodes min-tag max-tag`")?;
     let [blocks, total, _, _]: [usize; 4] =
         c.parse_n(&mut l.split_ascii_whitespace(), "the node header")?;
+    let header_line = c.line();
     b.reserve_nodes(capped(total, len - c.position(), 8));
     let mut seen = 0usize;
     let mut tags: Vec<i64> = Vec::new();
@@ -104,9 +105,11 @@ fn nodes(c: &mut Cursor<'_>, b: &mut Builder, len: usize) -> Result<(), IoError>
         seen += n;
     }
     if seen != total {
-        return Err(c.error(format!(
-            "the header declares {total} nodes but the blocks hold {seen}"
-        )));
+        return Err(IoError::new(
+            c.path(),
+            Location::Line(header_line),
+            format!("the header declares {total} nodes but the blocks hold {seen}"),
+        ));
     }
     expect_marker(c, "$EndNodes")
 }
@@ -115,6 +118,7 @@ fn elements(c: &mut Cursor<'_>, b: &mut Builder, physical: &Physical) -> Result<
     let l = data_line(c, "the element header `blocks elements min-tag max-tag`")?;
     let [blocks, total, _, _]: [usize; 4] =
         c.parse_n(&mut l.split_ascii_whitespace(), "the element header")?;
+    let header_line = c.line();
     let mut seen = 0usize;
     let mut ids = Vec::new();
     for _ in 0..blocks {
@@ -137,9 +141,11 @@ fn elements(c: &mut Cursor<'_>, b: &mut Builder, physical: &Physical) -> Result<
         seen += n;
     }
     if seen != total {
-        return Err(c.error(format!(
-            "the header declares {total} elements but the blocks hold {seen}"
-        )));
+        return Err(IoError::new(
+            c.path(),
+            Location::Line(header_line),
+            format!("the header declares {total} elements but the blocks hold {seen}"),
+        ));
     }
     expect_marker(c, "$EndElements")
 }

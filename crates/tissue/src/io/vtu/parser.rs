@@ -1,28 +1,21 @@
-//! VTK XML unstructured grids (`.vtu`): read ascii and inline base64 (`format="binary"`,
-//! uncompressed) data arrays of any numeric type, either byte order and header size; write
-//! ascii or base64 files that ParaView opens.
-//!
-//! Cells kept are those of the legacy reader (see `vtk`): triangles, quads and polygons
-//! (split), tetrahedra and quadratic tetrahedra. PointData arrays become fields; an integer
-//! CellData array named like a tag becomes the element tags. Compressed or appended data is
-//! refused with an error naming the file and line.
+//! The parts of a `.vtu` file as they are read: data arrays decoded to numbers, then the
+//! mesh assembled from them with every count checked.
 
-use std::fmt::Write;
 use std::path::Path;
 
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
-use quick_xml::Reader;
-use quick_xml::events::{BytesStart, Event};
+use quick_xml::events::BytesStart;
 
-use super::vtk::{is_tag_name, pick_tags};
+use super::{decode_uint, decode_value, type_size};
 use crate::error::{IoError, Location};
+use crate::io::vtk::{is_tag_name, pick_tags};
 use crate::math::Vec3;
 use crate::mesh::{Field, MeshData};
 
 /// Where a data array sits.
 #[derive(Clone, Copy, PartialEq, Debug)]
-enum Section {
+pub(super) enum Section {
     Points,
     Cells,
     PointData,
@@ -31,27 +24,27 @@ enum Section {
 }
 
 /// The attributes of a `<DataArray>` and where it starts.
-struct Head {
-    section: Section,
-    name: String,
-    ty: String,
-    components: usize,
-    binary: bool,
-    at: usize,
+pub(super) struct Head {
+    pub(super) section: Section,
+    pub(super) name: String,
+    pub(super) ty: String,
+    pub(super) components: usize,
+    pub(super) binary: bool,
+    pub(super) at: usize,
 }
 
-struct Array {
-    head: Head,
-    values: Vec<f64>,
+pub(super) struct Array {
+    pub(super) head: Head,
+    pub(super) values: Vec<f64>,
 }
 
-struct Parser<'a> {
-    path: &'a Path,
-    bytes: &'a [u8],
-    big_endian: bool,
-    header64: bool,
-    piece: Option<(usize, usize, usize)>,
-    arrays: Vec<Array>,
+pub(super) struct Parser<'a> {
+    pub(super) path: &'a Path,
+    pub(super) bytes: &'a [u8],
+    pub(super) big_endian: bool,
+    pub(super) header64: bool,
+    pub(super) piece: Option<(usize, usize, usize)>,
+    pub(super) arrays: Vec<Array>,
 }
 
 impl Parser<'_> {
@@ -65,7 +58,7 @@ impl Parser<'_> {
             .count()
     }
 
-    fn error(&self, at: usize, message: impl Into<String>) -> IoError {
+    pub(super) fn error(&self, at: usize, message: impl Into<String>) -> IoError {
         IoError::new(self.path, Location::Line(self.line_of(at)), message)
     }
 
@@ -82,7 +75,7 @@ impl Parser<'_> {
         Ok(out)
     }
 
-    fn open(
+    pub(super) fn open(
         &mut self,
         e: &BytesStart<'_>,
         at: usize,
@@ -182,7 +175,7 @@ impl Parser<'_> {
         Ok(None)
     }
 
-    fn decode(&self, head: &Head, text: &[u8]) -> Result<Vec<f64>, IoError> {
+    pub(super) fn decode(&self, head: &Head, text: &[u8]) -> Result<Vec<f64>, IoError> {
         let size = type_size(&head.ty).unwrap_or(8);
         if !head.binary {
             let text = std::str::from_utf8(text)
@@ -262,7 +255,7 @@ impl Parser<'_> {
             .find(|a| a.head.section == section && name.is_none_or(|n| a.head.name == n))
     }
 
-    fn finish(self) -> Result<MeshData, IoError> {
+    pub(super) fn finish(self) -> Result<MeshData, IoError> {
         let Some((npts, ncells, piece_at)) = self.piece else {
             return Err(IoError::new(
                 self.path,
@@ -280,8 +273,8 @@ impl Parser<'_> {
             )
         };
         let points = match self.array(Section::Points, None) {
-            Some(a) if a.values.len() == 3 * npts && a.head.components == 3 => a,
-            Some(a) => return Err(count_error(a, "Points", 3 * npts)),
+            Some(a) if a.values.len() == npts.saturating_mul(3) && a.head.components == 3 => a,
+            Some(a) => return Err(count_error(a, "Points", npts.saturating_mul(3))),
             None if npts == 0 => &Array {
                 head: Head {
                     section: Section::Points,
@@ -410,11 +403,11 @@ impl Parser<'_> {
             .iter()
             .filter(|a| a.head.section == Section::PointData)
         {
-            if a.values.len() != npts * a.head.components {
+            if a.values.len() != npts.saturating_mul(a.head.components) {
                 return Err(count_error(
                     a,
                     &format!("PointData `{}`", a.head.name),
-                    npts * a.head.components,
+                    npts.saturating_mul(a.head.components),
                 ));
             }
             mesh.point_data.push(Field {
@@ -442,309 +435,5 @@ impl Parser<'_> {
             mesh.tet_tags = pick_tags(&tags, &tet_cells);
         }
         Ok(mesh)
-    }
-}
-
-/// Reads a `.vtu` file.
-pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
-    let mut p = Parser {
-        path,
-        bytes,
-        big_endian: false,
-        header64: false,
-        piece: None,
-        arrays: Vec::new(),
-    };
-    let mut reader = Reader::from_reader(bytes);
-    let mut stack: Vec<String> = Vec::new();
-    let mut current: Option<Head> = None;
-    let mut text: Vec<u8> = Vec::new();
-    let mut seen_root = false;
-    loop {
-        let before = reader.buffer_position() as usize;
-        let event = reader
-            .read_event()
-            .map_err(|e| p.error(reader.error_position() as usize, format!("XML error: {e}")))?;
-        match event {
-            Event::Start(e) | Event::Empty(e) if current.is_some() => {
-                return Err(p.error(
-                    before,
-                    format!(
-                        "unexpected <{}> inside a DataArray",
-                        String::from_utf8_lossy(e.name().as_ref())
-                    ),
-                ));
-            }
-            Event::Start(e) => {
-                if !seen_root && e.local_name().as_ref() != b"VTKFile" {
-                    return Err(p.error(
-                        before,
-                        "not a VTK XML file: the root element is not <VTKFile>",
-                    ));
-                }
-                seen_root = true;
-                current = p.open(&e, before, stack.last().map(String::as_str))?;
-                text.clear();
-                stack.push(String::from_utf8_lossy(e.local_name().as_ref()).into_owned());
-            }
-            Event::Empty(e) => {
-                if let Some(head) = p.open(&e, before, stack.last().map(String::as_str))? {
-                    p.arrays.push(Array {
-                        head,
-                        values: Vec::new(),
-                    });
-                }
-            }
-            Event::Text(t) if current.is_some() => text.extend_from_slice(&t),
-            Event::CData(t) if current.is_some() => text.extend_from_slice(&t),
-            Event::GeneralRef(_) if current.is_some() => {
-                return Err(p.error(before, "unexpected entity reference inside a DataArray"));
-            }
-            Event::End(_) => {
-                stack.pop();
-                if let Some(head) = current.take() {
-                    let values = p.decode(&head, &text)?;
-                    p.arrays.push(Array { head, values });
-                }
-            }
-            Event::Eof => break,
-            _ => {}
-        }
-    }
-    if !seen_root {
-        return Err(IoError::new(
-            path,
-            Location::File,
-            "not a VTK XML file: no <VTKFile> element",
-        ));
-    }
-    if let Some(open) = stack.last() {
-        return Err(p.error(
-            bytes.len(),
-            format!("unexpected end of file inside <{open}>"),
-        ));
-    }
-    p.finish()
-}
-
-fn type_size(ty: &str) -> Option<usize> {
-    Some(match ty {
-        "Int8" | "UInt8" => 1,
-        "Int16" | "UInt16" => 2,
-        "Int32" | "UInt32" | "Float32" => 4,
-        "Int64" | "UInt64" | "Float64" => 8,
-        _ => return None,
-    })
-}
-
-fn decode_uint(b: &[u8], big: bool) -> u64 {
-    let mut a = [0u8; 8];
-    let n = b.len().min(8);
-    if big {
-        a[8 - n..].copy_from_slice(&b[..n]);
-        u64::from_be_bytes(a)
-    } else {
-        a[..n].copy_from_slice(&b[..n]);
-        u64::from_le_bytes(a)
-    }
-}
-
-fn decode_value(b: &[u8], ty: &str, big: bool) -> f64 {
-    let u = decode_uint(b, big);
-    match ty {
-        "Int8" => f64::from(u as u8 as i8),
-        "Int16" => f64::from(u as u16 as i16),
-        "Int32" => f64::from(u as u32 as i32),
-        "Int64" => u as i64 as f64,
-        "Float32" => f64::from(f32::from_bits(u as u32)),
-        "Float64" => f64::from_bits(u),
-        _ => u as f64,
-    }
-}
-
-/// The numbers of one data array, in the type it is written as.
-enum Values<'a> {
-    F64(&'a [f64]),
-    I64(Vec<i64>),
-    I32(Vec<i32>),
-    U8(Vec<u8>),
-}
-
-fn data_array(
-    out: &mut String,
-    ty: &str,
-    name: &str,
-    components: usize,
-    values: Values<'_>,
-    binary: bool,
-) {
-    let _ = write!(
-        out,
-        "        <DataArray type=\"{ty}\" Name=\"{}\"",
-        quick_xml::escape::escape(name)
-    );
-    if components != 1 {
-        let _ = write!(out, " NumberOfComponents=\"{components}\"");
-    }
-    let _ = writeln!(
-        out,
-        " format=\"{}\">",
-        if binary { "binary" } else { "ascii" }
-    );
-    if binary {
-        let mut raw: Vec<u8> = Vec::new();
-        match &values {
-            Values::F64(v) => v.iter().for_each(|x| raw.extend(x.to_le_bytes())),
-            Values::I64(v) => v.iter().for_each(|x| raw.extend(x.to_le_bytes())),
-            Values::I32(v) => v.iter().for_each(|x| raw.extend(x.to_le_bytes())),
-            Values::U8(v) => raw.extend_from_slice(v),
-        }
-        let mut all = (raw.len() as u64).to_le_bytes().to_vec();
-        all.extend(raw);
-        let _ = writeln!(out, "          {}", STANDARD.encode(all));
-    } else {
-        let items: Vec<String> = match &values {
-            Values::F64(v) => v.iter().map(|x| format!("{x:?}")).collect(),
-            Values::I64(v) => v.iter().map(i64::to_string).collect(),
-            Values::I32(v) => v.iter().map(i32::to_string).collect(),
-            Values::U8(v) => v.iter().map(u8::to_string).collect(),
-        };
-        let per_line = if components > 1 { components } else { 12 };
-        for row in items.chunks(per_line.max(1)) {
-            let _ = writeln!(out, "          {}", row.join(" "));
-        }
-    }
-    out.push_str("        </DataArray>\n");
-}
-
-/// Writes a `.vtu` unstructured grid (Float64 points, Int64 connectivity and offsets, UInt8
-/// types, Int32 `tag` cell data when the mesh has tags), ascii or base64 with UInt64 headers.
-pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
-    let n = mesh.vertices.len();
-    for f in &mesh.point_data {
-        if f.components == 0 || f.values.len() != f.components * n {
-            return Err(format!(
-                "field `{}` has {} values, expected {} components x {n} vertices",
-                f.name,
-                f.values.len(),
-                f.components
-            ));
-        }
-    }
-    let cells: Vec<&[u32]> = mesh
-        .triangles
-        .iter()
-        .map(|t| &t[..])
-        .chain(mesh.tets.iter().map(|t| &t[..]))
-        .chain(mesh.tets10.iter().map(|t| &t[..]))
-        .collect();
-    let mut out = String::from(
-        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n  <UnstructuredGrid>\n",
-    );
-    let _ = writeln!(
-        out,
-        "    <Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{}\">",
-        cells.len()
-    );
-    out.push_str("      <PointData>\n");
-    for f in &mesh.point_data {
-        data_array(
-            &mut out,
-            "Float64",
-            &f.name,
-            f.components,
-            Values::F64(&f.values),
-            binary,
-        );
-    }
-    out.push_str("      </PointData>\n      <CellData>\n");
-    if !mesh.triangle_tags.is_empty() || !mesh.tet_tags.is_empty() {
-        let tag = |t: &[i32], i| t.get(i).copied().unwrap_or(0);
-        let tags: Vec<i32> = (0..mesh.triangles.len())
-            .map(|i| tag(&mesh.triangle_tags, i))
-            .chain((0..mesh.tets.len()).map(|i| tag(&mesh.tet_tags, i)))
-            .chain(std::iter::repeat_n(0, mesh.tets10.len()))
-            .collect();
-        data_array(&mut out, "Int32", "tag", 1, Values::I32(tags), binary);
-    }
-    out.push_str("      </CellData>\n      <Points>\n");
-    data_array(
-        &mut out,
-        "Float64",
-        "Points",
-        3,
-        Values::F64(crate::math::flatten(&mesh.vertices)),
-        binary,
-    );
-    out.push_str("      </Points>\n      <Cells>\n");
-    let conn: Vec<i64> = cells
-        .iter()
-        .flat_map(|c| c.iter().map(|&v| i64::from(v)))
-        .collect();
-    let mut end = 0i64;
-    let offsets: Vec<i64> = cells
-        .iter()
-        .map(|c| {
-            end += c.len() as i64;
-            end
-        })
-        .collect();
-    let types: Vec<u8> = cells
-        .iter()
-        .map(|c| match c.len() {
-            3 => 5,
-            4 => 10,
-            _ => 24,
-        })
-        .collect();
-    data_array(
-        &mut out,
-        "Int64",
-        "connectivity",
-        1,
-        Values::I64(conn),
-        binary,
-    );
-    data_array(
-        &mut out,
-        "Int64",
-        "offsets",
-        1,
-        Values::I64(offsets),
-        binary,
-    );
-    data_array(&mut out, "UInt8", "types", 1, Values::U8(types), binary);
-    out.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n");
-    Ok(out.into_bytes())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn separately_encoded_header_and_big_endian() {
-        // UInt32 big-endian header encoded apart from the data, as some writers do.
-        let data: Vec<u8> = [1.5f32, -2.0, 0.25]
-            .iter()
-            .flat_map(|v| v.to_be_bytes())
-            .collect();
-        let header = STANDARD.encode(12u32.to_be_bytes());
-        let body = STANDARD.encode(&data);
-        let f = format!(
-            "<VTKFile type=\"UnstructuredGrid\" byte_order=\"BigEndian\"><UnstructuredGrid>\
-             <Piece NumberOfPoints=\"1\" NumberOfCells=\"0\"><Points>\
-             <DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"binary\">{header}{body}</DataArray>\
-             </Points></Piece></UnstructuredGrid></VTKFile>"
-        );
-        let m = parse(f.as_bytes(), Path::new("b.vtu")).unwrap();
-        assert_eq!(m.vertices, vec![Vec3::new(1.5, -2.0, 0.25)]);
-    }
-
-    #[test]
-    fn compressed_files_are_refused_by_line() {
-        let f = "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" compressor=\"vtkZLibDataCompressor\">\n</VTKFile>";
-        let e = parse(f.as_bytes(), Path::new("c.vtu")).unwrap_err();
-        assert!(e.to_string().starts_with("c.vtu:2: compressed data"), "{e}");
     }
 }

@@ -1,18 +1,10 @@
-//! VTK legacy files (`.vtk`): read ASCII and BINARY (big-endian) unstructured grids and
-//! polydata; write ASCII unstructured grids.
-//!
-//! Cells kept: triangles (5), quads (9) and polygons (7) split in triangles, tetrahedra (10),
-//! quadratic tetrahedra (24, already in `MeshData`'s node order); other cells are skipped.
-//! Both the classic `CELLS n size` layout and version 5.1's `OFFSETS` / `CONNECTIVITY` are
-//! read. POINT_DATA arrays become `point_data` fields; an integer CELL_DATA scalar whose name
-//! contains `tag`, `ref` or `physical` becomes `triangle_tags` / `tet_tags` (empty when all
-//! zero, as in Gmsh). The writer always writes an unstructured grid, also for surfaces.
+//! The legacy reader: header, then keyword sections, ascii tokens or big-endian binary blocks.
 
-use std::fmt::Write;
 use std::path::Path;
 
-use super::cursor::Cursor;
+use super::{decode_name, is_tag_name, pick_tags};
 use crate::error::{IoError, Location};
+use crate::io::cursor::Cursor;
 use crate::math::Vec3;
 use crate::mesh::{Field, MeshData};
 
@@ -161,7 +153,7 @@ impl<'a> Reader<'a> {
         let size =
             type_size(ty).ok_or_else(|| self.c.error(format!("unsupported data type `{ty}`")))?;
         if self.binary {
-            let bytes = self.c.take(n.checked_mul(size).unwrap_or(usize::MAX))?;
+            let bytes = self.c.take(n.saturating_mul(size))?;
             let v = bytes.chunks_exact(size).map(|b| decode_be(b, ty)).collect();
             self.c.skip_newline();
             return Ok(v);
@@ -588,25 +580,6 @@ fn fan(c: &[u32], cell: usize, triangles: &mut Vec<[u32; 3]>, cells: &mut Vec<us
     }
 }
 
-/// The tags of the kept cells; empty when all are 0 (no group).
-pub(crate) fn pick_tags(tags: &[i32], cells: &[usize]) -> Vec<i32> {
-    let t: Vec<i32> = cells
-        .iter()
-        .map(|&c| tags.get(c).copied().unwrap_or(0))
-        .collect();
-    if t.iter().all(|&v| v == 0) {
-        Vec::new()
-    } else {
-        t
-    }
-}
-
-/// Cell data named like a region tag (`tag`, `gmsh:physical`, `ref`...).
-pub(crate) fn is_tag_name(name: &str) -> bool {
-    let n = name.to_ascii_lowercase();
-    n.contains("tag") || n.contains("physical") || n.contains("ref")
-}
-
 fn is_integer_type(ty: &str) -> bool {
     !matches!(ty.to_ascii_lowercase().as_str(), "float" | "double")
 }
@@ -635,187 +608,5 @@ fn decode_be(b: &[u8], ty: &str) -> f64 {
         ("int", _) => f64::from(u as u32 as i32),
         (t, 8) if !t.starts_with("unsigned") && t != "vtktypeuint64" => u as i64 as f64,
         _ => u as f64,
-    }
-}
-
-/// VTK writes names with `%xx` escapes for spaces and other special bytes.
-fn decode_name(s: &str) -> String {
-    let b = s.as_bytes();
-    let mut out = Vec::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        let hex = b
-            .get(i + 1..i + 3)
-            .and_then(|h| std::str::from_utf8(h).ok())
-            .and_then(|h| u8::from_str_radix(h, 16).ok());
-        match (b[i], hex) {
-            (b'%', Some(v)) => {
-                out.push(v);
-                i += 3;
-            }
-            (c, _) => {
-                out.push(c);
-                i += 1;
-            }
-        }
-    }
-    String::from_utf8_lossy(&out).into_owned()
-}
-
-fn encode_name(s: &str) -> String {
-    let mut out = String::new();
-    for b in s.bytes() {
-        if b.is_ascii_graphic() && b != b'%' {
-            out.push(b as char);
-        } else {
-            let _ = write!(out, "%{b:02X}");
-        }
-    }
-    if out.is_empty() {
-        "unnamed".into()
-    } else {
-        out
-    }
-}
-
-/// Writes an ASCII unstructured grid (version 4.2 layout): triangles, tetrahedra and 10-node
-/// tetrahedra, a `tag` cell scalar when the mesh has tags, and the point fields (1, 2 or 4
-/// components as SCALARS, 3 as VECTORS, others as a FIELD array).
-pub fn encode(mesh: &MeshData) -> Result<Vec<u8>, String> {
-    let n = mesh.vertices.len();
-    let cells = mesh.triangles.len() + mesh.tets.len() + mesh.tets10.len();
-    let size = 4 * mesh.triangles.len() + 5 * mesh.tets.len() + 11 * mesh.tets10.len();
-    let mut out = format!(
-        "# vtk DataFile Version 4.2\ntissue mesh\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n"
-    );
-    for p in &mesh.vertices {
-        let _ = writeln!(out, "{:?} {:?} {:?}", p.x, p.y, p.z);
-    }
-    let _ = writeln!(out, "CELLS {cells} {size}");
-    let conn = mesh
-        .triangles
-        .iter()
-        .map(|t| &t[..])
-        .chain(mesh.tets.iter().map(|t| &t[..]))
-        .chain(mesh.tets10.iter().map(|t| &t[..]));
-    for c in conn {
-        let _ = write!(out, "{}", c.len());
-        for v in c {
-            let _ = write!(out, " {v}");
-        }
-        out.push('\n');
-    }
-    let _ = writeln!(out, "CELL_TYPES {cells}");
-    for (ty, k) in [
-        (5, mesh.triangles.len()),
-        (10, mesh.tets.len()),
-        (24, mesh.tets10.len()),
-    ] {
-        for _ in 0..k {
-            let _ = writeln!(out, "{ty}");
-        }
-    }
-    if !mesh.triangle_tags.is_empty() || !mesh.tet_tags.is_empty() {
-        let _ = writeln!(
-            out,
-            "CELL_DATA {cells}\nSCALARS tag int 1\nLOOKUP_TABLE default"
-        );
-        for (tags, k) in [
-            (&mesh.triangle_tags, mesh.triangles.len()),
-            (&mesh.tet_tags, mesh.tets.len()),
-        ] {
-            for i in 0..k {
-                let _ = writeln!(out, "{}", tags.get(i).copied().unwrap_or(0));
-            }
-        }
-        for _ in 0..mesh.tets10.len() {
-            out.push_str("0\n");
-        }
-    }
-    if !mesh.point_data.is_empty() {
-        let _ = writeln!(out, "POINT_DATA {n}");
-    }
-    for f in &mesh.point_data {
-        if f.components == 0 || f.values.len() != f.components * n {
-            return Err(format!(
-                "field `{}` has {} values, expected {} components x {n} vertices",
-                f.name,
-                f.values.len(),
-                f.components
-            ));
-        }
-        let name = encode_name(&f.name);
-        match f.components {
-            3 => {
-                let _ = writeln!(out, "VECTORS {name} double");
-            }
-            1 | 2 | 4 => {
-                let _ = writeln!(
-                    out,
-                    "SCALARS {name} double {}\nLOOKUP_TABLE default",
-                    f.components
-                );
-            }
-            k => {
-                let _ = writeln!(out, "FIELD FieldData 1\n{name} {k} {n} double");
-            }
-        }
-        for row in f.values.chunks(f.components) {
-            let line: Vec<String> = row.iter().map(|v| format!("{v:?}")).collect();
-            let _ = writeln!(out, "{}", line.join(" "));
-        }
-    }
-    Ok(out.into_bytes())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn p() -> &'static Path {
-        Path::new("t.vtk")
-    }
-
-    #[test]
-    fn version_5_offsets_and_polydata() {
-        let f = "# vtk DataFile Version 5.1\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\n\
-                 CELLS 3 7\nOFFSETS vtktypeint64\n0 4 6\nCONNECTIVITY vtktypeint64\n0 1 2 3 0 1\nCELL_TYPES 2\n10\n3\n\
-                 CELL_DATA 2\nSCALARS gmsh:physical int 1\nLOOKUP_TABLE default\n7 8\n";
-        let m = parse(f.as_bytes(), p()).unwrap();
-        assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
-        assert_eq!(m.tet_tags, vec![7]);
-        let f = "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\n\
-                 LINES 1 3\n2 0 1\nPOLYGONS 1 5\n4 0 1 2 3\nCELL_DATA 2\nSCALARS ref int\nLOOKUP_TABLE default\n0 3\n";
-        let m = parse(f.as_bytes(), p()).unwrap();
-        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
-        assert_eq!(m.triangle_tags, vec![3, 3]);
-    }
-
-    #[test]
-    fn binary_big_endian_points_and_scalars() {
-        let mut f =
-            b"# vtk DataFile Version 3.0\nb\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 3 double\n"
-                .to_vec();
-        for v in [0.0f64, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
-            f.extend(v.to_be_bytes());
-        }
-        f.extend(b"\nCELLS 1 4\n");
-        for v in [3i32, 0, 1, 2] {
-            f.extend(v.to_be_bytes());
-        }
-        f.extend(b"\nCELL_TYPES 1\n");
-        f.extend(5i32.to_be_bytes());
-        f.extend(b"\nPOINT_DATA 3\nSCALARS s float\nLOOKUP_TABLE default\n");
-        for v in [0.5f32, -1.0, 2.0] {
-            f.extend(v.to_be_bytes());
-        }
-        let m = parse(&f, p()).unwrap();
-        assert_eq!(m.triangles, vec![[0, 1, 2]]);
-        assert_eq!(m.point_data[0].values, vec![0.5, -1.0, 2.0]);
-    }
-
-    #[test]
-    fn names_with_spaces_survive() {
-        assert_eq!(decode_name(&encode_name("von Mises %")), "von Mises %");
     }
 }
