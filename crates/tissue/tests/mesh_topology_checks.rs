@@ -57,7 +57,10 @@ fn icosphere_converges_to_the_sphere() {
         assert_eq!(check_surface(&m), vec![]);
         let dv = 1.0 - m.signed_volume() / exact_v;
         let da = 1.0 - m.area() / exact_a;
-        assert!((dv - volume_deficit[s as usize]).abs() < 1e-6, "s={s}: {dv}");
+        assert!(
+            (dv - volume_deficit[s as usize]).abs() < 1e-6,
+            "s={s}: {dv}"
+        );
         assert!((da - area_deficit[s as usize]).abs() < 1e-6, "s={s}: {da}");
         assert!(dv > 0.0 && dv < last / 3.0);
         last = dv;
@@ -91,7 +94,12 @@ fn cylinders_match_the_inscribed_prism() {
     assert_eq!(ef.border_edges().count(), 32);
     assert_eq!(euler_characteristic(&t.triangles), 0);
     let n = t.vertex_normals();
-    assert!(t.vertices.iter().zip(&n).all(|(p, n)| Vec3::new(p.x, p.y, 0.0).dot(*n) > 0.0));
+    assert!(
+        t.vertices
+            .iter()
+            .zip(&n)
+            .all(|(p, n)| Vec3::new(p.x, p.y, 0.0).dot(*n) > 0.0)
+    );
     // A walled tube is a closed torus-like surface: χ = 0, volume of the annular prism.
     let w = tube_with_wall(0.004, 0.006, 0.1, 16, 10);
     assert_eq!(check_surface(&w), vec![]);
@@ -132,10 +140,18 @@ fn hole_border_edges_are_counted_exactly() {
     assert_eq!(fan, 6);
     let holed = SurfaceMesh::new(
         s.vertices.clone(),
-        s.triangles.iter().copied().filter(|t| !t.contains(&v)).collect(),
+        s.triangles
+            .iter()
+            .copied()
+            .filter(|t| !t.contains(&v))
+            .collect(),
     );
     let p = check_surface(&holed);
-    assert!(p.iter().any(|q| matches!(q, Problem::BorderEdges { count: 6, .. })), "{p:?}");
+    assert!(
+        p.iter()
+            .any(|q| matches!(q, Problem::BorderEdges { count: 6, .. })),
+        "{p:?}"
+    );
     assert!(p.contains(&Problem::UnusedVertices {
         count: 1,
         examples: vec![v]
@@ -165,17 +181,16 @@ fn non_manifold_edge_is_named() {
 
 #[test]
 fn duplicate_vertices_are_merged_then_the_mesh_passes() {
-    // Cut the sphere along its triangles: every triangle gets its own corner copies only for
-    // one hemisphere, so the count of duplicates is exact and known.
+    // Triangles starting in the upper hemisphere get their own copies of their corners, so
+    // the count of duplicates is exact and known.
     let s = icosphere(Vec3::ZERO, 0.03, 2);
     let mut m = MeshData::from_surface(&s);
     let mut extra = 0;
-    for t in 0..m.triangles.len() {
-        let corners = m.triangles[t];
-        if s.vertices[corners[0] as usize].z > 0.0 {
-            for k in 0..3 {
-                m.vertices.push(s.vertices[corners[k] as usize]);
-                m.triangles[t][k] = m.vertices.len() as u32 - 1;
+    for tri in &mut m.triangles {
+        if s.vertices[tri[0] as usize].z > 0.0 {
+            for v in tri.iter_mut() {
+                m.vertices.push(s.vertices[*v as usize]);
+                *v = m.vertices.len() as u32 - 1;
                 extra += 1;
             }
         }
@@ -199,8 +214,10 @@ fn inward_sphere_is_reported_and_turned_out() {
     let mut m = MeshData::from_surface(&s);
     m.triangles.iter_mut().for_each(|t| t.swap(0, 1));
     let p = check(&m);
-    assert!(matches!(p[..], [Problem::InwardOrientation { component: 0, volume }]
-        if (volume + s.signed_volume()).abs() < 1e-14));
+    assert!(
+        matches!(p[..], [Problem::InwardOrientation { component: 0, volume }]
+        if (volume + s.signed_volume()).abs() < 1e-14)
+    );
     assert_eq!(orient_outward(&mut m), s.triangles.len());
     assert!((volume_of(&m) - s.signed_volume()).abs() < 1e-14);
     assert_eq!(check(&m), vec![]);
@@ -256,7 +273,10 @@ fn liver_by_hand() -> TetMesh {
     let mut id_of = std::collections::HashMap::new();
     let mut vertices = Vec::new();
     for l in &lines[nod + 2..nod + 2 + n] {
-        let f: Vec<f64> = l.split_whitespace().map(|x| x.parse().expect("number")).collect();
+        let f: Vec<f64> = l
+            .split_whitespace()
+            .map(|x| x.parse().expect("number"))
+            .collect();
         id_of.insert(f[0] as u32, vertices.len() as u32);
         vertices.push(Vec3::new(f[1], f[2], f[3]));
     }
@@ -265,7 +285,10 @@ fn liver_by_hand() -> TetMesh {
     let tets = lines[elm + 2..elm + 2 + m]
         .iter()
         .map(|l| {
-            let f: Vec<u32> = l.split_whitespace().map(|x| x.parse().expect("id")).collect();
+            let f: Vec<u32> = l
+                .split_whitespace()
+                .map(|x| x.parse().expect("id"))
+                .collect();
             assert_eq!(f[1], 4, "only tetrahedra in liver.msh");
             [f[5], f[6], f[7], f[8]].map(|id| id_of[&id])
         })
@@ -282,7 +305,10 @@ fn assert_liver_tets(m: &TetMesh) {
     assert!((m.volume() - 36.561).abs() < 5e-4);
     assert_eq!(check_tets(m), vec![]);
     let b = boundary_surface(m);
-    assert_eq!((b.surface.triangles.len(), b.surface.vertices.len()), (276, 140));
+    assert_eq!(
+        (b.surface.triangles.len(), b.surface.vertices.len()),
+        (276, 140)
+    );
     assert_eq!(euler_characteristic(&b.surface.triangles), 2);
     assert!((b.surface.signed_volume() - m.volume()).abs() < 1e-9);
 }
@@ -299,7 +325,10 @@ fn liver_msh_quality_and_checks() {
     let m = data.tet_mesh("liver.msh").expect("tetrahedra");
     assert_liver_tets(&m);
     let i = inspect(&data);
-    assert_eq!((i.components, i.euler_characteristic, i.boundary_triangles), (1, 2, Some(276)));
+    assert_eq!(
+        (i.components, i.euler_characteristic, i.boundary_triangles),
+        (1, 2, Some(276))
+    );
     assert!(i.problems.is_empty());
 }
 
@@ -323,7 +352,10 @@ fn liver_smooth_is_a_clean_sphere() {
     let data = tissue::io::read(asset("liver-smooth.obj")).expect("liver-smooth.obj reads");
     assert_eq!(check(&data), vec![]);
     let i = inspect(&data);
-    assert_eq!((i.vertices, i.triangles, i.euler_characteristic), (2194, 4384, 2));
+    assert_eq!(
+        (i.vertices, i.triangles, i.euler_characteristic),
+        (2194, 4384, 2)
+    );
     assert!((i.volume.unwrap_or(0.0) - 39.267).abs() < 5e-4);
 }
 
@@ -339,6 +371,10 @@ fn wound_ply_volume_and_skin() {
     // The skin patch alone is open with two components.
     let skin = SurfaceMesh::new(data.vertices.clone(), data.triangles.clone());
     let p = check_surface(&skin);
-    assert!(p.iter().any(|q| matches!(q, Problem::BorderEdges { count: 41, .. })), "{p:?}");
+    assert!(
+        p.iter()
+            .any(|q| matches!(q, Problem::BorderEdges { count: 41, .. })),
+        "{p:?}"
+    );
     assert!(p.contains(&Problem::MultipleComponents { count: 2 }));
 }

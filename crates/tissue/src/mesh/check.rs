@@ -147,7 +147,10 @@ impl fmt::Display for Problem {
                 "{element_kind} {element} refers to vertex {index}, but the mesh has {vertex_count} vertices"
             ),
             Problem::InvertedTet { tet, volume } => {
-                write!(f, "tetrahedron {tet} is inverted (signed volume {volume:.3e})")
+                write!(
+                    f,
+                    "tetrahedron {tet} is inverted (signed volume {volume:.3e})"
+                )
             }
             Problem::DegenerateTet {
                 tet,
@@ -169,7 +172,10 @@ impl fmt::Display for Problem {
                 "{element_kind} {element} has the same vertices as {element_kind} {first}"
             ),
             Problem::NonManifoldEdge { a, b, faces } => {
-                write!(f, "edge ({a}, {b}) is shared by {faces} triangles (non-manifold)")
+                write!(
+                    f,
+                    "edge ({a}, {b}) is shared by {faces} triangles (non-manifold)"
+                )
             }
             Problem::NonManifoldFace { face, tets } => write!(
                 f,
@@ -261,7 +267,11 @@ fn check_parts(
     let tris = valid_elements("triangle", triangles, n, 0, &mut c);
     let mut all_tets = valid_elements("tetrahedron", tets, n, 0, &mut c);
     let quadratic = valid_elements("10-node tetrahedron", tets10, n, tets.len(), &mut c);
-    all_tets.extend(quadratic.iter().map(|&(i, t)| (i, [t[0], t[1], t[2], t[3]])));
+    all_tets.extend(
+        quadratic
+            .iter()
+            .map(|&(i, t)| (i, [t[0], t[1], t[2], t[3]])),
+    );
     let volume = !tets.is_empty() || !tets10.is_empty();
     if volume {
         tet_problems(vertices, &all_tets, &mut c);
@@ -271,7 +281,8 @@ fn check_parts(
     }
     duplicate_vertex_problems(vertices, &mut c);
     let mut used = vec![false; n];
-    let mark = |used: &mut Vec<bool>, ids: &[u32]| ids.iter().for_each(|&i| used[i as usize] = true);
+    let mark =
+        |used: &mut Vec<bool>, ids: &[u32]| ids.iter().for_each(|&i| used[i as usize] = true);
     tris.iter().for_each(|(_, t)| mark(&mut used, t));
     all_tets.iter().for_each(|(_, t)| mark(&mut used, t));
     quadratic.iter().for_each(|(_, t)| mark(&mut used, t));
@@ -383,7 +394,11 @@ fn triangle_problems(
     }
     duplicate_problems("triangle", tris, c);
     let orientation = edge_problems(&proper, standalone, c);
-    for (&(a, b), &edge) in orientation.inconsistent.iter().zip(&orientation.inconsistent_edges) {
+    for (&(a, b), &edge) in orientation
+        .inconsistent
+        .iter()
+        .zip(&orientation.inconsistent_edges)
+    {
         c.push(Problem::InconsistentOrientation {
             triangle_a: ids[a as usize],
             triangle_b: ids[b as usize],

@@ -83,7 +83,12 @@ pub fn inspect(mesh: &MeshData) -> Inspection {
     let ef = edge_faces(&surface.triangles);
     let closed = !surface.triangles.is_empty() && ef.with_face_count(|k| k != 2).next().is_none();
     let volume = volume.or_else(|| closed.then(|| surface.signed_volume()));
-    let finite: Vec<_> = mesh.vertices.iter().copied().filter(|p| is_finite_vec(*p)).collect();
+    let finite: Vec<_> = mesh
+        .vertices
+        .iter()
+        .copied()
+        .filter(|p| is_finite_vec(*p))
+        .collect();
     let bounds = crate::mesh::surface::bounds_of(&finite).map(|(lo, hi)| Bounds {
         min: lo.to_array(),
         max: hi.to_array(),
@@ -130,7 +135,9 @@ impl fmt::Display for Inspection {
         if self.fixed_vertices > 0 {
             row(f, "fixed vertices", self.fixed_vertices.to_string())?;
         }
-        let volume = self.volume.map_or("- (surface not closed)".into(), |v| format!("{v:.6e}"));
+        let volume = self
+            .volume
+            .map_or("- (surface not closed)".into(), |v| format!("{v:.6e}"));
         row(f, "volume", volume)?;
         row(f, "surface area", format!("{:.6e}", self.surface_area))?;
         if let Some(b) = &self.bounds {
@@ -142,7 +149,10 @@ impl fmt::Display for Inspection {
         row(
             f,
             "surface",
-            format!("{closed}, Euler characteristic {}", self.euler_characteristic),
+            format!(
+                "{closed}, Euler characteristic {}",
+                self.euler_characteristic
+            ),
         )?;
         if let Some(q) = &self.quality {
             row(
@@ -180,7 +190,12 @@ mod tests {
 
     #[test]
     fn box_inspection_numbers() {
-        let m = box_tets(Vec3::ZERO, Vec3::new(2.0, 1.0, 0.5), [4, 2, 1], BoxSplit::Six);
+        let m = box_tets(
+            Vec3::ZERO,
+            Vec3::new(2.0, 1.0, 0.5),
+            [4, 2, 1],
+            BoxSplit::Six,
+        );
         let i = inspect(&MeshData::from_tets(&m));
         assert_eq!((i.vertices, i.tetrahedra, i.components), (30, 48, 1));
         assert_eq!(i.boundary_triangles, Some(2 * 2 * (8 + 4 + 2)));
@@ -190,7 +205,9 @@ mod tests {
         assert!(i.closed && i.problems.is_empty());
         assert_eq!(i.bounds.as_ref().map(|b| b.max), Some([2.0, 1.0, 0.5]));
         let text = i.to_string();
-        assert!(text.contains("tetrahedron quality") && text.contains("problems              none"));
+        assert!(
+            text.contains("tetrahedron quality") && text.contains("problems              none")
+        );
     }
 
     #[test]
@@ -203,7 +220,11 @@ mod tests {
         let json = serde_json::to_value(&i).unwrap_or_default();
         assert_eq!(json["problems"][0]["kind"], "border_edges");
         assert_eq!(json["problems"][0]["count"], 24);
-        assert!(json["problems"][0]["message"].as_str().is_some_and(|m| m.contains("24 border")));
+        assert!(
+            json["problems"][0]["message"]
+                .as_str()
+                .is_some_and(|m| m.contains("24 border"))
+        );
         let s = inspect(&MeshData::from_surface(&icosphere(Vec3::ZERO, 1.0, 2)));
         assert_eq!((s.components, s.euler_characteristic), (1, 2));
         assert!(s.volume.is_some_and(|v| v > 0.0));

@@ -84,7 +84,11 @@ pub struct QualityStats {
 impl QualityStats {
     /// Statistics of a list of qualities; `None` when it holds no finite value.
     pub fn of(element: &'static str, qualities: &[Real]) -> Option<Self> {
-        let mut q: Vec<Real> = qualities.iter().copied().filter(|q| q.is_finite()).collect();
+        let mut q: Vec<Real> = qualities
+            .iter()
+            .copied()
+            .filter(|q| q.is_finite())
+            .collect();
         if q.is_empty() {
             return None;
         }

@@ -67,8 +67,14 @@ impl fmt::Display for RepairReport {
         let rows = [
             ("invalid elements removed", self.invalid_elements_removed),
             ("vertices merged", self.vertices_merged),
-            ("degenerate elements removed", self.degenerate_elements_removed),
-            ("duplicate elements removed", self.duplicate_elements_removed),
+            (
+                "degenerate elements removed",
+                self.degenerate_elements_removed,
+            ),
+            (
+                "duplicate elements removed",
+                self.duplicate_elements_removed,
+            ),
             ("unused vertices removed", self.unused_vertices_removed),
             ("elements reoriented", self.elements_reoriented),
         ];
@@ -92,7 +98,8 @@ pub fn repair(mesh: &mut MeshData, options: &RepairOptions) -> RepairReport {
         r.vertices_merged = merge_duplicate_vertices(mesh, tol);
     }
     if options.remove_degenerate {
-        r.degenerate_elements_removed = remove_degenerate_triangles(mesh) + remove_collapsed_tets(mesh);
+        r.degenerate_elements_removed =
+            remove_degenerate_triangles(mesh) + remove_collapsed_tets(mesh);
     }
     if options.remove_duplicates {
         r.duplicate_elements_removed = remove_duplicate_elements(mesh);
@@ -116,7 +123,11 @@ fn has_repeat(e: &[u32]) -> bool {
 
 /// Keeps the elements `keep` accepts, and their tags when there is one tag per element.
 /// Returns the number removed.
-fn retain_tagged<T>(elements: &mut Vec<T>, tags: &mut Vec<i32>, mut keep: impl FnMut(&T) -> bool) -> usize {
+fn retain_tagged<T>(
+    elements: &mut Vec<T>,
+    tags: &mut Vec<i32>,
+    mut keep: impl FnMut(&T) -> bool,
+) -> usize {
     let flags: Vec<bool> = elements.iter().map(&mut keep).collect();
     let removed = flags.iter().filter(|k| !**k).count();
     if removed == 0 {
@@ -137,8 +148,9 @@ pub fn remove_invalid_elements(mesh: &mut MeshData) -> usize {
     let mut none = Vec::new();
     let fixed_before = mesh.fixed_vertices.len();
     mesh.fixed_vertices.retain(|&v| (v as usize) < n);
-    retain_tagged(&mut mesh.triangles, &mut mesh.triangle_tags, |e| in_range(e, n))
-        + retain_tagged(&mut mesh.tets, &mut mesh.tet_tags, |e| in_range(e, n))
+    retain_tagged(&mut mesh.triangles, &mut mesh.triangle_tags, |e| {
+        in_range(e, n)
+    }) + retain_tagged(&mut mesh.tets, &mut mesh.tet_tags, |e| in_range(e, n))
         + retain_tagged(&mut mesh.tets10, &mut none, |e| in_range(e, n))
         + (fixed_before - mesh.fixed_vertices.len())
 }
@@ -284,23 +296,23 @@ pub fn orient_outward(mesh: &mut MeshData) -> usize {
     let v = &mesh.vertices;
     let p = |i: u32| v.get(i as usize).copied();
     let mut flipped = 0;
+    let inverted = |t: &[u32]| match (p(t[0]), p(t[1]), p(t[2]), p(t[3])) {
+        (Some(a), Some(b), Some(c), Some(d)) => tet_signed_volume(a, b, c, d) < 0.0,
+        _ => false,
+    };
     for t in &mut mesh.tets {
-        if let (Some(a), Some(b), Some(c), Some(d)) = (p(t[0]), p(t[1]), p(t[2]), p(t[3])) {
-            if tet_signed_volume(a, b, c, d) < 0.0 {
-                t.swap(2, 3);
-                flipped += 1;
-            }
+        if inverted(t) {
+            t.swap(2, 3);
+            flipped += 1;
         }
     }
     for t in &mut mesh.tets10 {
-        if let (Some(a), Some(b), Some(c), Some(d)) = (p(t[0]), p(t[1]), p(t[2]), p(t[3])) {
-            if tet_signed_volume(a, b, c, d) < 0.0 {
-                // Swapping corners 2 and 3 exchanges edges (1,2) ↔ (1,3) and (0,2) ↔ (0,3).
-                t.swap(2, 3);
-                t.swap(5, 8);
-                t.swap(6, 7);
-                flipped += 1;
-            }
+        if inverted(t) {
+            // Swapping corners 2 and 3 exchanges edges (1,2) ↔ (1,3) and (0,2) ↔ (0,3).
+            t.swap(2, 3);
+            t.swap(5, 8);
+            t.swap(6, 7);
+            flipped += 1;
         }
     }
     let flips = surface_flips(v, &mesh.triangles);
@@ -325,7 +337,8 @@ fn surface_flips(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<bool> {
     for (e, faces) in ef.with_face_count(|_| true) {
         match faces {
             [f, g] if usable(&triangles[*f as usize]) && usable(&triangles[*g as usize]) => {
-                let same = traverses(triangles[*f as usize], e) == traverses(triangles[*g as usize], e);
+                let same =
+                    traverses(triangles[*f as usize], e) == traverses(triangles[*g as usize], e);
                 links.push((*f, *g, same));
                 links.push((*g, *f, same));
             }
@@ -363,7 +376,10 @@ fn surface_flips(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<bool> {
                 }
             }
         }
-        let turned = members.iter().filter(|&&f| flip[f as usize] == Some(true)).count();
+        let turned = members
+            .iter()
+            .filter(|&&f| flip[f as usize] == Some(true))
+            .count();
         let mut invert = 2 * turned > members.len();
         if closed {
             let volume: Real = members
@@ -371,7 +387,11 @@ fn surface_flips(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Vec<bool> {
                 .map(|&f| {
                     let [a, b, c] = triangles[f as usize].map(|i| vertices[i as usize]);
                     let s = a.dot(b.cross(c));
-                    if flip[f as usize] == Some(true) { -s } else { s }
+                    if flip[f as usize] == Some(true) {
+                        -s
+                    } else {
+                        s
+                    }
                 })
                 .sum();
             invert = volume < 0.0;

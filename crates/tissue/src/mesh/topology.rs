@@ -66,7 +66,11 @@ fn edge_key(a: u32, b: u32) -> [u32; 2] {
 /// Unique edges of a triangle mesh as sorted pairs `[lo, hi]`, in increasing order.
 /// Collapsed edges (a triangle repeating a vertex) are left out.
 pub fn triangle_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 2]> {
-    unique_edges(triangles.iter().flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]))
+    unique_edges(
+        triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]),
+    )
 }
 
 /// Unique edges of a tetrahedral mesh as sorted pairs `[lo, hi]`, in increasing order.

@@ -21,7 +21,12 @@ fn flipped_triangle_is_named_on_all_three_edges() {
     let p = check_surface(&s);
     assert_eq!(p.len(), 3, "{p:?}");
     for q in &p {
-        let Problem::InconsistentOrientation { triangle_a, triangle_b, edge } = q else {
+        let Problem::InconsistentOrientation {
+            triangle_a,
+            triangle_b,
+            edge,
+        } = q
+        else {
             panic!("unexpected {q}")
         };
         assert!(*triangle_a == 17 || *triangle_b == 17);
@@ -37,8 +42,11 @@ fn reversed_sphere_is_inward() {
     let v = s.signed_volume();
     assert!(v < 0.0);
     let p = check_surface(&s);
-    assert!(matches!(p[..], [Problem::InwardOrientation { component: 0, volume }]
-        if (volume - v).abs() < 1e-13), "{p:?}");
+    assert!(
+        matches!(p[..], [Problem::InwardOrientation { component: 0, volume }]
+        if (volume - v).abs() < 1e-13),
+        "{p:?}"
+    );
 }
 
 #[test]
@@ -54,7 +62,9 @@ fn holes_count_their_border_edges() {
     s.triangles.remove(0);
     let p = check_surface(&s);
     assert_eq!(p.len(), 1, "{p:?}");
-    let Problem::BorderEdges { count, examples } = &p[0] else { panic!("{p:?}") };
+    let Problem::BorderEdges { count, examples } = &p[0] else {
+        panic!("{p:?}")
+    };
     assert_eq!(*count, 6);
     assert!(examples.contains(&[a.min(b), a.max(b)]));
 }
@@ -67,10 +77,20 @@ fn fin_is_a_non_manifold_edge() {
     let n = (s.vertices.len() - 1) as u32;
     s.triangles.push([a, b, n]);
     let p = check_surface(&s);
-    let nm = Problem::NonManifoldEdge { a: a.min(b) as usize, b: a.max(b) as usize, faces: 3 };
+    let nm = Problem::NonManifoldEdge {
+        a: a.min(b) as usize,
+        b: a.max(b) as usize,
+        faces: 3,
+    };
     assert!(p.contains(&nm), "{p:?}");
-    assert!(p.iter().any(|q| matches!(q, Problem::BorderEdges { count: 2, .. })));
-    assert!(!p.iter().any(|q| matches!(q, Problem::InconsistentOrientation { .. })));
+    assert!(
+        p.iter()
+            .any(|q| matches!(q, Problem::BorderEdges { count: 2, .. }))
+    );
+    assert!(
+        !p.iter()
+            .any(|q| matches!(q, Problem::InconsistentOrientation { .. }))
+    );
 }
 
 #[test]
@@ -78,14 +98,20 @@ fn inverted_and_flat_tets_are_named() {
     let mut m = box_tets(Vec3::ZERO, Vec3::ONE, [2, 2, 2], BoxSplit::Six);
     m.tets[7].swap(0, 1);
     let v = m.tet_volume(7);
-    assert_eq!(check_tets(&m), vec![Problem::InvertedTet { tet: 7, volume: v }]);
+    assert_eq!(
+        check_tets(&m),
+        vec![Problem::InvertedTet { tet: 7, volume: v }]
+    );
 
     let flat = TetMesh::new(
         vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.3, 0.3, 1e-6)],
         vec![[0, 1, 2, 3]],
     );
     let p = check_tets(&flat);
-    assert!(matches!(p[..], [Problem::DegenerateTet { tet: 0, .. }]), "{p:?}");
+    assert!(
+        matches!(p[..], [Problem::DegenerateTet { tet: 0, .. }]),
+        "{p:?}"
+    );
 }
 
 #[test]
@@ -102,7 +128,14 @@ fn tets_sharing_only_an_edge_make_a_non_manifold_boundary() {
     let m = TetMesh::new(v, vec![[0, 1, 2, 3], [0, 1, 4, 5]]);
     assert!(m.tet_volume(1) > 0.0);
     let p = check_tets(&m);
-    assert_eq!(p, vec![Problem::NonManifoldEdge { a: 0, b: 1, faces: 4 }]);
+    assert_eq!(
+        p,
+        vec![Problem::NonManifoldEdge {
+            a: 0,
+            b: 1,
+            faces: 4
+        }]
+    );
 }
 
 #[test]
@@ -124,17 +157,30 @@ fn duplicates_unused_components_and_bad_indices() {
             index: 52,
             vertex_count: 14,
         },
-        Problem::DuplicateElement { element_kind: "triangle", element: 20, first: 4 },
-        Problem::UnusedVertices { count: 2, examples: vec![12, 13] },
+        Problem::DuplicateElement {
+            element_kind: "triangle",
+            element: 20,
+            first: 4,
+        },
+        Problem::UnusedVertices {
+            count: 2,
+            examples: vec![12, 13],
+        },
     ];
     for e in &expected {
         assert!(p.contains(e), "missing {e}: {p:?}");
     }
     let two = crate::mesh::MeshData {
-        vertices: [s.vertices.clone(), s.vertices.iter().map(|v| *v + Vec3::X * 5.0).collect()]
-            .concat(),
-        triangles: [s.triangles.clone(), s.triangles.iter().map(|t| t.map(|i| i + 12)).collect()]
-            .concat(),
+        vertices: [
+            s.vertices.clone(),
+            s.vertices.iter().map(|v| *v + Vec3::X * 5.0).collect(),
+        ]
+        .concat(),
+        triangles: [
+            s.triangles.clone(),
+            s.triangles.iter().map(|t| t.map(|i| i + 12)).collect(),
+        ]
+        .concat(),
         ..Default::default()
     };
     assert_eq!(check(&two), vec![Problem::MultipleComponents { count: 2 }]);
@@ -146,7 +192,10 @@ fn reports_are_bounded() {
     let vertices = (0..1002).map(|i| Vec3::new(i as f64, 0.0, 0.0)).collect();
     let triangles = (0..1000u32).map(|i| [i, i + 1, i + 2]).collect();
     let p = check_surface(&SurfaceMesh::new(vertices, triangles));
-    let degenerate = p.iter().filter(|q| q.kind() == "degenerate_triangle").count();
+    let degenerate = p
+        .iter()
+        .filter(|q| q.kind() == "degenerate_triangle")
+        .count();
     assert_eq!(degenerate, MAX_PER_KIND);
     let summary = Problem::MoreOfKind {
         problem_kind: "degenerate_triangle",
@@ -155,14 +204,23 @@ fn reports_are_bounded() {
     };
     let at = p.iter().position(|q| *q == summary);
     assert_eq!(at, Some(MAX_PER_KIND));
-    assert_eq!(summary.to_string(), "... and 980 more degenerate_triangle problems (1000 in all)");
+    assert_eq!(
+        summary.to_string(),
+        "... and 980 more degenerate_triangle problems (1000 in all)"
+    );
     assert!(p.len() < 60);
 }
 
 #[test]
 fn json_has_kind_tag() {
-    let p = Problem::InvertedTet { tet: 3, volume: -0.5 };
+    let p = Problem::InvertedTet {
+        tet: 3,
+        volume: -0.5,
+    };
     let j = serde_json::to_string(&p).unwrap_or_default();
     assert_eq!(j, r#"{"kind":"inverted_tet","tet":3,"volume":-0.5}"#);
-    assert_eq!(p.to_string(), "tetrahedron 3 is inverted (signed volume -5.000e-1)");
+    assert_eq!(
+        p.to_string(),
+        "tetrahedron 3 is inverted (signed volume -5.000e-1)"
+    );
 }

@@ -87,7 +87,10 @@ mod tests {
         let a = 4.0 / (10.0 + 2.0 * 5f64.sqrt()).sqrt();
         let v = 5.0 / 12.0 * (3.0 + 5f64.sqrt()) * a * a * a;
         let moved = SurfaceMesh::new(
-            m.vertices.iter().map(|p| *p - Vec3::new(1.0, 2.0, 3.0)).collect(),
+            m.vertices
+                .iter()
+                .map(|p| *p - Vec3::new(1.0, 2.0, 3.0))
+                .collect(),
             m.triangles.clone(),
         );
         assert!((moved.signed_volume() - v).abs() < 1e-14);

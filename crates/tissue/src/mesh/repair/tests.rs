@@ -29,18 +29,29 @@ fn merging_a_soup_restores_the_sphere() {
     assert_eq!(merged, n - s.vertices.len());
     assert_eq!(m.vertices.len(), s.vertices.len());
     assert_eq!(check(&m), vec![]);
-    assert!((SurfaceMesh::new(m.vertices.clone(), m.triangles.clone()).signed_volume() - s.signed_volume()).abs() < 1e-14);
+    assert!(
+        (SurfaceMesh::new(m.vertices.clone(), m.triangles.clone()).signed_volume()
+            - s.signed_volume())
+        .abs()
+            < 1e-14
+    );
     // Survivors keep the data of the first copy, which is what they were renumbered from.
     let ids = &m.point_data[0].values;
     assert!(ids.windows(2).all(|w| w[0] < w[1]));
     // Old vertices 0 and 3 are distinct corners unless they coincide; fixed stays in range.
-    assert!(m.fixed_vertices.iter().all(|&v| (v as usize) < m.vertices.len()));
+    assert!(
+        m.fixed_vertices
+            .iter()
+            .all(|&v| (v as usize) < m.vertices.len())
+    );
 }
 
 #[test]
 fn unused_vertices_go_with_their_data() {
     let mut m = MeshData {
-        vertices: (0..6).map(|i| Vec3::new(i as f64, (i * i) as f64, 1.0)).collect(),
+        vertices: (0..6)
+            .map(|i| Vec3::new(i as f64, (i * i) as f64, 1.0))
+            .collect(),
         triangles: vec![[1, 3, 5]],
         triangle_tags: vec![7],
         fixed_vertices: vec![4, 3],
@@ -63,7 +74,14 @@ fn unused_vertices_go_with_their_data() {
 fn degenerate_and_duplicate_elements_go_with_their_tags() {
     let mut m = MeshData {
         vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::X],
-        triangles: vec![[0, 1, 2], [0, 0, 1], [2, 1, 0], [1, 2, 3], [0, 1, 4], [1, 0, 9]],
+        triangles: vec![
+            [0, 1, 2],
+            [0, 0, 1],
+            [2, 1, 0],
+            [1, 2, 3],
+            [0, 1, 4],
+            [1, 0, 9],
+        ],
         triangle_tags: vec![1, 2, 3, 4, 5, 6],
         tets: vec![[0, 1, 2, 3], [0, 1, 1, 3], [3, 2, 1, 0]],
         tet_tags: vec![10, 20, 30],
@@ -101,7 +119,11 @@ fn quadratic_tet_mid_nodes_follow_the_swap() {
     vertices.extend(edges.iter().map(|&(a, b)| 0.5 * (c[a] + c[b])));
     // The same tetrahedron with corners 0 and 1 exchanged (inverted), mid nodes relabelled.
     let t: [u32; 10] = [1, 0, 2, 3, 4, 6, 5, 8, 7, 9];
-    let mut m = MeshData { vertices, tets10: vec![t], ..Default::default() };
+    let mut m = MeshData {
+        vertices,
+        tets10: vec![t],
+        ..Default::default()
+    };
     assert_eq!(orient_outward(&mut m), 1);
     let t = m.tets10[0];
     let p = |k: usize| m.vertices[t[k] as usize];
@@ -128,16 +150,28 @@ fn non_manifold_and_non_orientable_input_does_not_panic() {
     for i in 0..n as u32 {
         let (a, b) = (2 * i, 2 * i + 1);
         // The last quad joins with a half twist.
-        let (c, d) = if i + 1 == n as u32 { (1, 0) } else { (a + 2, b + 2) };
+        let (c, d) = if i + 1 == n as u32 {
+            (1, 0)
+        } else {
+            (a + 2, b + 2)
+        };
         triangles.extend([[a, b, d], [a, d, c]]);
     }
     triangles.extend([[0, 1, 5], [0, 0, 1], [0, 1, 99]]);
-    let mut m = MeshData { vertices, triangles, ..Default::default() };
+    let mut m = MeshData {
+        vertices,
+        triangles,
+        ..Default::default()
+    };
     let _ = check(&m);
     let r = repair(&mut m, &RepairOptions::default());
     assert_eq!(r.invalid_elements_removed, 1);
     assert_eq!(r.degenerate_elements_removed, 1);
-    assert!(check(&m).iter().any(|p| matches!(p, Problem::NonManifoldEdge { .. })));
+    assert!(
+        check(&m)
+            .iter()
+            .any(|p| matches!(p, Problem::NonManifoldEdge { .. }))
+    );
 }
 
 #[test]

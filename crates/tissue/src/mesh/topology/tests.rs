@@ -26,14 +26,18 @@ fn box_tets_satisfy_euler_for_a_ball() {
         let mut faces: Vec<[u32; 3]> = m
             .tets
             .iter()
-            .flat_map(|t| crate::mesh::TET_FACES.map(|f| crate::mesh::boundary::sorted([t[f[0]], t[f[1]], t[f[2]]])))
+            .flat_map(|t| {
+                crate::mesh::TET_FACES
+                    .map(|f| crate::mesh::boundary::sorted([t[f[0]], t[f[1]], t[f[2]]]))
+            })
             .collect();
         faces.sort_unstable();
         faces.dedup();
         let chi = m.vertices.len() as i64 - e as i64 + faces.len() as i64 - m.tets.len() as i64;
         assert_eq!(chi, 1, "{split:?}");
         if split == BoxSplit::Six {
-            let axis = nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz;
+            let axis =
+                nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz;
             let grid_faces = nx * ny * (nz + 1) + nx * (ny + 1) * nz + (nx + 1) * ny * nz;
             assert_eq!(e, axis + grid_faces + nx * ny * nz);
         }
@@ -46,10 +50,16 @@ fn box_tets_satisfy_euler_for_a_ball() {
             for (k, n) in row.iter().enumerate() {
                 let Some(u) = n else { continue };
                 let back = nb[*u as usize].iter().position(|x| *x == Some(t as u32));
-                let Some(j) = back else { panic!("tet {u} does not see {t}") };
+                let Some(j) = back else {
+                    panic!("tet {u} does not see {t}")
+                };
                 let face = |t: usize, k: usize| {
                     let f = crate::mesh::TET_FACES[k];
-                    crate::mesh::boundary::sorted([m.tets[t][f[0]], m.tets[t][f[1]], m.tets[t][f[2]]])
+                    crate::mesh::boundary::sorted([
+                        m.tets[t][f[0]],
+                        m.tets[t][f[1]],
+                        m.tets[t][f[2]],
+                    ])
                 };
                 assert_eq!(face(t, k), face(*u as usize, j));
             }
@@ -66,10 +76,17 @@ fn icosphere_adjacency_counts() {
     let nb = vertex_neighbours(s.vertices.len(), &e);
     let valence: Vec<usize> = (0..s.vertices.len()).map(|v| nb.row(v).len()).collect();
     assert_eq!(valence.iter().filter(|&&k| k == 5).count(), 12);
-    assert_eq!(valence.iter().filter(|&&k| k == 6).count(), s.vertices.len() - 12);
+    assert_eq!(
+        valence.iter().filter(|&&k| k == 6).count(),
+        s.vertices.len() - 12
+    );
     let vt = vertex_elements(s.vertices.len(), &s.triangles);
     assert!((0..s.vertices.len()).all(|v| vt.row(v).len() == valence[v]));
-    assert!(vt.row(0).iter().all(|&t| s.triangles[t as usize].contains(&0)));
+    assert!(
+        vt.row(0)
+            .iter()
+            .all(|&t| s.triangles[t as usize].contains(&0))
+    );
     let ef = edge_faces(&s.triangles);
     assert_eq!(ef.edges, e);
     assert!(ef.with_face_count(|n| n != 2).next().is_none());
