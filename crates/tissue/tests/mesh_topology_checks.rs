@@ -378,3 +378,20 @@ fn wound_ply_volume_and_skin() {
     );
     assert!(p.contains(&Problem::MultipleComponents { count: 2 }));
 }
+
+#[test]
+fn liver_inspection_report_by_hand_reader() {
+    let data = MeshData::from_tets(&liver_by_hand());
+    let i = inspect(&data);
+    let text = i.to_string();
+    println!("{text}");
+    println!("{}", serde_json::to_string_pretty(&i).unwrap_or_default());
+    assert!(text.contains("tetrahedron quality   min 0.079  median 0.595  max 0.966"));
+    assert!(text.contains("boundary triangles    276"));
+    assert!(text.contains("problems              none"));
+    assert_eq!(
+        (i.components, i.euler_characteristic, i.boundary_triangles),
+        (1, 2, Some(276))
+    );
+    assert!((i.volume.unwrap_or(0.0) - 36.561).abs() < 5e-4);
+}

@@ -135,13 +135,11 @@ impl fmt::Display for Inspection {
         if self.fixed_vertices > 0 {
             row(f, "fixed vertices", self.fixed_vertices.to_string())?;
         }
-        let volume = self
-            .volume
-            .map_or("- (surface not closed)".into(), |v| format!("{v:.6e}"));
+        let volume = self.volume.map_or("- (surface not closed)".into(), num);
         row(f, "volume", volume)?;
-        row(f, "surface area", format!("{:.6e}", self.surface_area))?;
+        row(f, "surface area", num(self.surface_area))?;
         if let Some(b) = &self.bounds {
-            let v = |a: [Real; 3]| format!("({:.4e}, {:.4e}, {:.4e})", a[0], a[1], a[2]);
+            let v = |a: [Real; 3]| format!("({}, {}, {})", num(a[0]), num(a[1]), num(a[2]));
             row(f, "bounds", format!("{} .. {}", v(b.min), v(b.max)))?;
         }
         row(f, "components", self.components.to_string())?;
@@ -182,11 +180,32 @@ impl fmt::Display for Inspection {
     }
 }
 
+/// Six significant digits, plain for everyday magnitudes, scientific otherwise.
+fn num(v: Real) -> String {
+    let mag = v.abs().log10().floor();
+    if v == 0.0 || !v.is_finite() {
+        v.to_string()
+    } else if (-3.0..6.0).contains(&mag) {
+        format!("{:.*}", (5.0 - mag) as usize, v)
+    } else {
+        format!("{v:.5e}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::math::Vec3;
     use crate::mesh::generate::{BoxSplit, box_tets, icosphere, tube};
+
+    #[test]
+    fn numbers_have_six_digits() {
+        assert_eq!(num(36.56085106), "36.5609");
+        assert_eq!(num(-0.00123456789), "-0.00123457");
+        assert_eq!(num(9.28e-5), "9.28000e-5");
+        assert_eq!(num(1234567.0), "1.23457e6");
+        assert_eq!(num(0.0), "0");
+    }
 
     #[test]
     fn box_inspection_numbers() {
