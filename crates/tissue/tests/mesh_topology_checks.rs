@@ -395,3 +395,50 @@ fn liver_inspection_report_by_hand_reader() {
     );
     assert!((i.volume.unwrap_or(0.0) - 36.561).abs() < 5e-4);
 }
+
+#[test]
+fn a_badly_broken_large_mesh_gives_a_short_report() {
+    // 81920 triangles, every other one flipped, every tenth vertex duplicated, a hole.
+    let s = icosphere(Vec3::ZERO, 1.0, 6);
+    let mut m = MeshData::from_surface(&s);
+    m.triangles.iter_mut().step_by(2).for_each(|t| t.swap(1, 2));
+    m.triangles.truncate(m.triangles.len() - 1);
+    let n = m.vertices.len();
+    m.vertices.extend((0..n).step_by(10).map(|v| s.vertices[v]));
+    let start = std::time::Instant::now();
+    let p = check(&m);
+    assert!(p.len() <= 2 * 20 + 6, "{} entries", p.len());
+    let total = |kind: &str| {
+        p.iter().find_map(|q| match q {
+            Problem::MoreOfKind {
+                problem_kind,
+                total,
+                ..
+            } if *problem_kind == kind => Some(*total),
+            _ => None,
+        })
+    };
+    assert!(
+        total("inconsistent_orientation").is_some_and(|t| t > 50_000),
+        "{p:#?}"
+    );
+    assert!(p.contains(&Problem::BorderEdges {
+        count: 3,
+        examples: match p.iter().find(|q| q.kind() == "border_edges") {
+            Some(Problem::BorderEdges { examples, .. }) => examples.clone(),
+            _ => vec![],
+        }
+    }));
+    let dup = (0..n).step_by(10).count();
+    assert!(
+        p.iter()
+            .any(|q| matches!(q, Problem::DuplicateVertices { count, .. } if *count == dup))
+    );
+    let r = repair(&mut m, &RepairOptions::default());
+    assert_eq!(r.vertices_merged, dup);
+    // Open now (the hole), so orientation follows the majority of each component.
+    let after = check(&m);
+    assert_eq!(after.len(), 1, "{after:?}");
+    assert!(matches!(after[0], Problem::BorderEdges { count: 3, .. }));
+    assert!(start.elapsed().as_secs_f64() < 10.0);
+}

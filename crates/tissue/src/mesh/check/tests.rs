@@ -224,3 +224,27 @@ fn json_has_kind_tag() {
         "tetrahedron 3 is inverted (signed volume -5.000e-1)"
     );
 }
+
+#[test]
+fn skin_triangles_of_a_volume_may_be_open() {
+    // A box volume with one face of its boundary as a separate, open skin patch.
+    let b = box_tets(Vec3::ZERO, Vec3::ONE, [2, 2, 2], BoxSplit::Six);
+    let bs = crate::mesh::boundary_surface(&b);
+    let skin: Vec<[u32; 3]> = bs
+        .surface
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| bs.nodes[v as usize]))
+        .filter(|t| t.iter().all(|&v| b.vertices[v as usize].z == 1.0))
+        .collect();
+    assert_eq!(skin.len(), 8);
+    let mut m = MeshData::from_tets(&b);
+    m.triangles = skin.clone();
+    assert_eq!(check(&m), vec![]);
+    // Alone, the same patch is an open surface with 8 border edges.
+    let p = check_surface(&SurfaceMesh::new(b.vertices.clone(), skin));
+    assert!(
+        p.iter()
+            .any(|q| matches!(q, Problem::BorderEdges { count: 8, .. }))
+    );
+}
