@@ -442,3 +442,49 @@ fn a_badly_broken_large_mesh_gives_a_short_report() {
     assert!(matches!(after[0], Problem::BorderEdges { count: 3, .. }));
     assert!(start.elapsed().as_secs_f64() < 10.0);
 }
+
+fn coordinate() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        8 => (-2i32..3).prop_map(f64::from),
+        1 => Just(f64::NAN),
+        1 => any::<f64>(),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+    /// Garbage in (repeated and out-of-range indices, NaN, coincident points, fins,
+    /// duplicates): checks, inspection and repairs answer without panicking, and a repaired
+    /// mesh has no invalid, collapsed or duplicate element and no unused vertex left.
+    #[test]
+    fn garbage_never_panics(
+        vertices in proptest::collection::vec((coordinate(), coordinate(), coordinate()), 0..12),
+        triangles in proptest::collection::vec([0u32..14, 0u32..14, 0u32..14], 0..16),
+        tets in proptest::collection::vec([0u32..14, 0u32..14, 0u32..14, 0u32..14], 0..8),
+        tets10 in proptest::collection::vec(proptest::array::uniform10(0u32..14), 0..2),
+        fixed in proptest::collection::vec(0u32..14, 0..4),
+    ) {
+        let mut m = MeshData {
+            vertices: vertices.into_iter().map(|(x, y, z)| Vec3::new(x, y, z)).collect(),
+            triangles,
+            tets,
+            tets10,
+            fixed_vertices: fixed,
+            ..MeshData::default()
+        };
+        let _ = check(&m);
+        let _ = inspect(&m).to_string();
+        let _ = repair(&mut m, &RepairOptions::default());
+        let after = check(&m);
+        for p in &after {
+            prop_assert!(!matches!(p,
+                Problem::IndexOutOfRange { .. }
+                    | Problem::DuplicateElement { .. }
+                    | Problem::UnusedVertices { .. }
+            ), "{}", p);
+        }
+        let n = m.vertices.len();
+        prop_assert!(m.fixed_vertices.iter().all(|&v| (v as usize) < n));
+        let _ = inspect(&m);
+    }
+}
