@@ -223,18 +223,17 @@ pub struct Components {
 
 /// Components of any elements (triangles, tetrahedra) joined through shared vertices.
 pub fn components<const N: usize>(elements: &[[u32; N]]) -> Components {
-    // Union-find over the vertices the elements use; sized by the largest index so that no
-    // index can fall outside it.
-    let n = elements
-        .iter()
-        .flat_map(|e| e.iter())
-        .map(|&v| v as usize + 1)
-        .max()
-        .unwrap_or(0);
+    // Union-find over the vertices the elements use, numbered compactly so that a stray huge
+    // index costs nothing.
+    let mut used: Vec<u32> = elements.iter().flatten().copied().collect();
+    used.sort_unstable();
+    used.dedup();
+    let slot = |v: u32| used.binary_search(&v).unwrap_or(0);
+    let n = used.len();
     let mut uf = UnionFind::new(n);
     for e in elements {
         for w in e.windows(2) {
-            uf.union(w[0] as usize, w[1] as usize);
+            uf.union(slot(w[0]), slot(w[1]));
         }
     }
     let mut label = vec![u32::MAX; n];
@@ -243,7 +242,7 @@ pub fn components<const N: usize>(elements: &[[u32; N]]) -> Components {
         .iter()
         .map(|e| {
             let Some(&v) = e.first() else { return 0 };
-            let root = uf.find(v as usize);
+            let root = uf.find(slot(v));
             if label[root] == u32::MAX {
                 label[root] = count as u32;
                 count += 1;

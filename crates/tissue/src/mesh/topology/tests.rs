@@ -148,4 +148,7 @@ fn bad_indices_do_not_panic() {
     assert_eq!(nb.row(0), &[1, 9]);
     assert!(nb.row(9).is_empty());
     assert_eq!(components(&tris).count, 1);
+    let huge = [[0, u32::MAX, 5], [7, 8, 6], [9, u32::MAX - 1, u32::MAX]];
+    assert_eq!(components(&huge).of_element, vec![0, 1, 0]);
+    assert_eq!(euler_characteristic(&huge), 8 - 9 + 3);
 }
