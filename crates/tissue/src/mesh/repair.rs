@@ -175,7 +175,7 @@ fn renumber(mesh: &mut MeshData, new_of: &[u32], sources: &[usize]) {
     for field in &mut mesh.point_data {
         let c = field.components;
         // A field of the wrong length was broken before; it is left as it was.
-        if c == 0 || field.values.len() != c * old_n {
+        if c == 0 || c.checked_mul(old_n) != Some(field.values.len()) {
             continue;
         }
         field.values = sources
