@@ -2,5 +2,9 @@
 //! spheres, cylinders and tubes.
 
 mod box_grid;
+mod sphere;
+mod tube;
 
 pub use box_grid::{BoxSplit, box_tets};
+pub use sphere::{MAX_SUBDIVISIONS, icosphere};
+pub use tube::{cylinder, tube, tube_with_wall};
