@@ -460,3 +460,34 @@ fn registry_builds_with_order_and_rejects_unknown_keys() {
     let err = crate::model::build("fem-static", &input).err().unwrap();
     assert!(err.to_string().contains("cube.msh"), "{err}");
 }
+
+#[test]
+fn cholesky_alone_detects_free_stiffness_matrices() {
+    // Without the rigid-mode check: the pivot test of the factorisation must see the six
+    // zero-energy modes, on a small (simplicial) and a larger (supernodal) matrix.
+    for n in [1, 6] {
+        let model = FemStatic::new(&cube(BoxSplit::Six, n), material(), Order::Linear).unwrap();
+        let (pattern, values) = model.stiffness_parts();
+        let mut chol = crate::solve::SparseCholesky::new(pattern).unwrap();
+        assert_eq!(chol.is_supernodal(), n > 1);
+        let err = chol.factorize(pattern, values, "free").unwrap_err();
+        assert!(matches!(err, SimError::NotPositiveDefinite { .. }), "n = {n}: {err}");
+        // Fixing the bottom makes it definite.
+        let mut a = values.to_vec();
+        for (node, x) in model.rest_nodes().iter().enumerate() {
+            if x.z == 0.0 {
+                for d in 3 * node..3 * node + 3 {
+                    for c in 0..pattern.dim() {
+                        if let Some(s) = pattern.slot(d, c) {
+                            a[s] = if c == d { 1.0 } else { 0.0 };
+                        }
+                        if let Some(s) = pattern.slot(c, d) {
+                            a[s] = if c == d { 1.0 } else { 0.0 };
+                        }
+                    }
+                }
+            }
+        }
+        chol.factorize(pattern, &a, "").unwrap();
+    }
+}
