@@ -112,7 +112,10 @@ fn cantilever_tip(cells: [usize; 3], order: Order) -> (Real, usize) {
         .filter(|(x, _)| (x.x - l).abs() < 1e-12)
         .map(|(_, u)| -u.z)
         .collect();
-    (tip.iter().sum::<Real>() / tip.len() as Real, nodes.len() * 3)
+    (
+        tip.iter().sum::<Real>() / tip.len() as Real,
+        nodes.len() * 3,
+    )
 }
 
 #[test]
@@ -137,7 +140,10 @@ fn cantilever_linear_tets_converge() {
     let exact = timoshenko_tip(1.0, 1.0, 0.1, 0.1, 1.0e6, 0.3);
     let mut errors = Vec::new();
     eprintln!("cantilever, linear tets (6-split), Timoshenko tip {exact:.6e} m");
-    eprintln!("{:>10} {:>8} {:>14} {:>10}", "cells", "dofs", "tip (m)", "error");
+    eprintln!(
+        "{:>10} {:>8} {:>14} {:>10}",
+        "cells", "dofs", "tip (m)", "error"
+    );
     for k in [1, 2, 3, 4] {
         let cells = [10 * k, k, k];
         let (tip, dofs) = cantilever_tip(cells, Order::Linear);
@@ -164,7 +170,11 @@ fn cantilever_linear_tets_refinement_study() {
     for k in [4, 6, 8] {
         let (tip, dofs) = cantilever_tip([10 * k, k, k], Order::Linear);
         let err = (tip - exact).abs() / exact;
-        eprintln!("{}x{k}x{k}: {dofs} dofs, tip {tip:.6e} m, error {:.2}%", 10 * k, 100.0 * err);
+        eprintln!(
+            "{}x{k}x{k}: {dofs} dofs, tip {tip:.6e} m, error {:.2}%",
+            10 * k,
+            100.0 * err
+        );
         assert!(err < last);
         last = err;
     }

@@ -118,7 +118,9 @@ impl BlockPattern {
 
     /// Position of node `b` among the neighbours of node `a`, if they are coupled.
     pub fn neighbour_position(&self, a: usize, b: usize) -> Option<usize> {
-        let list = self.node_adj.get(*self.node_ptr.get(a)?..*self.node_ptr.get(a + 1)?)?;
+        let list = self
+            .node_adj
+            .get(*self.node_ptr.get(a)?..*self.node_ptr.get(a + 1)?)?;
         list.binary_search(&(b as u32)).ok()
     }
 
@@ -142,8 +144,13 @@ impl BlockPattern {
             return Err(internal("value count does not match the pattern"));
         }
         let n = self.dim();
-        let symbolic =
-            SymbolicSparseColMat::new_checked(n, n, self.col_ptr.clone(), None, self.row_idx.clone());
+        let symbolic = SymbolicSparseColMat::new_checked(
+            n,
+            n,
+            self.col_ptr.clone(),
+            None,
+            self.row_idx.clone(),
+        );
         Ok(SparseColMat::new(symbolic, values.to_vec()))
     }
 
@@ -221,9 +228,13 @@ impl SparseCholesky {
             None,
             &pattern.row_idx,
         );
-        let symbolic =
-            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, Default::default())
-                .map_err(|e| internal(&format!("symbolic Cholesky failed: {e:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            sym,
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            Default::default(),
+        )
+        .map_err(|e| internal(&format!("symbolic Cholesky failed: {e:?}")))?;
         let par = Par::Seq;
         let factor_mem = MemBuffer::try_new(
             symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
@@ -308,7 +319,11 @@ impl SparseCholesky {
         use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
         let ratio = |i: usize, lii: Real| {
             let row = original(i);
-            let aii = self.diag_slots.get(row).and_then(|&s| values.get(s)).copied()?;
+            let aii = self
+                .diag_slots
+                .get(row)
+                .and_then(|&s| values.get(s))
+                .copied()?;
             let ok = aii > 0.0 && lii * lii >= PIVOT_RATIO_MIN * aii;
             (!ok).then_some(row)
         };
@@ -367,8 +382,9 @@ mod tests {
     fn laplacian(p: &BlockPattern) -> Vec<Real> {
         let mut v = vec![0.0; p.nnz()];
         for c in 0..p.dim() {
-            for k in p.col_ptr[c]..p.col_ptr[c + 1] {
-                v[k] = if p.row_idx[k] == c { 2.0 } else { -1.0 };
+            let range = p.col_ptr[c]..p.col_ptr[c + 1];
+            for (x, &r) in v[range.clone()].iter_mut().zip(&p.row_idx[range]) {
+                *x = if r == c { 2.0 } else { -1.0 };
             }
         }
         v

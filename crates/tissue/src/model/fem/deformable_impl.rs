@@ -4,9 +4,7 @@
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::model::{
-    Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
-};
+use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
 
 use super::static_model::{FemStatic, Order};
 use super::system::DofProblem;
