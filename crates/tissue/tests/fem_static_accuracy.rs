@@ -14,7 +14,7 @@ use tissue::model::fem::{FemStatic, NodalProblem, Order};
 /// v = ν δ y / L, w = −δ z / L is linear, so both element orders reproduce it, and the plate
 /// force is E A δ / L.
 #[test]
-fn uniaxial_compression_on_rollers_is_exact() {
+fn fem_static_uniaxial_compression_on_rollers_is_exact() {
     let (e, nu, l, delta) = (3.0e3, 0.3, 0.2, 0.004);
     let material = Material::new(e, nu).unwrap();
     for split in [BoxSplit::Five, BoxSplit::Six] {
@@ -119,7 +119,7 @@ fn cantilever_tip(cells: [usize; 3], order: Order) -> (Real, usize) {
 }
 
 #[test]
-fn cantilever_quadratic_tets_match_timoshenko_within_one_percent() {
+fn fem_static_cantilever_quadratic_tets_match_timoshenko_within_one_percent() {
     let exact = timoshenko_tip(1.0, 1.0, 0.1, 0.1, 1.0e6, 0.3);
     let (tip, dofs) = cantilever_tip([40, 4, 4], Order::Quadratic);
     let err = (tip - exact).abs() / exact;
@@ -136,7 +136,7 @@ fn cantilever_quadratic_tets_match_timoshenko_within_one_percent() {
 }
 
 #[test]
-fn cantilever_linear_tets_converge() {
+fn fem_static_cantilever_linear_tets_converge() {
     let exact = timoshenko_tip(1.0, 1.0, 0.1, 0.1, 1.0e6, 0.3);
     let mut errors = Vec::new();
     eprintln!("cantilever, linear tets (6-split), Timoshenko tip {exact:.6e} m");
@@ -164,7 +164,7 @@ fn cantilever_linear_tets_converge() {
 /// The same study further (about a minute in release): 60x6x6 and 80x8x8 linear tets.
 #[test]
 #[ignore = "slow refinement study; run with --ignored"]
-fn cantilever_linear_tets_refinement_study() {
+fn fem_static_cantilever_linear_tets_refinement_study() {
     let exact = timoshenko_tip(1.0, 1.0, 0.1, 0.1, 1.0e6, 0.3);
     let mut last = Real::INFINITY;
     for k in [4, 6, 8] {

@@ -112,7 +112,7 @@ impl Deformable for FemStatic {
             if let Some(d) = d {
                 let n = self.boundary.nodes[s] as usize;
                 for k in 0..3 {
-                    dp.hold(3 * n + k, d[k]);
+                    dp.hold(3 * n + k, d[k])?;
                 }
             }
         }
@@ -120,7 +120,7 @@ impl Deformable for FemStatic {
             if let (Some(da), Some(db)) = (disp[a as usize], disp[b as usize]) {
                 let d = (da + db) * 0.5;
                 for k in 0..3 {
-                    dp.hold(3 * m as usize + k, d[k]);
+                    dp.hold(3 * m as usize + k, d[k])?;
                 }
             }
         }

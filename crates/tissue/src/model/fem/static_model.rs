@@ -301,7 +301,7 @@ impl FemStatic {
                     reason: format!("needs node < {nodes}, axis < 3 and a finite value"),
                 });
             }
-            dp.hold(3 * node + axis, value);
+            dp.hold(3 * node + axis, value)?;
         }
         dp.finish();
         for &(node, force) in &p.forces {

@@ -43,13 +43,23 @@ impl DofProblem {
         }
     }
 
-    /// Holds dof `d` at displacement `value`.
-    pub fn hold(&mut self, d: usize, value: Real) {
-        if !self.constrained[d] {
-            self.constrained[d] = true;
+    /// Holds dof `d` at displacement `value`; a dof out of range is an error.
+    pub fn hold(&mut self, d: usize, value: Real) -> Result<(), SimError> {
+        let n = self.constrained.len();
+        let (Some(held), Some(target)) = (self.constrained.get_mut(d), self.targets.get_mut(d))
+        else {
+            return Err(SimError::BadParameter {
+                name: "held",
+                value: format!("dof {d}"),
+                reason: format!("the model has {n} dofs"),
+            });
+        };
+        if !*held {
+            *held = true;
             self.list.push(d);
         }
-        self.targets[d] = value;
+        *target = value;
+        Ok(())
     }
 
     /// Sorts the held list (after a series of `hold`).
@@ -123,6 +133,20 @@ impl System {
                 name: "problem",
                 value: format!("{} dofs", p.constrained.len()),
                 reason: format!("the model has {n} dofs"),
+            });
+        }
+        // The fields are public: check that the list is exactly the held dofs, once each.
+        let held = p.constrained.iter().filter(|&&h| h).count();
+        if held != p.list.len()
+            || p.list.windows(2).any(|w| w[0] >= w[1])
+            || p.list
+                .iter()
+                .any(|&c| !p.constrained.get(c).copied().unwrap_or(false))
+        {
+            return Err(SimError::BadParameter {
+                name: "problem",
+                value: format!("{} held dofs listed, {held} marked", p.list.len()),
+                reason: "the list must hold each marked dof once, ascending (call finish)".into(),
             });
         }
         if self.factored_for.as_deref() != Some(p.constrained.as_slice()) {
