@@ -406,6 +406,12 @@ fn uniaxial_compression_through_the_interface_and_no_refactorisation_for_new_tar
                 force.z
             );
             assert!(force.x.abs() + force.y.abs() < 1e-9 * want);
+            // Every node, mid-edge ones included (held to the mean of their ends on top and
+            // bottom, free inside), sits on the exact linear field.
+            for (x, p) in model.rest_nodes().iter().zip(model.node_positions()) {
+                let want = *x - Vec3::Z * (d * x.z / l);
+                assert!((*p - want).length() < 1e-10, "{order:?} at {x}: {p}");
+            }
             let mid = model.surface().positions[0];
             let rest = model.rest_surface()[0];
             assert!(((mid - rest).z + d * rest.z / l).abs() < 1e-10);
