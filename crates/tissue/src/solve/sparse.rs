@@ -118,7 +118,9 @@ impl BlockPattern {
 
     /// Position of node `b` among the neighbours of node `a`, if they are coupled.
     pub fn neighbour_position(&self, a: usize, b: usize) -> Option<usize> {
-        let list = self.node_adj.get(*self.node_ptr.get(a)?..*self.node_ptr.get(a + 1)?)?;
+        let list = self
+            .node_adj
+            .get(*self.node_ptr.get(a)?..*self.node_ptr.get(a + 1)?)?;
         list.binary_search(&(b as u32)).ok()
     }
 
@@ -142,8 +144,13 @@ impl BlockPattern {
             return Err(internal("value count does not match the pattern"));
         }
         let n = self.dim();
-        let symbolic =
-            SymbolicSparseColMat::new_checked(n, n, self.col_ptr.clone(), None, self.row_idx.clone());
+        let symbolic = SymbolicSparseColMat::new_checked(
+            n,
+            n,
+            self.col_ptr.clone(),
+            None,
+            self.row_idx.clone(),
+        );
         Ok(SparseColMat::new(symbolic, values.to_vec()))
     }
 
@@ -221,9 +228,13 @@ impl SparseCholesky {
             None,
             &pattern.row_idx,
         );
-        let symbolic =
-            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, Default::default())
-                .map_err(|e| internal(&format!("symbolic Cholesky failed: {e:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            sym,
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            Default::default(),
+        )
+        .map_err(|e| internal(&format!("symbolic Cholesky failed: {e:?}")))?;
         let par = Par::Seq;
         let factor_mem = MemBuffer::try_new(
             symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
@@ -245,6 +256,14 @@ impl SparseCholesky {
     /// Stored values of L (the factor's size).
     pub fn factor_nnz(&self) -> usize {
         self.l_values.len()
+    }
+
+    /// True when faer chose the supernodal (dense-block) factorisation over the simplicial one.
+    pub fn is_supernodal(&self) -> bool {
+        matches!(
+            self.symbolic.raw(),
+            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
+        )
     }
 
     /// True after a successful `factorize`.
@@ -300,7 +319,11 @@ impl SparseCholesky {
         use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
         let ratio = |i: usize, lii: Real| {
             let row = original(i);
-            let aii = self.diag_slots.get(row).and_then(|&s| values.get(s)).copied()?;
+            let aii = self
+                .diag_slots
+                .get(row)
+                .and_then(|&s| values.get(s))
+                .copied()?;
             let ok = aii > 0.0 && lii * lii >= PIVOT_RATIO_MIN * aii;
             (!ok).then_some(row)
         };
@@ -342,5 +365,93 @@ impl SparseCholesky {
             MemStack::new(&mut self.solve_mem),
         );
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A chain of 2-node "springs" over `n` nodes with one scalar unknown each.
+    fn chain(n: usize) -> BlockPattern {
+        let elements: Vec<u32> = (0..n as u32 - 1).flat_map(|i| [i, i + 1]).collect();
+        BlockPattern::from_elements(n, 1, &elements, 2)
+    }
+
+    /// The values of the 1-D Laplacian tridiag(−1, 2, −1) on the chain's pattern.
+    fn laplacian(p: &BlockPattern) -> Vec<Real> {
+        let mut v = vec![0.0; p.nnz()];
+        for c in 0..p.dim() {
+            let range = p.col_ptr[c]..p.col_ptr[c + 1];
+            for (x, &r) in v[range.clone()].iter_mut().zip(&p.row_idx[range]) {
+                *x = if r == c { 2.0 } else { -1.0 };
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn pattern_of_two_triangles() {
+        let p = BlockPattern::from_elements(4, 2, &[0, 1, 2, 2, 1, 3], 3);
+        assert_eq!(p.node_adj, vec![0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 3, 1, 2, 3]);
+        assert_eq!(p.dim(), 8);
+        assert_eq!(p.nnz(), 2 * 2 * 14);
+        assert_eq!(&p.col_ptr[..4], &[0, 6, 12, 20]);
+        assert_eq!(&p.row_idx[12..20], &[0, 1, 2, 3, 4, 5, 6, 7]);
+        assert_eq!(p.slot(7, 2), Some(19));
+        assert_eq!(p.slot(6, 0), None);
+    }
+
+    #[test]
+    fn cholesky_solves_the_laplacian_and_refactorises() {
+        let n = 50;
+        let p = chain(n);
+        let mut chol = SparseCholesky::new(&p).unwrap();
+        let v = laplacian(&p);
+        chol.factorize(&p, &v, "").unwrap();
+        // A x = e_0 has the solution x_i = (n − i) / (n + 1).
+        let mut x = vec![0.0; n];
+        x[0] = 1.0;
+        chol.solve_in_place(&mut x).unwrap();
+        for (i, xi) in x.iter().enumerate() {
+            let want = (n - i) as Real / (n + 1) as Real;
+            assert!((xi - want).abs() < 1e-13, "{i}: {xi} vs {want}");
+        }
+        // Same pattern, doubled values: half the solution.
+        let v2: Vec<Real> = v.iter().map(|a| 2.0 * a).collect();
+        chol.factorize(&p, &v2, "").unwrap();
+        let mut y = vec![0.0; n];
+        y[0] = 1.0;
+        chol.solve_in_place(&mut y).unwrap();
+        assert!((y[0] - x[0] / 2.0).abs() < 1e-14);
+        let mut ax = vec![0.0; n];
+        p.mul_vec(&v2, &y, &mut ax);
+        assert!((ax[0] - 1.0).abs() < 1e-12 && ax[1..].iter().all(|a| a.abs() < 1e-12));
+    }
+
+    #[test]
+    fn indefinite_and_singular_matrices_are_named() {
+        let n = 30;
+        let p = chain(n);
+        let mut chol = SparseCholesky::new(&p).unwrap();
+        // Row 17 with a negative diagonal: not positive definite.
+        let mut v = laplacian(&p);
+        let s = p.slot(17, 17).unwrap();
+        v[s] = -3.0;
+        match chol.factorize(&p, &v, "hint here") {
+            Err(SimError::NotPositiveDefinite { hint, .. }) => assert_eq!(hint, "hint here"),
+            other => panic!("{other:?}"),
+        }
+        assert!(chol.solve_in_place(&mut vec![0.0; n]).is_err());
+        // The free chain (Neumann Laplacian, diag 1 at the ends) is singular: constants.
+        let mut v = laplacian(&p);
+        for end in [0, n - 1] {
+            let s = p.slot(end, end).unwrap();
+            v[s] = 1.0;
+        }
+        assert!(matches!(
+            chol.factorize(&p, &v, ""),
+            Err(SimError::NotPositiveDefinite { .. })
+        ));
     }
 }

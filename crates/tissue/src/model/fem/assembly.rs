@@ -22,9 +22,16 @@ pub struct Assembler {
 
 impl Assembler {
     /// Builds the pattern over `nodes` nodes; element node ids must be `< nodes`.
-    pub fn new(nodes: usize, elements: Vec<u32>, nodes_per_element: usize) -> Result<Self, SimError> {
+    pub fn new(
+        nodes: usize,
+        elements: Vec<u32>,
+        nodes_per_element: usize,
+    ) -> Result<Self, SimError> {
         let m = nodes_per_element;
-        if m == 0 || elements.len() % m != 0 || elements.iter().any(|&n| n as usize >= nodes) {
+        if m == 0
+            || !elements.len().is_multiple_of(m)
+            || elements.iter().any(|&n| n as usize >= nodes)
+        {
             return Err(SimError::BadParameter {
                 name: "elements",
                 value: format!("{} node ids", elements.len()),

@@ -4,9 +4,7 @@
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::model::{
-    Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
-};
+use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
 
 use super::static_model::{FemStatic, Order};
 use super::system::DofProblem;
@@ -114,7 +112,7 @@ impl Deformable for FemStatic {
             if let Some(d) = d {
                 let n = self.boundary.nodes[s] as usize;
                 for k in 0..3 {
-                    dp.hold(3 * n + k, d[k]);
+                    dp.hold(3 * n + k, d[k])?;
                 }
             }
         }
@@ -122,7 +120,7 @@ impl Deformable for FemStatic {
             if let (Some(da), Some(db)) = (disp[a as usize], disp[b as usize]) {
                 let d = (da + db) * 0.5;
                 for k in 0..3 {
-                    dp.hold(3 * m as usize + k, d[k]);
+                    dp.hold(3 * m as usize + k, d[k])?;
                 }
             }
         }

@@ -93,8 +93,8 @@ pub fn elasticity_matrix(material: &Material) -> [[Real; 6]; 6] {
             *v = l + if i == j { 2.0 * m } else { 0.0 };
         }
     }
-    for i in 3..6 {
-        d[i][i] = m;
+    for (i, row) in d.iter_mut().enumerate().skip(3) {
+        row[i] = m;
     }
     d
 }

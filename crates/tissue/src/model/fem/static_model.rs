@@ -16,8 +16,8 @@ use crate::interact::{Constraints, Loads};
 use crate::material::Material;
 use crate::math::{Real, Vec3, is_finite_vec, triangle_area_vector};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
-use crate::model::registry::parse_params;
 use crate::model::BuildInput;
+use crate::model::registry::parse_params;
 
 use super::assembly::Assembler;
 use super::quadratic_mesh::QuadraticMesh;
@@ -301,7 +301,7 @@ impl FemStatic {
                     reason: format!("needs node < {nodes}, axis < 3 and a finite value"),
                 });
             }
-            dp.hold(3 * node + axis, value);
+            dp.hold(3 * node + axis, value)?;
         }
         dp.finish();
         for &(node, force) in &p.forces {
@@ -324,7 +324,11 @@ impl FemStatic {
         let n = self.system.dofs();
         let (mut u, mut r) = (vec![0.0; n], vec![0.0; n]);
         self.system.solve(dp, &mut u, &mut r)?;
-        let v = |x: &[Real]| x.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let v = |x: &[Real]| {
+            x.chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect()
+        };
         Ok(NodalSolution {
             displacements: v(&u),
             reactions: v(&r),
@@ -363,7 +367,11 @@ fn compact(mesh: &TetMesh) -> TetMesh {
             vertices.push(mesh.vertices[v]);
         }
     }
-    let tets = mesh.tets.iter().map(|t| t.map(|v| map[v as usize])).collect();
+    let tets = mesh
+        .tets
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
     TetMesh::new(vertices, tets)
 }
 

@@ -43,13 +43,23 @@ impl DofProblem {
         }
     }
 
-    /// Holds dof `d` at displacement `value`.
-    pub fn hold(&mut self, d: usize, value: Real) {
-        if !self.constrained[d] {
-            self.constrained[d] = true;
+    /// Holds dof `d` at displacement `value`; a dof out of range is an error.
+    pub fn hold(&mut self, d: usize, value: Real) -> Result<(), SimError> {
+        let n = self.constrained.len();
+        let (Some(held), Some(target)) = (self.constrained.get_mut(d), self.targets.get_mut(d))
+        else {
+            return Err(SimError::BadParameter {
+                name: "held",
+                value: format!("dof {d}"),
+                reason: format!("the model has {n} dofs"),
+            });
+        };
+        if !*held {
+            *held = true;
             self.list.push(d);
         }
-        self.targets[d] = value;
+        *target = value;
+        Ok(())
     }
 
     /// Sorts the held list (after a series of `hold`).
@@ -111,13 +121,32 @@ impl System {
     /// Solves `p` into `u` (length dofs) and the reactions f − K u on held dofs (zero on free
     /// ones) into `r`. On error `u` and `r` may hold partial results; callers solve into
     /// scratch buffers and keep their state.
-    pub fn solve(&mut self, p: &DofProblem, u: &mut [Real], r: &mut [Real]) -> Result<(), SimError> {
+    pub fn solve(
+        &mut self,
+        p: &DofProblem,
+        u: &mut [Real],
+        r: &mut [Real],
+    ) -> Result<(), SimError> {
         let n = self.dofs();
         if p.constrained.len() != n || p.targets.len() != n || p.forces.len() != n {
             return Err(SimError::BadParameter {
                 name: "problem",
                 value: format!("{} dofs", p.constrained.len()),
                 reason: format!("the model has {n} dofs"),
+            });
+        }
+        // The fields are public: check that the list is exactly the held dofs, once each.
+        let held = p.constrained.iter().filter(|&&h| h).count();
+        if held != p.list.len()
+            || p.list.windows(2).any(|w| w[0] >= w[1])
+            || p.list
+                .iter()
+                .any(|&c| !p.constrained.get(c).copied().unwrap_or(false))
+        {
+            return Err(SimError::BadParameter {
+                name: "problem",
+                value: format!("{} held dofs listed, {held} marked", p.list.len()),
+                reason: "the list must hold each marked dof once, ascending (call finish)".into(),
             });
         }
         if self.factored_for.as_deref() != Some(p.constrained.as_slice()) {
@@ -129,13 +158,17 @@ impl System {
             self.refactorizations += 1;
             self.factored_for = Some(p.constrained.clone());
         }
-        let (cp, ri) = (&self.assembler.pattern.col_ptr, &self.assembler.pattern.row_idx);
+        let (cp, ri) = (
+            &self.assembler.pattern.col_ptr,
+            &self.assembler.pattern.row_idx,
+        );
         self.rhs.copy_from_slice(&p.forces);
         for &c in &p.list {
             let g = p.targets[c];
             if g != 0.0 {
-                for k in cp[c]..cp[c + 1] {
-                    self.rhs[ri[k]] -= self.k[k] * g;
+                let range = cp[c]..cp[c + 1];
+                for (&row, &kv) in ri[range.clone()].iter().zip(&self.k[range]) {
+                    self.rhs[row] -= kv * g;
                 }
             }
         }
@@ -158,10 +191,12 @@ impl System {
         r.iter_mut().for_each(|v| *v = 0.0);
         // Row c of K is column c (K is symmetric).
         for &c in &p.list {
-            let mut ku = 0.0;
-            for k in cp[c]..cp[c + 1] {
-                ku += self.k[k] * u[ri[k]];
-            }
+            let range = cp[c]..cp[c + 1];
+            let ku: Real = ri[range.clone()]
+                .iter()
+                .zip(&self.k[range])
+                .map(|(&row, &kv)| kv * u[row])
+                .sum();
             r[c] = p.forces[c] - ku;
         }
         Ok(())
@@ -169,17 +204,20 @@ impl System {
 
     /// Builds the constrained matrix in `a` from `k`.
     fn eliminate(&mut self, p: &DofProblem) {
-        let (cp, ri) = (&self.assembler.pattern.col_ptr, &self.assembler.pattern.row_idx);
+        let (cp, ri) = (
+            &self.assembler.pattern.col_ptr,
+            &self.assembler.pattern.row_idx,
+        );
         for col in 0..self.dofs() {
             let held = p.constrained[col];
-            for k in cp[col]..cp[col + 1] {
-                let row = ri[k];
-                self.a[k] = if row == col {
-                    self.k[k]
-                } else if held || p.constrained[row] {
+            let range = cp[col]..cp[col + 1];
+            let rows = ri[range.clone()].iter().zip(&self.k[range.clone()]);
+            for (a, (&row, &kv)) in self.a[range].iter_mut().zip(rows) {
+                // Off-diagonal entries in a held row or column vanish.
+                *a = if row != col && (held || p.constrained[row]) {
                     0.0
                 } else {
-                    self.k[k]
+                    kv
                 };
             }
         }
@@ -206,7 +244,9 @@ impl System {
         for &d in &p.list {
             let (node, axis) = (d / 3, d % 3);
             let c = self.component[node] as usize;
-            let scale = (radius2[c] / count[c].max(1) as Real).sqrt().max(Real::MIN_POSITIVE);
+            let scale = (radius2[c] / count[c].max(1) as Real)
+                .sqrt()
+                .max(Real::MIN_POSITIVE);
             let x = (self.rest[node] - centroid[c]) / scale;
             // Row of dof d in the rigid-mode basis: translation e_axis, rotation e_k × x.
             let mut row = [0.0; 6];
@@ -230,7 +270,11 @@ impl System {
             let max = eig.iter().copied().fold(0.0, Real::max);
             let min = eig.iter().copied().fold(Real::INFINITY, Real::min);
             if !(max > 0.0 && min > 1e-10 * max) {
-                let node = self.component.iter().position(|&k| k as usize == c).unwrap_or(0);
+                let node = self
+                    .component
+                    .iter()
+                    .position(|&k| k as usize == c)
+                    .unwrap_or(0);
                 return Err(SimError::NotPositiveDefinite {
                     row: 3 * node,
                     hint: format!(
@@ -268,13 +312,13 @@ fn connected_components(assembler: &Assembler, nodes: usize) -> (Vec<u32>, usize
     let mut label = vec![u32::MAX; nodes];
     let mut component = vec![0u32; nodes];
     let mut count = 0u32;
-    for n in 0..nodes {
+    for (n, comp) in component.iter_mut().enumerate() {
         let r = find(&mut parent, n as u32) as usize;
         if label[r] == u32::MAX {
             label[r] = count;
             count += 1;
         }
-        component[n] = label[r];
+        *comp = label[r];
     }
     (component, count as usize)
 }
