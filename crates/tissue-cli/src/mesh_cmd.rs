@@ -59,7 +59,7 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             );
             let mut mesh = io::read(input)?;
             let options = RepairOptions {
-                merge_tolerance: *tolerance,
+                merge_tolerance: Some(*tolerance),
                 ..RepairOptions::default()
             };
             let report = repair(&mut mesh, &options);

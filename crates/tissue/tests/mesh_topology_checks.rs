@@ -319,7 +319,6 @@ fn liver_msh_quality_by_hand_reader() {
 }
 
 #[test]
-#[ignore = "needs io readers from the parallel branch"]
 fn liver_msh_quality_and_checks() {
     let data = tissue::io::read(asset("liver.msh")).expect("liver.msh reads");
     let m = data.tet_mesh("liver.msh").expect("tetrahedra");
@@ -333,7 +332,6 @@ fn liver_msh_quality_and_checks() {
 }
 
 #[test]
-#[ignore = "needs io readers from the parallel branch"]
 fn liver_obj_has_unused_vertices_only() {
     let mut data = tissue::io::read(asset("liver.obj")).expect("liver.obj reads");
     let p = check(&data);
@@ -347,7 +345,6 @@ fn liver_obj_has_unused_vertices_only() {
 }
 
 #[test]
-#[ignore = "needs io readers from the parallel branch"]
 fn liver_smooth_is_a_clean_sphere() {
     let data = tissue::io::read(asset("liver-smooth.obj")).expect("liver-smooth.obj reads");
     assert_eq!(check(&data), vec![]);
@@ -360,7 +357,6 @@ fn liver_smooth_is_a_clean_sphere() {
 }
 
 #[test]
-#[ignore = "needs io readers from the parallel branch"]
 fn wound_ply_volume_and_skin() {
     let data = tissue::io::read(asset("wound_deformable.ply")).expect("ply reads");
     let i = inspect(&data);
