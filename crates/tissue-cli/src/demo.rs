@@ -21,7 +21,11 @@ pub fn demo(args: &DemoArgs) -> anyhow::Result<()> {
         print!("{SCENE}");
         return Ok(());
     }
-    let scene = Scene::from_toml(SCENE, Path::new("scenes"), Path::new("liver-probe.toml (built in)"))?;
+    let scene = Scene::from_toml(
+        SCENE,
+        Path::new("scenes"),
+        Path::new("liver-probe.toml (built in)"),
+    )?;
     let mesh = parse(Format::Msh, LIVER, Path::new(LIVER_NAME))?;
     let sim = scene.build_with_mesh(mesh, LIVER_NAME)?;
     let o = execute(&scene, sim, args.out.as_deref(), false)?;

@@ -10,12 +10,12 @@ use std::time::Instant;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
+use tissue::Real;
 use tissue::io::{WriteOptions, write_with};
 use tissue::mesh::{Field, MeshData, surface::signed_volume_of};
 use tissue::model::Deformable;
 use tissue::scene::Scene;
 use tissue::sim::Simulation;
-use tissue::Real;
 
 use crate::RunArgs;
 
@@ -236,7 +236,8 @@ impl Writer {
     fn finish(&self, scene: &Scene, sim: &Simulation, o: &Outcome) -> anyhow::Result<()> {
         write_pvd(&self.dir.join("scene.pvd"), &self.frames)?;
         let csv = self.dir.join("forces.csv");
-        std::fs::write(&csv, &self.csv).with_context(|| format!("cannot write {}", csv.display()))?;
+        std::fs::write(&csv, &self.csv)
+            .with_context(|| format!("cannot write {}", csv.display()))?;
         let info = sim.model().info();
         let details: serde_json::Map<String, Value> = info
             .details
@@ -300,4 +301,3 @@ fn write_pvd(path: &Path, frames: &[(Real, String)]) -> anyhow::Result<()> {
     s.push_str("  </Collection>\n</VTKFile>\n");
     std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
 }
-

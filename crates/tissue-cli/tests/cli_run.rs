@@ -27,16 +27,28 @@ fn unknown_key_in_a_scene_fails_naming_it() {
         .replace("../assets", &repo("assets").display().to_string());
     let scene = dir.join("bad.toml");
     std::fs::write(&scene, text).unwrap();
-    let out = tissue().arg("run").arg(&scene).arg("--out").arg(dir.join("out")).output().unwrap();
+    let out = tissue()
+        .arg("run")
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("step_size") && err.contains("bad.toml"), "{err}");
+    assert!(
+        err.contains("step_size") && err.contains("bad.toml"),
+        "{err}"
+    );
     assert!(err.contains("line 30"), "{err}");
 }
 
 #[test]
 fn missing_scene_file_is_named() {
-    let out = tissue().args(["run", "no/such/scene.toml", "--quiet"]).output().unwrap();
+    let out = tissue()
+        .args(["run", "no/such/scene.toml", "--quiet"])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no/such/scene.toml"), "{err}");
@@ -47,7 +59,10 @@ fn demo_prints_its_scene() {
     let out = tissue().args(["demo", "--print-scene"]).output().unwrap();
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(text, std::fs::read_to_string(repo("scenes/liver-probe.toml")).unwrap());
+    assert_eq!(
+        text,
+        std::fs::read_to_string(repo("scenes/liver-probe.toml")).unwrap()
+    );
 }
 
 #[test]
@@ -62,10 +77,17 @@ fn run_writes_frames_pvd_forces_and_summary() {
         .arg("--quiet")
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // 100 steps, a frame every 10 plus the first: 11 frames.
     for k in 0..11 {
-        assert!(dir.join(format!("frames/frame_{k:05}.vtu")).is_file(), "frame {k}");
+        assert!(
+            dir.join(format!("frames/frame_{k:05}.vtu")).is_file(),
+            "frame {k}"
+        );
     }
     assert!(!dir.join("frames/frame_00011.vtu").exists());
     let pvd = std::fs::read_to_string(dir.join("scene.pvd")).unwrap();
@@ -100,7 +122,14 @@ fn run_writes_frames_pvd_forces_and_summary() {
 #[ignore = "needs io + fem-static from parallel branches"]
 fn demo_runs() {
     let out = tissue().arg("demo").output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("fem-static") && text.contains("max probe force"), "{text}");
+    assert!(
+        text.contains("fem-static") && text.contains("max probe force"),
+        "{text}"
+    );
 }

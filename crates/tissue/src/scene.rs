@@ -12,9 +12,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::error::{Error, IoError, SceneError};
-use crate::interact::{
-    Instrument, InstrumentKind, Keyframe, Loads, Region, Trajectory,
-};
+use crate::interact::{Instrument, InstrumentKind, Keyframe, Loads, Region, Trajectory};
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::MeshData;
@@ -270,27 +268,24 @@ impl Scene {
         for (k, r) in raw.fixed.into_iter().enumerate() {
             let l = line(r.span());
             let r = r.into_inner();
-            check_region(&r, false).map_err(|m| {
-                invalid(format!("line {l}: {}: {m}", region_label("fixed", k, &r)))
-            })?;
+            check_region(&r, false)
+                .map_err(|m| invalid(format!("line {l}: {}: {m}", region_label("fixed", k, &r))))?;
             fixed.push(Located { line: l, value: r });
         }
         let mut loads = Vec::new();
         for (k, r) in raw.load.into_iter().enumerate() {
             let l = line(r.span());
             let r = r.into_inner();
-            check_region(&r, true).map_err(|m| {
-                invalid(format!("line {l}: {}: {m}", region_label("load", k, &r)))
-            })?;
+            check_region(&r, true)
+                .map_err(|m| invalid(format!("line {l}: {}: {m}", region_label("load", k, &r))))?;
             loads.push(Located { line: l, value: r });
         }
         let mut instruments = Vec::new();
         for (k, i) in raw.instrument.into_iter().enumerate() {
             let l = line(i.span());
             let i = i.into_inner();
-            make_instrument(&i, k).map_err(|m| {
-                invalid(format!("line {l}: [[instrument]] {}: {m}", k + 1))
-            })?;
+            make_instrument(&i, k)
+                .map_err(|m| invalid(format!("line {l}: [[instrument]] {}: {m}", k + 1)))?;
             instruments.push(Located { line: l, value: i });
         }
 
@@ -430,7 +425,10 @@ fn known_kinds() -> String {
 
 fn check_run(run: &RunSpec) -> Result<(), String> {
     if !(run.duration.is_finite() && run.duration > 0.0) {
-        return Err(format!("duration = {}: must be finite and > 0 s", run.duration));
+        return Err(format!(
+            "duration = {}: must be finite and > 0 s",
+            run.duration
+        ));
     }
     if !(run.dt.is_finite() && run.dt > 0.0) {
         return Err(format!("dt = {}: must be finite and > 0 s", run.dt));
@@ -505,7 +503,11 @@ fn check_region(r: &RegionSpec, is_load: bool) -> Result<(), String> {
 fn select(model: &dyn Deformable, mesh: &MeshData, r: &RegionSpec) -> Result<Vec<u32>, String> {
     let rest = model.rest_surface();
     if let Some(b) = &r.aabb {
-        return Ok(Region::Box { min: b.min, max: b.max }.select(rest));
+        return Ok(Region::Box {
+            min: b.min,
+            max: b.max,
+        }
+        .select(rest));
     }
     if let Some(s) = &r.sphere {
         return Ok(Region::Sphere {
@@ -534,7 +536,10 @@ fn select(model: &dyn Deformable, mesh: &MeshData, r: &RegionSpec) -> Result<Vec
     }
     let (ids, what) = match (&r.file_vertices, r.file) {
         (Some(ids), _) => (ids.clone(), "file vertex"),
-        (None, Some(true)) => (mesh.fixed_vertices.clone(), "vertex marked fixed in the file,"),
+        (None, Some(true)) => (
+            mesh.fixed_vertices.clone(),
+            "vertex marked fixed in the file,",
+        ),
         _ => return Ok(Vec::new()),
     };
     // The surface is built from the file's vertices without moving them, so an exact
@@ -573,7 +578,10 @@ fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument, String> {
             Ok(())
         }
     };
-    let need_radius = || i.radius.ok_or_else(|| format!("a {} needs `radius` (m)", i.kind));
+    let need_radius = || {
+        i.radius
+            .ok_or_else(|| format!("a {} needs `radius` (m)", i.kind))
+    };
     let (kind, radius) = match i.kind.as_str() {
         "probe" => {
             forbid("grasp_at", i.grasp_at.is_some(), "probe")?;
@@ -613,6 +621,9 @@ fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument, String> {
             ));
         }
     };
-    let name = i.name.clone().unwrap_or_else(|| format!("{}{}", i.kind, k + 1));
+    let name = i
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("{}{}", i.kind, k + 1));
     Instrument::new(name, kind, radius, trajectory).map_err(|e| e.to_string())
 }
