@@ -296,9 +296,10 @@ impl Simulation {
                 } => {
                     if !inst.grasp_done && t1 >= grasp_at {
                         inst.grasp_done = true;
-                        let inside = vertices_in_ball(&self.bvh, positions, triangles, c, r, &|v| {
-                            is_taken(taken, v)
-                        });
+                        let inside =
+                            vertices_in_ball(&self.bvh, positions, triangles, c, r, &|v| {
+                                is_taken(taken, v)
+                            });
                         inst.grasped = inside
                             .iter()
                             .map(|k| (k.vertex, positions[k.vertex as usize] - c))

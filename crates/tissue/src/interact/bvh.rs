@@ -90,12 +90,10 @@ impl Bvh {
         if end - start <= LEAF_SIZE {
             return;
         }
-        let (lo, hi) = order[start..end]
-            .iter()
-            .map(|&t| c(t))
-            .fold((Vec3::splat(f64::INFINITY), Vec3::splat(f64::NEG_INFINITY)), |(l, h), p| {
-                (l.min(p), h.max(p))
-            });
+        let (lo, hi) = order[start..end].iter().map(|&t| c(t)).fold(
+            (Vec3::splat(f64::INFINITY), Vec3::splat(f64::NEG_INFINITY)),
+            |(l, h), p| (l.min(p), h.max(p)),
+        );
         let extent = hi - lo;
         let axis = if extent.x >= extent.y && extent.x >= extent.z {
             0
@@ -105,9 +103,8 @@ impl Bvh {
             2
         };
         let mid = (start + end) / 2;
-        order[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
-            c(a)[axis].total_cmp(&c(b)[axis])
-        });
+        order[start..end]
+            .select_nth_unstable_by(mid - start, |&a, &b| c(a)[axis].total_cmp(&c(b)[axis]));
         let left = self.nodes.len();
         self.split(order, start, mid, c);
         let right = self.nodes.len();
@@ -131,7 +128,12 @@ impl Bvh {
                 .filter_map(|&v| positions.get(v as usize))
                 .fold(Aabb::EMPTY, |b, &p| b.union(Aabb { min: p, max: p }))
         }));
-        let tri_box = |t: u32| self.tri_boxes.get(t as usize).copied().unwrap_or(Aabb::EMPTY);
+        let tri_box = |t: u32| {
+            self.tri_boxes
+                .get(t as usize)
+                .copied()
+                .unwrap_or(Aabb::EMPTY)
+        };
         for id in (0..self.nodes.len()).rev() {
             let b = match self.nodes[id] {
                 Node::Leaf { start, end } => self.order[start as usize..end as usize]
@@ -166,7 +168,11 @@ impl Bvh {
                     self.order[start as usize..end as usize]
                         .iter()
                         .copied()
-                        .filter(|&t| self.tri_boxes.get(t as usize).is_some_and(|b| b.overlaps(&q))),
+                        .filter(|&t| {
+                            self.tri_boxes
+                                .get(t as usize)
+                                .is_some_and(|b| b.overlaps(&q))
+                        }),
                 ),
                 Node::Inner { left, right } => {
                     stack.push(left as usize);

@@ -66,7 +66,11 @@ impl Instrument {
             reason: reason.to_string(),
         };
         if !(radius.is_finite() && radius > 0.0) {
-            return Err(bad("radius", radius.to_string(), "must be finite and > 0 m"));
+            return Err(bad(
+                "radius",
+                radius.to_string(),
+                "must be finite and > 0 m",
+            ));
         }
         match &kind {
             InstrumentKind::Probe => {}
@@ -92,7 +96,11 @@ impl Instrument {
                     ));
                 }
                 if !(length.is_finite() && *length > 0.0) {
-                    return Err(bad("length", length.to_string(), "must be finite and > 0 m"));
+                    return Err(bad(
+                        "length",
+                        length.to_string(),
+                        "must be finite and > 0 m",
+                    ));
                 }
             }
         }

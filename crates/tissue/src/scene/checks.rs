@@ -1,0 +1,225 @@
+//! Checks of scene entries that serde cannot express, region selection on the built
+//! model's surface, and instruments from their entries. Messages are completed with the
+//! table and line by the caller.
+
+use std::collections::HashMap;
+
+use crate::interact::{Instrument, InstrumentKind, Region, Trajectory};
+use crate::math::{Real, Vec3};
+use crate::mesh::MeshData;
+use crate::model::{Deformable, KINDS};
+
+use super::spec::{InstrumentSpec, RegionSpec, RunSpec};
+
+pub(super) fn known_kinds() -> String {
+    KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
+}
+
+pub(super) fn check_run(run: &RunSpec) -> Result<(), String> {
+    if !(run.duration.is_finite() && run.duration > 0.0) {
+        return Err(format!(
+            "duration = {}: must be finite and > 0 s",
+            run.duration
+        ));
+    }
+    if !(run.dt.is_finite() && run.dt > 0.0) {
+        return Err(format!("dt = {}: must be finite and > 0 s", run.dt));
+    }
+    if run.dt > run.duration {
+        return Err(format!(
+            "dt = {} s is longer than duration = {} s",
+            run.dt, run.duration
+        ));
+    }
+    if run.duration / run.dt > 1e9 {
+        return Err(format!(
+            "dt = {}: more than 1e9 steps in duration = {}",
+            run.dt, run.duration
+        ));
+    }
+    Ok(())
+}
+
+pub(super) fn region_label(table: &str, k: usize, r: &RegionSpec) -> String {
+    match &r.name {
+        Some(n) => format!("[[{table}]] {} (`{n}`)", k + 1),
+        None => format!("[[{table}]] {}", k + 1),
+    }
+}
+
+pub(super) fn check_region(r: &RegionSpec, is_load: bool) -> Result<(), String> {
+    let set = [
+        ("box", r.aabb.is_some()),
+        ("sphere", r.sphere.is_some()),
+        ("plane", r.plane.is_some()),
+        ("indices", r.indices.is_some()),
+        ("file_vertices", r.file_vertices.is_some()),
+        ("file", r.file == Some(true)),
+    ];
+    let given: Vec<&str> = set.iter().filter(|s| s.1).map(|s| s.0).collect();
+    if given.len() != 1 {
+        return Err(format!(
+            "needs exactly one of box, sphere, plane, indices, file_vertices, file = true; found {}",
+            if given.is_empty() {
+                "none".to_string()
+            } else {
+                given.join(", ")
+            }
+        ));
+    }
+    let finite = |v: &[Real]| v.iter().all(|x| x.is_finite());
+    if let Some(b) = &r.aabb
+        && !(finite(&b.min) && finite(&b.max))
+    {
+        return Err("box bounds must be finite".into());
+    }
+    if let Some(s) = &r.sphere
+        && !(finite(&s.center) && s.radius.is_finite() && s.radius >= 0.0)
+    {
+        return Err("sphere center and radius must be finite, radius >= 0".into());
+    }
+    if let Some(p) = &r.plane
+        && !(finite(&p.point) && finite(&p.normal) && p.tolerance.is_finite())
+    {
+        return Err("plane point, normal and tolerance must be finite".into());
+    }
+    match (is_load, r.force) {
+        (true, None) => Err("a load needs `force` (total, in N)".into()),
+        (true, Some(f)) if !finite(&f) => Err("force must be finite".into()),
+        (false, Some(_)) => Err("`force` belongs in a [[load]], not a [[fixed]] region".into()),
+        _ => Ok(()),
+    }
+}
+
+/// Surface vertices a region selects; errors name indices that do not exist or are interior.
+pub(super) fn select(
+    model: &dyn Deformable,
+    mesh: &MeshData,
+    r: &RegionSpec,
+) -> Result<Vec<u32>, String> {
+    let rest = model.rest_surface();
+    if let Some(b) = &r.aabb {
+        return Ok(Region::Box {
+            min: b.min,
+            max: b.max,
+        }
+        .select(rest));
+    }
+    if let Some(s) = &r.sphere {
+        return Ok(Region::Sphere {
+            center: s.center,
+            radius: s.radius,
+        }
+        .select(rest));
+    }
+    if let Some(p) = &r.plane {
+        return Ok(Region::Plane {
+            point: p.point,
+            normal: p.normal,
+            tolerance: p.tolerance,
+        }
+        .select(rest));
+    }
+    if let Some(ids) = &r.indices {
+        let region = Region::Indices(ids.clone());
+        if let Some(bad) = region.out_of_range(rest.len()).first() {
+            return Err(format!(
+                "surface vertex {bad} does not exist: the surface has {} vertices",
+                rest.len()
+            ));
+        }
+        return Ok(region.select(rest));
+    }
+    let (ids, what) = match (&r.file_vertices, r.file) {
+        (Some(ids), _) => (ids.clone(), "file vertex"),
+        (None, Some(true)) => (
+            mesh.fixed_vertices.clone(),
+            "vertex marked fixed in the file,",
+        ),
+        _ => return Ok(Vec::new()),
+    };
+    // The surface is built from the file's vertices without moving them, so an exact
+    // position match finds a file vertex on the surface.
+    let key = |p: Vec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+    let on_surface: HashMap<[u64; 3], u32> = rest
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| (key(p), i as u32))
+        .collect();
+    let mut out = Vec::with_capacity(ids.len());
+    for i in ids {
+        let p = mesh.vertices.get(i as usize).ok_or_else(|| {
+            format!(
+                "{what} {i} does not exist: the file has {} vertices",
+                mesh.vertices.len()
+            )
+        })?;
+        let s = on_surface
+            .get(&key(*p))
+            .ok_or_else(|| format!("{what} {i} is not on the surface (it is interior)"))?;
+        out.push(*s);
+    }
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}
+
+/// The instrument an `[[instrument]]` entry describes, or why it is not one.
+pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument, String> {
+    let trajectory = Trajectory::new(i.path.clone()).map_err(|e| format!("path: {e}"))?;
+    let forbid = |key: &str, present: bool, kind: &str| {
+        if present {
+            Err(format!("`{key}` does not apply to a {kind}"))
+        } else {
+            Ok(())
+        }
+    };
+    let need_radius = || {
+        i.radius
+            .ok_or_else(|| format!("a {} needs `radius` (m)", i.kind))
+    };
+    let (kind, radius) = match i.kind.as_str() {
+        "probe" => {
+            forbid("grasp_at", i.grasp_at.is_some(), "probe")?;
+            forbid("release_at", i.release_at.is_some(), "probe")?;
+            forbid("direction", i.direction.is_some(), "probe")?;
+            forbid("length", i.length.is_some(), "probe")?;
+            (InstrumentKind::Probe, need_radius()?)
+        }
+        "grasper" => {
+            forbid("direction", i.direction.is_some(), "grasper")?;
+            forbid("length", i.length.is_some(), "grasper")?;
+            let grasp_at = i.grasp_at.ok_or("a grasper needs `grasp_at` (s)")?;
+            (
+                InstrumentKind::Grasper {
+                    grasp_at,
+                    release_at: i.release_at,
+                },
+                need_radius()?,
+            )
+        }
+        "scalpel" => {
+            forbid("grasp_at", i.grasp_at.is_some(), "scalpel")?;
+            forbid("release_at", i.release_at.is_some(), "scalpel")?;
+            let direction = i.direction.ok_or("a scalpel needs `direction`")?;
+            let length = i.length.ok_or("a scalpel needs `length` (m)")?;
+            (
+                InstrumentKind::Scalpel {
+                    direction: Vec3::from(direction),
+                    length,
+                },
+                i.radius.unwrap_or(length),
+            )
+        }
+        other => {
+            return Err(format!(
+                "unknown instrument kind `{other}`; known: probe, grasper, scalpel"
+            ));
+        }
+    };
+    let name = i
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("{}{}", i.kind, k + 1));
+    Instrument::new(name, kind, radius, trajectory).map_err(|e| e.to_string())
+}

@@ -1,0 +1,141 @@
+//! The tables of a scene file, as serde reads them: every one rejects unknown keys.
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use crate::interact::Keyframe;
+use crate::math::Real;
+use crate::sim::DEFAULT_CONTACT_ITERATIONS;
+
+/// `[mesh]`: the file (relative to the scene) and a factor applied to its coordinates.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    pub file: PathBuf,
+    #[serde(default = "one")]
+    pub scale: Real,
+}
+
+fn one() -> Real {
+    1.0
+}
+
+/// `[[fixed]]` or `[[load]]`: exactly one selector, plus `force` (N, total) for a load.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSpec {
+    /// A name for messages.
+    pub name: Option<String>,
+    #[serde(rename = "box")]
+    pub aabb: Option<BoxSpec>,
+    pub sphere: Option<SphereSpec>,
+    pub plane: Option<PlaneSpec>,
+    /// Surface vertex indices.
+    pub indices: Option<Vec<u32>>,
+    /// Vertex indices of the mesh file, found on the surface by position.
+    pub file_vertices: Option<Vec<u32>>,
+    /// `true`: the vertices the mesh file marks fixed.
+    pub file: Option<bool>,
+    /// Total force on the region, spread equally over its vertices (loads only), in N.
+    pub force: Option<[Real; 3]>,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSpec {
+    pub min: [Real; 3],
+    pub max: [Real; 3],
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereSpec {
+    pub center: [Real; 3],
+    pub radius: Real,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneSpec {
+    pub point: [Real; 3],
+    pub normal: [Real; 3],
+    #[serde(default)]
+    pub tolerance: Real,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GravitySpec {
+    pub g: [Real; 3],
+}
+
+/// `[[instrument]]`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InstrumentSpec {
+    /// probe | grasper | scalpel
+    pub kind: String,
+    pub name: Option<String>,
+    /// Tip radius (probe), grasp radius (grasper), in m.
+    pub radius: Option<Real>,
+    pub path: Vec<Keyframe>,
+    /// Grasper: when it closes and opens, in s.
+    pub grasp_at: Option<Real>,
+    pub release_at: Option<Real>,
+    /// Scalpel: blade direction from the tip and blade length, in m.
+    pub direction: Option<[Real; 3]>,
+    pub length: Option<Real>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunSpec {
+    pub duration: Real,
+    pub dt: Real,
+}
+
+impl RunSpec {
+    /// Steps of length `dt` that cover `duration` (the last one may end a little after it).
+    pub fn step_count(&self) -> u64 {
+        ((self.duration / self.dt) * (1.0 - 1e-12)).ceil().max(1.0) as u64
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// A frame every this many steps (0: only the first and the last).
+    #[serde(default = "ten")]
+    pub every: u64,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self { every: ten() }
+    }
+}
+
+fn ten() -> u64 {
+    10
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Cap of solves per step in the static contact loop.
+    #[serde(default = "default_iterations")]
+    pub max_iterations: usize,
+}
+
+impl Default for ContactSpec {
+    fn default() -> Self {
+        Self {
+            max_iterations: default_iterations(),
+        }
+    }
+}
+
+fn default_iterations() -> usize {
+    DEFAULT_CONTACT_ITERATIONS
+}
