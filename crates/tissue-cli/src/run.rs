@@ -234,7 +234,7 @@ impl Writer {
     }
 
     fn finish(&self, scene: &Scene, sim: &Simulation, o: &Outcome) -> anyhow::Result<()> {
-        write_pvd(&self.dir.join("scene.pvd"), &self.frames)?;
+        tissue::io::series::write_pvd(&self.dir.join("scene.pvd"), &self.frames)?;
         let csv = self.dir.join("forces.csv");
         std::fs::write(&csv, &self.csv)
             .with_context(|| format!("cannot write {}", csv.display()))?;
@@ -280,24 +280,4 @@ impl Writer {
             .with_context(|| format!("cannot write {}", path.display()))?;
         Ok(())
     }
-}
-
-/// A ParaView collection: one `DataSet` per frame with its time. (Kept here until
-/// `tissue::io::series::write_pvd` lands; same arguments.)
-fn write_pvd(path: &Path, frames: &[(Real, String)]) -> anyhow::Result<()> {
-    let mut s = String::from(
-        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n  <Collection>\n",
-    );
-    for (t, file) in frames {
-        let file = file
-            .replace('&', "&amp;")
-            .replace('"', "&quot;")
-            .replace('<', "&lt;");
-        let _ = writeln!(
-            s,
-            "    <DataSet timestep=\"{t:e}\" group=\"\" part=\"0\" file=\"{file}\"/>"
-        );
-    }
-    s.push_str("  </Collection>\n</VTKFile>\n");
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
 }

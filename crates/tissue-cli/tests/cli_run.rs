@@ -66,7 +66,6 @@ fn demo_prints_its_scene() {
 }
 
 #[test]
-#[ignore = "needs io + fem-static from parallel branches"]
 fn run_writes_frames_pvd_forces_and_summary() {
     let dir = tmp("liver_run");
     let out = tissue()
@@ -119,7 +118,6 @@ fn run_writes_frames_pvd_forces_and_summary() {
 }
 
 #[test]
-#[ignore = "needs io + fem-static from parallel branches"]
 fn demo_runs() {
     let out = tissue().arg("demo").output().unwrap();
     assert!(
@@ -135,7 +133,6 @@ fn demo_runs() {
 }
 
 #[test]
-#[ignore = "needs io + fem-static from parallel branches"]
 fn failing_step_names_step_and_keeps_outputs() {
     // fem-static cannot cut: the scalpel's first step fails.
     let dir = tmp("failing_step");

@@ -582,7 +582,6 @@ fn repo(rel: &str) -> String {
 }
 
 #[test]
-#[ignore = "needs io + fem-static from parallel branches"]
 fn liver_probe_scene_balances_forces() {
     let s = Scene::load(repo("scenes/liver-probe.toml")).unwrap();
     let mut sim = s.build().unwrap();
@@ -604,7 +603,6 @@ fn liver_probe_scene_balances_forces() {
 }
 
 #[test]
-#[ignore = "needs io + fem-static from parallel branches"]
 fn wound_scene_takes_fixed_vertices_from_the_file() {
     let s = Scene::load(repo("scenes/wound-probe.toml")).unwrap();
     let mut sim = s.build().unwrap();
