@@ -1,6 +1,9 @@
 //! `tissue mesh inspect | convert | repair`.
 
 use anyhow::Context;
+use std::path::Path;
+
+use tissue::image::{ImageFormat, read_image};
 use tissue::io::{self, Format, MshVersion, WriteOptions};
 use tissue::mesh::MeshData;
 use tissue::mesh::inspect::inspect;
@@ -11,6 +14,9 @@ use crate::MeshCommand;
 pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
     match cmd {
         MeshCommand::Inspect { file, json } => {
+            if let Some(format) = ImageFormat::from_path(file) {
+                return inspect_image(file, format, *json);
+            }
             let mesh = io::read(file)?;
             let report = inspect(&mesh);
             if *json {
@@ -84,4 +90,51 @@ fn counts(mesh: &MeshData) -> String {
         }
     }
     parts.join(", ")
+}
+
+/// `mesh inspect` of a volume image (.nii, .hdr/.img, .mhd, .mha): grid, value range, zeros.
+fn inspect_image(file: &Path, format: ImageFormat, json: bool) -> anyhow::Result<()> {
+    // MetaImage has no unit; report its numbers as they are rather than guess a scale.
+    let image = read_image(file, 1.0)?;
+    let unit = match format {
+        ImageFormat::Nifti => "m",
+        ImageFormat::MetaImage => "file units (MetaImage states none)",
+    };
+    let s = image.stats();
+    let [sx, sy, sz] = image.spacing.to_array();
+    let [ox, oy, oz] = image.origin.to_array();
+    if json {
+        let report = serde_json::json!({
+            "kind": "image",
+            "format": format!("{format:?}"),
+            "dims": image.dims,
+            "voxels": s.count,
+            "spacing": [sx, sy, sz],
+            "origin": [ox, oy, oz],
+            "unit": unit,
+            "value_type": image.source_type,
+            "byte_order": image.byte_order,
+            "min": s.min,
+            "max": s.max,
+            "mean": s.mean,
+            "zeros": s.zeros,
+            "negatives": s.negatives,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        let [nx, ny, nz] = image.dims;
+        println!("{}", file.display());
+        println!(
+            "image ({format:?}): {nx} × {ny} × {nz} = {} voxels",
+            s.count
+        );
+        println!("spacing: {sx} {sy} {sz} ({unit})");
+        println!("origin:  {ox} {oy} {oz} ({unit}; centre of voxel 0)");
+        println!("values:  {}, {}", image.source_type, image.byte_order);
+        println!("range:   {} .. {}, mean {:.4}", s.min, s.max, s.mean);
+        let pct = |n: usize| 100.0 * n as f64 / s.count.max(1) as f64;
+        println!("zeros:   {} ({:.2} %)", s.zeros, pct(s.zeros));
+        println!("negative: {} ({:.2} %)", s.negatives, pct(s.negatives));
+    }
+    Ok(())
 }

@@ -11,15 +11,22 @@ use crate::math::{Real, Vec3};
 /// 32-bit integers and `f64` beyond 2^24 lose their low digits, which no image threshold
 /// or mesher can notice.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
 pub enum SourceType {
+    #[serde(rename = "uint8")]
     U8,
+    #[serde(rename = "int8")]
     I8,
+    #[serde(rename = "int16")]
     I16,
+    #[serde(rename = "uint16")]
     U16,
+    #[serde(rename = "int32")]
     I32,
+    #[serde(rename = "uint32")]
     U32,
+    #[serde(rename = "float32")]
     F32,
+    #[serde(rename = "float64")]
     F64,
 }
 
