@@ -98,7 +98,7 @@ fn inspect_image(file: &Path, format: ImageFormat, json: bool) -> anyhow::Result
     let image = read_image(file, 1.0)?;
     let unit = match format {
         ImageFormat::Nifti => "m",
-        ImageFormat::MetaImage => "file units (MetaImage states none)",
+        ImageFormat::MetaImage => "file units, MetaImage states none",
     };
     let s = image.stats();
     let [sx, sy, sz] = image.spacing.to_array();
