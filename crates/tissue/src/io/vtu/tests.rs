@@ -28,8 +28,14 @@ fn separately_encoded_header_and_big_endian() {
 }
 
 #[test]
-fn compressed_files_are_refused_by_line() {
-    let f = "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" compressor=\"vtkZLibDataCompressor\">\n</VTKFile>";
-    let e = parse(f.as_bytes(), Path::new("c.vtu")).unwrap_err();
-    assert!(e.to_string().starts_with("c.vtu:2: compressed data"), "{e}");
+fn lz4_and_lzma_are_refused_by_line() {
+    for c in ["vtkLZ4DataCompressor", "vtkLZMADataCompressor"] {
+        let f = format!("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" compressor=\"{c}\">\n</VTKFile>");
+        let e = parse(f.as_bytes(), Path::new("c.vtu")).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with(&format!("c.vtu:2: compressor `{c}` is not supported")),
+            "{e}"
+        );
+    }
 }
