@@ -30,7 +30,9 @@ fn separately_encoded_header_and_big_endian() {
 #[test]
 fn lz4_and_lzma_are_refused_by_line() {
     for c in ["vtkLZ4DataCompressor", "vtkLZMADataCompressor"] {
-        let f = format!("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" compressor=\"{c}\">\n</VTKFile>");
+        let f = format!(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" compressor=\"{c}\">\n</VTKFile>"
+        );
         let e = parse(f.as_bytes(), Path::new("c.vtu")).unwrap_err();
         assert!(
             e.to_string()
