@@ -187,7 +187,7 @@ impl Parser<'_> {
             Cow::Borrowed(data)
         };
         let size = type_size(&head.ty).unwrap_or(8);
-        if data.len() % size != 0 {
+        if !data.len().is_multiple_of(size) {
             return Err(fail(
                 0,
                 format!(
