@@ -251,6 +251,27 @@ fn vtu_paraview_layouts_read_as_the_ascii_file() {
 }
 
 #[test]
+fn vtu_appended_writer_round_trips() {
+    let m = liver();
+    let ascii = read(&vtu::encode(&m, false).unwrap(), "a.vtu").unwrap();
+    let raw = vtu::encode_appended(&m, false).unwrap();
+    let zip = vtu::encode_appended(&m, true).unwrap();
+    assert_eq!(read(&raw, "r.vtu").unwrap(), ascii);
+    assert_eq!(read(&zip, "z.vtu").unwrap(), ascii);
+    // Raw: 6 arrays of 8-byte header + data (u and points 4344 each, tags 2384,
+    // connectivity 19072, offsets 4768, types 596).
+    let data = 6 * 8 + 4344 * 2 + 2384 + 19072 + 4768 + 596;
+    let start = raw.windows(2).position(|w| w == b" _").unwrap() + 2;
+    assert_eq!(
+        raw.len() - start,
+        data + "\n  </AppendedData>\n</VTKFile>\n".len()
+    );
+    let has = |f: &[u8], s: &str| f.windows(s.len()).any(|w| w == s.as_bytes());
+    assert!(has(&zip, "compressor=\"vtkZLibDataCompressor\"") && !has(&raw, "compressor"));
+    assert!(zip.len() < raw.len(), "{} vs {}", zip.len(), raw.len());
+}
+
+#[test]
 fn vtu_compressed_layouts_have_the_blocks_they_claim() {
     // Points: 181 * 24 = 4344 bytes; block 64 gives 68 blocks, the last 56 bytes long;
     // connectivity: 596 * 4 * 8 = 19072 bytes, exactly 298 full blocks (last size 0).

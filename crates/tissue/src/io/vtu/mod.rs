@@ -16,7 +16,7 @@ mod tests;
 mod write;
 mod zlib;
 
-pub use write::encode;
+pub use write::{encode, encode_appended};
 
 use std::path::Path;
 
