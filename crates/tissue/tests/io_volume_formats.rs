@@ -459,7 +459,10 @@ fn malformed_vtu_files_name_the_line() {
     // An appended array in a file without <AppendedData> is refused by line.
     let bad = ascii.replacen("format=\"ascii\"", "format=\"appended\" offset=\"0\"", 1);
     let e = err(Format::Vtu, bad.as_bytes(), "d.vtu");
-    assert_starts(&e, &format!("d.vtu:{}: DataArray", line_of(&bad, "appended")));
+    assert_starts(
+        &e,
+        &format!("d.vtu:{}: DataArray", line_of(&bad, "appended")),
+    );
     assert!(e.contains("the file has no <AppendedData>"), "{e}");
     // Broken XML: an unclosed element.
     let e = err(

@@ -183,7 +183,13 @@ impl Parser<'_> {
                 };
                 let ty = get("type").unwrap_or("").to_string();
                 if type_size(&ty).is_none() {
-                    return Err(self.error(at, format!("unsupported DataArray type `{ty}`")));
+                    // ParaView puts String arrays in FieldData and sometimes in point or
+                    // cell data: they carry nothing a mesh needs, so only the geometry must
+                    // be numeric.
+                    if matches!(section, Section::Points | Section::Cells) {
+                        return Err(self.error(at, format!("unsupported DataArray type `{ty}`")));
+                    }
+                    return Ok(None);
                 }
                 return Ok(Some(Head {
                     section,

@@ -93,6 +93,25 @@ fn concatenated_padded_base64_streams_decode() {
 }
 
 #[test]
+fn string_field_data_is_skipped() {
+    let f = "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid><FieldData>\
+             <DataArray type=\"String\" Name=\"Info\" NumberOfTuples=\"1\" format=\"ascii\">104 105 0</DataArray>\
+             </FieldData><Piece NumberOfPoints=\"1\" NumberOfCells=\"0\"><PointData>\
+             <DataArray type=\"String\" Name=\"label\" format=\"ascii\">97 0</DataArray></PointData><Points>\
+             <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">1 2 3</DataArray>\
+             </Points></Piece></UnstructuredGrid></VTKFile>";
+    let m = parse(f.as_bytes(), Path::new("s.vtu")).unwrap();
+    assert_eq!(m.vertices, vec![Vec3::new(1.0, 2.0, 3.0)]);
+    assert!(m.point_data.is_empty());
+    let bad = f.replace("Float64", "String");
+    let e = parse(bad.as_bytes(), Path::new("s.vtu")).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "s.vtu:1: unsupported DataArray type `String`"
+    );
+}
+
+#[test]
 fn information_keys_inside_a_data_array_are_not_data() {
     let f = "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>\
              <Piece NumberOfPoints=\"1\" NumberOfCells=\"0\"><Points>\
