@@ -456,16 +456,14 @@ fn malformed_vtu_files_name_the_line() {
         &err(Format::Vtu, bad.as_bytes(), "c.vtu"),
         &format!("c.vtu:{conn}: connectivity refers to point 3"),
     );
-    // Appended data is refused by line.
+    // An appended array in a file without <AppendedData> is refused by line.
     let bad = ascii.replacen("format=\"ascii\"", "format=\"appended\" offset=\"0\"", 1);
     let e = err(Format::Vtu, bad.as_bytes(), "d.vtu");
     assert_starts(
         &e,
-        &format!(
-            "d.vtu:{}: appended data is not supported",
-            line_of(&bad, "appended")
-        ),
+        &format!("d.vtu:{}: DataArray", line_of(&bad, "appended")),
     );
+    assert!(e.contains("the file has no <AppendedData>"), "{e}");
     // Broken XML: an unclosed element.
     let e = err(
         Format::Vtu,

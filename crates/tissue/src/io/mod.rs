@@ -10,7 +10,7 @@
 //! | PLY ascii and binary, custom elements | `.ply` | yes | no |
 //! | Gmsh v1, v2 (ascii, binary), v4.1 ascii | `.msh` | yes | v2 and v4.1 ascii |
 //! | VTK legacy unstructured grid / polydata | `.vtk` | yes | yes |
-//! | VTK XML unstructured grid, ascii and base64 | `.vtu` | yes | yes |
+//! | VTK XML unstructured grid: ascii, base64, appended raw/base64, zlib | `.vtu` | yes | ascii, base64; `vtu::encode_appended` |
 //! | MEDIT | `.mesh` | yes | yes |
 
 mod cursor;

@@ -1,18 +1,22 @@
-//! VTK XML unstructured grids (`.vtu`): read ascii and inline base64 (`format="binary"`,
-//! uncompressed) data arrays of any numeric type, either byte order and header size; write
-//! ascii or base64 files that ParaView opens.
+//! VTK XML unstructured grids (`.vtu`): read data arrays of any numeric type, either byte
+//! order and header size, stored as ascii, inline base64 (`format="binary"`) or in
+//! `<AppendedData>` (raw or base64), each binary form plain or zlib-compressed; that covers
+//! what ParaView writes by default. Write ascii or base64 files that ParaView opens.
 //!
 //! Cells kept are those of the legacy reader (see `vtk`): triangles, quads and polygons
 //! (split), tetrahedra and quadratic tetrahedra. PointData arrays become fields; an integer
-//! CellData array named like a tag becomes the element tags. Compressed or appended data is
-//! refused with an error naming the file and line.
+//! CellData array named like a tag becomes the element tags. LZ4 or LZMA compression is
+//! refused with an error naming the compressor, the file and the line.
 
+mod appended;
+mod data;
 mod parser;
 #[cfg(test)]
 mod tests;
 mod write;
+mod zlib;
 
-pub use write::encode;
+pub use write::{encode, encode_appended};
 
 use std::path::Path;
 
@@ -25,17 +29,25 @@ use parser::{Array, Head, Parser};
 
 /// Reads a `.vtu` file.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
+    let (xml_len, appended) = appended::split(bytes, path)?;
+    let has_appended = appended.is_some();
     let mut p = Parser {
         path,
         bytes,
         big_endian: false,
         header64: false,
+        compressed: false,
+        appended,
+        offsets: Vec::new(),
         piece: None,
         arrays: Vec::new(),
     };
-    let mut reader = Reader::from_reader(bytes);
+    let mut reader = Reader::from_reader(bytes.get(..xml_len).unwrap_or(bytes));
     let mut stack: Vec<String> = Vec::new();
     let mut current: Option<Head> = None;
+    // Elements nested in the current DataArray (ParaView's <InformationKey>): their text
+    // is not data.
+    let mut inner = 0usize;
     let mut text: Vec<u8> = Vec::new();
     let mut seen_root = false;
     loop {
@@ -44,15 +56,11 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
             .read_event()
             .map_err(|e| p.error(reader.error_position() as usize, format!("XML error: {e}")))?;
         match event {
-            Event::Start(e) | Event::Empty(e) if current.is_some() => {
-                return Err(p.error(
-                    before,
-                    format!(
-                        "unexpected <{}> inside a DataArray",
-                        String::from_utf8_lossy(e.name().as_ref())
-                    ),
-                ));
+            Event::Start(e) if current.is_some() => {
+                inner += 1;
+                stack.push(String::from_utf8_lossy(e.local_name().as_ref()).into_owned());
             }
+            Event::Empty(_) if current.is_some() => {}
             Event::Start(e) => {
                 if !seen_root && e.local_name().as_ref() != b"VTKFile" {
                     return Err(p.error(
@@ -67,21 +75,23 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
             }
             Event::Empty(e) => {
                 if let Some(head) = p.open(&e, before, stack.last().map(String::as_str))? {
-                    p.arrays.push(Array {
-                        head,
-                        values: Vec::new(),
-                    });
+                    let values = p.decode_inline(&head, &[])?;
+                    p.arrays.push(Array { head, values });
                 }
             }
-            Event::Text(t) if current.is_some() => text.extend_from_slice(&t),
-            Event::CData(t) if current.is_some() => text.extend_from_slice(&t),
-            Event::GeneralRef(_) if current.is_some() => {
+            Event::Text(t) if current.is_some() && inner == 0 => text.extend_from_slice(&t),
+            Event::CData(t) if current.is_some() && inner == 0 => text.extend_from_slice(&t),
+            Event::GeneralRef(_) if current.is_some() && inner == 0 => {
                 return Err(p.error(before, "unexpected entity reference inside a DataArray"));
+            }
+            Event::End(_) if inner > 0 => {
+                inner -= 1;
+                stack.pop();
             }
             Event::End(_) => {
                 stack.pop();
                 if let Some(head) = current.take() {
-                    let values = p.decode(&head, &text)?;
+                    let values = p.decode_inline(&head, &text)?;
                     p.arrays.push(Array { head, values });
                 }
             }
@@ -96,12 +106,28 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
             "not a VTK XML file: no <VTKFile> element",
         ));
     }
-    if let Some(open) = stack.last() {
-        return Err(p.error(
-            bytes.len(),
-            format!("unexpected end of file inside <{open}>"),
-        ));
+    // The XML part of a file with appended data stops inside <VTKFile>.
+    let complete = if has_appended {
+        stack.len() == 1
+    } else {
+        stack.is_empty()
+    };
+    if let Some(open) = stack.last().filter(|_| !complete) {
+        let what = if has_appended {
+            "the XML before <AppendedData> ends"
+        } else {
+            "unexpected end of file"
+        };
+        return Err(p.error(xml_len, format!("{what} inside <{open}>")));
     }
+    // Appended arrays are cut out now that every offset is known.
+    let mut arrays = std::mem::take(&mut p.arrays);
+    for a in &mut arrays {
+        if let parser::Format::Appended(_) = a.head.format {
+            a.values = p.decode(&a.head, &[])?;
+        }
+    }
+    p.arrays = arrays;
     p.finish()
 }
 

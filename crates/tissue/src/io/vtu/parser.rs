@@ -3,11 +3,10 @@
 
 use std::path::Path;
 
-use base64::Engine;
-use base64::engine::general_purpose::STANDARD;
 use quick_xml::events::BytesStart;
 
-use super::{decode_uint, decode_value, type_size};
+use super::appended::Appended;
+use super::type_size;
 use crate::error::{IoError, Location};
 use crate::io::vtk::{is_tag_name, pick_tags};
 use crate::math::Vec3;
@@ -23,13 +22,23 @@ pub(super) enum Section {
     Other,
 }
 
+/// How a data array's numbers are stored.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(super) enum Format {
+    Ascii,
+    /// Inline base64.
+    Binary,
+    /// In `<AppendedData>`, at this offset after the `_`.
+    Appended(usize),
+}
+
 /// The attributes of a `<DataArray>` and where it starts.
 pub(super) struct Head {
     pub(super) section: Section,
     pub(super) name: String,
     pub(super) ty: String,
     pub(super) components: usize,
-    pub(super) binary: bool,
+    pub(super) format: Format,
     pub(super) at: usize,
 }
 
@@ -43,12 +52,16 @@ pub(super) struct Parser<'a> {
     pub(super) bytes: &'a [u8],
     pub(super) big_endian: bool,
     pub(super) header64: bool,
+    pub(super) compressed: bool,
+    pub(super) appended: Option<Appended<'a>>,
+    /// Offsets of all appended arrays: the end of an appended base64 array is the next one.
+    pub(super) offsets: Vec<usize>,
     pub(super) piece: Option<(usize, usize, usize)>,
     pub(super) arrays: Vec<Array>,
 }
 
 impl Parser<'_> {
-    fn line_of(&self, at: usize) -> usize {
+    pub(super) fn line_of(&self, at: usize) -> usize {
         1 + self
             .bytes
             .get(..at)
@@ -95,9 +108,18 @@ impl Parser<'_> {
                         ),
                     ));
                 }
-                if let Some(c) = get("compressor").filter(|c| !c.is_empty()) {
-                    return Err(self.error(at, format!("compressed data ({c}) is not supported; save uncompressed (ascii or binary)")));
-                }
+                self.compressed = match get("compressor").unwrap_or("") {
+                    "" => false,
+                    "vtkZLibDataCompressor" => true,
+                    c => {
+                        return Err(self.error(
+                            at,
+                            format!(
+                                "compressor `{c}` is not supported; save with zlib compression or none"
+                            ),
+                        ));
+                    }
+                };
                 self.big_endian = get("byte_order") == Some("BigEndian");
                 self.header64 = match get("header_type") {
                     None | Some("UInt32") => false,
@@ -119,12 +141,6 @@ impl Parser<'_> {
                 };
                 self.piece = Some((count("NumberOfPoints")?, count("NumberOfCells")?, at));
             }
-            "AppendedData" => {
-                return Err(self.error(
-                    at,
-                    "appended data is not supported; save with ascii or binary (inline) data",
-                ));
-            }
             "DataArray" => {
                 let section = match parent {
                     Some("Points") => Section::Points,
@@ -133,11 +149,19 @@ impl Parser<'_> {
                     Some("CellData") => Section::CellData,
                     _ => Section::Other,
                 };
-                let binary = match get("format").unwrap_or("ascii") {
-                    "ascii" => false,
-                    "binary" => true,
+                let format = match get("format").unwrap_or("ascii") {
+                    "ascii" => Format::Ascii,
+                    "binary" => Format::Binary,
                     "appended" => {
-                        return Err(self.error(at, "appended data is not supported; save with ascii or binary (inline) data"));
+                        let v = get("offset").unwrap_or("");
+                        let offset = v.trim().parse().map_err(|_| {
+                            self.error(
+                                at,
+                                format!("an appended DataArray needs an offset, found `{v}`"),
+                            )
+                        })?;
+                        self.offsets.push(offset);
+                        Format::Appended(offset)
                     }
                     o => return Err(self.error(at, format!("unknown DataArray format `{o}`"))),
                 };
@@ -159,94 +183,26 @@ impl Parser<'_> {
                 };
                 let ty = get("type").unwrap_or("").to_string();
                 if type_size(&ty).is_none() {
-                    return Err(self.error(at, format!("unsupported DataArray type `{ty}`")));
+                    // ParaView puts String arrays in FieldData and sometimes in point or
+                    // cell data: they carry nothing a mesh needs, so only the geometry must
+                    // be numeric.
+                    if matches!(section, Section::Points | Section::Cells) {
+                        return Err(self.error(at, format!("unsupported DataArray type `{ty}`")));
+                    }
+                    return Ok(None);
                 }
                 return Ok(Some(Head {
                     section,
                     name: get("Name").unwrap_or("").to_string(),
                     ty,
                     components,
-                    binary,
+                    format,
                     at,
                 }));
             }
             _ => {}
         }
         Ok(None)
-    }
-
-    pub(super) fn decode(&self, head: &Head, text: &[u8]) -> Result<Vec<f64>, IoError> {
-        let size = type_size(&head.ty).unwrap_or(8);
-        if !head.binary {
-            let text = std::str::from_utf8(text)
-                .map_err(|_| self.error(head.at, "the data is not UTF-8 text"))?;
-            return text
-                .split_ascii_whitespace()
-                .map(|t| {
-                    t.parse::<f64>().map_err(|_| {
-                        self.error(
-                            head.at,
-                            format!("DataArray `{}`: expected a number, found `{t}`", head.name),
-                        )
-                    })
-                })
-                .collect();
-        }
-        let clean: Vec<u8> = text
-            .iter()
-            .copied()
-            .filter(|b| !b.is_ascii_whitespace())
-            .collect();
-        let hsize: usize = if self.header64 { 8 } else { 4 };
-        // Uncompressed data is one base64 stream of header and data; some writers encode the
-        // header on its own, leaving padding in the middle.
-        let raw = match STANDARD.decode(&clean) {
-            Ok(r) => r,
-            Err(first) => {
-                let split = hsize.div_ceil(3) * 4;
-                let (h, d) = clean.split_at(split.min(clean.len()));
-                match (STANDARD.decode(h), STANDARD.decode(d)) {
-                    (Ok(mut h), Ok(d)) if h.len() == hsize => {
-                        h.extend(d);
-                        h
-                    }
-                    _ => {
-                        return Err(self.error(
-                            head.at,
-                            format!("DataArray `{}`: bad base64 data: {first}", head.name),
-                        ));
-                    }
-                }
-            }
-        };
-        let Some(header) = raw.get(..hsize) else {
-            return Err(self.error(
-                head.at,
-                format!(
-                    "DataArray `{}`: the binary data is shorter than its header",
-                    head.name
-                ),
-            ));
-        };
-        let nbytes = decode_uint(header, self.big_endian);
-        let data = usize::try_from(nbytes)
-            .ok()
-            .and_then(|n| raw.get(hsize..hsize.checked_add(n)?));
-        let Some(data) = data.filter(|d| d.len() % size == 0) else {
-            return Err(self.error(
-                head.at,
-                format!(
-                    "DataArray `{}`: the header announces {nbytes} bytes of {} but {} follow",
-                    head.name,
-                    head.ty,
-                    raw.len() - hsize
-                ),
-            ));
-        };
-        Ok(data
-            .chunks_exact(size)
-            .map(|b| decode_value(b, &head.ty, self.big_endian))
-            .collect())
     }
 
     fn array(&self, section: Section, name: Option<&str>) -> Option<&Array> {
@@ -281,7 +237,7 @@ impl Parser<'_> {
                     name: String::new(),
                     ty: String::new(),
                     components: 3,
-                    binary: false,
+                    format: Format::Ascii,
                     at: 0,
                 },
                 values: Vec::new(),

@@ -1,4 +1,5 @@
-//! The `.vtu` writer.
+//! The `.vtu` writer: ascii, inline base64, or (for round-trip tests and compact output)
+//! appended raw data, optionally zlib-compressed as ParaView writes it.
 
 use std::fmt::Write;
 
@@ -15,13 +16,50 @@ enum Values<'a> {
     U8(Vec<u8>),
 }
 
+/// How array data is stored.
+enum Mode {
+    Ascii,
+    Base64,
+    /// Raw bytes collected for `<AppendedData>`; compressed in zlib blocks when asked.
+    Appended {
+        data: Vec<u8>,
+        compress: bool,
+    },
+}
+
+/// VTK's default block size for compressed arrays.
+const BLOCK: usize = 1 << 15;
+
+/// The header and blocks of a zlib-compressed array (UInt64 header words).
+fn compress(raw: &[u8]) -> Vec<u8> {
+    use std::io::Write as _;
+    let blocks: Vec<Vec<u8>> = raw
+        .chunks(BLOCK)
+        .map(|c| {
+            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+            // Writing to a Vec cannot fail.
+            let _ = z.write_all(c);
+            z.finish().unwrap_or_default()
+        })
+        .collect();
+    let mut out = Vec::new();
+    for w in [blocks.len(), BLOCK, raw.len() % BLOCK]
+        .into_iter()
+        .chain(blocks.iter().map(Vec::len))
+    {
+        out.extend((w as u64).to_le_bytes());
+    }
+    blocks.iter().for_each(|b| out.extend(b));
+    out
+}
+
 fn data_array(
     out: &mut String,
     ty: &str,
     name: &str,
     components: usize,
     values: Values<'_>,
-    binary: bool,
+    mode: &mut Mode,
 ) {
     let _ = write!(
         out,
@@ -31,19 +69,32 @@ fn data_array(
     if components != 1 {
         let _ = write!(out, " NumberOfComponents=\"{components}\"");
     }
-    let _ = writeln!(
-        out,
-        " format=\"{}\">",
-        if binary { "binary" } else { "ascii" }
-    );
-    if binary {
-        let mut raw: Vec<u8> = Vec::new();
+    let mut raw: Vec<u8> = Vec::new();
+    if !matches!(mode, Mode::Ascii) {
         match &values {
             Values::F64(v) => v.iter().for_each(|x| raw.extend(x.to_le_bytes())),
             Values::I64(v) => v.iter().for_each(|x| raw.extend(x.to_le_bytes())),
             Values::I32(v) => v.iter().for_each(|x| raw.extend(x.to_le_bytes())),
             Values::U8(v) => raw.extend_from_slice(v),
         }
+    }
+    if let Mode::Appended { data, compress: z } = mode {
+        let _ = writeln!(out, " format=\"appended\" offset=\"{}\"/>", data.len());
+        if *z {
+            data.extend(compress(&raw));
+        } else {
+            data.extend((raw.len() as u64).to_le_bytes());
+            data.extend(raw);
+        }
+        return;
+    }
+    let binary = matches!(mode, Mode::Base64);
+    let _ = writeln!(
+        out,
+        " format=\"{}\">",
+        if binary { "binary" } else { "ascii" }
+    );
+    if binary {
         let mut all = (raw.len() as u64).to_le_bytes().to_vec();
         all.extend(raw);
         let _ = writeln!(out, "          {}", STANDARD.encode(all));
@@ -65,6 +116,23 @@ fn data_array(
 /// Writes a `.vtu` unstructured grid (Float64 points, Int64 connectivity and offsets, UInt8
 /// types, Int32 `tag` cell data when the mesh has tags), ascii or base64 with UInt64 headers.
 pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
+    let mode = if binary { Mode::Base64 } else { Mode::Ascii };
+    write(mesh, mode)
+}
+
+/// Writes a `.vtu` with all arrays in one raw `<AppendedData>` section (UInt64 headers), as
+/// ParaView does by default; `compress` zlib-compresses each array in 32 KiB blocks.
+pub fn encode_appended(mesh: &MeshData, compress: bool) -> Result<Vec<u8>, String> {
+    write(
+        mesh,
+        Mode::Appended {
+            data: Vec::new(),
+            compress,
+        },
+    )
+}
+
+fn write(mesh: &MeshData, mut mode: Mode) -> Result<Vec<u8>, String> {
     let n = mesh.vertices.len();
     for f in &mesh.point_data {
         if f.components == 0 || Some(f.values.len()) != f.components.checked_mul(n) {
@@ -83,8 +151,12 @@ pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
         .chain(mesh.tets.iter().map(|t| &t[..]))
         .chain(mesh.tets10.iter().map(|t| &t[..]))
         .collect();
-    let mut out = String::from(
-        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n  <UnstructuredGrid>\n",
+    let compressor = match mode {
+        Mode::Appended { compress: true, .. } => " compressor=\"vtkZLibDataCompressor\"",
+        _ => "",
+    };
+    let mut out = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\"{compressor}>\n  <UnstructuredGrid>\n",
     );
     let _ = writeln!(
         out,
@@ -99,7 +171,7 @@ pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
             &f.name,
             f.components,
             Values::F64(&f.values),
-            binary,
+            &mut mode,
         );
     }
     out.push_str("      </PointData>\n      <CellData>\n");
@@ -110,7 +182,7 @@ pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
             .chain((0..mesh.tets.len()).map(|i| tag(&mesh.tet_tags, i)))
             .chain(std::iter::repeat_n(0, mesh.tets10.len()))
             .collect();
-        data_array(&mut out, "Int32", "tag", 1, Values::I32(tags), binary);
+        data_array(&mut out, "Int32", "tag", 1, Values::I32(tags), &mut mode);
     }
     out.push_str("      </CellData>\n      <Points>\n");
     data_array(
@@ -119,7 +191,7 @@ pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
         "Points",
         3,
         Values::F64(crate::math::flatten(&mesh.vertices)),
-        binary,
+        &mut mode,
     );
     out.push_str("      </Points>\n      <Cells>\n");
     let conn: Vec<i64> = cells
@@ -148,7 +220,7 @@ pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
         "connectivity",
         1,
         Values::I64(conn),
-        binary,
+        &mut mode,
     );
     data_array(
         &mut out,
@@ -156,9 +228,16 @@ pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
         "offsets",
         1,
         Values::I64(offsets),
-        binary,
+        &mut mode,
     );
-    data_array(&mut out, "UInt8", "types", 1, Values::U8(types), binary);
-    out.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n");
-    Ok(out.into_bytes())
+    data_array(&mut out, "UInt8", "types", 1, Values::U8(types), &mut mode);
+    out.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n");
+    let mut bytes = out.into_bytes();
+    if let Mode::Appended { data, .. } = mode {
+        bytes.extend(b"  <AppendedData encoding=\"raw\">\n   _");
+        bytes.extend(data);
+        bytes.extend(b"\n  </AppendedData>\n");
+    }
+    bytes.extend(b"</VTKFile>\n");
+    Ok(bytes)
 }
