@@ -56,7 +56,8 @@ pub struct DemoArgs {
 
 #[derive(Subcommand, Debug)]
 pub enum MeshCommand {
-    /// Counts, bounds, volume, quality histogram and problems of a mesh file.
+    /// Counts, bounds, volume, quality histogram and problems of a mesh file; dimensions,
+    /// spacing and value range of an image (.nii, .mhd, .mha).
     Inspect {
         file: PathBuf,
         /// Print JSON instead of text.
