@@ -13,10 +13,12 @@
 //! - `quadratic_mesh`: 10-node mesh from a linear one (one node per unique edge)
 //! - `assembly`: sparsity pattern once, element-to-slot table, scatter-add
 //! - `system`: constraint elimination keeping the pattern, factorisation cache, rigid-mode check
+//! - `mass`: lumped nodal masses for the dynamic variants
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
 
 mod assembly;
 mod deformable_impl;
+pub mod mass;
 pub mod element_linear;
 pub mod element_quadratic;
 pub mod quadratic_mesh;
