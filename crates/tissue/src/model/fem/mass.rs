@@ -24,7 +24,12 @@ mod tests {
 
     #[test]
     fn masses_add_up_to_the_body_mass() {
-        let mesh = box_tets(Vec3::ZERO, Vec3::new(0.3, 0.2, 0.1), [3, 2, 2], BoxSplit::Five);
+        let mesh = box_tets(
+            Vec3::ZERO,
+            Vec3::new(0.3, 0.2, 0.1),
+            [3, 2, 2],
+            BoxSplit::Five,
+        );
         let m = lumped_masses(&mesh, 1000.0);
         assert!((m.iter().sum::<Real>() - 1000.0 * 0.006).abs() < 1e-12);
         assert!(m.iter().all(|&x| x > 0.0));

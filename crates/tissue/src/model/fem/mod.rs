@@ -18,9 +18,9 @@
 
 mod assembly;
 mod deformable_impl;
-pub mod mass;
 pub mod element_linear;
 pub mod element_quadratic;
+pub mod mass;
 pub mod quadratic_mesh;
 mod static_model;
 mod system;
