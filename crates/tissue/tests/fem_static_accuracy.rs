@@ -144,7 +144,7 @@ fn fem_static_cantilever_linear_tets_converge() {
         "{:>10} {:>8} {:>14} {:>10}",
         "cells", "dofs", "tip (m)", "error"
     );
-    for k in [1, 2, 3, 4] {
+    for k in [1, 2, 3, 4, 6, 8] {
         let cells = [10 * k, k, k];
         let (tip, dofs) = cantilever_tip(cells, Order::Linear);
         let err = (tip - exact).abs() / exact;
@@ -158,24 +158,6 @@ fn fem_static_cantilever_linear_tets_converge() {
         errors.push(err);
     }
     assert!(errors.windows(2).all(|w| w[1] < w[0]), "{errors:?}");
-    assert!(errors[3] < 0.5, "{errors:?}");
-}
-
-/// The same study further (about a minute in release): 60x6x6 and 80x8x8 linear tets.
-#[test]
-#[ignore = "slow refinement study; run with --ignored"]
-fn fem_static_cantilever_linear_tets_refinement_study() {
-    let exact = timoshenko_tip(1.0, 1.0, 0.1, 0.1, 1.0e6, 0.3);
-    let mut last = Real::INFINITY;
-    for k in [4, 6, 8] {
-        let (tip, dofs) = cantilever_tip([10 * k, k, k], Order::Linear);
-        let err = (tip - exact).abs() / exact;
-        eprintln!(
-            "{}x{k}x{k}: {dofs} dofs, tip {tip:.6e} m, error {:.2}%",
-            10 * k,
-            100.0 * err
-        );
-        assert!(err < last);
-        last = err;
-    }
+    // Measured: 78.1, 49.6, 31.6, 21.3, 11.3 and 7.0 % (first-order-like convergence in h).
+    assert!(errors[5] < 0.08, "{errors:?}");
 }
