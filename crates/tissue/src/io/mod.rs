@@ -21,6 +21,7 @@ pub mod ply;
 pub mod series;
 pub mod stl;
 pub mod vtk;
+mod vtk_cells;
 pub mod vtu;
 
 use std::path::Path;

@@ -5,6 +5,7 @@ use std::path::Path;
 use super::{decode_name, is_tag_name, pick_tags};
 use crate::error::{IoError, Location};
 use crate::io::cursor::Cursor;
+use crate::io::vtk_cells::CellSink;
 use crate::math::Vec3;
 use crate::mesh::{Field, MeshData};
 
@@ -500,8 +501,7 @@ impl<'a> Reader<'a> {
             point_data: self.point_data,
             ..MeshData::default()
         };
-        let mut tri_cells = Vec::new();
-        let mut tet_cells = Vec::new();
+        let mut sink = CellSink::default();
         let path = self.c.path();
         if poly {
             // VTK numbers polydata cells verts, lines, polygons, strips whatever the file order.
@@ -515,7 +515,8 @@ impl<'a> Reader<'a> {
             let mut base = count("VERTICES") + count("LINES");
             for (_, cells) in self.poly.iter().filter(|(k, _)| k == "POLYGONS") {
                 for i in 0..cells.len() {
-                    fan(cells.cell(i), base + i, &mut mesh.triangles, &mut tri_cells);
+                    // A polygon (type 7) never fails: any point count is fan-split.
+                    let _ = sink.add(&mut mesh, base + i, 7, cells.cell(i));
                 }
                 base += cells.len();
             }
@@ -532,51 +533,15 @@ impl<'a> Reader<'a> {
                 ));
             }
             for (i, &ty) in self.types.iter().enumerate() {
-                let c = self.cells.cell(i);
-                let need = match ty {
-                    5 => 3,
-                    9 | 10 => 4,
-                    24 => 10,
-                    _ => 0,
-                };
-                if need > 0 && c.len() != need {
-                    return Err(IoError::new(
-                        path,
-                        Location::Element(i),
-                        format!(
-                            "cell {i} of type {ty} needs {need} points, found {}",
-                            c.len()
-                        ),
-                    ));
-                }
-                match ty {
-                    5 | 7 | 9 => fan(c, i, &mut mesh.triangles, &mut tri_cells),
-                    10 => {
-                        mesh.tets.push([c[0], c[1], c[2], c[3]]);
-                        tet_cells.push(i);
-                    }
-                    24 => {
-                        let mut t = [0u32; 10];
-                        t.copy_from_slice(c);
-                        mesh.tets10.push(t);
-                    }
-                    _ => {}
-                }
+                sink.add(&mut mesh, i, ty, self.cells.cell(i))
+                    .map_err(|m| IoError::new(path, Location::Element(i), m))?;
             }
         }
         if let Some(tags) = self.tags {
-            mesh.triangle_tags = pick_tags(&tags, &tri_cells);
-            mesh.tet_tags = pick_tags(&tags, &tet_cells);
+            mesh.triangle_tags = pick_tags(&tags, &sink.tri_cells);
+            mesh.tet_tags = pick_tags(&tags, &sink.tet_cells);
         }
         Ok(mesh)
-    }
-}
-
-/// Splits a polygon in triangles around its first corner.
-fn fan(c: &[u32], cell: usize, triangles: &mut Vec<[u32; 3]>, cells: &mut Vec<usize>) {
-    for w in c.get(1..).unwrap_or(&[]).windows(2) {
-        triangles.push([c[0], w[0], w[1]]);
-        cells.push(cell);
     }
 }
 

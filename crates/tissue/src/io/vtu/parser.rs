@@ -9,6 +9,7 @@ use super::appended::Appended;
 use super::type_size;
 use crate::error::{IoError, Location};
 use crate::io::vtk::{is_tag_name, pick_tags};
+use crate::io::vtk_cells::CellSink;
 use crate::math::Vec3;
 use crate::mesh::{Field, MeshData};
 
@@ -313,46 +314,13 @@ impl Parser<'_> {
                 .collect();
             (conn, ends, types)
         };
-        let mut tri_cells = Vec::new();
-        let mut tet_cells = Vec::new();
+        let mut sink = CellSink::default();
         let mut start = 0usize;
         for (i, (&end, &ty)) in offsets.iter().zip(&types).enumerate() {
             let c = conn.get(start..end).unwrap_or(&[]);
             start = end;
-            let need = match ty {
-                5 => 3,
-                9 | 10 => 4,
-                24 => 10,
-                _ => 0,
-            };
-            if need > 0 && c.len() != need {
-                return Err(IoError::new(
-                    self.path,
-                    Location::Element(i),
-                    format!(
-                        "cell {i} of type {ty} needs {need} points, found {}",
-                        c.len()
-                    ),
-                ));
-            }
-            match ty {
-                5 | 7 | 9 => {
-                    for w in c.get(1..).unwrap_or(&[]).windows(2) {
-                        mesh.triangles.push([c[0], w[0], w[1]]);
-                        tri_cells.push(i);
-                    }
-                }
-                10 => {
-                    mesh.tets.push([c[0], c[1], c[2], c[3]]);
-                    tet_cells.push(i);
-                }
-                24 => {
-                    let mut t = [0u32; 10];
-                    t.copy_from_slice(c);
-                    mesh.tets10.push(t);
-                }
-                _ => {}
-            }
+            sink.add(&mut mesh, i, ty, c)
+                .map_err(|m| IoError::new(self.path, Location::Element(i), m))?;
         }
         for a in self
             .arrays
@@ -387,8 +355,8 @@ impl Parser<'_> {
                 ));
             }
             let tags: Vec<i32> = a.values.iter().map(|&v| v as i32).collect();
-            mesh.triangle_tags = pick_tags(&tags, &tri_cells);
-            mesh.tet_tags = pick_tags(&tags, &tet_cells);
+            mesh.triangle_tags = pick_tags(&tags, &sink.tri_cells);
+            mesh.tet_tags = pick_tags(&tags, &sink.tet_cells);
         }
         Ok(mesh)
     }
