@@ -56,7 +56,9 @@ fn contacts(rest: &[Vec3], fixed: &[u32], first: u32) -> Constraints {
 
 fn update(model: &mut dyn Deformable, sets: &[Constraints; 2], i: &mut usize) {
     *i += 1;
-    model.set_constraints(&sets[*i % 2]).expect("valid constraints");
+    model
+        .set_constraints(&sets[*i % 2])
+        .expect("valid constraints");
     model.step(0.0).expect("solves");
     black_box(model.surface().positions[0]);
 }

@@ -135,12 +135,14 @@ pub(crate) fn condense(
 /// W = C⁻¹ by a dense LLT; a C that is not positive definite means the fixed set leaves a
 /// rigid motion free.
 pub(crate) fn compliance(c: &Mat<Real>) -> Result<Mat<Real>, SimError> {
-    let llt = c.llt(Side::Lower).map_err(|_| SimError::NotPositiveDefinite {
-        row: 0,
-        hint: "the condensed surface stiffness is singular: fix at least three \
+    let llt = c
+        .llt(Side::Lower)
+        .map_err(|_| SimError::NotPositiveDefinite {
+            row: 0,
+            hint: "the condensed surface stiffness is singular: fix at least three \
                non-collinear surface vertices of every piece"
-            .into(),
-    })?;
+                .into(),
+        })?;
     let mut w = llt.inverse();
     let n = w.nrows();
     for j in 0..n {
@@ -438,7 +440,8 @@ impl SurfaceCore {
         self.fixed_reactions.clear();
         self.fixed_reactions.resize(c.fixed.len(), Vec3::ZERO);
         self.prescribed_reactions.clear();
-        self.prescribed_reactions.resize(c.prescribed.len(), Vec3::ZERO);
+        self.prescribed_reactions
+            .resize(c.prescribed.len(), Vec3::ZERO);
         self.constraints.fixed.clear();
         self.constraints.fixed.extend_from_slice(&c.fixed);
         self.constraints.prescribed.clear();
@@ -505,7 +508,9 @@ impl SurfaceCore {
         for (p, x) in self.surface_positions.iter_mut().zip(rest) {
             *p = *x;
         }
-        self.surface_reaction.iter_mut().for_each(|r| *r = Vec3::ZERO);
+        self.surface_reaction
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
         for (a, &v) in self.set.free.iter().enumerate() {
             let d = Vec3::new(self.us[3 * a], self.us[3 * a + 1], self.us[3 * a + 2]);
             self.surface_positions[v as usize] += d;

@@ -7,7 +7,8 @@ use super::*;
 use crate::interact::Prescribed;
 use crate::mesh::generate::{BoxSplit, box_tets};
 
-pub(crate) const LIVER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
+pub(crate) const LIVER: &str =
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
 
 /// The liver in metres.
 pub(crate) fn liver() -> TetMesh {
@@ -145,13 +146,16 @@ fn liver_matches_fem_static_for_random_contact_sets() {
     let mut reference = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
     let fixed = liver_fixed(&reference);
     let calls = RefCell::new(Vec::new());
-    let mut model =
-        FemCondensed::new_with_progress(&mesh, liver_material(), &fixed, &|f| {
-            calls.borrow_mut().push(f)
-        })
-        .unwrap();
+    let mut model = FemCondensed::new_with_progress(&mesh, liver_material(), &fixed, &|f| {
+        calls.borrow_mut().push(f)
+    })
+    .unwrap();
     let calls = calls.into_inner();
-    assert_eq!(calls.len(), 137, "one progress call per free surface vertex");
+    assert_eq!(
+        calls.len(),
+        137,
+        "one progress call per free surface vertex"
+    );
     assert!(calls.windows(2).all(|w| w[0] < w[1]) && calls.last() == Some(&1.0));
     assert_eq!(model.compliance().nrows(), 3 * 137);
     let rest = reference.rest_surface().to_vec();
@@ -166,7 +170,13 @@ fn liver_matches_fem_static_for_random_contact_sets() {
         let interior = model.interior_displacements().unwrap();
         let u = reference.displacements();
         let scale = max_abs(u.iter().copied());
-        let diff = max_abs(interior.iter().flat_map(|v| v.to_array()).zip(u).map(|(a, b)| a - b));
+        let diff = max_abs(
+            interior
+                .iter()
+                .flat_map(|v| v.to_array())
+                .zip(u)
+                .map(|(a, b)| a - b),
+        );
         assert!(diff < 1e-8 * scale, "interior: {diff:e}");
     }
     // A new fixed set is condensed again, the same one is not.
@@ -184,7 +194,12 @@ fn liver_matches_fem_static_for_random_contact_sets() {
 
 #[test]
 fn box_matches_fem_static() {
-    let mesh = box_tets(Vec3::ZERO, Vec3::new(0.1, 0.02, 0.02), [10, 2, 2], BoxSplit::Six);
+    let mesh = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.02, 0.02),
+        [10, 2, 2],
+        BoxSplit::Six,
+    );
     let material = Material::new(5000.0, 0.4).unwrap();
     let mut reference = FemStatic::new(&mesh, material, Order::Linear).unwrap();
     let rest = reference.rest_surface().to_vec();
@@ -263,7 +278,11 @@ fn bad_input_is_refused_and_keeps_the_state() {
     let info = model.info();
     assert!(info.is_static && info.memory_bytes > 411 * 411 * 8);
     // Too few fixed vertices: a clear error, the model keeps its condensation.
-    assert!(model.set_constraints(&Constraints::fixed(vec![fixed[0]])).is_err());
+    assert!(
+        model
+            .set_constraints(&Constraints::fixed(vec![fixed[0]]))
+            .is_err()
+    );
     model.set_constraints(&c).unwrap();
     model.step(0.0).unwrap();
     assert_eq!(model.surface().positions, &before[..]);

@@ -175,7 +175,11 @@ impl FemPrecomputedTensors {
                 continue;
             }
             let a = self.w_diag[k] * fk;
-            for (u, t) in self.u0.iter_mut().zip(&self.t_u[k * self.n..(k + 1) * self.n]) {
+            for (u, t) in self
+                .u0
+                .iter_mut()
+                .zip(&self.t_u[k * self.n..(k + 1) * self.n])
+            {
                 *u += *t * a;
             }
         }

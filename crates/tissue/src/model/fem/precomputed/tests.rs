@@ -2,12 +2,12 @@
 
 use super::*;
 use crate::interact::Prescribed;
+use crate::mesh::generate::{BoxSplit, box_tets};
 use crate::model::fem::FemCondensed;
 use crate::model::fem::condensed::tests::{
     Rng, applied_load, apply, check_balance, compare, liver, liver_fixed, liver_material, loads,
     random_constraints,
 };
-use crate::mesh::generate::{BoxSplit, box_tets};
 
 #[test]
 fn liver_matches_fem_static_and_fem_condensed() {
@@ -36,7 +36,12 @@ fn liver_matches_fem_static_and_fem_condensed() {
 
 #[test]
 fn box_matches_fem_static() {
-    let mesh = box_tets(Vec3::ZERO, Vec3::new(0.1, 0.02, 0.02), [10, 2, 2], BoxSplit::Five);
+    let mesh = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.02, 0.02),
+        [10, 2, 2],
+        BoxSplit::Five,
+    );
     let material = Material::new(5000.0, 0.4).unwrap();
     let mut reference = FemStatic::new(&mesh, material, Order::Linear).unwrap();
     let rest = reference.rest_surface().to_vec();
