@@ -14,10 +14,20 @@ pub struct KindInfo {
 }
 
 /// Every model kind that `build` accepts.
-pub const KINDS: &[KindInfo] = &[KindInfo {
-    name: "fem-static",
-    summary: "linear elastostatics on 4- or 10-node tetrahedra, sparse Cholesky (the reference)",
-}];
+pub const KINDS: &[KindInfo] = &[
+    KindInfo {
+        name: "fem-static",
+        summary: "linear elastostatics on 4- or 10-node tetrahedra, sparse Cholesky (the reference)",
+    },
+    KindInfo {
+        name: "fem-condensed",
+        summary: "linear FEM condensed to the surface and pre-inverted (Bro-Nielsen fast FEM)",
+    },
+    KindInfo {
+        name: "fem-precomputed-tensors",
+        summary: "linear FEM as pre-computed displacement/force tensors, superposed (Cotin)",
+    },
+];
 
 /// What a model is built from.
 #[derive(Clone, Copy, Debug)]
@@ -34,6 +44,8 @@ pub struct BuildInput<'a> {
 pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, Error> {
     match kind {
         "fem-static" => Ok(Box::new(fem::FemStatic::from_input(input)?)),
+        "fem-condensed" => Ok(Box::new(fem::FemCondensed::from_input(input)?)),
+        "fem-precomputed-tensors" => Ok(Box::new(fem::FemPrecomputedTensors::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

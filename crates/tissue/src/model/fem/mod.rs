@@ -15,8 +15,14 @@
 //! - `system`: constraint elimination keeping the pattern, factorisation cache, rigid-mode check
 //! - `mass`: lumped nodal masses for the dynamic variants
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
+//! - `surface_response`: K condensed onto the surface (C, W = C⁻¹), shared by the two below
+//! - `condensed`: `fem-condensed`, fast finite elements (Bro-Nielsen), pre-inverted compliance
+//! - `precomputed`: `fem-precomputed-tensors`, Cotin's displacement/force tensors
 
 mod assembly;
+mod condensed;
+mod precomputed;
+mod surface_response;
 mod deformable_impl;
 pub mod element_linear;
 pub mod element_quadratic;
@@ -26,6 +32,8 @@ mod static_model;
 mod system;
 
 pub use assembly::Assembler;
+pub use condensed::FemCondensed;
+pub use precomputed::FemPrecomputedTensors;
 pub use quadratic_mesh::QuadraticMesh;
 pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};
 pub use system::DofProblem;

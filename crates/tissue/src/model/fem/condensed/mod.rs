@@ -1,0 +1,257 @@
+//! `fem-condensed`: fast finite elements (Bro-Nielsen; eq. 4-5 of the survey).
+//!
+//! Linear elastostatics condensed onto the free surface dofs and pre-inverted: W = C⁻¹ (see
+//! `surface_response`). At run time the contact set may change every step: with contact
+//! dofs p and condensed surface loads f̃, the contact forces solve the small SPD system
+//! W_pp λ = u_p − (W f̃)_p (dense LLT, |p| ≤ 3·contacts), and every surface displacement is
+//! u_s = W f̃ + W_{:,p} λ, read from the pre-inverted columns. A change of the *fixed* set
+//! needs a new condensation (one sparse solve per surface dof plus a dense inversion): its
+//! cost is reported in `info()` ("rebuilds", "last_rebuild_s"). The interior is computed
+//! only on demand (`interior_displacements`). Same answers as `fem-static` (linear order).
+
+use std::time::Instant;
+
+use faer::Mat;
+use serde::Deserialize;
+
+use crate::error::{Error, SimError};
+use crate::interact::{Constraints, Loads};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::TetMesh;
+use crate::model::registry::parse_params;
+use crate::model::{BuildInput, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+
+use super::static_model::{FemStatic, Order};
+use super::surface_response::{FixedSet, SmallDense, SurfaceCore, compliance, condense};
+
+#[cfg(test)]
+pub(crate) mod tests;
+
+/// The `[model]` settings of `fem-condensed` (none yet).
+#[derive(Clone, Copy, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {}
+
+/// Contacts the step buffers are sized for before any step.
+const INITIAL_CONTACTS: usize = 16;
+
+/// Condensed, pre-inverted linear FEM on the surface.
+pub struct FemCondensed {
+    core: SurfaceCore,
+    /// The surface compliance W = C⁻¹ over the free surface dofs.
+    w: Mat<Real>,
+    /// W f̃: the surface displacements under the loads alone.
+    u0: Vec<Real>,
+    small: SmallDense,
+    rhs: Vec<Real>,
+}
+
+impl std::fmt::Debug for FemCondensed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FemCondensed")
+            .field("surface_dofs", &self.w.nrows())
+            .finish()
+    }
+}
+
+impl FemCondensed {
+    /// Builds from the registry's input; the condensation waits for the first fixed set.
+    pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
+        let _: Params = parse_params("fem-condensed", input.params)?;
+        let mesh = input.mesh.tet_mesh(input.source)?;
+        Self::new(&mesh, input.material, &[])
+    }
+
+    /// Builds the model with `fixed` surface vertices (condensed now unless empty).
+    pub fn new(mesh: &TetMesh, material: Material, fixed: &[u32]) -> Result<Self, Error> {
+        Self::new_with_progress(mesh, material, fixed, &|_| {})
+    }
+
+    /// Like `new`; `progress` receives the fraction of the condensation done (0..1).
+    pub fn new_with_progress(
+        mesh: &TetMesh,
+        material: Material,
+        fixed: &[u32],
+        progress: &dyn Fn(f64),
+    ) -> Result<Self, Error> {
+        let fem = FemStatic::new(mesh, material, Order::Linear)?;
+        let mut model = Self {
+            core: SurfaceCore::new(fem),
+            w: Mat::zeros(0, 0),
+            u0: Vec::new(),
+            small: SmallDense::new(3 * INITIAL_CONTACTS),
+            rhs: vec![0.0; 3 * INITIAL_CONTACTS],
+        };
+        if !fixed.is_empty() {
+            let c = Constraints::fixed(fixed.to_vec());
+            model.core.check(&c)?;
+            model.rebuild(progress)?;
+            model.core.record(&c);
+            model.core.reset();
+        }
+        Ok(model)
+    }
+
+    /// The surface compliance W (3n × 3n over the free surface vertices, in m/N).
+    pub fn compliance(&self) -> &Mat<Real> {
+        &self.w
+    }
+
+    /// Free (not fixed) surface vertices, in the order of W's 3×3 blocks.
+    pub fn free_vertices(&self) -> &[u32] {
+        &self.core.set.free
+    }
+
+    /// Displacements of every mechanical node (surface from the last step, interior from
+    /// K_ii⁻¹ (f_i − K_is u_s): one sparse solve), in m.
+    pub fn interior_displacements(&mut self) -> Result<Vec<Vec3>, SimError> {
+        self.core.node_displacements()
+    }
+
+    /// Sizes the step buffers for `contacts` contact vertices (they also grow on demand).
+    pub fn reserve_contacts(&mut self, contacts: usize) {
+        self.small.reserve(3 * contacts);
+        if self.rhs.len() < 3 * contacts {
+            self.rhs.resize(3 * contacts, 0.0);
+        }
+    }
+
+    /// Condenses for the fixed mask in `core.mask` and pre-inverts; nothing changes on error.
+    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
+        let started = Instant::now();
+        let set = FixedSet::new(self.core.mask.clone());
+        let cond = condense(&mut self.core.fem, &set, progress)?;
+        let w = compliance(&cond.c)?;
+        self.core.install(set, &cond, started);
+        self.w = w;
+        self.core.condense_loads()?;
+        self.update_u0();
+        Ok(())
+    }
+
+    fn update_u0(&mut self) {
+        let n = self.w.nrows();
+        self.u0.clear();
+        self.u0.resize(n, 0.0);
+        for (j, &f) in self.core.f_cond.iter().enumerate() {
+            if f != 0.0 {
+                for (u, &w) in self.u0.iter_mut().zip(self.w.col_as_slice(j)) {
+                    *u += w * f;
+                }
+            }
+        }
+    }
+}
+
+impl Deformable for FemCondensed {
+    fn kind(&self) -> &'static str {
+        "fem-condensed"
+    }
+
+    fn surface(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            positions: self.core.surface_positions(),
+            triangles: self.core.fem.surface().triangles,
+        }
+    }
+
+    fn rest_surface(&self) -> &[Vec3] {
+        self.core.fem.rest_surface()
+    }
+
+    /// Contacts may change every step at the cost of a small dense solve; a new fixed set
+    /// re-condenses (see `info()` for its cost).
+    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        if self.core.check(c)? {
+            self.rebuild(&|_| {})?;
+        }
+        self.core.record(c);
+        Ok(())
+    }
+
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        self.core.set_loads(loads)?;
+        if self.core.ready() {
+            self.update_u0();
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, _dt: Real) -> Result<StepInfo, SimError> {
+        if !self.core.ready() {
+            return Err(SimError::NotPositiveDefinite {
+                row: 0,
+                hint: "fem-condensed has no fixed surface vertices: fix at least three \
+                       non-collinear ones before stepping"
+                    .into(),
+            });
+        }
+        let m = self.core.targets.len();
+        self.reserve_contacts(m / 3);
+        let contacts = &self.core.contacts;
+        let dof = |r: usize| 3 * contacts[r / 3] as usize + r % 3;
+        let mut block = self.small.block(m);
+        for c in 0..m {
+            for r in c..m {
+                block[(r, c)] = self.w[(dof(r), dof(c))];
+            }
+        }
+        let rhs = &mut self.rhs[..m];
+        for (r, x) in rhs.iter_mut().enumerate() {
+            *x = self.core.targets[r] - self.u0[dof(r)];
+        }
+        self.small.solve_spd(rhs)?;
+        let us = &mut self.core.us_trial;
+        us.copy_from_slice(&self.u0);
+        for (r, &l) in rhs.iter().enumerate() {
+            for (u, &w) in us.iter_mut().zip(self.w.col_as_slice(dof(r))) {
+                *u += w * l;
+            }
+        }
+        self.core.lambda.copy_from_slice(rhs);
+        self.core.accept();
+        Ok(StepInfo::default())
+    }
+
+    fn reactions(&self) -> Reactions<'_> {
+        self.core.reactions()
+    }
+
+    fn cut(&mut self, _blade: &crate::model::CutPath) -> Result<crate::model::CutInfo, SimError> {
+        Err(SimError::Unsupported {
+            model: self.kind(),
+            operation: "cutting",
+            reason: "its surface compliance is pre-computed for a fixed topology; a cut \
+                     would need a new condensation and inversion"
+                .into(),
+        })
+    }
+
+    fn reset(&mut self) {
+        self.core.reset();
+    }
+
+    fn info(&self) -> ModelInfo {
+        let n = self.w.nrows();
+        let mut info = self.core.fem.info();
+        info.kind = self.kind();
+        info.is_static = true;
+        info.memory_bytes = self.core.memory_bytes() + n * n * 8;
+        info.precompute_seconds += self.core.precompute_seconds;
+        info.details = vec![
+            ("surface_dofs".into(), n.to_string()),
+            ("compliance_bytes".into(), (n * n * 8).to_string()),
+            ("rebuilds".into(), self.core.rebuilds.to_string()),
+            (
+                "last_rebuild_s".into(),
+                format!("{:.4}", self.core.last_rebuild_seconds),
+            ),
+            (
+                "contact_capacity".into(),
+                (self.small.a.nrows() / 3).to_string(),
+            ),
+        ];
+        info
+    }
+}

@@ -1,0 +1,306 @@
+//! `fem-precomputed-tensors`: pre-computed displacement and force tensors (Cotin 1996).
+//!
+//! For every free surface node k, the elementary solution "node k displaced by ū, every
+//! other surface node free, fixed ones fixed" is stored as 3×3 tensors: the displacement of
+//! every surface node i, u_i = T^U_{i,k} ū, and the force at k, P_k = T^F_k ū. Instead of n
+//! separate solves they are derived from the condensed compliance W (`surface_response`):
+//! the elementary solution is u = W_{:,k} λ with W_kk λ = ū, so T^F_k = W_kk⁻¹ and
+//! T^U_{i,k} = W_ik W_kk⁻¹. W itself is then dropped; the tensors take n²·9 doubles (the
+//! liver's 137 free surface nodes: 1.35 MB; a 2194-node surface would take 347 MB).
+//!
+//! Several simultaneous contacts by superposition: the "virtual" displacements a_k of the
+//! contact nodes solve Σ_k T^U_{j,k} a_k = ū_j − u0_j (a small non-symmetric system, dense
+//! LU), then u_i = u0_i + Σ_k T^U_{i,k} a_k and P_k = T^F_k a_k, where u0 is the response to
+//! the loads alone. Same answers as `fem-static` (linear order) and `fem-condensed`.
+
+use std::time::Instant;
+
+use serde::Deserialize;
+
+use crate::error::{Error, SimError};
+use crate::interact::{Constraints, Loads};
+use crate::material::Material;
+use crate::math::{Mat3, Real, Vec3};
+use crate::mesh::TetMesh;
+use crate::model::registry::parse_params;
+use crate::model::{BuildInput, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+
+use super::static_model::{FemStatic, Order};
+use super::surface_response::{FixedSet, SmallDense, SurfaceCore, compliance, condense};
+
+#[cfg(test)]
+mod tests;
+
+/// The `[model]` settings of `fem-precomputed-tensors` (none yet).
+#[derive(Clone, Copy, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {}
+
+const INITIAL_CONTACTS: usize = 16;
+
+/// Linear FEM answered from pre-computed elementary tensors.
+pub struct FemPrecomputedTensors {
+    core: SurfaceCore,
+    /// Free surface nodes.
+    n: usize,
+    /// T^U_{i,k} at `k * n + i`.
+    t_u: Vec<Mat3>,
+    /// T^F_k.
+    t_f: Vec<Mat3>,
+    /// W_kk, to turn condensed loads into displacements (u0).
+    w_diag: Vec<Mat3>,
+    u0: Vec<Vec3>,
+    small: SmallDense,
+    rhs: Vec<Real>,
+}
+
+impl std::fmt::Debug for FemPrecomputedTensors {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FemPrecomputedTensors")
+            .field("surface_nodes", &self.n)
+            .finish()
+    }
+}
+
+fn block(w: &faer::Mat<Real>, i: usize, k: usize) -> Mat3 {
+    Mat3::from_cols_array_2d(&[0, 1, 2].map(|c| [0, 1, 2].map(|r| w[(3 * i + r, 3 * k + c)])))
+}
+
+impl FemPrecomputedTensors {
+    /// Builds from the registry's input; the tensors wait for the first fixed set.
+    pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
+        let _: Params = parse_params("fem-precomputed-tensors", input.params)?;
+        let mesh = input.mesh.tet_mesh(input.source)?;
+        Self::new(&mesh, input.material, &[])
+    }
+
+    /// Builds the model with `fixed` surface vertices (pre-computed now unless empty).
+    pub fn new(mesh: &TetMesh, material: Material, fixed: &[u32]) -> Result<Self, Error> {
+        Self::new_with_progress(mesh, material, fixed, &|_| {})
+    }
+
+    /// Like `new`; `progress` receives the fraction of the condensation done (0..1).
+    pub fn new_with_progress(
+        mesh: &TetMesh,
+        material: Material,
+        fixed: &[u32],
+        progress: &dyn Fn(f64),
+    ) -> Result<Self, Error> {
+        let fem = FemStatic::new(mesh, material, Order::Linear)?;
+        let mut model = Self {
+            core: SurfaceCore::new(fem),
+            n: 0,
+            t_u: Vec::new(),
+            t_f: Vec::new(),
+            w_diag: Vec::new(),
+            u0: Vec::new(),
+            small: SmallDense::new(3 * INITIAL_CONTACTS),
+            rhs: vec![0.0; 3 * INITIAL_CONTACTS],
+        };
+        if !fixed.is_empty() {
+            let c = Constraints::fixed(fixed.to_vec());
+            model.core.check(&c)?;
+            model.rebuild(progress)?;
+            model.core.record(&c);
+            model.core.reset();
+        }
+        Ok(model)
+    }
+
+    /// Free (not fixed) surface vertices, in tensor index order.
+    pub fn free_vertices(&self) -> &[u32] {
+        &self.core.set.free
+    }
+
+    /// T^U_{i,k}: displacement of free node i per unit displacement of free node k alone.
+    pub fn displacement_tensor(&self, i: usize, k: usize) -> Option<Mat3> {
+        (i < self.n && k < self.n).then(|| self.t_u[k * self.n + i])
+    }
+
+    /// T^F_k: force at free node k per unit displacement of k alone.
+    pub fn force_tensor(&self, k: usize) -> Option<Mat3> {
+        self.t_f.get(k).copied()
+    }
+
+    /// Displacements of every mechanical node (the interior by one sparse solve), in m.
+    pub fn interior_displacements(&mut self) -> Result<Vec<Vec3>, SimError> {
+        self.core.node_displacements()
+    }
+
+    pub fn reserve_contacts(&mut self, contacts: usize) {
+        self.small.reserve(3 * contacts);
+        if self.rhs.len() < 3 * contacts {
+            self.rhs.resize(3 * contacts, 0.0);
+        }
+    }
+
+    /// Bytes held by the tensors (n²·9 + 2n·9 doubles).
+    pub fn tensor_bytes(&self) -> usize {
+        (self.t_u.len() + self.t_f.len() + self.w_diag.len()) * 72
+    }
+
+    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
+        let started = Instant::now();
+        let set = FixedSet::new(self.core.mask.clone());
+        let cond = condense(&mut self.core.fem, &set, progress)?;
+        let w = compliance(&cond.c)?;
+        let n = set.free.len();
+        let w_diag: Vec<Mat3> = (0..n).map(|k| block(&w, k, k)).collect();
+        let t_f: Vec<Mat3> = w_diag.iter().map(|b| b.inverse()).collect();
+        if let Some(k) = t_f.iter().position(|t| !t.is_finite()) {
+            return Err(SimError::NotPositiveDefinite {
+                row: 3 * k,
+                hint: "a diagonal block of the surface compliance is singular".into(),
+            });
+        }
+        let mut t_u = Vec::with_capacity(n * n);
+        for (k, tf) in t_f.iter().enumerate() {
+            t_u.extend((0..n).map(|i| block(&w, i, k) * *tf));
+        }
+        self.core.install(set, &cond, started);
+        (self.n, self.t_u, self.t_f, self.w_diag) = (n, t_u, t_f, w_diag);
+        self.core.condense_loads()?;
+        self.update_u0();
+        Ok(())
+    }
+
+    /// u0_i = Σ_k W_ik f̃_k = Σ_k T^U_{i,k} (W_kk f̃_k).
+    fn update_u0(&mut self) {
+        let f = &self.core.f_cond;
+        self.u0.clear();
+        self.u0.resize(self.n, Vec3::ZERO);
+        for k in 0..self.n {
+            let fk = Vec3::new(f[3 * k], f[3 * k + 1], f[3 * k + 2]);
+            if fk == Vec3::ZERO {
+                continue;
+            }
+            let a = self.w_diag[k] * fk;
+            for (u, t) in self
+                .u0
+                .iter_mut()
+                .zip(&self.t_u[k * self.n..(k + 1) * self.n])
+            {
+                *u += *t * a;
+            }
+        }
+    }
+}
+
+impl Deformable for FemPrecomputedTensors {
+    fn kind(&self) -> &'static str {
+        "fem-precomputed-tensors"
+    }
+
+    fn surface(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            positions: self.core.surface_positions(),
+            triangles: self.core.fem.surface().triangles,
+        }
+    }
+
+    fn rest_surface(&self) -> &[Vec3] {
+        self.core.fem.rest_surface()
+    }
+
+    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        if self.core.check(c)? {
+            self.rebuild(&|_| {})?;
+        }
+        self.core.record(c);
+        Ok(())
+    }
+
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        self.core.set_loads(loads)?;
+        if self.core.ready() {
+            self.update_u0();
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, _dt: Real) -> Result<StepInfo, SimError> {
+        if !self.core.ready() {
+            return Err(SimError::NotPositiveDefinite {
+                row: 0,
+                hint: "fem-precomputed-tensors has no fixed surface vertices: fix at least \
+                       three non-collinear ones before stepping"
+                    .into(),
+            });
+        }
+        let m = self.core.targets.len();
+        self.reserve_contacts(m / 3);
+        let (n, contacts) = (self.n, &self.core.contacts);
+        let mut a = self.small.block(m);
+        for (kb, &k) in contacts.iter().enumerate() {
+            for (jb, &j) in contacts.iter().enumerate() {
+                let t = self.t_u[k as usize * n + j as usize];
+                for c in 0..3 {
+                    for r in 0..3 {
+                        a[(3 * jb + r, 3 * kb + c)] = t.col(c)[r];
+                    }
+                }
+            }
+        }
+        let rhs = &mut self.rhs[..m];
+        for (jb, &j) in contacts.iter().enumerate() {
+            for r in 0..3 {
+                rhs[3 * jb + r] = self.core.targets[3 * jb + r] - self.u0[j as usize][r];
+            }
+        }
+        self.small.solve_general(rhs)?;
+        let us = &mut self.core.us_trial;
+        for (i, u) in self.u0.iter().enumerate() {
+            us[3 * i..3 * i + 3].copy_from_slice(&u.to_array());
+        }
+        for (kb, &k) in contacts.iter().enumerate() {
+            let ak = Vec3::new(rhs[3 * kb], rhs[3 * kb + 1], rhs[3 * kb + 2]);
+            let tk = &self.t_u[k as usize * n..(k as usize + 1) * n];
+            for (i, t) in tk.iter().enumerate() {
+                let d = *t * ak;
+                us[3 * i] += d.x;
+                us[3 * i + 1] += d.y;
+                us[3 * i + 2] += d.z;
+            }
+            let p = self.t_f[k as usize] * ak;
+            self.core.lambda[3 * kb..3 * kb + 3].copy_from_slice(&p.to_array());
+        }
+        self.core.accept();
+        Ok(StepInfo::default())
+    }
+
+    fn reactions(&self) -> Reactions<'_> {
+        self.core.reactions()
+    }
+
+    fn cut(&mut self, _blade: &crate::model::CutPath) -> Result<crate::model::CutInfo, SimError> {
+        Err(SimError::Unsupported {
+            model: self.kind(),
+            operation: "cutting",
+            reason: "its tensors are pre-computed for a fixed topology; a cut would need \
+                     all n² tensors again"
+                .into(),
+        })
+    }
+
+    fn reset(&mut self) {
+        self.core.reset();
+    }
+
+    fn info(&self) -> ModelInfo {
+        let mut info = self.core.fem.info();
+        info.kind = self.kind();
+        info.is_static = true;
+        info.memory_bytes = self.core.memory_bytes() + self.tensor_bytes();
+        info.precompute_seconds += self.core.precompute_seconds;
+        info.details = vec![
+            ("surface_nodes".into(), self.n.to_string()),
+            ("tensor_bytes".into(), self.tensor_bytes().to_string()),
+            ("rebuilds".into(), self.core.rebuilds.to_string()),
+            (
+                "last_rebuild_s".into(),
+                format!("{:.4}", self.core.last_rebuild_seconds),
+            ),
+        ];
+        info
+    }
+}

@@ -1,0 +1,127 @@
+//! The tensors against fem-static and fem-condensed, and the single-contact closed form.
+
+use super::*;
+use crate::interact::Prescribed;
+use crate::mesh::generate::{BoxSplit, box_tets};
+use crate::model::fem::FemCondensed;
+use crate::model::fem::condensed::tests::{
+    Rng, applied_load, apply, check_balance, compare, liver, liver_fixed, liver_material, loads,
+    random_constraints,
+};
+
+#[test]
+fn liver_matches_fem_static_and_fem_condensed() {
+    let mesh = liver();
+    let mut reference = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
+    let fixed = liver_fixed(&reference);
+    let mut tensors = FemPrecomputedTensors::new(&mesh, liver_material(), &fixed).unwrap();
+    let mut condensed = FemCondensed::new(&mesh, liver_material(), &fixed).unwrap();
+    let rest = reference.rest_surface().to_vec();
+    let mut rng = Rng::new(19);
+    let l = loads(fixed[0] + 2);
+    for count in [1, 4, 10, 25] {
+        let c = random_constraints(&rest, &fixed, count, 2e-3, &mut rng);
+        apply(&mut [&mut reference, &mut tensors, &mut condensed], &c, &l);
+        let (du, dr) = compare(&tensors, &reference);
+        assert!(du < 1e-8 && dr < 1e-8, "{count} contacts: {du:e} {dr:e}");
+        let (du, dr) = compare(&tensors, &condensed);
+        assert!(du < 1e-9 && dr < 1e-9, "vs condensed: {du:e} {dr:e}");
+        check_balance(&tensors, applied_load(&reference, &l));
+    }
+    // n²·9 + 2n·9 doubles for the 137 free surface nodes of the liver: about 1.37 MB.
+    assert_eq!(tensors.tensor_bytes(), (137 * 137 + 2 * 137) * 72);
+    let info = tensors.info();
+    assert!(info.is_static && info.memory_bytes > tensors.tensor_bytes());
+}
+
+#[test]
+fn box_matches_fem_static() {
+    let mesh = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.02, 0.02),
+        [10, 2, 2],
+        BoxSplit::Five,
+    );
+    let material = Material::new(5000.0, 0.4).unwrap();
+    let mut reference = FemStatic::new(&mesh, material, Order::Linear).unwrap();
+    let rest = reference.rest_surface().to_vec();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].x < 1e-9)
+        .collect();
+    let mut model = FemPrecomputedTensors::new(&mesh, material, &fixed).unwrap();
+    let mut rng = Rng::new(23);
+    let l = loads(30);
+    for count in [3, 9] {
+        let c = random_constraints(&rest, &fixed, count, 1e-3, &mut rng);
+        apply(&mut [&mut reference, &mut model], &c, &l);
+        let (du, dr) = compare(&model, &reference);
+        assert!(du < 1e-8 && dr < 1e-8, "{count}: {du:e} {dr:e}");
+        check_balance(&model, applied_load(&reference, &l));
+    }
+}
+
+/// One contact, no load: u_i = T^U_{i,k} ū, P_k = T^F_k ū, T^U_{k,k} = I, T^F symmetric.
+#[test]
+fn single_contact_is_the_tensor_closed_form() {
+    let mesh = liver();
+    let mut reference = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
+    let fixed = liver_fixed(&reference);
+    let mut model = FemPrecomputedTensors::new(&mesh, liver_material(), &fixed).unwrap();
+    let free = model.free_vertices().to_vec();
+    let rest = model.rest_surface().to_vec();
+    let ubar = Vec3::new(1e-3, -2e-3, 0.5e-3);
+    for k in [0, 40, 136] {
+        let tkk = model.displacement_tensor(k, k).unwrap();
+        assert!((tkk - Mat3::IDENTITY).abs_diff_eq(Mat3::ZERO, 1e-12));
+        let tf = model.force_tensor(k).unwrap();
+        assert!(tf.abs_diff_eq(tf.transpose(), 1e-9 * tf.col(0).length()));
+        let v = free[k];
+        let mut c = Constraints::fixed(fixed.clone());
+        c.prescribed.push(Prescribed {
+            vertex: v,
+            position: rest[v as usize] + ubar,
+        });
+        apply(&mut [&mut reference, &mut model], &c, &Loads::default());
+        let (du, dr) = compare(&model, &reference);
+        assert!(du < 1e-8 && dr < 1e-8, "{du:e} {dr:e}");
+        let pos = model.surface().positions;
+        let scale = ubar.length();
+        for (i, &w) in free.iter().enumerate() {
+            let expect = model.displacement_tensor(i, k).unwrap() * ubar;
+            let got = pos[w as usize] - rest[w as usize];
+            assert!((got - expect).length() <= 1e-12 * scale);
+        }
+        // The tissue pushes back on the probe with −P_k.
+        let p = tf * ubar;
+        let r = model.reactions().prescribed[0];
+        assert!((r + p).length() <= 1e-10 * p.length(), "{r} vs {p}");
+    }
+    assert!(model.displacement_tensor(137, 0).is_none() && model.force_tensor(137).is_none());
+}
+
+#[test]
+fn bad_input_is_refused_and_keeps_the_state() {
+    let mesh = liver();
+    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
+    let fixed = liver_fixed(&fem);
+    let rest = fem.rest_surface().to_vec();
+    let mut model = FemPrecomputedTensors::new(&mesh, liver_material(), &fixed).unwrap();
+    let c = random_constraints(&rest, &fixed, 6, 1e-3, &mut Rng::new(2));
+    model.set_constraints(&c).unwrap();
+    model.step(0.0).unwrap();
+    let before = model.surface().positions.to_vec();
+    let mut bad = c.clone();
+    bad.prescribed[0].position.x = Real::INFINITY;
+    assert!(model.set_constraints(&bad).is_err());
+    model.step(0.0).unwrap();
+    assert_eq!(model.surface().positions, &before[..]);
+    assert!(matches!(
+        model.cut(&crate::model::CutPath {
+            start: [Vec3::ZERO; 2],
+            end: [Vec3::X; 2]
+        }),
+        Err(SimError::Unsupported { .. })
+    ));
+    model.reset();
+    assert_eq!(model.surface().positions, &rest[..]);
+}

@@ -1,0 +1,600 @@
+//! What `fem-condensed` and `fem-precomputed-tensors` share: the linear tetrahedral model
+//! condensed onto its surface.
+//!
+//! With the fixed surface vertices eliminated and the interior dofs i condensed out, the
+//! surface dofs s obey C u_s = f̃_s + λ, with C = K_ss − K_si K_ii⁻¹ K_is and the equivalent
+//! surface load f̃_s = f_s − K_si K_ii⁻¹ f_i (eq. 4-5 of the survey, Bro-Nielsen). Both
+//! come out of the sparse Cholesky of K_ii that `FemStatic` already keeps: holding every
+//! surface dof, a unit displacement of surface dof j gives the reactions −C e_j, and zero
+//! displacements under the loads give f̃_s. W = C⁻¹ is the surface compliance.
+//!
+//! The core also holds the per-step state both models need (contact list, targets, surface
+//! displacements, reactions in the order the constraints were given) in buffers that are
+//! reused, so that a contact update allocates nothing once the largest contact set was seen.
+
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::{LltParams, LltRegularization, cholesky_in_place};
+use faer::linalg::lu::partial_pivoting::factor::{PartialPivLuParams, lu_in_place};
+use faer::linalg::solvers::DenseSolveCore;
+use faer::{Conj, Mat, MatMut, MatRef, Par, Side};
+
+use crate::error::SimError;
+use crate::interact::{Constraints, Loads};
+use crate::math::{Real, Vec3, is_finite_vec};
+use crate::model::Deformable;
+
+use super::static_model::{FemStatic, NodalSolution};
+use super::system::DofProblem;
+
+const NONE: u32 = u32::MAX;
+
+/// The condensed stiffness of the free surface dofs and its rows at the fixed dofs.
+pub(crate) struct Condensation {
+    /// C over the free surface dofs (3n × 3n), symmetrised.
+    pub c: Mat<Real>,
+    /// Rows of the condensed operator at the fixed dofs (3|F| × 3n): reactions of the
+    /// supports per unit surface displacement.
+    pub c_fixed: Mat<Real>,
+}
+
+/// The fixed set a precomputation was made for: free vertices and the reverse map.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct FixedSet {
+    pub mask: Vec<bool>,
+    /// Free (not fixed) surface vertices, ascending.
+    pub free: Vec<u32>,
+    /// Fixed surface vertices, ascending.
+    pub fixed: Vec<u32>,
+    /// Surface vertex → index in `free`, or `NONE`.
+    pub slot: Vec<u32>,
+}
+
+impl FixedSet {
+    pub fn new(mask: Vec<bool>) -> Self {
+        let (mut free, mut fixed) = (Vec::new(), Vec::new());
+        let mut slot = vec![NONE; mask.len()];
+        for (v, &m) in mask.iter().enumerate() {
+            if m {
+                fixed.push(v as u32);
+            } else {
+                slot[v] = free.len() as u32;
+                free.push(v as u32);
+            }
+        }
+        Self {
+            mask,
+            free,
+            fixed,
+            slot,
+        }
+    }
+}
+
+/// The problem holding every surface node at `targets(surface vertex)`, with `forces`.
+fn surface_held(fem: &FemStatic, forces: &[Real]) -> Result<DofProblem, SimError> {
+    let mut dp = DofProblem::new(forces.len());
+    for &n in fem.surface_nodes() {
+        for k in 0..3 {
+            dp.hold(3 * n as usize + k, 0.0)?;
+        }
+    }
+    dp.finish();
+    dp.forces.copy_from_slice(forces);
+    Ok(dp)
+}
+
+/// Condenses K onto the free surface dofs, one K_ii solve per column; `progress` gets the
+/// fraction done.
+pub(crate) fn condense(
+    fem: &mut FemStatic,
+    set: &FixedSet,
+    progress: &dyn Fn(f64),
+) -> Result<Condensation, SimError> {
+    let nodes = fem.surface_nodes().to_vec();
+    let dofs = fem.displacements().len();
+    let mut dp = surface_held(fem, &vec![0.0; dofs])?;
+    let n3 = 3 * set.free.len();
+    let mut c = Mat::<Real>::zeros(n3, n3);
+    let mut c_fixed = Mat::<Real>::zeros(3 * set.fixed.len(), n3);
+    for (a, &v) in set.free.iter().enumerate() {
+        let node = nodes[v as usize] as usize;
+        for k in 0..3 {
+            dp.targets[3 * node + k] = 1.0;
+            let NodalSolution { reactions, .. } = fem.solve_dofs(&dp)?;
+            dp.targets[3 * node + k] = 0.0;
+            let col = 3 * a + k;
+            for (b, &w) in set.free.iter().enumerate() {
+                let r = reactions[nodes[w as usize] as usize];
+                for l in 0..3 {
+                    c[(3 * b + l, col)] = -r[l];
+                }
+            }
+            for (b, &w) in set.fixed.iter().enumerate() {
+                let r = reactions[nodes[w as usize] as usize];
+                for l in 0..3 {
+                    c_fixed[(3 * b + l, col)] = -r[l];
+                }
+            }
+        }
+        progress((a + 1) as f64 / set.free.len() as f64);
+    }
+    // C is symmetric in exact arithmetic; the solves leave roundoff that would break LLT's
+    // assumption that reading one triangle suffices.
+    for j in 0..n3 {
+        for i in 0..j {
+            let m = 0.5 * (c[(i, j)] + c[(j, i)]);
+            c[(i, j)] = m;
+            c[(j, i)] = m;
+        }
+    }
+    Ok(Condensation { c, c_fixed })
+}
+
+/// W = C⁻¹ by a dense LLT; a C that is not positive definite means the fixed set leaves a
+/// rigid motion free.
+pub(crate) fn compliance(c: &Mat<Real>) -> Result<Mat<Real>, SimError> {
+    let llt = c
+        .llt(Side::Lower)
+        .map_err(|_| SimError::NotPositiveDefinite {
+            row: 0,
+            hint: "the condensed surface stiffness is singular: fix at least three \
+               non-collinear surface vertices of every piece"
+                .into(),
+        })?;
+    let mut w = llt.inverse();
+    let n = w.nrows();
+    for j in 0..n {
+        for i in 0..j {
+            let m = 0.5 * (w[(i, j)] + w[(j, i)]);
+            w[(i, j)] = m;
+            w[(j, i)] = m;
+        }
+    }
+    Ok(w)
+}
+
+/// A small dense system solved in place, in memory kept across steps (grows only).
+pub(crate) struct SmallDense {
+    pub a: Mat<Real>,
+    perm: Vec<usize>,
+    perm_inv: Vec<usize>,
+    mem: MemBuffer,
+}
+
+impl SmallDense {
+    pub fn new(cap: usize) -> Self {
+        let mut s = Self {
+            a: Mat::zeros(0, 0),
+            perm: Vec::new(),
+            perm_inv: Vec::new(),
+            mem: MemBuffer::new(StackReq::EMPTY),
+        };
+        s.reserve(cap);
+        s
+    }
+
+    /// Makes room for an m × m system (allocates only when m exceeds the capacity).
+    pub fn reserve(&mut self, m: usize) {
+        if m <= self.a.nrows() && !self.perm.is_empty() {
+            return;
+        }
+        let cap = m.max(2 * self.a.nrows()).max(3);
+        self.a = Mat::zeros(cap, cap);
+        self.perm = vec![0; cap];
+        self.perm_inv = vec![0; cap];
+        let req = StackReq::any_of(&[
+            faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<Real>(
+                cap,
+                Par::Seq,
+                Default::default(),
+            ),
+            faer::linalg::lu::partial_pivoting::factor::lu_in_place_scratch::<usize, Real>(
+                cap,
+                cap,
+                Par::Seq,
+                Default::default(),
+            ),
+            faer::linalg::lu::partial_pivoting::solve::solve_in_place_scratch::<usize, Real>(
+                cap,
+                1,
+                Par::Seq,
+            ),
+        ]);
+        self.mem = MemBuffer::new(req);
+    }
+
+    /// The top-left m × m block, to fill.
+    pub fn block(&mut self, m: usize) -> MatMut<'_, Real> {
+        self.reserve(m);
+        self.a.as_mut().submatrix_mut(0, 0, m, m)
+    }
+
+    /// Solves the SPD block (lower triangle read) for `b` in place.
+    pub fn solve_spd(&mut self, b: &mut [Real]) -> Result<(), SimError> {
+        let m = b.len();
+        let mut a = self.a.as_mut().submatrix_mut(0, 0, m, m);
+        let params: faer::Spec<LltParams, Real> = Default::default();
+        cholesky_in_place(
+            a.rb_mut(),
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            params,
+        )
+        .map_err(|_| SimError::NotPositiveDefinite {
+            row: 0,
+            hint: "the compliance block of the contact vertices is singular".into(),
+        })?;
+        let rhs = MatMut::from_column_major_slice_mut(b, m, 1);
+        faer::linalg::cholesky::llt::solve::solve_in_place_with_conj(
+            a.rb(),
+            Conj::No,
+            rhs,
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+        );
+        finite(b)
+    }
+
+    /// Solves the general block by LU with partial pivoting, for `b` in place.
+    pub fn solve_general(&mut self, b: &mut [Real]) -> Result<(), SimError> {
+        let m = b.len();
+        let mut a = self.a.as_mut().submatrix_mut(0, 0, m, m);
+        let params: faer::Spec<PartialPivLuParams, Real> = Default::default();
+        let (_, perm) = lu_in_place(
+            a.rb_mut(),
+            &mut self.perm[..m],
+            &mut self.perm_inv[..m],
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            params,
+        );
+        let a: MatRef<'_, Real> = a.rb();
+        let rhs = MatMut::from_column_major_slice_mut(b, m, 1);
+        faer::linalg::lu::partial_pivoting::solve::solve_in_place_with_conj(
+            a,
+            a,
+            perm,
+            Conj::No,
+            rhs,
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+        );
+        finite(b)
+    }
+}
+
+fn finite(b: &[Real]) -> Result<(), SimError> {
+    match b.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(d) => Err(SimError::NotPositiveDefinite {
+            row: d,
+            hint: "the contact system is singular (two contacts on one vertex?)".into(),
+        }),
+    }
+}
+
+use faer::reborrow::{Reborrow, ReborrowMut};
+
+/// Constraints, loads and the surface state shared by both models.
+pub(crate) struct SurfaceCore {
+    pub fem: FemStatic,
+    pub set: FixedSet,
+    /// Rows of the condensed operator at the fixed dofs (see `Condensation`).
+    pub c_fixed: Mat<Real>,
+    /// Nodal forces on all dofs, and their condensed form on the free surface dofs.
+    pub forces: Vec<Real>,
+    pub f_cond: Vec<Real>,
+    /// Support reactions with the surface at rest.
+    pub r_fixed0: Vec<Real>,
+    pub constraints: Constraints,
+    pub loads: Loads,
+    /// Contact (prescribed, not fixed) vertices as indices into `set.free`, and the target
+    /// displacement of each (3 per contact).
+    pub contacts: Vec<u32>,
+    pub targets: Vec<Real>,
+    contact_of: Vec<u32>,
+    /// The fixed mask of the constraints being set (scratch).
+    pub mask: Vec<bool>,
+    taken: Vec<bool>,
+    fixed_owner: Vec<bool>,
+    prescribed_owner: Vec<bool>,
+    /// Displacements of the free surface vertices (3n), and a trial copy.
+    pub us: Vec<Real>,
+    pub us_trial: Vec<Real>,
+    /// Forces the contacts apply to the tissue (3 per contact).
+    pub lambda: Vec<Real>,
+    surface_positions: Vec<Vec3>,
+    surface_reaction: Vec<Vec3>,
+    fixed_reactions: Vec<Vec3>,
+    prescribed_reactions: Vec<Vec3>,
+    pub precompute_seconds: Real,
+    pub rebuilds: usize,
+    pub last_rebuild_seconds: Real,
+}
+
+impl SurfaceCore {
+    pub fn new(fem: FemStatic) -> Self {
+        let ns = fem.surface_nodes().len();
+        let dofs = fem.displacements().len();
+        Self {
+            surface_positions: fem.rest_surface().to_vec(),
+            set: FixedSet::new(vec![false; ns]),
+            c_fixed: Mat::zeros(0, 0),
+            forces: vec![0.0; dofs],
+            f_cond: Vec::new(),
+            r_fixed0: Vec::new(),
+            constraints: Constraints::default(),
+            loads: Loads::default(),
+            contacts: Vec::new(),
+            targets: Vec::new(),
+            contact_of: vec![NONE; ns],
+            mask: vec![false; ns],
+            taken: vec![false; ns],
+            fixed_owner: Vec::new(),
+            prescribed_owner: Vec::new(),
+            us: Vec::new(),
+            us_trial: Vec::new(),
+            lambda: Vec::new(),
+            surface_reaction: vec![Vec3::ZERO; ns],
+            fixed_reactions: Vec::new(),
+            prescribed_reactions: Vec::new(),
+            precompute_seconds: 0.0,
+            rebuilds: 0,
+            last_rebuild_seconds: 0.0,
+            fem,
+        }
+    }
+
+    pub fn surface_count(&self) -> usize {
+        self.set.mask.len()
+    }
+
+    /// Checks every vertex and target of `c` (nothing changes on error) and writes its fixed
+    /// mask into `self.mask`; true when that differs from the condensed fixed set.
+    pub fn check(&mut self, c: &Constraints) -> Result<bool, SimError> {
+        let ns = self.surface_count();
+        let bad = |v: u32| SimError::BadConstraint {
+            vertex: v as usize,
+            count: ns,
+        };
+        for p in &c.prescribed {
+            if p.vertex as usize >= ns {
+                return Err(bad(p.vertex));
+            }
+            if !is_finite_vec(p.position) {
+                return Err(SimError::BadParameter {
+                    name: "prescribed",
+                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
+                    reason: "the target position is not finite".into(),
+                });
+            }
+        }
+        if let Some(&v) = c.fixed.iter().find(|&&v| v as usize >= ns) {
+            return Err(bad(v));
+        }
+        self.mask.iter_mut().for_each(|m| *m = false);
+        for &v in &c.fixed {
+            self.mask[v as usize] = true;
+        }
+        Ok(!self.ready() || self.mask != self.set.mask)
+    }
+
+    /// Installs a new fixed set with its condensation (the caller derived its own data).
+    pub fn install(&mut self, set: FixedSet, cond: &Condensation, started: Instant) {
+        self.c_fixed = cond.c_fixed.clone();
+        self.us = vec![0.0; 3 * set.free.len()];
+        self.us_trial = self.us.clone();
+        self.set = set;
+        let seconds = started.elapsed().as_secs_f64();
+        self.last_rebuild_seconds = seconds;
+        self.precompute_seconds += seconds;
+        self.rebuilds += 1;
+    }
+
+    /// True once a fixed set was condensed.
+    pub fn ready(&self) -> bool {
+        self.rebuilds > 0
+    }
+
+    /// Records the constraints (validated by `fixed_mask`, same fixed set as installed):
+    /// contact list and targets, reaction owners. Reuses every buffer.
+    pub fn record(&mut self, c: &Constraints) {
+        let rest = self.fem.rest_surface();
+        self.contacts.clear();
+        self.targets.clear();
+        for p in &c.prescribed {
+            let v = p.vertex as usize;
+            if self.set.mask[v] {
+                continue;
+            }
+            let d = p.position - rest[v];
+            let k = self.contact_of[v];
+            // A vertex prescribed twice takes its last target.
+            let k = if k == NONE {
+                self.contact_of[v] = self.contacts.len() as u32;
+                self.contacts.push(self.set.slot[v]);
+                self.targets.extend_from_slice(&[0.0; 3]);
+                self.contacts.len() - 1
+            } else {
+                k as usize
+            };
+            self.targets[3 * k..3 * k + 3].copy_from_slice(&[d.x, d.y, d.z]);
+        }
+        for &a in &self.contacts {
+            self.contact_of[self.set.free[a as usize] as usize] = NONE;
+        }
+        self.fixed_owner.clear();
+        for &v in &c.fixed {
+            self.fixed_owner
+                .push(!std::mem::replace(&mut self.taken[v as usize], true));
+        }
+        self.prescribed_owner.clear();
+        self.prescribed_owner.resize(c.prescribed.len(), false);
+        for (k, p) in c.prescribed.iter().enumerate().rev() {
+            self.prescribed_owner[k] = !std::mem::replace(&mut self.taken[p.vertex as usize], true);
+        }
+        self.taken.iter_mut().for_each(|t| *t = false);
+        self.fixed_reactions.clear();
+        self.fixed_reactions.resize(c.fixed.len(), Vec3::ZERO);
+        self.prescribed_reactions.clear();
+        self.prescribed_reactions
+            .resize(c.prescribed.len(), Vec3::ZERO);
+        self.constraints.fixed.clear();
+        self.constraints.fixed.extend_from_slice(&c.fixed);
+        self.constraints.prescribed.clear();
+        self.constraints.prescribed.extend_from_slice(&c.prescribed);
+        self.lambda.clear();
+        self.lambda.resize(self.targets.len(), 0.0);
+    }
+
+    /// Nodal forces of `loads` (consistent gravity, point loads on surface nodes), checked.
+    pub fn nodal_forces(&self, loads: &Loads) -> Result<Vec<Real>, SimError> {
+        if !is_finite_vec(loads.gravity) {
+            return Err(SimError::BadParameter {
+                name: "gravity",
+                value: loads.gravity.to_string(),
+                reason: "must be finite".into(),
+            });
+        }
+        let mut f = self
+            .fem
+            .body_load(loads.gravity * self.fem.material().density);
+        let nodes = self.fem.surface_nodes();
+        for &(v, force) in &loads.point_loads {
+            let Some(&n) = nodes.get(v as usize) else {
+                return Err(SimError::BadConstraint {
+                    vertex: v as usize,
+                    count: nodes.len(),
+                });
+            };
+            if !is_finite_vec(force) {
+                return Err(SimError::BadParameter {
+                    name: "point_loads",
+                    value: format!("surface vertex {v} -> {force}"),
+                    reason: "the force is not finite".into(),
+                });
+            }
+            for k in 0..3 {
+                f[3 * n as usize + k] += force[k];
+            }
+        }
+        Ok(f)
+    }
+
+    /// Condenses `self.forces` onto the surface: f̃_s = f_s − K_si K_ii⁻¹ f_i on free dofs,
+    /// and the support reactions of the surface at rest.
+    pub fn condense_loads(&mut self) -> Result<(), SimError> {
+        let dp = surface_held(&self.fem, &self.forces)?;
+        let r = self.fem.solve_dofs(&dp)?.reactions;
+        let nodes = self.fem.surface_nodes();
+        let pick = |list: &[u32]| -> Vec<Real> {
+            list.iter()
+                .flat_map(|&v| r[nodes[v as usize] as usize].to_array())
+                .collect()
+        };
+        self.f_cond = pick(&self.set.free);
+        self.r_fixed0 = pick(&self.set.fixed);
+        Ok(())
+    }
+
+    /// Takes the trial surface displacements and `lambda` as the new state: positions and
+    /// reactions (−λ on contacts, r_F0 − C_F u_s on supports).
+    pub fn accept(&mut self) {
+        std::mem::swap(&mut self.us, &mut self.us_trial);
+        let rest = self.fem.rest_surface();
+        for (p, x) in self.surface_positions.iter_mut().zip(rest) {
+            *p = *x;
+        }
+        self.surface_reaction
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
+        for (a, &v) in self.set.free.iter().enumerate() {
+            let d = Vec3::new(self.us[3 * a], self.us[3 * a + 1], self.us[3 * a + 2]);
+            self.surface_positions[v as usize] += d;
+        }
+        for (k, &a) in self.contacts.iter().enumerate() {
+            let v = self.set.free[a as usize] as usize;
+            let l = &self.lambda[3 * k..3 * k + 3];
+            self.surface_reaction[v] = -Vec3::new(l[0], l[1], l[2]);
+        }
+        for (b, &v) in self.set.fixed.iter().enumerate() {
+            let mut r = [0.0; 3];
+            for (l, out) in r.iter_mut().enumerate() {
+                let row = 3 * b + l;
+                let cu: Real = (0..self.us.len())
+                    .map(|j| self.c_fixed[(row, j)] * self.us[j])
+                    .sum();
+                *out = self.r_fixed0.get(row).copied().unwrap_or(0.0) - cu;
+            }
+            self.surface_reaction[v as usize] = Vec3::from_array(r);
+        }
+        for (k, &v) in self.constraints.fixed.iter().enumerate() {
+            self.fixed_reactions[k] = if self.fixed_owner[k] {
+                self.surface_reaction[v as usize]
+            } else {
+                Vec3::ZERO
+            };
+        }
+        for (k, p) in self.constraints.prescribed.iter().enumerate() {
+            self.prescribed_reactions[k] = if self.prescribed_owner[k] {
+                self.surface_reaction[p.vertex as usize]
+            } else {
+                Vec3::ZERO
+            };
+        }
+    }
+
+    pub fn surface_positions(&self) -> &[Vec3] {
+        &self.surface_positions
+    }
+
+    pub fn reactions(&self) -> crate::model::Reactions<'_> {
+        crate::model::Reactions {
+            fixed: &self.fixed_reactions,
+            prescribed: &self.prescribed_reactions,
+        }
+    }
+
+    /// Back to rest: zero surface displacements and contact forces.
+    pub fn reset(&mut self) {
+        self.us_trial.iter_mut().for_each(|v| *v = 0.0);
+        self.lambda.iter_mut().for_each(|v| *v = 0.0);
+        self.accept();
+    }
+
+    /// Displacements of every mechanical node for the current surface state:
+    /// the interior from K_ii⁻¹ (f_i − K_is u_s), one sparse solve.
+    pub fn node_displacements(&mut self) -> Result<Vec<Vec3>, SimError> {
+        let mut dp = surface_held(&self.fem, &self.forces)?;
+        let nodes = self.fem.surface_nodes();
+        for (a, &v) in self.set.free.iter().enumerate() {
+            let n = nodes[v as usize] as usize;
+            dp.targets[3 * n..3 * n + 3].copy_from_slice(&self.us[3 * a..3 * a + 3]);
+        }
+        Ok(self.fem.solve_dofs(&dp)?.displacements)
+    }
+
+    /// Sets the loads (checked, condensed); nothing changes on error.
+    pub fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        let f = self.nodal_forces(loads)?;
+        let old = std::mem::replace(&mut self.forces, f);
+        if self.ready()
+            && let Err(e) = self.condense_loads()
+        {
+            self.forces = old;
+            return Err(e);
+        }
+        self.loads = loads.clone();
+        Ok(())
+    }
+
+    /// The memory of the shared parts: K and its factor (via `FemStatic`), C_F, buffers.
+    pub fn memory_bytes(&self) -> usize {
+        self.fem.info().memory_bytes
+            + self.c_fixed.nrows() * self.c_fixed.ncols() * 8
+            + (self.us.len() * 2 + self.f_cond.len()) * 8
+    }
+}
