@@ -15,9 +15,11 @@
 //! - `system`: constraint elimination keeping the pattern, factorisation cache, rigid-mode check
 //! - `mass`: lumped nodal masses for the dynamic variants
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
+//! - `dynamic`: `fem-explicit` and `fem-semi-implicit`, linear elastodynamics (eq. (6)-(10))
 
 mod assembly;
 mod deformable_impl;
+pub mod dynamic;
 pub mod mass;
 pub mod element_linear;
 pub mod element_quadratic;
@@ -26,6 +28,7 @@ mod static_model;
 mod system;
 
 pub use assembly::Assembler;
+pub use dynamic::{FemExplicit, FemSemiImplicit};
 pub use quadratic_mesh::QuadraticMesh;
 pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};
 pub use system::DofProblem;
