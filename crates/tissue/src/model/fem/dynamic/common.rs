@@ -428,10 +428,11 @@ impl Core {
             Vec3::new(self.r[3 * n], self.r[3 * n + 1], self.r[3 * n + 2])
         };
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] = match (self.fixed_owner[k], self.boundary.nodes.get(v as usize)) {
-                (true, Some(&n)) => r(n),
-                _ => Vec3::ZERO,
-            };
+            self.fixed_reactions[k] =
+                match (self.fixed_owner[k], self.boundary.nodes.get(v as usize)) {
+                    (true, Some(&n)) => r(n),
+                    _ => Vec3::ZERO,
+                };
         }
         for (k, p) in self.constraints.prescribed.iter().enumerate() {
             let node = self.boundary.nodes.get(p.vertex as usize);
@@ -473,9 +474,15 @@ impl Core {
             *p = x - v * dt;
         }
         self.last_dt = Some(dt);
-        self.assembler.pattern.mul_vec(&self.k, &self.u, &mut self.ku);
+        self.assembler
+            .pattern
+            .mul_vec(&self.k, &self.u, &mut self.ku);
         let strain: Real = self.u.iter().zip(&self.ku).map(|(a, b)| a * b).sum();
-        let kinetic: Real = velocity.iter().zip(&self.mass).map(|(v, m)| m * v * v).sum();
+        let kinetic: Real = velocity
+            .iter()
+            .zip(&self.mass)
+            .map(|(v, m)| m * v * v)
+            .sum();
         self.energy = 0.5 * (strain + kinetic);
         self.update_positions();
         Ok(())
@@ -502,7 +509,10 @@ impl Core {
         let dofs = self.dofs();
         let mut all = vec![
             ("critical_dt".into(), format!("{:.6e}", self.critical_dt())),
-            ("critical_dt_bound".into(), format!("{:.6e}", self.critical_dt_bound())),
+            (
+                "critical_dt_bound".into(),
+                format!("{:.6e}", self.critical_dt_bound()),
+            ),
             ("damping".into(), self.material.damping.to_string()),
             ("nnz".into(), nnz.to_string()),
             ("steps".into(), self.steps.to_string()),
