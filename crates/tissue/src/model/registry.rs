@@ -14,10 +14,20 @@ pub struct KindInfo {
 }
 
 /// Every model kind that `build` accepts.
-pub const KINDS: &[KindInfo] = &[KindInfo {
-    name: "fem-static",
-    summary: "linear elastostatics on 4- or 10-node tetrahedra, sparse Cholesky (the reference)",
-}];
+pub const KINDS: &[KindInfo] = &[
+    KindInfo {
+        name: "fem-static",
+        summary: "linear elastostatics on 4- or 10-node tetrahedra, sparse Cholesky (the reference)",
+    },
+    KindInfo {
+        name: "fem-explicit",
+        summary: "linear elastodynamics, central differences, lumped mass (dt below 2/omega_max)",
+    },
+    KindInfo {
+        name: "fem-semi-implicit",
+        summary: "linear elastodynamics, stiffness at t+dt, K + cM factorised once per dt",
+    },
+];
 
 /// What a model is built from.
 #[derive(Clone, Copy, Debug)]
@@ -34,6 +44,8 @@ pub struct BuildInput<'a> {
 pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, Error> {
     match kind {
         "fem-static" => Ok(Box::new(fem::FemStatic::from_input(input)?)),
+        "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
+        "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),
