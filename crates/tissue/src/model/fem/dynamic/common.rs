@@ -145,8 +145,11 @@ impl Core {
         let scale: Vec<Real> = self.mass.iter().map(|m| 1.0 / m.sqrt()).collect();
         // A start vector with every sign pattern represented (the top modes alternate).
         let mut x: Vec<Real> = (0..n)
-            .map(|i| 1.0 + ((i.wrapping_mul(2_654_435_761) >> 7) % 97) as Real / 97.0)
-            .map(|v| if (v * 97.0) as usize % 2 == 0 { v } else { -v })
+            .map(|i| {
+                let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                let v = 1.0 + (h % 89) as Real / 89.0;
+                if h & 1 == 0 { v } else { -v }
+            })
             .collect();
         let (mut y, mut t) = (vec![0.0; n], vec![0.0; n]);
         let mut lambda = 0.0;
