@@ -9,9 +9,9 @@
 use std::time::Instant;
 
 use crate::error::{Error, SimError};
-use crate::interact::{Constraints, Loads};
+use crate::interact::Constraints;
 use crate::material::Material;
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Real, Vec3};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
 
 use super::super::assembly::Assembler;
@@ -19,6 +19,7 @@ use super::super::element_linear;
 use super::super::mass::lumped_masses;
 use super::super::static_model::compact;
 use super::super::system::DofProblem;
+pub(super) use super::forward::forward_deformable;
 
 /// Power iterations used for the largest eigenvalue of M⁻¹K at build.
 const POWER_ITERATIONS: usize = 60;
@@ -37,11 +38,11 @@ pub(super) struct Core {
     pub surface_positions: Vec<Vec3>,
     /// Held dofs, their targets and the external forces F.
     pub problem: DofProblem,
-    constraints: Constraints,
-    fixed_owner: Vec<bool>,
-    prescribed_owner: Vec<bool>,
-    fixed_reactions: Vec<Vec3>,
-    prescribed_reactions: Vec<Vec3>,
+    pub constraints: Constraints,
+    pub fixed_owner: Vec<bool>,
+    pub prescribed_owner: Vec<bool>,
+    pub fixed_reactions: Vec<Vec3>,
+    pub prescribed_reactions: Vec<Vec3>,
     /// U_t, U_{t−Δt} and the trial U_{t+Δt}.
     pub u: Vec<Real>,
     pub u_prev: Vec<Real>,
@@ -49,7 +50,7 @@ pub(super) struct Core {
     /// Scratch: K times some displacement.
     pub ku: Vec<Real>,
     /// Per-dof reactions after the last step (zero on free dofs).
-    r: Vec<Real>,
+    pub r: Vec<Real>,
     /// The Δt the history U_{t−Δt} belongs to.
     pub last_dt: Option<Real>,
     /// U_{t−Δt} and Δt as they were before the step in progress, to undo its rescaling.
@@ -219,126 +220,6 @@ impl Core {
         self.last_dt = self.saved_dt;
     }
 
-    fn bad_vertex(&self, vertex: u32) -> SimError {
-        SimError::BadConstraint {
-            vertex: vertex as usize,
-            count: self.boundary.nodes.len(),
-        }
-    }
-
-    fn node_of(&self, vertex: u32) -> Result<usize, SimError> {
-        self.boundary
-            .nodes
-            .get(vertex as usize)
-            .map(|&n| n as usize)
-            .ok_or_else(|| self.bad_vertex(vertex))
-    }
-
-    /// Fixed vertices are held at rest, prescribed ones reach their target at the end of
-    /// each step; fixed wins. Checked fully before anything changes.
-    pub fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let mut disp = vec![None; self.boundary.nodes.len()];
-        for &v in &c.fixed {
-            self.node_of(v)?;
-            disp[v as usize] = Some(Vec3::ZERO);
-        }
-        for p in &c.prescribed {
-            self.node_of(p.vertex)?;
-            if !is_finite_vec(p.position) {
-                return Err(SimError::BadParameter {
-                    name: "prescribed",
-                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
-                    reason: "the target position is not finite".into(),
-                });
-            }
-        }
-        let is_fixed: Vec<bool> = disp.iter().map(Option::is_some).collect();
-        for p in &c.prescribed {
-            let v = p.vertex as usize;
-            if !is_fixed[v] {
-                disp[v] = Some(p.position - self.boundary.surface.vertices[v]);
-            }
-        }
-        let mut dp = DofProblem::new(self.dofs());
-        for (s, d) in disp.iter().enumerate() {
-            if let Some(d) = d {
-                let n = self.boundary.nodes[s] as usize;
-                for k in 0..3 {
-                    dp.hold(3 * n + k, d[k])?;
-                }
-            }
-        }
-        dp.finish();
-        dp.forces = std::mem::take(&mut self.problem.forces);
-        self.problem = dp;
-        let mut taken = vec![false; disp.len()];
-        self.fixed_owner = c
-            .fixed
-            .iter()
-            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-            .collect();
-        let mut owner = vec![false; c.prescribed.len()];
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
-        }
-        self.prescribed_owner = owner;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
-        self.update_energy_floor();
-        Ok(())
-    }
-
-    /// Gravity gives each node its lumped mass times g (the consistent load of the linear
-    /// tet); point loads act on the node of their surface vertex.
-    pub fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        if !is_finite_vec(loads.gravity) {
-            return Err(SimError::BadParameter {
-                name: "gravity",
-                value: loads.gravity.to_string(),
-                reason: "must be finite".into(),
-            });
-        }
-        let mut f: Vec<Real> = self
-            .mass
-            .iter()
-            .enumerate()
-            .map(|(d, m)| m * loads.gravity[d % 3])
-            .collect();
-        for &(v, force) in &loads.point_loads {
-            let n = self.node_of(v)?;
-            if !is_finite_vec(force) {
-                return Err(SimError::BadParameter {
-                    name: "point_loads",
-                    value: format!("surface vertex {v} -> {force}"),
-                    reason: "the force is not finite".into(),
-                });
-            }
-            for k in 0..3 {
-                f[3 * n + k] += force[k];
-            }
-        }
-        self.problem.forces = f;
-        self.update_energy_floor();
-        Ok(())
-    }
-
-    /// An energy scale of the current loads and targets (Σ f²/K_ii + Σ K_ii g²)/2, so that
-    /// the growth test has a reference even when starting from rest.
-    fn update_energy_floor(&mut self) {
-        let diag = self.assembler.pattern.diagonal_slots();
-        let mut e = 0.0;
-        for (d, &s) in diag.iter().enumerate() {
-            let kd = self.k[s];
-            if self.problem.constrained[d] {
-                e += 0.5 * kd * self.problem.targets[d].powi(2);
-            } else {
-                e += 0.5 * self.problem.forces[d].powi(2) / kd;
-            }
-        }
-        self.energy_floor = e.max(Real::MIN_POSITIVE);
-    }
-
     /// Discrete energy of the trial level: ½ vᵀMv with v = (U⁺ − U)/Δt over free dofs plus
     /// ½ U⁺ᵀ (K U), where `ku` holds K U. For the central difference this staggered form is
     /// exactly conserved without damping and non-increasing with it.
@@ -425,34 +306,6 @@ impl Core {
         }
     }
 
-    fn update_reactions(&mut self) {
-        let r = |n: u32| {
-            let n = n as usize;
-            Vec3::new(self.r[3 * n], self.r[3 * n + 1], self.r[3 * n + 2])
-        };
-        for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] =
-                match (self.fixed_owner[k], self.boundary.nodes.get(v as usize)) {
-                    (true, Some(&n)) => r(n),
-                    _ => Vec3::ZERO,
-                };
-        }
-        for (k, p) in self.constraints.prescribed.iter().enumerate() {
-            let node = self.boundary.nodes.get(p.vertex as usize);
-            self.prescribed_reactions[k] = match (self.prescribed_owner[k], node) {
-                (true, Some(&n)) => r(n),
-                _ => Vec3::ZERO,
-            };
-        }
-    }
-
-    pub fn reactions(&self) -> crate::model::Reactions<'_> {
-        crate::model::Reactions {
-            fixed: &self.fixed_reactions,
-            prescribed: &self.prescribed_reactions,
-        }
-    }
-
     /// Sets U_t and the velocity (U_t − U_{t−Δt})/Δt of the next step (flat, per dof; held
     /// dofs included as given). Nothing changes on error.
     pub fn set_state(&mut self, u: &[Real], velocity: &[Real], dt: Real) -> Result<(), SimError> {
@@ -534,60 +387,3 @@ impl Core {
         }
     }
 }
-
-/// The `Deformable` methods that only forward to `Core`; the type provides `advance(dt)`
-/// and `details()`.
-macro_rules! forward_deformable {
-    ($ty:ty, $kind:literal) => {
-        impl crate::model::Deformable for $ty {
-            fn kind(&self) -> &'static str {
-                $kind
-            }
-            fn surface(&self) -> crate::model::SurfaceView<'_> {
-                crate::model::SurfaceView {
-                    positions: &self.core.surface_positions,
-                    triangles: &self.core.boundary.surface.triangles,
-                }
-            }
-            fn rest_surface(&self) -> &[crate::math::Vec3] {
-                &self.core.boundary.surface.vertices
-            }
-            fn volume(&self) -> Option<crate::model::VolumeView<'_>> {
-                Some(crate::model::VolumeView {
-                    positions: &self.core.positions,
-                    rest_positions: &self.core.rest,
-                    tets: &self.core.mesh.tets,
-                })
-            }
-            fn set_constraints(
-                &mut self,
-                c: &crate::interact::Constraints,
-            ) -> Result<(), crate::error::SimError> {
-                self.core.set_constraints(c)
-            }
-            fn set_loads(
-                &mut self,
-                loads: &crate::interact::Loads,
-            ) -> Result<(), crate::error::SimError> {
-                self.core.set_loads(loads)
-            }
-            fn step(
-                &mut self,
-                dt: crate::math::Real,
-            ) -> Result<crate::model::StepInfo, crate::error::SimError> {
-                self.advance(dt)
-            }
-            fn reactions(&self) -> crate::model::Reactions<'_> {
-                self.core.reactions()
-            }
-            fn reset(&mut self) {
-                self.core.reset();
-            }
-            fn info(&self) -> crate::model::ModelInfo {
-                let (bytes, details) = self.details();
-                self.core.info($kind, bytes, details)
-            }
-        }
-    };
-}
-pub(super) use forward_deformable;

@@ -50,10 +50,14 @@
 //!
 //! - `common`: shared state (mesh, K, M, boundary, constraints, time levels, reactions,
 //!   the last good state, ω_max estimates) and the forwarding `Deformable` impl
+//! - `constraints`: surface constraints and loads to dofs, reactions per constraint
+//! - `forward`: the `Deformable` methods both schemes forward to `Core`
 //! - `explicit`: `FemExplicit`; `semi_implicit`: `FemSemiImplicit`
 
 mod common;
+mod constraints;
 mod explicit;
+mod forward;
 mod semi_implicit;
 
 pub use explicit::FemExplicit;
