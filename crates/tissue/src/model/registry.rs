@@ -27,6 +27,14 @@ pub const KINDS: &[KindInfo] = &[
         name: "fem-precomputed-tensors",
         summary: "linear FEM as pre-computed displacement/force tensors, superposed (Cotin)",
     },
+    KindInfo {
+        name: "fem-explicit",
+        summary: "linear elastodynamics, central differences, lumped mass (dt below 2/omega_max)",
+    },
+    KindInfo {
+        name: "fem-semi-implicit",
+        summary: "linear elastodynamics, stiffness at t+dt, K + cM factorised once per dt",
+    },
 ];
 
 /// What a model is built from.
@@ -46,6 +54,8 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-static" => Ok(Box::new(fem::FemStatic::from_input(input)?)),
         "fem-condensed" => Ok(Box::new(fem::FemCondensed::from_input(input)?)),
         "fem-precomputed-tensors" => Ok(Box::new(fem::FemPrecomputedTensors::from_input(input)?)),
+        "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
+        "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

@@ -18,21 +18,24 @@
 //! - `surface_response`: K condensed onto the surface (C, W = C⁻¹), shared by the two below
 //! - `condensed`: `fem-condensed`, fast finite elements (Bro-Nielsen), pre-inverted compliance
 //! - `precomputed`: `fem-precomputed-tensors`, Cotin's displacement/force tensors
+//! - `dynamic`: `fem-explicit` and `fem-semi-implicit`, linear elastodynamics (eq. (6)-(10))
 
 mod assembly;
 mod condensed;
-mod precomputed;
-mod surface_response;
 mod deformable_impl;
+pub mod dynamic;
 pub mod element_linear;
 pub mod element_quadratic;
 pub mod mass;
+mod precomputed;
 pub mod quadratic_mesh;
 mod static_model;
+mod surface_response;
 mod system;
 
 pub use assembly::Assembler;
 pub use condensed::FemCondensed;
+pub use dynamic::{FemExplicit, FemSemiImplicit};
 pub use precomputed::FemPrecomputedTensors;
 pub use quadratic_mesh::QuadraticMesh;
 pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};

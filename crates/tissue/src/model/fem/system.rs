@@ -85,6 +85,8 @@ pub struct System {
     pub refactorizations: usize,
     /// Solves done so far.
     pub solves: usize,
+    /// Skips the rigid-mode check: for K + cM (dynamics), definite even for a free body.
+    pub allow_free_body: bool,
 }
 
 impl System {
@@ -106,8 +108,15 @@ impl System {
             components,
             refactorizations: 0,
             solves: 0,
+            allow_free_body: false,
             assembler,
         })
+    }
+
+    /// Replaces the matrix values (same pattern); the next solve refactorises.
+    pub fn set_values(&mut self, k: &[Real]) {
+        self.k.copy_from_slice(k);
+        self.factored_for = None;
     }
 
     pub fn dofs(&self) -> usize {
@@ -151,7 +160,9 @@ impl System {
         }
         if self.factored_for.as_deref() != Some(p.constrained.as_slice()) {
             self.factored_for = None;
-            self.check_rigid_modes(p)?;
+            if !self.allow_free_body {
+                self.check_rigid_modes(p)?;
+            }
             self.eliminate(p);
             self.chol
                 .factorize(&self.assembler.pattern, &self.a, FREE_BODY_HINT)?;

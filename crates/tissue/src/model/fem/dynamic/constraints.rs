@@ -1,0 +1,161 @@
+//! Constraints, loads and reactions of the dynamic models, on surface vertices: fixed
+//! vertices are held at rest, prescribed ones reach their target at the end of each step
+//! (fixed wins); gravity is the lumped mass times g; each given constraint gets the reaction
+//! of its vertex (the first mention of a vertex owns it).
+
+use crate::error::SimError;
+use crate::interact::{Constraints, Loads};
+use crate::math::{Real, Vec3, is_finite_vec};
+
+use super::super::system::DofProblem;
+use super::common::Core;
+
+impl Core {
+    pub(super) fn bad_vertex(&self, vertex: u32) -> SimError {
+        SimError::BadConstraint {
+            vertex: vertex as usize,
+            count: self.boundary.nodes.len(),
+        }
+    }
+
+    pub(super) fn node_of(&self, vertex: u32) -> Result<usize, SimError> {
+        self.boundary
+            .nodes
+            .get(vertex as usize)
+            .map(|&n| n as usize)
+            .ok_or_else(|| self.bad_vertex(vertex))
+    }
+
+    /// Fixed vertices are held at rest, prescribed ones reach their target at the end of
+    /// each step; fixed wins. Checked fully before anything changes.
+    pub fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let mut disp = vec![None; self.boundary.nodes.len()];
+        for &v in &c.fixed {
+            self.node_of(v)?;
+            disp[v as usize] = Some(Vec3::ZERO);
+        }
+        for p in &c.prescribed {
+            self.node_of(p.vertex)?;
+            if !is_finite_vec(p.position) {
+                return Err(SimError::BadParameter {
+                    name: "prescribed",
+                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
+                    reason: "the target position is not finite".into(),
+                });
+            }
+        }
+        let is_fixed: Vec<bool> = disp.iter().map(Option::is_some).collect();
+        for p in &c.prescribed {
+            let v = p.vertex as usize;
+            if !is_fixed[v] {
+                disp[v] = Some(p.position - self.boundary.surface.vertices[v]);
+            }
+        }
+        let mut dp = DofProblem::new(self.dofs());
+        for (s, d) in disp.iter().enumerate() {
+            if let Some(d) = d {
+                let n = self.boundary.nodes[s] as usize;
+                for k in 0..3 {
+                    dp.hold(3 * n + k, d[k])?;
+                }
+            }
+        }
+        dp.finish();
+        dp.forces = std::mem::take(&mut self.problem.forces);
+        self.problem = dp;
+        let mut taken = vec![false; disp.len()];
+        self.fixed_owner = c
+            .fixed
+            .iter()
+            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
+            .collect();
+        let mut owner = vec![false; c.prescribed.len()];
+        for (k, p) in c.prescribed.iter().enumerate().rev() {
+            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+        }
+        self.prescribed_owner = owner;
+        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
+        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
+        self.constraints = c.clone();
+        self.update_energy_floor();
+        Ok(())
+    }
+
+    /// Gravity gives each node its lumped mass times g (the consistent load of the linear
+    /// tet); point loads act on the node of their surface vertex.
+    pub fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        if !is_finite_vec(loads.gravity) {
+            return Err(SimError::BadParameter {
+                name: "gravity",
+                value: loads.gravity.to_string(),
+                reason: "must be finite".into(),
+            });
+        }
+        let mut f: Vec<Real> = self
+            .mass
+            .iter()
+            .enumerate()
+            .map(|(d, m)| m * loads.gravity[d % 3])
+            .collect();
+        for &(v, force) in &loads.point_loads {
+            let n = self.node_of(v)?;
+            if !is_finite_vec(force) {
+                return Err(SimError::BadParameter {
+                    name: "point_loads",
+                    value: format!("surface vertex {v} -> {force}"),
+                    reason: "the force is not finite".into(),
+                });
+            }
+            for k in 0..3 {
+                f[3 * n + k] += force[k];
+            }
+        }
+        self.problem.forces = f;
+        self.update_energy_floor();
+        Ok(())
+    }
+
+    /// An energy scale of the current loads and targets (Σ f²/K_ii + Σ K_ii g²)/2, so that
+    /// the growth test has a reference even when starting from rest.
+    pub(super) fn update_energy_floor(&mut self) {
+        let diag = self.assembler.pattern.diagonal_slots();
+        let mut e = 0.0;
+        for (d, &s) in diag.iter().enumerate() {
+            let kd = self.k[s];
+            if self.problem.constrained[d] {
+                e += 0.5 * kd * self.problem.targets[d].powi(2);
+            } else {
+                e += 0.5 * self.problem.forces[d].powi(2) / kd;
+            }
+        }
+        self.energy_floor = e.max(Real::MIN_POSITIVE);
+    }
+
+    pub(super) fn update_reactions(&mut self) {
+        let r = |n: u32| {
+            let n = n as usize;
+            Vec3::new(self.r[3 * n], self.r[3 * n + 1], self.r[3 * n + 2])
+        };
+        for (k, &v) in self.constraints.fixed.iter().enumerate() {
+            self.fixed_reactions[k] =
+                match (self.fixed_owner[k], self.boundary.nodes.get(v as usize)) {
+                    (true, Some(&n)) => r(n),
+                    _ => Vec3::ZERO,
+                };
+        }
+        for (k, p) in self.constraints.prescribed.iter().enumerate() {
+            let node = self.boundary.nodes.get(p.vertex as usize);
+            self.prescribed_reactions[k] = match (self.prescribed_owner[k], node) {
+                (true, Some(&n)) => r(n),
+                _ => Vec3::ZERO,
+            };
+        }
+    }
+
+    pub fn reactions(&self) -> crate::model::Reactions<'_> {
+        crate::model::Reactions {
+            fixed: &self.fixed_reactions,
+            prescribed: &self.prescribed_reactions,
+        }
+    }
+}

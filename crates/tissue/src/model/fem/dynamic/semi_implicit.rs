@@ -1,0 +1,166 @@
+//! `fem-semi-implicit`: eq. (8)-(10), the same difference quotients as (7) with the elastic
+//! force taken at the end of the step, K̂ U⁺ = F̂.
+//!
+//! K̂ = K + (1/Δt² + α/(2Δt)) M keeps K's pattern (M is diagonal), so it goes through the
+//! static model's `System`: held dofs eliminated without changing the pattern, symbolic
+//! analysis once, a numeric factorisation once per (Δt, held set), then one solve per step.
+//! For this linear system the scheme is implicit in K and unconditionally stable.
+
+use serde::Deserialize;
+
+use crate::error::{Error, SimError};
+use crate::material::Material;
+use crate::math::Real;
+use crate::mesh::TetMesh;
+use crate::model::registry::parse_params;
+use crate::model::{BuildInput, StepInfo};
+
+use super::super::system::{DofProblem, System};
+use super::common::{Core, forward_deformable};
+
+#[derive(Clone, Copy, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoParams {}
+
+/// Linear elastodynamics with the stiffness at the end of the step (survey eq. (8)-(10)).
+pub struct FemSemiImplicit {
+    pub(super) core: Core,
+    system: System,
+    /// The Δt whose K̂ is in `system`.
+    factored_dt: Option<Real>,
+    /// The problem handed to `system`: held set and targets of `core.problem`, forces F̂.
+    hat: DofProblem,
+    khat: Vec<Real>,
+    diag: Vec<usize>,
+    reactions_scratch: Vec<Real>,
+}
+
+impl std::fmt::Debug for FemSemiImplicit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FemSemiImplicit")
+            .field("nodes", &self.core.rest.len())
+            .field("factored_dt", &self.factored_dt)
+            .finish()
+    }
+}
+
+impl FemSemiImplicit {
+    /// Builds from the registry's input (no model settings).
+    pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
+        let _: NoParams = parse_params("fem-semi-implicit", input.params)?;
+        Self::new(&input.mesh.tet_mesh(input.source)?, input.material)
+    }
+
+    /// Validates, assembles K and M and analyses K̂'s pattern (factorised at the first step).
+    pub fn new(mesh: &TetMesh, material: Material) -> Result<Self, Error> {
+        let start = std::time::Instant::now();
+        let mut core = Core::new(mesh, material)?;
+        let mut system = System::new(core.assembler.clone(), core.k.clone(), core.rest.clone())?;
+        system.allow_free_body = true;
+        let dofs = core.dofs();
+        core.precompute_seconds += start.elapsed().as_secs_f64();
+        Ok(Self {
+            diag: core.assembler.pattern.diagonal_slots(),
+            khat: core.k.clone(),
+            core,
+            system,
+            factored_dt: None,
+            hat: DofProblem::new(dofs),
+            reactions_scratch: vec![0.0; dofs],
+        })
+    }
+
+    /// The explicit scheme's 2/ω_max on the same mesh, for comparison.
+    pub fn explicit_critical_dt(&self) -> Real {
+        self.core.critical_dt()
+    }
+
+    /// Current displacements U_t, flat per dof, in m.
+    pub fn displacements(&self) -> &[Real] {
+        &self.core.u
+    }
+
+    /// Energy ½ vᵀMv + ½ UᵀKU after the last step (v over free dofs), in J.
+    pub fn energy(&self) -> Real {
+        self.core.energy
+    }
+
+    /// Mechanical node of each surface vertex.
+    pub fn surface_nodes(&self) -> &[u32] {
+        &self.core.boundary.nodes
+    }
+
+    /// Numeric factorisations so far: one per (Δt, held set).
+    pub fn refactorizations(&self) -> usize {
+        self.system.refactorizations
+    }
+
+    /// Sets U_t and the velocity (flat per dof) as if the last step had length `dt`.
+    pub fn set_state(&mut self, u: &[Real], velocity: &[Real], dt: Real) -> Result<(), SimError> {
+        self.core.set_state(u, velocity, dt)
+    }
+
+    /// One step: K̂ U⁺ = F̂ with F̂ = F + M [ (2/Δt²) U − (1/Δt² − α/(2Δt)) U⁻ ] (eq. (10)).
+    fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        Core::check_dt(dt)?;
+        let alpha = self.core.material.damping;
+        let (inv2, damp) = (1.0 / (dt * dt), alpha / (2.0 * dt));
+        if self.factored_dt != Some(dt) {
+            self.khat.copy_from_slice(&self.core.k);
+            for (d, &s) in self.diag.iter().enumerate() {
+                self.khat[s] += (inv2 + damp) * self.core.mass[d];
+            }
+            self.system.set_values(&self.khat);
+            self.factored_dt = Some(dt);
+        }
+        let c = &mut self.core;
+        c.begin_step(dt)?;
+        let p = &c.problem;
+        self.hat.constrained.clone_from(&p.constrained);
+        self.hat.list.clone_from(&p.list);
+        self.hat.targets.clone_from(&p.targets);
+        for d in 0..c.u.len() {
+            self.hat.forces[d] =
+                p.forces[d] + c.mass[d] * (2.0 * inv2 * c.u[d] - (inv2 - damp) * c.u_prev[d]);
+        }
+        let solved = self
+            .system
+            .solve(&self.hat, &mut c.u_next, &mut self.reactions_scratch);
+        if let Err(e) = solved {
+            c.abort_step();
+            return Err(e);
+        }
+        c.assembler.pattern.mul_vec(&c.k, &c.u_next, &mut c.ku);
+        let mut energy = 0.0;
+        for d in 0..c.u.len() {
+            energy += c.u_next[d] * c.ku[d];
+            if !c.problem.constrained[d] {
+                let v = (c.u_next[d] - c.u[d]) / dt;
+                energy += c.mass[d] * v * v;
+            }
+        }
+        energy *= 0.5;
+        if let Err(e) = c.check_trial(energy, "semi-implicit step") {
+            c.abort_step();
+            return Err(e);
+        }
+        c.accept(dt, energy);
+        Ok(StepInfo::default())
+    }
+
+    fn details(&self) -> (usize, Vec<(String, String)>) {
+        (
+            self.system.factor_nnz() * 16 + self.khat.len() * 16,
+            vec![
+                ("scheme".into(), "semi-implicit (8)-(10)".into()),
+                ("factor_nnz".into(), self.system.factor_nnz().to_string()),
+                (
+                    "refactorizations".into(),
+                    self.system.refactorizations.to_string(),
+                ),
+            ],
+        )
+    }
+}
+
+forward_deformable!(FemSemiImplicit, "fem-semi-implicit");
