@@ -15,8 +15,10 @@
 //! - `system`: constraint elimination keeping the pattern, factorisation cache, rigid-mode check
 //! - `mass`: lumped nodal masses for the dynamic variants
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
+//! - `corotational`: `fem-corotational`, rotated linear elements, implicit Euler + PCG
 
 mod assembly;
+pub mod corotational;
 mod deformable_impl;
 pub mod mass;
 pub mod element_linear;
@@ -26,6 +28,7 @@ mod static_model;
 mod system;
 
 pub use assembly::Assembler;
+pub use corotational::{CorotationalParams, FemCorotational};
 pub use quadratic_mesh::QuadraticMesh;
 pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};
 pub use system::DofProblem;

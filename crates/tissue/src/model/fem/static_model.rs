@@ -353,7 +353,7 @@ impl FemStatic {
 
 /// Keeps only the vertices that some tetrahedron uses (a vertex without stiffness would make
 /// K singular), in their original order.
-fn compact(mesh: &TetMesh) -> TetMesh {
+pub(super) fn compact(mesh: &TetMesh) -> TetMesh {
     let mut map = vec![u32::MAX; mesh.vertices.len()];
     for t in &mesh.tets {
         for &v in t {
