@@ -14,10 +14,16 @@ pub struct KindInfo {
 }
 
 /// Every model kind that `build` accepts.
-pub const KINDS: &[KindInfo] = &[KindInfo {
-    name: "fem-static",
-    summary: "linear elastostatics on 4- or 10-node tetrahedra, sparse Cholesky (the reference)",
-}];
+pub const KINDS: &[KindInfo] = &[
+    KindInfo {
+        name: "fem-static",
+        summary: "linear elastostatics on 4- or 10-node tetrahedra, sparse Cholesky (the reference)",
+    },
+    KindInfo {
+        name: "fem-corotational",
+        summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
+    },
+];
 
 /// What a model is built from.
 #[derive(Clone, Copy, Debug)]
@@ -34,6 +40,7 @@ pub struct BuildInput<'a> {
 pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, Error> {
     match kind {
         "fem-static" => Ok(Box::new(fem::FemStatic::from_input(input)?)),
+        "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

@@ -53,6 +53,14 @@ impl FemCorotational {
                 }
             }
         }
+        // A step so large that h² or the loads overflow cannot be solved meaningfully.
+        if let Some(j) = (0..ws.rhs.len()).find(|&j| !(ws.rhs[j].is_finite() && ws.inv_diag[j].is_finite())) {
+            return Err(SimError::Diverged {
+                step: self.steps + 1,
+                node: j / 3,
+                reason: format!("the step's system is not finite (dt = {dt} s)"),
+            });
+        }
         let masses = &self.masses;
         let apply = |z: &[Real], y: &mut [Real]| {
             y.iter_mut().for_each(|y| *y = 0.0);
@@ -73,6 +81,13 @@ impl FemCorotational {
             self.params.cg_tolerance,
         );
 
+        if !cg.relative_residual.is_finite() {
+            return Err(SimError::Diverged {
+                step: self.steps + 1,
+                node: 0,
+                reason: "the conjugate-gradient residual is not finite".into(),
+            });
+        }
         // Trial state.
         for (i, hold) in self.holds.iter().enumerate() {
             let dv = Vec3::new(ws.dv[3 * i], ws.dv[3 * i + 1], ws.dv[3 * i + 2]);
