@@ -155,7 +155,11 @@ mod tests {
         assert!(res.relative_residual <= 1e-12, "{res:?}");
         // CG on n unknowns terminates in at most n steps in exact arithmetic.
         assert!(res.iterations <= n, "{res:?}");
-        let err = x.iter().zip(&exact).map(|(a, b)| (a - b).abs()).fold(0.0, Real::max);
+        let err = x
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, Real::max);
         assert!(err < 1e-10, "max error {err}");
         // A warm start at the solution needs no iteration.
         let again = ws.solve(laplacian, &vec![1.0 / 2.5; n], &b, &mut x, 200, 1e-10);
@@ -176,8 +180,8 @@ mod tests {
         assert_eq!(x[0], 3.0);
         let mut y = vec![0.0; n];
         laplacian(&x, &mut y);
-        for i in 1..n {
-            assert!((y[i] - 1.0).abs() < 1e-11, "row {i}: {} ({res:?})", y[i]);
+        for (i, yi) in y.iter().enumerate().skip(1) {
+            assert!((yi - 1.0).abs() < 1e-11, "row {i}: {yi} ({res:?})");
         }
     }
 }

@@ -31,7 +31,11 @@ impl FemCorotational {
                 .unwrap_or(Vec3::ZERO)
         };
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] = if self.fixed_owner[k] { r(v) } else { Vec3::ZERO };
+            self.fixed_reactions[k] = if self.fixed_owner[k] {
+                r(v)
+            } else {
+                Vec3::ZERO
+            };
         }
         for (k, p) in self.constraints.prescribed.iter().enumerate() {
             self.prescribed_reactions[k] = if self.prescribed_owner[k] {
@@ -70,7 +74,11 @@ impl Deformable for FemCorotational {
     /// Fixed vertices keep zero velocity, prescribed ones reach their target within each step
     /// (the last entry wins for a vertex prescribed twice; fixed wins over prescribed).
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let fixed = c.fixed.iter().map(|&v| self.node_of(v)).collect::<Result<Vec<_>, _>>()?;
+        let fixed = c
+            .fixed
+            .iter()
+            .map(|&v| self.node_of(v))
+            .collect::<Result<Vec<_>, _>>()?;
         let prescribed = c
             .prescribed
             .iter()
@@ -136,10 +144,16 @@ impl Deformable for FemCorotational {
             precompute_seconds: self.precompute_seconds,
             is_static: false,
             details: vec![
-                ("cg_iterations".into(), self.params.cg_iterations.to_string()),
+                (
+                    "cg_iterations".into(),
+                    self.params.cg_iterations.to_string(),
+                ),
                 ("cg_tolerance".into(), self.params.cg_tolerance.to_string()),
                 ("steps".into(), self.steps.to_string()),
-                ("last_cg_iterations".into(), self.last_cg.iterations.to_string()),
+                (
+                    "last_cg_iterations".into(),
+                    self.last_cg.iterations.to_string(),
+                ),
                 (
                     "last_cg_residual".into(),
                     format!("{:.3e}", self.last_cg.relative_residual),

@@ -79,7 +79,12 @@ impl Lame {
 #[inline]
 fn scatter(e: &ElementRest, p: &Mat3, sign: Real, out: &mut [Real]) {
     let cols = *p * e.dm_inv.transpose() * sign;
-    let f = [-(cols.x_axis + cols.y_axis + cols.z_axis), cols.x_axis, cols.y_axis, cols.z_axis];
+    let f = [
+        -(cols.x_axis + cols.y_axis + cols.z_axis),
+        cols.x_axis,
+        cols.y_axis,
+        cols.z_axis,
+    ];
     for (n, fa) in e.nodes.iter().zip(f) {
         let i = 3 * *n as usize;
         out[i] += fa.x;
@@ -137,10 +142,16 @@ pub fn add_stiffness_diagonal(
 ) {
     for (e, r) in elements.iter().zip(rotations) {
         let rows = e.dm_inv.transpose();
-        let g = [-(rows.x_axis + rows.y_axis + rows.z_axis), rows.x_axis, rows.y_axis, rows.z_axis];
+        let g = [
+            -(rows.x_axis + rows.y_axis + rows.z_axis),
+            rows.x_axis,
+            rows.y_axis,
+            rows.z_axis,
+        ];
         for (n, ga) in e.nodes.iter().zip(g) {
             let rg = *r * ga;
-            let d = (rg * rg) * (lame.lambda + lame.mu) + Vec3::splat(lame.mu * ga.length_squared());
+            let d =
+                (rg * rg) * (lame.lambda + lame.mu) + Vec3::splat(lame.mu * ga.length_squared());
             let i = 3 * *n as usize;
             diag[i] += e.volume * d.x;
             diag[i + 1] += e.volume * d.y;

@@ -150,7 +150,11 @@ impl FemCorotational {
     }
 
     /// Validates mesh, material and settings; computes rest data and lumped masses.
-    pub fn new(mesh: &TetMesh, material: Material, params: CorotationalParams) -> Result<Self, Error> {
+    pub fn new(
+        mesh: &TetMesh,
+        material: Material,
+        params: CorotationalParams,
+    ) -> Result<Self, Error> {
         let material = material.validated()?;
         if !(params.cg_tolerance.is_finite() && params.cg_tolerance >= 0.0) {
             return Err(SimError::BadParameter {
@@ -320,7 +324,11 @@ impl FemCorotational {
     }
 
     /// External loads per node: gravity (m/s², as the lumped share m_i g) plus point forces.
-    pub fn set_node_loads(&mut self, gravity: Vec3, forces: &[(usize, Vec3)]) -> Result<(), SimError> {
+    pub fn set_node_loads(
+        &mut self,
+        gravity: Vec3,
+        forces: &[(usize, Vec3)],
+    ) -> Result<(), SimError> {
         let n = self.rest.len();
         if !is_finite_vec(gravity) {
             return Err(SimError::BadParameter {
@@ -329,7 +337,10 @@ impl FemCorotational {
                 reason: "must be finite".into(),
             });
         }
-        if let Some(&(node, f)) = forces.iter().find(|(node, f)| *node >= n || !is_finite_vec(*f)) {
+        if let Some(&(node, f)) = forces
+            .iter()
+            .find(|(node, f)| *node >= n || !is_finite_vec(*f))
+        {
             return Err(SimError::BadParameter {
                 name: "point_loads",
                 value: format!("node {node} -> {f}"),

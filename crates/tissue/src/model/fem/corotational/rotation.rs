@@ -69,6 +69,8 @@ pub(super) fn outer(a: Vec3, b: Vec3) -> Mat3 {
 /// The unit eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, by cyclic
 /// Jacobi rotations (robust for repeated eigenvalues, where any vector of the eigenspace
 /// is an answer).
+// Index loops mirror the (p, q) plane-rotation formulas row by row and column by column.
+#[allow(clippy::needless_range_loop)]
 fn smallest_eigenvector(s: &Mat3) -> Vec3 {
     let mut a = s.to_cols_array_2d(); // a[col][row]; symmetric, so also [row][col]
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
@@ -121,15 +123,24 @@ mod tests {
     }
 
     fn check_rotation(r: &Mat3) {
-        assert!(max_abs(&(r.transpose() * *r - Mat3::IDENTITY)) < 1e-12, "RᵀR ≠ I: {r}");
-        assert!((r.determinant() - 1.0).abs() < 1e-12, "det R = {}", r.determinant());
+        assert!(
+            max_abs(&(r.transpose() * *r - Mat3::IDENTITY)) < 1e-12,
+            "RᵀR ≠ I: {r}"
+        );
+        assert!(
+            (r.determinant() - 1.0).abs() < 1e-12,
+            "det R = {}",
+            r.determinant()
+        );
     }
 
     fn sample_matrices() -> Vec<Mat3> {
         let mut out = Vec::new();
         let mut seed = 12345u64;
         let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((seed >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
         };
         for _ in 0..200 {
@@ -153,7 +164,11 @@ mod tests {
             // A rotation times a symmetric positive stretch gives back the rotation.
             let s = Mat3::from_cols_array(&[1.3, 0.2, -0.1, 0.2, 0.8, 0.05, -0.1, 0.05, 1.1]);
             let r = polar_rotation(&(q * s)).unwrap();
-            assert!(max_abs(&(r - q)) < 1e-12, "stretched {angle}: {}", max_abs(&(r - q)));
+            assert!(
+                max_abs(&(r - q)) < 1e-12,
+                "stretched {angle}: {}",
+                max_abs(&(r - q))
+            );
         }
         assert_eq!(polar_rotation(&Mat3::IDENTITY), Some(Mat3::IDENTITY));
     }
@@ -166,7 +181,10 @@ mod tests {
             check_rotation(&r);
             let s = r.transpose() * f;
             let scale = max_abs(&f);
-            assert!(max_abs(&(s - s.transpose())) < 1e-11 * scale, "S not symmetric for {f}");
+            assert!(
+                max_abs(&(s - s.transpose())) < 1e-11 * scale,
+                "S not symmetric for {f}"
+            );
             assert!(max_abs(&(r * s - f)) < 1e-12 * scale, "RS ≠ F");
             if f.determinant() < 0.0 {
                 inverted += 1;
@@ -174,7 +192,10 @@ mod tests {
                 // tr S is the largest possible among proper rotations (the closest one).
                 assert!(s.determinant() < 0.0);
                 let flipped = Mat3::from_quat(DQuat::from_axis_angle(Vec3::Y, 0.01)) * r;
-                assert!(super::super::force::trace(&(flipped.transpose() * f)) <= super::super::force::trace(&s) + 1e-12);
+                assert!(
+                    super::super::force::trace(&(flipped.transpose() * f))
+                        <= super::super::force::trace(&s) + 1e-12
+                );
             }
         }
         assert!(inverted > 50, "only {inverted} inverted samples");
@@ -183,7 +204,10 @@ mod tests {
     #[test]
     fn singular_or_non_finite_gradients_are_refused() {
         assert_eq!(polar_rotation(&Mat3::ZERO), None);
-        assert_eq!(polar_rotation(&Mat3::from_diagonal(Vec3::new(1.0, 1.0, 0.0))), None);
+        assert_eq!(
+            polar_rotation(&Mat3::from_diagonal(Vec3::new(1.0, 1.0, 0.0))),
+            None
+        );
         assert_eq!(polar_rotation(&(Mat3::IDENTITY * Real::NAN)), None);
     }
 }

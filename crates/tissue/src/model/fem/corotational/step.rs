@@ -34,7 +34,8 @@ impl FemCorotational {
             let fext = self.external[i];
             for k in 0..3 {
                 let j = 3 * i + k;
-                ws.rhs[j] = h * (self.elastic[j] + fext[k] - alpha * m * v[j] - (beta + h) * ws.kv[j]);
+                ws.rhs[j] =
+                    h * (self.elastic[j] + fext[k] - alpha * m * v[j] - (beta + h) * ws.kv[j]);
                 // Constrained dofs: Δv is known and the unknown is masked out of CG.
                 let known = match hold {
                     Hold::Free => None,
@@ -54,7 +55,9 @@ impl FemCorotational {
             }
         }
         // A step so large that h² or the loads overflow cannot be solved meaningfully.
-        if let Some(j) = (0..ws.rhs.len()).find(|&j| !(ws.rhs[j].is_finite() && ws.inv_diag[j].is_finite())) {
+        if let Some(j) =
+            (0..ws.rhs.len()).find(|&j| !(ws.rhs[j].is_finite() && ws.inv_diag[j].is_finite()))
+        {
             return Err(SimError::Diverged {
                 step: self.steps + 1,
                 node: j / 3,
@@ -103,12 +106,20 @@ impl FemCorotational {
             node,
             reason: reason.into(),
         };
-        if let Some(i) = (0..ws.x.len()).find(|&i| !(crate::math::is_finite_vec(ws.x[i]) && crate::math::is_finite_vec(ws.v[i]))) {
+        if let Some(i) = (0..ws.x.len()).find(|&i| {
+            !(crate::math::is_finite_vec(ws.x[i]) && crate::math::is_finite_vec(ws.v[i]))
+        }) {
             return Err(bad(i, "position or velocity is not finite"));
         }
         ws.rotations.copy_from_slice(&self.rotations);
         ws.elastic.iter_mut().for_each(|f| *f = 0.0);
-        force::elastic_forces(elements, lame, flatten(&ws.x), &mut ws.rotations, &mut ws.elastic);
+        force::elastic_forces(
+            elements,
+            lame,
+            flatten(&ws.x),
+            &mut ws.rotations,
+            &mut ws.elastic,
+        );
         if let Some(j) = ws.elastic.iter().position(|f| !f.is_finite()) {
             return Err(bad(j / 3, "elastic force is not finite"));
         }
@@ -135,7 +146,13 @@ impl FemCorotational {
         let kv = &mut self.ws.kv;
         kv.iter_mut().for_each(|y| *y = 0.0);
         if beta > 0.0 {
-            force::add_stiffness_product(&self.elements, self.lame, &self.rotations, flatten(&self.v), kv);
+            force::add_stiffness_product(
+                &self.elements,
+                self.lame,
+                &self.rotations,
+                flatten(&self.v),
+                kv,
+            );
         }
         let alpha = self.material.damping;
         for (i, hold) in self.holds.iter().enumerate() {
@@ -158,7 +175,9 @@ impl FemCorotational {
         self.v.iter_mut().for_each(|v| *v = Vec3::ZERO);
         flatten_mut(&mut self.v).iter_mut().for_each(|v| *v = 0.0);
         self.last_dv.iter_mut().for_each(|v| *v = 0.0);
-        self.rotations.iter_mut().for_each(|r| *r = crate::math::Mat3::IDENTITY);
+        self.rotations
+            .iter_mut()
+            .for_each(|r| *r = crate::math::Mat3::IDENTITY);
         self.elastic.iter_mut().for_each(|f| *f = 0.0);
         self.elastic_valid = true;
         self.steps = 0;

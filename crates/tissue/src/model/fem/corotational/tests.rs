@@ -16,7 +16,10 @@ use crate::model::fem::{FemStatic, NodalProblem, Order};
 const LIVER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
 
 fn liver() -> TetMesh {
-    let m = crate::io::read(LIVER).unwrap().tet_mesh("liver.msh").unwrap();
+    let m = crate::io::read(LIVER)
+        .unwrap()
+        .tet_mesh("liver.msh")
+        .unwrap();
     TetMesh::new(m.vertices.iter().map(|v| *v * 0.01).collect(), m.tets)
 }
 
@@ -27,7 +30,9 @@ fn material() -> Material {
 fn rng(seed: u64) -> impl FnMut() -> Real {
     let mut s = seed;
     move || {
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((s >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
     }
 }
@@ -53,13 +58,17 @@ fn linear_k_times(fs: &FemStatic, u: &[Vec3]) -> Vec<Vec3> {
     let (pattern, k) = fs.stiffness_parts();
     let mut y = vec![0.0; 3 * u.len()];
     pattern.mul_vec(k, flatten(u), &mut y);
-    y.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect()
+    y.chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect()
 }
 
 fn corotated_product(m: &FemCorotational, rotations: &[Mat3], dx: &[Vec3]) -> Vec<Vec3> {
     let mut y = vec![0.0; 3 * dx.len()];
     force::add_stiffness_product(m.elements(), m.lame(), rotations, flatten(dx), &mut y);
-    y.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect()
+    y.chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect()
 }
 
 #[test]
@@ -73,12 +82,17 @@ fn rigid_motions_of_the_liver_give_no_force_unlike_linear_fem() {
     let mut fs = FemStatic::new(&mesh, material(), Order::Linear).unwrap();
     let q90 = DQuat::from_axis_angle(Vec3::Z, std::f64::consts::FRAC_PI_2);
     let qr = DQuat::from_axis_angle(Vec3::new(0.3, -0.8, 0.5).normalize(), 2.2);
-    for (name, q, t) in [("90 deg", q90, Vec3::ZERO), ("random", qr, Vec3::new(0.1, -0.3, 0.7))] {
+    for (name, q, t) in [
+        ("90 deg", q90, Vec3::ZERO),
+        ("random", qr, Vec3::new(0.1, -0.3, 0.7)),
+    ] {
         let x: Vec<Vec3> = rest.iter().map(|p| q * *p + t).collect();
         let corot = max_norm(&forces_at(&mut m, &x)) / reference;
         let u: Vec<Vec3> = x.iter().zip(&rest).map(|(a, b)| *a - *b).collect();
         let linear = max_norm(&linear_k_times(&fs, &u)) / reference;
-        eprintln!("{name}: corotational |f|/|f_1%| = {corot:.3e}, linear |K u|/|f_1%| = {linear:.3}");
+        eprintln!(
+            "{name}: corotational |f|/|f_1%| = {corot:.3e}, linear |K u|/|f_1%| = {linear:.3}"
+        );
         assert!(corot < 1e-9, "{name}: {corot}");
         assert!(linear > 10.0, "{name}: {linear}");
     }
@@ -89,7 +103,11 @@ fn rigid_motions_of_the_liver_give_no_force_unlike_linear_fem() {
         p.prescribe_node(n, q90 * rest[n] - rest[n]);
     }
     let sol = fs.solve_nodal(&p).unwrap();
-    let deformed: Vec<Vec3> = rest.iter().zip(&sol.displacements).map(|(a, b)| *a + *b).collect();
+    let deformed: Vec<Vec3> = rest
+        .iter()
+        .zip(&sol.displacements)
+        .map(|(a, b)| *a + *b)
+        .collect();
     let grown = TetMesh::new(deformed, mesh.tets.clone()).volume() / mesh.volume();
     eprintln!("linear equilibrium after a 90 deg rotation of nodes 3, 39, 64: volume x {grown:.4}");
     assert!(grown > 1.3, "volume ratio {grown}");
@@ -107,7 +125,12 @@ fn matrix_free_stiffness_matches_fem_static_at_rest() {
     assert!(err < 1e-12 * max_norm(&b), "{err}");
     // The Jacobi diagonal is K's diagonal.
     let mut d = vec![0.0; 3 * u.len()];
-    force::add_stiffness_diagonal(m.elements(), m.lame(), &vec![Mat3::IDENTITY; mesh.tets.len()], &mut d);
+    force::add_stiffness_diagonal(
+        m.elements(),
+        m.lame(),
+        &vec![Mat3::IDENTITY; mesh.tets.len()],
+        &mut d,
+    );
     let (pattern, k) = fs.stiffness_parts();
     for (i, slot) in pattern.diagonal_slots().into_iter().enumerate() {
         assert!((d[i] - k[slot]).abs() < 1e-12 * k[slot], "dof {i}");
@@ -131,7 +154,10 @@ fn small_displacements_agree_with_linear_fem_to_first_order() {
     };
     let (d1, k1) = diff(&mut m, 1e-4);
     let (d2, _) = diff(&mut m, 0.5e-4);
-    eprintln!("|f + K u| at eps, eps/2: {d1:.3e}, {d2:.3e} (|K u| = {k1:.3e}), ratio {:.3}", d1 / d2);
+    eprintln!(
+        "|f + K u| at eps, eps/2: {d1:.3e}, {d2:.3e} (|K u| = {k1:.3e}), ratio {:.3}",
+        d1 / d2
+    );
     assert!(d1 < 0.05 * k1);
     assert!((d1 / d2 - 4.0).abs() < 0.3, "ratio {}", d1 / d2);
 }
@@ -142,7 +168,10 @@ fn fd_force(m: &mut FemCorotational, x: &[Vec3], dx: &[Vec3], h: Real) -> Vec<Ve
     let xm: Vec<Vec3> = x.iter().zip(dx).map(|(a, b)| *a - *b * h).collect();
     let fp = forces_at(m, &xp);
     let fm = forces_at(m, &xm);
-    fp.iter().zip(&fm).map(|(a, b)| (*a - *b) / (2.0 * h)).collect()
+    fp.iter()
+        .zip(&fm)
+        .map(|(a, b)| (*a - *b) / (2.0 * h))
+        .collect()
 }
 
 #[test]
@@ -154,14 +183,25 @@ fn stiffness_product_matches_finite_differences_of_the_force() {
     let dx = random_field(rest.len(), 11);
     for (name, x) in [
         ("rest", rest.clone()),
-        ("rotated", rest.iter().map(|p| q * *p + Vec3::X).collect::<Vec<_>>()),
+        (
+            "rotated",
+            rest.iter().map(|p| q * *p + Vec3::X).collect::<Vec<_>>(),
+        ),
     ] {
         forces_at(&mut m, &x);
         let rotations = m.rotations.clone();
         let kdx = corotated_product(&m, &rotations, &dx);
         let fd = fd_force(&mut m, &x, &dx, 1e-6);
-        let err = max_norm(&kdx.iter().zip(&fd).map(|(a, b)| *a + *b).collect::<Vec<_>>());
-        eprintln!("{name}: |K dx + df/dx dx| / |K dx| = {:.3e}", err / max_norm(&kdx));
+        let err = max_norm(
+            &kdx.iter()
+                .zip(&fd)
+                .map(|(a, b)| *a + *b)
+                .collect::<Vec<_>>(),
+        );
+        eprintln!(
+            "{name}: |K dx + df/dx dx| / |K dx| = {:.3e}",
+            err / max_norm(&kdx)
+        );
         assert!(err < 1e-6 * max_norm(&kdx), "{name}: {err}");
     }
 }
@@ -186,11 +226,19 @@ fn force_is_minus_the_gradient_of_the_energy_when_deformed() {
     };
     let de = (e(h) - e(-h)) / (2.0 * h);
     let fdx: Real = f.iter().zip(&dx).map(|(a, b)| a.dot(*b)).sum();
-    assert!((de + fdx).abs() < 1e-6 * fdx.abs(), "dE = {de}, f·dx = {fdx}");
+    assert!(
+        (de + fdx).abs() < 1e-6 * fdx.abs(),
+        "dE = {de}, f·dx = {fdx}"
+    );
 }
 
 fn beam() -> TetMesh {
-    box_tets(Vec3::ZERO, Vec3::new(0.1, 0.02, 0.02), [10, 2, 2], BoxSplit::Six)
+    box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.02, 0.02),
+        [10, 2, 2],
+        BoxSplit::Six,
+    )
 }
 
 #[test]
@@ -203,7 +251,9 @@ fn damped_cantilever_settles_on_the_fem_static_deflection() {
         cg_tolerance: 1e-12,
     };
     let mut m = FemCorotational::new(&mesh, mat, params).unwrap();
-    let clamped: Vec<usize> = (0..mesh.vertices.len()).filter(|&i| mesh.vertices[i].x == 0.0).collect();
+    let clamped: Vec<usize> = (0..mesh.vertices.len())
+        .filter(|&i| mesh.vertices[i].x == 0.0)
+        .collect();
     let g = Vec3::new(0.0, 0.0, -9.81);
     m.set_node_constraints(&clamped, &[]).unwrap();
     m.set_node_loads(g, &[]).unwrap();
@@ -220,19 +270,30 @@ fn damped_cantilever_settles_on_the_fem_static_deflection() {
     }
     let sol = fs.solve_nodal(&p).unwrap();
     let tip = |d: &dyn Fn(usize) -> Real| {
-        let tips: Vec<usize> = (0..mesh.vertices.len()).filter(|&i| mesh.vertices[i].x > 0.0999).collect();
+        let tips: Vec<usize> = (0..mesh.vertices.len())
+            .filter(|&i| mesh.vertices[i].x > 0.0999)
+            .collect();
         tips.iter().map(|&i| d(i)).sum::<Real>() / tips.len() as Real
     };
     let corot = tip(&|i| m.positions()[i].z - mesh.vertices[i].z);
     let linear = tip(&|i| sol.displacements[i].z);
     eprintln!("tip deflection: corotational {corot:.6e} m, fem-static {linear:.6e} m");
-    assert!(linear < 0.0 && (corot / linear - 1.0).abs() < 0.01, "{corot} vs {linear}");
+    assert!(
+        linear < 0.0 && (corot / linear - 1.0).abs() < 0.01,
+        "{corot} vs {linear}"
+    );
     // The supports carry the weight, as fem-static's do.
     let sum_c: Vec3 = m.node_reactions().iter().sum();
     let sum_s: Vec3 = sol.reactions.iter().sum();
     let weight = g * m.masses().iter().sum::<Real>();
-    assert!((sum_c - weight).length() < 1e-3 * weight.length(), "{sum_c} vs {weight}");
-    assert!((sum_c - sum_s).length() < 1e-3 * weight.length(), "{sum_c} vs {sum_s}");
+    assert!(
+        (sum_c - weight).length() < 1e-3 * weight.length(),
+        "{sum_c} vs {weight}"
+    );
+    assert!(
+        (sum_c - sum_s).length() < 1e-3 * weight.length(),
+        "{sum_c} vs {sum_s}"
+    );
 }
 
 #[test]
@@ -278,7 +339,10 @@ fn liver_probe_reactions_converge_to_fem_static() {
         m.step(0.02).unwrap();
     }
     let sum = |r: &[Vec3]| r.iter().sum::<Vec3>();
-    let (pc, ps) = (sum(m.reactions().prescribed), sum(fs.reactions().prescribed));
+    let (pc, ps) = (
+        sum(m.reactions().prescribed),
+        sum(fs.reactions().prescribed),
+    );
     let (fc, fsr) = (sum(m.reactions().fixed), sum(fs.reactions().fixed));
     eprintln!("probe force: corotational {pc}, fem-static {ps}; supports {fc} vs {fsr}");
     assert!((pc - ps).length() < 0.01 * ps.length(), "{pc} vs {ps}");
@@ -299,12 +363,20 @@ fn damped_release_loses_energy_and_free_motion_keeps_momentum() {
         cg_tolerance: 1e-14,
     };
     let mut m = FemCorotational::new(&mesh, mat, params).unwrap();
-    let stretched: Vec<Vec3> = mesh.vertices.iter().map(|p| Vec3::new(p.x * 1.05, p.y, p.z)).collect();
+    let stretched: Vec<Vec3> = mesh
+        .vertices
+        .iter()
+        .map(|p| Vec3::new(p.x * 1.05, p.y, p.z))
+        .collect();
     let zero = vec![Vec3::ZERO; stretched.len()];
     m.set_state(&stretched, &zero).unwrap();
     let total = |m: &FemCorotational| {
-        let kinetic: Real =
-            m.velocities().iter().zip(m.masses()).map(|(v, w)| 0.5 * w * v.length_squared()).sum();
+        let kinetic: Real = m
+            .velocities()
+            .iter()
+            .zip(m.masses())
+            .map(|(v, w)| 0.5 * w * v.length_squared())
+            .sum();
         kinetic + force::energy(m.elements(), m.lame(), m.positions())
     };
     let e0 = total(&m);
@@ -323,13 +395,25 @@ fn damped_release_loses_energy_and_free_motion_keeps_momentum() {
     mat.damping = 0.0;
     let mut m = FemCorotational::new(&mesh, mat, params).unwrap();
     let w = Vec3::new(0.0, 3.0, 1.0);
-    let v0: Vec<Vec3> = stretched.iter().map(|p| w.cross(*p) + Vec3::new(0.1, 0.0, 0.0)).collect();
+    let v0: Vec<Vec3> = stretched
+        .iter()
+        .map(|p| w.cross(*p) + Vec3::new(0.1, 0.0, 0.0))
+        .collect();
     m.set_state(&stretched, &v0).unwrap();
     let momentum = |m: &FemCorotational| -> Vec3 {
-        m.velocities().iter().zip(m.masses()).map(|(v, w)| *v * *w).sum()
+        m.velocities()
+            .iter()
+            .zip(m.masses())
+            .map(|(v, w)| *v * *w)
+            .sum()
     };
     let p0 = momentum(&m);
-    let scale: Real = m.velocities().iter().zip(m.masses()).map(|(v, w)| v.length() * w).sum();
+    let scale: Real = m
+        .velocities()
+        .iter()
+        .zip(m.masses())
+        .map(|(v, w)| v.length() * w)
+        .sum();
     let fsum: Vec3 = m.elastic_forces().iter().sum();
     assert!(fsum.length() < 1e-12 * max_norm(&m.elastic_forces()) * stretched.len() as Real);
     for _ in 0..50 {
@@ -344,7 +428,8 @@ fn damped_release_loses_energy_and_free_motion_keeps_momentum() {
 fn failed_steps_keep_the_last_good_state() {
     let mesh = liver();
     let mut m = FemCorotational::new(&mesh, material(), CorotationalParams::default()).unwrap();
-    m.set_constraints(&Constraints::fixed(vec![0, 1, 2])).unwrap();
+    m.set_constraints(&Constraints::fixed(vec![0, 1, 2]))
+        .unwrap();
     m.set_loads(&Loads {
         gravity: Vec3::new(0.0, -9.81, 0.0),
         point_loads: vec![],
@@ -354,7 +439,10 @@ fn failed_steps_keep_the_last_good_state() {
     let (x, v) = (m.positions().to_vec(), m.velocities().to_vec());
     let err = m.step(1e300).unwrap_err();
     assert!(matches!(err, SimError::Diverged { step: 2, .. }), "{err}");
-    assert!(matches!(m.step(Real::NAN), Err(SimError::BadTimeStep { .. })));
+    assert!(matches!(
+        m.step(Real::NAN),
+        Err(SimError::BadTimeStep { .. })
+    ));
     assert!(matches!(m.step(-0.01), Err(SimError::BadTimeStep { .. })));
     assert_eq!(m.positions(), &x[..]);
     assert_eq!(m.velocities(), &v[..]);
@@ -368,32 +456,51 @@ fn failed_steps_keep_the_last_good_state() {
     assert!(m.set_constraints(&bad).is_err());
     assert!(matches!(
         m.set_constraints(&Constraints::fixed(vec![100_000])),
-        Err(SimError::BadConstraint { vertex: 100_000, .. })
+        Err(SimError::BadConstraint {
+            vertex: 100_000,
+            ..
+        })
     ));
-    assert!(m.set_loads(&Loads { gravity: Vec3::splat(Real::INFINITY), point_loads: vec![] }).is_err());
+    assert!(
+        m.set_loads(&Loads {
+            gravity: Vec3::splat(Real::INFINITY),
+            point_loads: vec![]
+        })
+        .is_err()
+    );
     // Still usable, and the step after the failure matches a step from the same state.
     let info = m.step(0.02).unwrap();
     assert!(info.iterations > 0 && m.positions().iter().all(|p| p.is_finite()));
     let mut again = FemCorotational::new(&mesh, material(), CorotationalParams::default()).unwrap();
     assert!(again.set_node_constraints(&[usize::MAX], &[]).is_err());
-    assert!(FemCorotational::new(
-        &mesh,
-        material(),
-        CorotationalParams {
-            cg_iterations: 5,
-            cg_tolerance: Real::NAN
-        }
-    )
-    .is_err());
+    assert!(
+        FemCorotational::new(
+            &mesh,
+            material(),
+            CorotationalParams {
+                cg_iterations: 5,
+                cg_tolerance: Real::NAN
+            }
+        )
+        .is_err()
+    );
     let _ = ElementRest::new([0, 1, 2, 3], &[Vec3::ZERO; 4]).map(|_| panic!("flat tet accepted"));
 }
 
 #[test]
 fn params_parse_and_reject_unknown_keys() {
     let t: toml::Table = toml::from_str("cg_iterations = 40").unwrap();
-    let p: CorotationalParams = crate::model::registry::parse_params("fem-corotational", &t).unwrap();
-    assert_eq!(p, CorotationalParams { cg_iterations: 40, cg_tolerance: 1e-10 });
+    let p: CorotationalParams =
+        crate::model::registry::parse_params("fem-corotational", &t).unwrap();
+    assert_eq!(
+        p,
+        CorotationalParams {
+            cg_iterations: 40,
+            cg_tolerance: 1e-10
+        }
+    );
     let t: toml::Table = toml::from_str("cg_iters = 40").unwrap();
-    let e = crate::model::registry::parse_params::<CorotationalParams>("fem-corotational", &t).unwrap_err();
+    let e = crate::model::registry::parse_params::<CorotationalParams>("fem-corotational", &t)
+        .unwrap_err();
     assert!(e.to_string().contains("cg_iters"), "{e}");
 }
