@@ -13,7 +13,7 @@
 
 use crate::math::{Mat3, Real, Vec3};
 
-use super::rotation::polar_rotation;
+use super::rotation::{polar_rotation, polar_rotation_near};
 
 /// Rest data of one tetrahedron.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -106,7 +106,7 @@ pub fn elastic_forces(
     let mut kept = 0;
     for (e, r) in elements.iter().zip(rotations.iter_mut()) {
         let f = e.gradient_flat(x);
-        match polar_rotation(&f) {
+        match polar_rotation_near(&f, r) {
             Some(new) => *r = new,
             None => kept += 1,
         }
