@@ -2,7 +2,7 @@
 //! trial state, checks, commit, reactions.
 
 use crate::error::SimError;
-use crate::math::{Real, Vec3, flatten, flatten_mut};
+use crate::math::{Real, Vec3, flatten};
 use crate::model::StepInfo;
 
 use super::force;
@@ -173,7 +173,6 @@ impl FemCorotational {
     pub fn reset_state(&mut self) {
         self.x.copy_from_slice(&self.rest);
         self.v.iter_mut().for_each(|v| *v = Vec3::ZERO);
-        flatten_mut(&mut self.v).iter_mut().for_each(|v| *v = 0.0);
         self.last_dv.iter_mut().for_each(|v| *v = 0.0);
         self.rotations
             .iter_mut()
