@@ -35,6 +35,10 @@ pub const KINDS: &[KindInfo] = &[
         name: "fem-semi-implicit",
         summary: "linear elastodynamics, stiffness at t+dt, K + cM factorised once per dt",
     },
+    KindInfo {
+        name: "fem-corotational",
+        summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
+    },
 ];
 
 /// What a model is built from.
@@ -56,6 +60,7 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-precomputed-tensors" => Ok(Box::new(fem::FemPrecomputedTensors::from_input(input)?)),
         "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
         "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
+        "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

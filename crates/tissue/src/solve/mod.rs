@@ -1,6 +1,9 @@
 //! Linear algebra for the models: sparse matrices with a fixed pattern and a sparse Cholesky
-//! factorisation whose symbolic analysis is done once and reused.
+//! factorisation whose symbolic analysis is done once and reused; a matrix-free Jacobi-
+//! preconditioned conjugate gradient for the implicit dynamic models.
 
+pub mod cg;
 pub mod sparse;
 
+pub use cg::{CgResult, CgWorkspace};
 pub use sparse::{BlockPattern, SparseCholesky};

@@ -19,9 +19,11 @@
 //! - `condensed`: `fem-condensed`, fast finite elements (Bro-Nielsen), pre-inverted compliance
 //! - `precomputed`: `fem-precomputed-tensors`, Cotin's displacement/force tensors
 //! - `dynamic`: `fem-explicit` and `fem-semi-implicit`, linear elastodynamics (eq. (6)-(10))
+//! - `corotational`: `fem-corotational`, rotated linear elements, implicit Euler + PCG
 
 mod assembly;
 mod condensed;
+pub mod corotational;
 mod deformable_impl;
 pub mod dynamic;
 pub mod element_linear;
@@ -35,6 +37,7 @@ mod system;
 
 pub use assembly::Assembler;
 pub use condensed::FemCondensed;
+pub use corotational::{CorotationalParams, FemCorotational};
 pub use dynamic::{FemExplicit, FemSemiImplicit};
 pub use precomputed::FemPrecomputedTensors;
 pub use quadratic_mesh::QuadraticMesh;

@@ -1,0 +1,164 @@
+//! `Deformable` for `FemCorotational`: surface-vertex constraints and loads mapped to nodes,
+//! reactions handed back per given constraint (as `fem-static` does).
+
+use crate::error::SimError;
+use crate::interact::{Constraints, Loads};
+use crate::math::{Real, Vec3};
+use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
+
+use super::FemCorotational;
+
+impl FemCorotational {
+    fn node_of(&self, vertex: u32) -> Result<usize, SimError> {
+        self.boundary
+            .nodes
+            .get(vertex as usize)
+            .map(|&n| n as usize)
+            .ok_or(SimError::BadConstraint {
+                vertex: vertex as usize,
+                count: self.boundary.nodes.len(),
+            })
+    }
+
+    /// Each vertex's reaction goes to its first fixed entry, else its last prescribed one.
+    pub(super) fn distribute_reactions(&mut self) {
+        let nodes = &self.boundary.nodes;
+        let r = |v: u32| {
+            nodes
+                .get(v as usize)
+                .and_then(|&n| self.node_reactions.get(n as usize))
+                .copied()
+                .unwrap_or(Vec3::ZERO)
+        };
+        for (k, &v) in self.constraints.fixed.iter().enumerate() {
+            self.fixed_reactions[k] = if self.fixed_owner[k] {
+                r(v)
+            } else {
+                Vec3::ZERO
+            };
+        }
+        for (k, p) in self.constraints.prescribed.iter().enumerate() {
+            self.prescribed_reactions[k] = if self.prescribed_owner[k] {
+                r(p.vertex)
+            } else {
+                Vec3::ZERO
+            };
+        }
+    }
+}
+
+impl Deformable for FemCorotational {
+    fn kind(&self) -> &'static str {
+        "fem-corotational"
+    }
+
+    fn surface(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            positions: &self.surface_positions,
+            triangles: &self.boundary.surface.triangles,
+        }
+    }
+
+    fn rest_surface(&self) -> &[Vec3] {
+        &self.boundary.surface.vertices
+    }
+
+    fn volume(&self) -> Option<VolumeView<'_>> {
+        Some(VolumeView {
+            positions: &self.x,
+            rest_positions: &self.rest,
+            tets: &self.mesh.tets,
+        })
+    }
+
+    /// Fixed vertices keep zero velocity, prescribed ones reach their target within each step
+    /// (the last entry wins for a vertex prescribed twice; fixed wins over prescribed).
+    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let fixed = c
+            .fixed
+            .iter()
+            .map(|&v| self.node_of(v))
+            .collect::<Result<Vec<_>, _>>()?;
+        let prescribed = c
+            .prescribed
+            .iter()
+            .map(|p| Ok((self.node_of(p.vertex)?, p.position)))
+            .collect::<Result<Vec<_>, SimError>>()?;
+        self.set_node_constraints(&fixed, &prescribed)?;
+        let mut taken = vec![false; self.boundary.nodes.len()];
+        self.fixed_owner = c
+            .fixed
+            .iter()
+            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
+            .collect();
+        let mut owner = vec![false; c.prescribed.len()];
+        for (k, p) in c.prescribed.iter().enumerate().rev() {
+            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+        }
+        self.prescribed_owner = owner;
+        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
+        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
+        self.constraints = c.clone();
+        Ok(())
+    }
+
+    /// Gravity acts as the lumped share m_i g on each node; point loads on their vertex's node.
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        let forces = loads
+            .point_loads
+            .iter()
+            .map(|&(v, f)| Ok((self.node_of(v)?, f)))
+            .collect::<Result<Vec<_>, SimError>>()?;
+        self.set_node_loads(loads.gravity, &forces)?;
+        self.loads = loads.clone();
+        Ok(())
+    }
+
+    fn step(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        self.advance(dt)
+    }
+
+    fn reactions(&self) -> Reactions<'_> {
+        Reactions {
+            fixed: &self.fixed_reactions,
+            prescribed: &self.prescribed_reactions,
+        }
+    }
+
+    fn reset(&mut self) {
+        self.reset_state();
+    }
+
+    fn info(&self) -> ModelInfo {
+        let n = self.rest.len();
+        let ne = self.elements.len();
+        let memory_bytes = ne * (std::mem::size_of::<super::ElementRest>() + 2 * 72)
+            + n * (8 + 24 * 8 + 8 * 3 * 10);
+        ModelInfo {
+            kind: self.kind(),
+            nodes: n,
+            dofs: 3 * n,
+            elements: ne,
+            surface_vertices: self.boundary.nodes.len(),
+            memory_bytes,
+            precompute_seconds: self.precompute_seconds,
+            is_static: false,
+            details: vec![
+                (
+                    "cg_iterations".into(),
+                    self.params.cg_iterations.to_string(),
+                ),
+                ("cg_tolerance".into(), self.params.cg_tolerance.to_string()),
+                ("steps".into(), self.steps.to_string()),
+                (
+                    "last_cg_iterations".into(),
+                    self.last_cg.iterations.to_string(),
+                ),
+                (
+                    "last_cg_residual".into(),
+                    format!("{:.3e}", self.last_cg.relative_residual),
+                ),
+            ],
+        }
+    }
+}

@@ -1,0 +1,179 @@
+//! Per-element corotational forces, stiffness products and energy, matrix-free.
+//!
+//! With the rest shape matrix Dm (columns X₁−X₀, X₂−X₀, X₃−X₀), F = Ds Dm⁻¹ and the rows g₁..g₃
+//! of Dm⁻¹ are the gradients of the shape functions (g₀ = −g₁−g₂−g₃). The linear element
+//! stiffness applied to a displacement u is K_e u = V σ(ε) g_a per node, ε = sym(Σ u_b g_bᵀ):
+//! so K_e never needs to be stored. In the corotated frame the local displacement is
+//! Rᵀx − X, whose gradient is RᵀF − I; hence the element force is
+//! f = −V R σ(sym(RᵀF) − I) Dm⁻ᵀ (columns: nodes 1..3; node 0 gets minus their sum), and the
+//! stiffness product with R held fixed is K dx = V R σ(sym(Rᵀ dF)) Dm⁻ᵀ (SOFA's choice: the
+//! derivative of R is dropped; it is exact at rest and at any rigid motion of the rest shape).
+//! With the polar R this force is the exact gradient of the energy
+//! V (μ ‖S − I‖² + λ/2 tr(S − I)²), S = RᵀF, which the tests use.
+
+use crate::math::{Mat3, Real, Vec3};
+
+use super::rotation::{polar_rotation, polar_rotation_near};
+
+/// Rest data of one tetrahedron.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ElementRest {
+    pub nodes: [u32; 4],
+    /// Inverse of the rest shape matrix [X₁−X₀, X₂−X₀, X₃−X₀].
+    pub dm_inv: Mat3,
+    /// Rest volume, in m³ (> 0).
+    pub volume: Real,
+}
+
+impl ElementRest {
+    /// `None` for a flat or inverted rest element.
+    pub fn new(nodes: [u32; 4], x: &[Vec3; 4]) -> Option<Self> {
+        let dm = Mat3::from_cols(x[1] - x[0], x[2] - x[0], x[3] - x[0]);
+        let det = dm.determinant();
+        (det.is_finite() && det > 0.0).then(|| Self {
+            nodes,
+            dm_inv: dm.inverse(),
+            volume: det / 6.0,
+        })
+    }
+
+    /// F = Ds Dm⁻¹ for positions given flat (x₀, y₀, z₀, x₁, ...).
+    #[inline]
+    pub fn gradient_flat(&self, x: &[Real]) -> Mat3 {
+        let p = |k: usize| {
+            let i = 3 * self.nodes[k] as usize;
+            Vec3::new(x[i], x[i + 1], x[i + 2])
+        };
+        let x0 = p(0);
+        Mat3::from_cols(p(1) - x0, p(2) - x0, p(3) - x0) * self.dm_inv
+    }
+
+    #[inline]
+    pub fn gradient(&self, x: &[Vec3]) -> Mat3 {
+        self.gradient_flat(crate::math::flatten(x))
+    }
+}
+
+/// tr m.
+#[inline]
+pub fn trace(m: &Mat3) -> Real {
+    m.x_axis.x + m.y_axis.y + m.z_axis.z
+}
+
+/// The Lamé parameters of the material, in Pa.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lame {
+    pub lambda: Real,
+    pub mu: Real,
+}
+
+impl Lame {
+    /// σ(sym(h)) = λ tr(h) I + μ (h + hᵀ).
+    #[inline]
+    fn stress(&self, h: &Mat3) -> Mat3 {
+        Mat3::from_diagonal(Vec3::splat(self.lambda * trace(h))) + (*h + h.transpose()) * self.mu
+    }
+}
+
+/// Adds the node forces −P Dm⁻ᵀ (and their opposite sum on node 0) into `out` (flat).
+#[inline]
+fn scatter(e: &ElementRest, p: &Mat3, sign: Real, out: &mut [Real]) {
+    let cols = *p * e.dm_inv.transpose() * sign;
+    let f = [
+        -(cols.x_axis + cols.y_axis + cols.z_axis),
+        cols.x_axis,
+        cols.y_axis,
+        cols.z_axis,
+    ];
+    for (n, fa) in e.nodes.iter().zip(f) {
+        let i = 3 * *n as usize;
+        out[i] += fa.x;
+        out[i + 1] += fa.y;
+        out[i + 2] += fa.z;
+    }
+}
+
+/// Updates each element's rotation from the positions `x` (keeping the previous one where F
+/// is singular or not finite) and adds the elastic forces into `forces` (flat). Returns the
+/// number of elements that kept their previous rotation.
+pub fn elastic_forces(
+    elements: &[ElementRest],
+    lame: Lame,
+    x: &[Real],
+    rotations: &mut [Mat3],
+    forces: &mut [Real],
+) -> usize {
+    let mut kept = 0;
+    for (e, r) in elements.iter().zip(rotations.iter_mut()) {
+        let f = e.gradient_flat(x);
+        match polar_rotation_near(&f, r) {
+            Some(new) => *r = new,
+            None => kept += 1,
+        }
+        let h = r.transpose() * f - Mat3::IDENTITY;
+        let p = *r * lame.stress(&h) * e.volume;
+        scatter(e, &p, -1.0, forces);
+    }
+    kept
+}
+
+/// y += K dx with the stiffness corotated by the given element rotations (flat slices).
+pub fn add_stiffness_product(
+    elements: &[ElementRest],
+    lame: Lame,
+    rotations: &[Mat3],
+    dx: &[Real],
+    y: &mut [Real],
+) {
+    for (e, r) in elements.iter().zip(rotations) {
+        let h = r.transpose() * e.gradient_flat(dx);
+        let p = *r * lame.stress(&h) * e.volume;
+        scatter(e, &p, 1.0, y);
+    }
+}
+
+/// diag += the diagonal of the corotated stiffness: per node a, the diagonal of
+/// V R ((λ+μ) g gᵀ + μ |g|² I) Rᵀ with g = g_a.
+pub fn add_stiffness_diagonal(
+    elements: &[ElementRest],
+    lame: Lame,
+    rotations: &[Mat3],
+    diag: &mut [Real],
+) {
+    for (e, r) in elements.iter().zip(rotations) {
+        let rows = e.dm_inv.transpose();
+        let g = [
+            -(rows.x_axis + rows.y_axis + rows.z_axis),
+            rows.x_axis,
+            rows.y_axis,
+            rows.z_axis,
+        ];
+        for (n, ga) in e.nodes.iter().zip(g) {
+            let rg = *r * ga;
+            let d =
+                (rg * rg) * (lame.lambda + lame.mu) + Vec3::splat(lame.mu * ga.length_squared());
+            let i = 3 * *n as usize;
+            diag[i] += e.volume * d.x;
+            diag[i + 1] += e.volume * d.y;
+            diag[i + 2] += e.volume * d.z;
+        }
+    }
+}
+
+/// The corotational elastic energy at positions `x`, in J (polar rotations recomputed).
+pub fn energy(elements: &[ElementRest], lame: Lame, x: &[Vec3]) -> Real {
+    elements
+        .iter()
+        .map(|e| {
+            let f = e.gradient(x);
+            let r = polar_rotation(&f).unwrap_or(Mat3::IDENTITY);
+            let s = r.transpose() * f;
+            let eps = (s + s.transpose()) * 0.5 - Mat3::IDENTITY;
+            let tr = trace(&eps);
+            let eps2 = eps.x_axis.length_squared()
+                + eps.y_axis.length_squared()
+                + eps.z_axis.length_squared();
+            e.volume * (lame.mu * eps2 + 0.5 * lame.lambda * tr * tr)
+        })
+        .sum()
+}

@@ -1,0 +1,382 @@
+//! `fem-corotational`: linear elasticity in a frame that rotates with each element, integrated
+//! by implicit Euler: large rotations at the cost of linear FEM, the method of SOFA's
+//! `TetrahedronFEMForceField` (method "polar"), Vega and PhysX.
+//!
+//! Method (Müller & Gross 2004, "Interactive virtual materials"): each tetrahedron's
+//! deformation gradient F = R S is split by polar decomposition (`rotation`); the element
+//! force is the linear one computed in the rotated frame, f_e = −R K_e (Rᵀx − X), so a rigid
+//! motion produces no force (linear FEM produces forces growing with the rotation angle, and
+//! its equilibrium inflates rotated parts). The stiffness is R K_e Rᵀ, the derivative of R
+//! being dropped (`force`).
+//!
+//! Time integration (Baraff & Witkin 1998), one linear solve per step:
+//! (M + h D + h² K) Δv = h (f − h K v), v ← v + Δv, x ← x + h v, with lumped masses M,
+//! Rayleigh damping D = α M + β K (α = `material.damping`, β = `material.stiffness_damping`),
+//! f the elastic, damping and external forces at the start of the step and K the stiffness
+//! corotated at the start of the step. The system is solved matrix-free by Jacobi-
+//! preconditioned conjugate gradients (`solve::cg`), warm-started from the last Δv and capped
+//! at `cg_iterations` (default 25) or relative residual `cg_tolerance` (default 1e-10):
+//! a capped solve is still stable (implicit Euler damps what CG leaves out) but less
+//! accurate. Constrained dofs are projected out: fixed nodes get zero velocity, prescribed
+//! ones the velocity that reaches their target in this step.
+//!
+//! Reactions are the forces the tissue exerts on the constrained nodes: elastic + damping +
+//! the node's share of the external loads, evaluated after the step; at rest they balance the
+//! loads as in `fem-static`.
+//!
+//! What it cannot do: cut (the element list and masses are fixed when built); a capped CG
+//! (or a large step) trades accuracy for speed, so fast transients are damped numerically.
+//!
+//! - `rotation`: polar decomposition by scaled Newton, with inverted elements handled
+//! - `force`: element rest data, forces, stiffness products and diagonal, energy
+//! - `step`: the implicit Euler step; `deformable`: the `Deformable` interface
+
+mod deformable;
+pub mod force;
+pub mod rotation;
+mod step;
+
+use std::time::Instant;
+
+use serde::Deserialize;
+
+use crate::error::{Error, SimError};
+use crate::interact::{Constraints, Loads};
+use crate::material::Material;
+use crate::math::{Mat3, Real, Vec3, is_finite_vec};
+use crate::mesh::{Boundary, TetMesh, boundary_surface};
+use crate::model::BuildInput;
+use crate::model::registry::parse_params;
+use crate::solve::CgWorkspace;
+
+use super::mass::lumped_masses;
+use force::{ElementRest, Lame};
+
+/// The `[model]` settings of `fem-corotational`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CorotationalParams {
+    /// Maximum conjugate-gradient iterations per step (default 25).
+    #[serde(default = "default_iterations")]
+    pub cg_iterations: usize,
+    /// Relative residual at which CG stops (default 1e-10).
+    #[serde(default = "default_tolerance")]
+    pub cg_tolerance: Real,
+}
+
+fn default_iterations() -> usize {
+    25
+}
+fn default_tolerance() -> Real {
+    1e-10
+}
+
+impl Default for CorotationalParams {
+    fn default() -> Self {
+        Self {
+            cg_iterations: default_iterations(),
+            cg_tolerance: default_tolerance(),
+        }
+    }
+}
+
+/// How a node is held during a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Hold {
+    Free,
+    /// Zero velocity.
+    Fixed,
+    /// Reaches this position at the end of the step.
+    Target(Vec3),
+}
+
+/// Scratch buffers sized at build, so that a step allocates nothing.
+#[derive(Debug)]
+struct Workspace {
+    cg: CgWorkspace,
+    rhs: Vec<Real>,
+    inv_diag: Vec<Real>,
+    dv: Vec<Real>,
+    kv: Vec<Real>,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    rotations: Vec<Mat3>,
+    elastic: Vec<Real>,
+}
+
+/// The corotational implicit model (see the module doc).
+#[derive(Debug)]
+pub struct FemCorotational {
+    material: Material,
+    lame: Lame,
+    params: CorotationalParams,
+    mesh: TetMesh,
+    rest: Vec<Vec3>,
+    elements: Vec<ElementRest>,
+    masses: Vec<Real>,
+    boundary: Boundary,
+    surface_positions: Vec<Vec3>,
+    // State.
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    rotations: Vec<Mat3>,
+    /// Elastic forces at `x` (flat), valid when `elastic_valid`.
+    elastic: Vec<Real>,
+    elastic_valid: bool,
+    /// Last Δv (flat): the CG warm start.
+    last_dv: Vec<Real>,
+    steps: u64,
+    // Constraints and loads, per node.
+    holds: Vec<Hold>,
+    external: Vec<Vec3>,
+    node_reactions: Vec<Vec3>,
+    constraints: Constraints,
+    loads: Loads,
+    fixed_owner: Vec<bool>,
+    prescribed_owner: Vec<bool>,
+    fixed_reactions: Vec<Vec3>,
+    prescribed_reactions: Vec<Vec3>,
+    ws: Workspace,
+    precompute_seconds: Real,
+    last_cg: crate::solve::CgResult,
+}
+
+impl FemCorotational {
+    /// Builds the model from the registry's input (`[model] cg_iterations`, `cg_tolerance`).
+    pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
+        let params: CorotationalParams = parse_params("fem-corotational", input.params)?;
+        let mesh = input.mesh.tet_mesh(input.source)?;
+        Self::new(&mesh, input.material, params)
+    }
+
+    /// Validates mesh, material and settings; computes rest data and lumped masses.
+    pub fn new(
+        mesh: &TetMesh,
+        material: Material,
+        params: CorotationalParams,
+    ) -> Result<Self, Error> {
+        let material = material.validated()?;
+        if !(params.cg_tolerance.is_finite() && params.cg_tolerance >= 0.0) {
+            return Err(SimError::BadParameter {
+                name: "cg_tolerance",
+                value: params.cg_tolerance.to_string(),
+                reason: "must be a finite value >= 0".into(),
+            }
+            .into());
+        }
+        mesh.validate_for_simulation()?;
+        let start = Instant::now();
+        let mesh = super::static_model::compact(mesh);
+        let mut elements = Vec::with_capacity(mesh.tets.len());
+        for (t, tet) in mesh.tets.iter().enumerate() {
+            let e = ElementRest::new(*tet, &mesh.corners(t)).ok_or(
+                crate::error::MeshError::DegenerateTet {
+                    tet: t,
+                    volume: mesh.tet_volume(t),
+                    quality: 0.0,
+                },
+            )?;
+            elements.push(e);
+        }
+        let masses = lumped_masses(&mesh, material.density);
+        let boundary = boundary_surface(&mesh);
+        let rest = mesh.vertices.clone();
+        let (n, ne) = (rest.len(), elements.len());
+        Ok(Self {
+            lame: Lame {
+                lambda: material.lambda(),
+                mu: material.mu(),
+            },
+            material,
+            params,
+            surface_positions: boundary.surface.vertices.clone(),
+            x: rest.clone(),
+            v: vec![Vec3::ZERO; n],
+            rotations: vec![Mat3::IDENTITY; ne],
+            elastic: vec![0.0; 3 * n],
+            elastic_valid: true,
+            last_dv: vec![0.0; 3 * n],
+            steps: 0,
+            holds: vec![Hold::Free; n],
+            external: vec![Vec3::ZERO; n],
+            node_reactions: vec![Vec3::ZERO; n],
+            constraints: Constraints::default(),
+            loads: Loads::default(),
+            fixed_owner: Vec::new(),
+            prescribed_owner: Vec::new(),
+            fixed_reactions: Vec::new(),
+            prescribed_reactions: Vec::new(),
+            ws: Workspace {
+                cg: CgWorkspace::new(3 * n),
+                rhs: vec![0.0; 3 * n],
+                inv_diag: vec![0.0; 3 * n],
+                dv: vec![0.0; 3 * n],
+                kv: vec![0.0; 3 * n],
+                x: rest.clone(),
+                v: vec![Vec3::ZERO; n],
+                rotations: vec![Mat3::IDENTITY; ne],
+                elastic: vec![0.0; 3 * n],
+            },
+            precompute_seconds: start.elapsed().as_secs_f64(),
+            last_cg: Default::default(),
+            boundary,
+            rest,
+            elements,
+            masses,
+            mesh,
+        })
+    }
+
+    pub fn params(&self) -> CorotationalParams {
+        self.params
+    }
+    /// Changes the CG cap and tolerance.
+    pub fn set_params(&mut self, params: CorotationalParams) {
+        self.params = params;
+    }
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+    /// Rest positions of the nodes (the compacted mesh's vertices).
+    pub fn rest_nodes(&self) -> &[Vec3] {
+        &self.rest
+    }
+    pub fn positions(&self) -> &[Vec3] {
+        &self.x
+    }
+    pub fn velocities(&self) -> &[Vec3] {
+        &self.v
+    }
+    pub fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+    pub fn elements(&self) -> &[ElementRest] {
+        &self.elements
+    }
+    pub fn lame(&self) -> Lame {
+        self.lame
+    }
+    /// The mechanical node of each surface vertex.
+    pub fn surface_nodes(&self) -> &[u32] {
+        &self.boundary.nodes
+    }
+    /// Force the tissue exerts on each constrained node after the last step (zero elsewhere).
+    pub fn node_reactions(&self) -> &[Vec3] {
+        &self.node_reactions
+    }
+
+    /// Elastic forces at the current positions, per node.
+    pub fn elastic_forces(&mut self) -> Vec<Vec3> {
+        self.ensure_elastic();
+        self.elastic
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect()
+    }
+
+    /// Replaces positions and velocities (e.g. a pre-stretched start); lengths must match.
+    pub fn set_state(&mut self, x: &[Vec3], v: &[Vec3]) -> Result<(), SimError> {
+        let n = self.rest.len();
+        if x.len() != n || v.len() != n || !x.iter().chain(v).all(|p| is_finite_vec(*p)) {
+            return Err(SimError::BadParameter {
+                name: "state",
+                value: format!("{} positions, {} velocities", x.len(), v.len()),
+                reason: format!("needs {n} finite positions and velocities"),
+            });
+        }
+        self.x.copy_from_slice(x);
+        self.v.copy_from_slice(v);
+        self.elastic_valid = false;
+        self.update_surface();
+        Ok(())
+    }
+
+    /// Holds nodes: `fixed` get zero velocity, `prescribed` reach their target in each step
+    /// (fixed wins). Node ids must exist and targets be finite.
+    pub fn set_node_constraints(
+        &mut self,
+        fixed: &[usize],
+        prescribed: &[(usize, Vec3)],
+    ) -> Result<(), SimError> {
+        let n = self.rest.len();
+        let bad = |what: String| SimError::BadParameter {
+            name: "constraints",
+            value: what,
+            reason: format!("needs a node < {n} and a finite target"),
+        };
+        for &(node, p) in prescribed {
+            if node >= n || !is_finite_vec(p) {
+                return Err(bad(format!("node {node} -> {p}")));
+            }
+        }
+        if let Some(&node) = fixed.iter().find(|&&node| node >= n) {
+            return Err(bad(format!("fixed node {node}")));
+        }
+        self.holds.iter_mut().for_each(|h| *h = Hold::Free);
+        for &(node, p) in prescribed {
+            self.holds[node] = Hold::Target(p);
+        }
+        for &node in fixed {
+            self.holds[node] = Hold::Fixed;
+        }
+        self.node_reactions.iter_mut().for_each(|r| *r = Vec3::ZERO);
+        Ok(())
+    }
+
+    /// External loads per node: gravity (m/s², as the lumped share m_i g) plus point forces.
+    pub fn set_node_loads(
+        &mut self,
+        gravity: Vec3,
+        forces: &[(usize, Vec3)],
+    ) -> Result<(), SimError> {
+        let n = self.rest.len();
+        if !is_finite_vec(gravity) {
+            return Err(SimError::BadParameter {
+                name: "gravity",
+                value: gravity.to_string(),
+                reason: "must be finite".into(),
+            });
+        }
+        if let Some(&(node, f)) = forces
+            .iter()
+            .find(|(node, f)| *node >= n || !is_finite_vec(*f))
+        {
+            return Err(SimError::BadParameter {
+                name: "point_loads",
+                value: format!("node {node} -> {f}"),
+                reason: format!("needs a node < {n} and a finite force"),
+            });
+        }
+        for (e, m) in self.external.iter_mut().zip(&self.masses) {
+            *e = gravity * *m;
+        }
+        for &(node, f) in forces {
+            self.external[node] += f;
+        }
+        Ok(())
+    }
+
+    fn update_surface(&mut self) {
+        for (s, &node) in self.boundary.nodes.iter().enumerate() {
+            self.surface_positions[s] = self.x[node as usize];
+        }
+    }
+
+    /// Recomputes rotations and elastic forces at `x` if a state change invalidated them.
+    fn ensure_elastic(&mut self) {
+        if !self.elastic_valid {
+            self.elastic.iter_mut().for_each(|f| *f = 0.0);
+            force::elastic_forces(
+                &self.elements,
+                self.lame,
+                crate::math::flatten(&self.x),
+                &mut self.rotations,
+                &mut self.elastic,
+            );
+            self.elastic_valid = true;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
