@@ -16,12 +16,14 @@
 //! - `mass`: lumped nodal masses for the dynamic variants
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
 //! - `surface_response`: K condensed onto the surface (C, W = C⁻¹), shared by the two below
+//! - `small_dense`: the in-place contact block solver of the two below
 //! - `condensed`: `fem-condensed`, fast finite elements (Bro-Nielsen), pre-inverted compliance
 //! - `precomputed`: `fem-precomputed-tensors`, Cotin's displacement/force tensors
 
 mod assembly;
 mod condensed;
 mod precomputed;
+mod small_dense;
 mod surface_response;
 mod deformable_impl;
 pub mod mass;
