@@ -16,6 +16,7 @@
 //! - `mass`: lumped nodal masses for the dynamic variants
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
 //! - `surface_response`: K condensed onto the surface (C, W = C⁻¹), shared by the two below
+//! - `small_dense`: the in-place contact block solver of the two below
 //! - `condensed`: `fem-condensed`, fast finite elements (Bro-Nielsen), pre-inverted compliance
 //! - `precomputed`: `fem-precomputed-tensors`, Cotin's displacement/force tensors
 //! - `dynamic`: `fem-explicit` and `fem-semi-implicit`, linear elastodynamics (eq. (6)-(10))
@@ -31,6 +32,7 @@ pub mod element_quadratic;
 pub mod mass;
 mod precomputed;
 pub mod quadratic_mesh;
+mod small_dense;
 mod static_model;
 mod surface_response;
 mod system;
