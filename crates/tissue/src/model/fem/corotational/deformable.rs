@@ -133,7 +133,8 @@ impl Deformable for FemCorotational {
         let n = self.rest.len();
         let ne = self.elements.len();
         let memory_bytes = ne * (std::mem::size_of::<super::ElementRest>() + 2 * 72)
-            + n * (8 + 24 * 8 + 8 * 3 * 10);
+            + n * (8 + 24 * 8 + 8 * 3 * 10)
+            + self.ws.stiffness.memory_bytes();
         ModelInfo {
             kind: self.kind(),
             nodes: n,

@@ -29,8 +29,10 @@
 //!
 //! - `rotation`: polar decomposition by scaled Newton, with inverted elements handled
 //! - `force`: element rest data, forces, stiffness products and diagonal, energy
+//! - `bsr`: the step's stiffness assembled into 3×3 block-sparse rows for the CG products
 //! - `step`: the implicit Euler step; `deformable`: the `Deformable` interface
 
+mod bsr;
 mod deformable;
 pub mod force;
 pub mod rotation;
@@ -94,6 +96,8 @@ pub(crate) enum Hold {
 #[derive(Debug)]
 struct Workspace {
     cg: CgWorkspace,
+    /// The step's corotated stiffness, assembled once per step.
+    stiffness: bsr::BlockStiffness,
     rhs: Vec<Real>,
     inv_diag: Vec<Real>,
     dv: Vec<Real>,
@@ -208,6 +212,7 @@ impl FemCorotational {
             prescribed_reactions: Vec::new(),
             ws: Workspace {
                 cg: CgWorkspace::new(3 * n),
+                stiffness: bsr::BlockStiffness::new(&elements, n),
                 rhs: vec![0.0; 3 * n],
                 inv_diag: vec![0.0; 3 * n],
                 dv: vec![0.0; 3 * n],

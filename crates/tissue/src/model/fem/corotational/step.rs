@@ -23,12 +23,13 @@ impl FemCorotational {
         let x = flatten(&self.x);
 
         // rhs = h (f_el + f_ext − α M v − (β + h) K v).
-        ws.kv.iter_mut().for_each(|y| *y = 0.0);
-        force::add_stiffness_product(elements, lame, rotations, v, &mut ws.kv);
+        // K is fixed over the step: assembled once, it makes each CG product one mat-vec.
+        ws.stiffness.assemble(elements, lame, rotations);
+        ws.stiffness.apply(0.0, 1.0, &self.masses, v, &mut ws.kv);
         // A = (1 + hα) M + (hβ + h²) K, its diagonal for the preconditioner.
         let (cm, ck) = (1.0 + h * alpha, h * beta + h * h);
         ws.inv_diag.iter_mut().for_each(|d| *d = 0.0);
-        force::add_stiffness_diagonal(elements, lame, rotations, &mut ws.inv_diag);
+        ws.stiffness.add_diagonal(&mut ws.inv_diag);
         for (i, hold) in self.holds.iter().enumerate() {
             let m = self.masses[i];
             let fext = self.external[i];
@@ -65,16 +66,8 @@ impl FemCorotational {
             });
         }
         let masses = &self.masses;
-        let apply = |z: &[Real], y: &mut [Real]| {
-            y.iter_mut().for_each(|y| *y = 0.0);
-            force::add_stiffness_product(elements, lame, rotations, z, y);
-            for (i, m) in masses.iter().enumerate() {
-                for k in 0..3 {
-                    let j = 3 * i + k;
-                    y[j] = cm * m * z[j] + ck * y[j];
-                }
-            }
-        };
+        let stiffness = &ws.stiffness;
+        let apply = |z: &[Real], y: &mut [Real]| stiffness.apply(cm, ck, masses, z, y);
         let cg = ws.cg.solve(
             apply,
             &ws.inv_diag,

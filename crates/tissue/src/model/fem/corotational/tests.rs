@@ -504,3 +504,46 @@ fn params_parse_and_reject_unknown_keys() {
         .unwrap_err();
     assert!(e.to_string().contains("cg_iters"), "{e}");
 }
+
+#[test]
+fn assembled_block_stiffness_matches_the_matrix_free_product_under_rotation() {
+    let mesh = liver();
+    let m = FemCorotational::new(&mesh, material(), CorotationalParams::default()).unwrap();
+    let n = mesh.vertices.len();
+    let mut r = rng(11);
+    let rotations: Vec<Mat3> = (0..mesh.tets.len())
+        .map(|_| {
+            let axis = Vec3::new(r(), r(), r()).normalize();
+            Mat3::from_quat(DQuat::from_axis_angle(axis, 3.0 * r()))
+        })
+        .collect();
+    let mut k = super::bsr::BlockStiffness::new(m.elements(), n);
+    k.assemble(m.elements(), m.lame(), &rotations);
+    let u = random_field(n, 13);
+    let masses: Vec<Real> = (0..n).map(|i| 1.0 + i as Real).collect();
+    let (cm, ck) = (0.7, 1.3);
+    let mut y = vec![0.0; 3 * n];
+    k.apply(cm, ck, &masses, flatten(&u), &mut y);
+    let kz = corotated_product(&m, &rotations, &u);
+    let expected: Vec<Vec3> = (0..n)
+        .map(|i| u[i] * (cm * masses[i]) + kz[i] * ck)
+        .collect();
+    let got: Vec<Vec3> = y
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect();
+    let err = max_norm(
+        &got.iter()
+            .zip(&expected)
+            .map(|(a, b)| *a - *b)
+            .collect::<Vec<_>>(),
+    );
+    assert!(err < 1e-12 * max_norm(&expected), "{err}");
+    // Its diagonal is the matrix-free one.
+    let (mut d0, mut d1) = (vec![0.0; 3 * n], vec![0.0; 3 * n]);
+    k.add_diagonal(&mut d0);
+    force::add_stiffness_diagonal(m.elements(), m.lame(), &rotations, &mut d1);
+    for (j, (a, b)) in d0.iter().zip(&d1).enumerate() {
+        assert!((a - b).abs() <= 1e-12 * b.abs(), "dof {j}: {a} vs {b}");
+    }
+}
