@@ -1,6 +1,7 @@
 //! Constraints and loads on surface vertices: the model-facing side of every instrument.
 
-use crate::math::Vec3;
+use crate::error::SimError;
+use crate::math::{Vec3, is_finite_vec};
 
 /// A surface vertex held at a given position (contact with an instrument, grasping).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,6 +26,45 @@ impl Constraints {
             prescribed: Vec::new(),
         }
     }
+
+    /// The held displacement of each of the surface vertices at `rest` (`None`: free), with
+    /// fixed winning over prescribed. Checked fully first: a vertex that does not exist or a
+    /// non-finite target is an error naming it, and nothing is returned.
+    pub fn surface_displacements(&self, rest: &[Vec3]) -> Result<Vec<Option<Vec3>>, SimError> {
+        let count = rest.len();
+        let check = |v: u32| {
+            if (v as usize) < count {
+                Ok(v as usize)
+            } else {
+                Err(SimError::BadConstraint {
+                    vertex: v as usize,
+                    count,
+                })
+            }
+        };
+        let mut disp = vec![None; count];
+        for &v in &self.fixed {
+            disp[check(v)?] = Some(Vec3::ZERO);
+        }
+        for p in &self.prescribed {
+            check(p.vertex)?;
+            if !is_finite_vec(p.position) {
+                return Err(SimError::BadParameter {
+                    name: "prescribed",
+                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
+                    reason: "the target position is not finite".into(),
+                });
+            }
+        }
+        let is_fixed: Vec<bool> = disp.iter().map(Option::is_some).collect();
+        for p in &self.prescribed {
+            let v = p.vertex as usize;
+            if !is_fixed[v] {
+                disp[v] = Some(p.position - rest[v]);
+            }
+        }
+        Ok(disp)
+    }
 }
 
 /// External loads.
@@ -34,4 +74,51 @@ pub struct Loads {
     pub gravity: Vec3,
     /// Forces on surface vertices, in N.
     pub point_loads: Vec<(u32, Vec3)>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_wins_and_bad_input_is_named() {
+        let rest = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let c = Constraints {
+            fixed: vec![1],
+            prescribed: vec![
+                Prescribed {
+                    vertex: 1,
+                    position: Vec3::ONE,
+                },
+                Prescribed {
+                    vertex: 2,
+                    position: Vec3::new(0.0, 1.5, 0.0),
+                },
+            ],
+        };
+        let d = c.surface_displacements(&rest).unwrap();
+        assert_eq!(
+            d,
+            vec![None, Some(Vec3::ZERO), Some(Vec3::new(0.0, 0.5, 0.0))]
+        );
+        let bad = Constraints::fixed(vec![3])
+            .surface_displacements(&rest)
+            .unwrap_err();
+        assert_eq!(
+            bad,
+            SimError::BadConstraint {
+                vertex: 3,
+                count: 3
+            }
+        );
+        let nan = Constraints {
+            fixed: vec![],
+            prescribed: vec![Prescribed {
+                vertex: 0,
+                position: Vec3::NAN,
+            }],
+        };
+        let e = nan.surface_displacements(&rest).unwrap_err().to_string();
+        assert!(e.contains("surface vertex 0"), "{e}");
+    }
 }

@@ -12,29 +12,7 @@ use super::system::DofProblem;
 impl FemStatic {
     /// Surface vertex → held displacement, from constraints (fixed wins over prescribed).
     fn surface_targets(&self, c: &Constraints) -> Result<Vec<Option<Vec3>>, SimError> {
-        let mut disp = vec![None; self.boundary.nodes.len()];
-        for &v in &c.fixed {
-            self.node_of(v)?;
-            disp[v as usize] = Some(Vec3::ZERO);
-        }
-        for p in &c.prescribed {
-            self.node_of(p.vertex)?;
-            if !is_finite_vec(p.position) {
-                return Err(SimError::BadParameter {
-                    name: "prescribed",
-                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
-                    reason: "the target position is not finite".into(),
-                });
-            }
-        }
-        let is_fixed: Vec<bool> = disp.iter().map(Option::is_some).collect();
-        for p in &c.prescribed {
-            let v = p.vertex as usize;
-            if !is_fixed[v] {
-                disp[v] = Some(p.position - self.boundary.surface.vertices[v]);
-            }
-        }
-        Ok(disp)
+        c.surface_displacements(&self.boundary.surface.vertices)
     }
 
     fn update_reactions(&mut self) {

@@ -29,28 +29,7 @@ impl Core {
     /// Fixed vertices are held at rest, prescribed ones reach their target at the end of
     /// each step; fixed wins. Checked fully before anything changes.
     pub fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let mut disp = vec![None; self.boundary.nodes.len()];
-        for &v in &c.fixed {
-            self.node_of(v)?;
-            disp[v as usize] = Some(Vec3::ZERO);
-        }
-        for p in &c.prescribed {
-            self.node_of(p.vertex)?;
-            if !is_finite_vec(p.position) {
-                return Err(SimError::BadParameter {
-                    name: "prescribed",
-                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
-                    reason: "the target position is not finite".into(),
-                });
-            }
-        }
-        let is_fixed: Vec<bool> = disp.iter().map(Option::is_some).collect();
-        for p in &c.prescribed {
-            let v = p.vertex as usize;
-            if !is_fixed[v] {
-                disp[v] = Some(p.position - self.boundary.surface.vertices[v]);
-            }
-        }
+        let disp = c.surface_displacements(&self.boundary.surface.vertices)?;
         let mut dp = DofProblem::new(self.dofs());
         for (s, d) in disp.iter().enumerate() {
             if let Some(d) = d {
