@@ -98,7 +98,7 @@ impl CgWorkspace {
                 .filter(|&i| inv_diag[i] != 0.0)
                 .map(|i| x[i] * (0.5 * (q[i] + p[i]) - b[i]))
                 .sum();
-            if !(phi <= 0.0) {
+            if phi > 0.0 || phi.is_nan() {
                 x.copy_from_slice(z);
                 q.copy_from_slice(p);
             }

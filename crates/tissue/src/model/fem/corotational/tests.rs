@@ -563,7 +563,7 @@ fn sofa_liver_setting_stays_on_the_converged_equilibrium_with_capped_cg() {
             cg_iterations,
             cg_tolerance: 1e-10,
         };
-        let mut m = FemCorotational::new(&mesh, material.clone(), params).unwrap();
+        let mut m = FemCorotational::new(&mesh, material, params).unwrap();
         m.set_node_constraints(&[3, 39, 64], &[]).unwrap();
         m.set_node_loads(Vec3::new(0.0, -9.81, 0.0), &[]).unwrap();
         let mut largest: Real = 0.0;
