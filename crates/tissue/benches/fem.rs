@@ -5,6 +5,9 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
 use tissue::Material;
 use tissue::math::{Real, Vec3};
 use tissue::mesh::TetMesh;
@@ -44,7 +47,7 @@ fn clamp(mesh: &TetMesh, pattern: &BlockPattern, k: &[Real]) -> Vec<Real> {
     a
 }
 
-fn bench(c: &mut Criterion) {
+fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let material = Material::new(1.0e4, 0.45).expect("valid material");
     for (name, cells) in [("10k", [30, 8, 7]), ("100k", [60, 16, 18])] {
         let mesh = beam(cells);
@@ -88,5 +91,9 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
+    targets = bench
+}
 criterion_main!(benches);

@@ -5,6 +5,9 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
 use tissue::Material;
 use tissue::interact::{Constraints, Loads};
 use tissue::math::{Real, Vec3};
@@ -58,7 +61,7 @@ fn prepare(model: &mut dyn Deformable, nodes: &[u32], surface_nodes: &[u32]) {
         .expect("loads");
 }
 
-fn bench(c: &mut Criterion) {
+fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let mut material = Material::new(3000.0, 0.3).expect("valid material");
     material.damping = 20.0;
     let mut group = c.benchmark_group("fem_dynamic");
@@ -82,5 +85,9 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
+    targets = bench
+}
 criterion_main!(benches);

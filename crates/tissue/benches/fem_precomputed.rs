@@ -6,6 +6,9 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
 use tissue::Material;
 use tissue::interact::{Constraints, Prescribed};
 use tissue::math::Vec3;
@@ -63,7 +66,7 @@ fn update(model: &mut dyn Deformable, sets: &[Constraints; 2], i: &mut usize) {
     black_box(model.surface().positions[0]);
 }
 
-fn bench(c: &mut Criterion) {
+fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let mesh = liver();
     let material = Material::new(3000.0, 0.3).expect("valid material");
     let mut reference = FemStatic::new(&mesh, material, Order::Linear).expect("builds");
@@ -86,5 +89,9 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
+    targets = bench
+}
 criterion_main!(benches);
