@@ -20,7 +20,9 @@ use faer::{Mat, Side};
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::model::{Deformable, Progress};
+use crate::model::{
+    CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
+};
 
 use super::static_model::{FemStatic, NodalSolution};
 use super::system::DofProblem;
@@ -475,5 +477,119 @@ impl SurfaceCore {
         self.fem.info().memory_bytes
             + self.c_fixed.nrows() * self.c_fixed.ncols() * 8
             + (self.us.len() * 2 + self.f_cond.len()) * 8
+    }
+}
+
+/// What `fem-condensed` and `fem-precomputed-tensors` each do their own way; the rest of
+/// `Deformable` is written once, below, for both.
+pub(crate) trait SurfaceResponse: Send {
+    const KIND: &'static str;
+    /// The progress label of a rebuild.
+    const REBUILD_STAGE: &'static str;
+    /// Why the model cannot cut.
+    const NO_CUT_REASON: &'static str;
+
+    fn core(&self) -> &SurfaceCore;
+    fn core_mut(&mut self) -> &mut SurfaceCore;
+    /// Condenses for the fixed mask in `core().mask` and pre-computes; nothing changes on
+    /// error.
+    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError>;
+    /// Refreshes the surface displacements under the loads alone.
+    fn update_u0(&mut self);
+    /// Solves for the core's contacts, writing `us_trial` and `lambda`.
+    fn solve_contacts(&mut self) -> Result<(), SimError>;
+    /// Bytes held beyond the core.
+    fn own_memory_bytes(&self) -> usize;
+    /// Model-specific facts for `info()`.
+    fn details(&self) -> Vec<(String, String)>;
+}
+
+impl<T: SurfaceResponse> Deformable for T {
+    fn kind(&self) -> &'static str {
+        T::KIND
+    }
+
+    fn surface(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            positions: self.core().surface_positions(),
+            triangles: self.core().fem.surface().triangles,
+        }
+    }
+
+    fn rest_surface(&self) -> &[Vec3] {
+        self.core().fem.rest_surface()
+    }
+
+    /// Contacts may change every step at the cost of a small dense solve; a new fixed set
+    /// re-condenses (see `info()` for its cost).
+    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        if self.core_mut().check(c)? {
+            let progress = self.core().progress.clone();
+            self.rebuild(&|f| progress.report(T::REBUILD_STAGE, f))?;
+        }
+        self.core_mut().record(c);
+        Ok(())
+    }
+
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        self.core_mut().set_loads(loads)?;
+        if self.core().ready() {
+            self.update_u0();
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, _dt: Real) -> Result<StepInfo, SimError> {
+        if !self.core().ready() {
+            return Err(SimError::NotPositiveDefinite {
+                row: 0,
+                hint: format!(
+                    "{} has no fixed surface vertices: fix at least three non-collinear ones \
+                     before stepping",
+                    T::KIND
+                ),
+            });
+        }
+        self.solve_contacts()?;
+        self.core_mut().accept();
+        Ok(StepInfo::default())
+    }
+
+    fn reactions(&self) -> Reactions<'_> {
+        self.core().reactions()
+    }
+
+    fn cut(&mut self, _blade: &CutPath) -> Result<CutInfo, SimError> {
+        Err(SimError::Unsupported {
+            model: T::KIND,
+            operation: "cutting",
+            reason: T::NO_CUT_REASON.into(),
+        })
+    }
+
+    fn set_progress(&mut self, progress: Progress) {
+        self.core_mut().progress = progress;
+    }
+
+    fn reset(&mut self) {
+        self.core_mut().reset();
+    }
+
+    fn info(&self) -> ModelInfo {
+        let core = self.core();
+        let mut info = core.fem.info();
+        info.kind = T::KIND;
+        info.is_static = true;
+        info.memory_bytes = core.memory_bytes() + self.own_memory_bytes();
+        info.precompute_seconds += core.precompute_seconds;
+        info.details = self.details();
+        info.details.extend([
+            ("rebuilds".into(), core.rebuilds.to_string()),
+            (
+                "last_rebuild_s".into(),
+                format!("{:.4}", core.last_rebuild_seconds),
+            ),
+        ]);
+        info
     }
 }

@@ -15,15 +15,17 @@ use faer::Mat;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
-use crate::interact::{Constraints, Loads};
+use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
+use crate::model::BuildInput;
 use crate::model::registry::parse_params;
-use crate::model::{BuildInput, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView};
 
 use super::static_model::{FemStatic, Order};
-use super::surface_response::{FixedSet, SmallDense, SurfaceCore, compliance, condense};
+use super::surface_response::{
+    FixedSet, SmallDense, SurfaceCore, SurfaceResponse, compliance, condense,
+};
 
 #[cfg(test)]
 pub(crate) mod tests;
@@ -144,50 +146,30 @@ impl FemCondensed {
     }
 }
 
-impl Deformable for FemCondensed {
-    fn kind(&self) -> &'static str {
-        "fem-condensed"
+impl SurfaceResponse for FemCondensed {
+    const KIND: &'static str = "fem-condensed";
+    const REBUILD_STAGE: &'static str = "condensing the stiffness to the surface";
+    const NO_CUT_REASON: &'static str = "its surface compliance is pre-computed for a fixed \
+        topology; a cut would need a new condensation and inversion";
+
+    fn core(&self) -> &SurfaceCore {
+        &self.core
     }
 
-    fn surface(&self) -> SurfaceView<'_> {
-        SurfaceView {
-            positions: self.core.surface_positions(),
-            triangles: self.core.fem.surface().triangles,
-        }
+    fn core_mut(&mut self) -> &mut SurfaceCore {
+        &mut self.core
     }
 
-    fn rest_surface(&self) -> &[Vec3] {
-        self.core.fem.rest_surface()
+    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
+        FemCondensed::rebuild(self, progress)
     }
 
-    /// Contacts may change every step at the cost of a small dense solve; a new fixed set
-    /// re-condenses (see `info()` for its cost).
-    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        if self.core.check(c)? {
-            let progress = self.core.progress.clone();
-            self.rebuild(&|f| progress.report("condensing the stiffness to the surface", f))?;
-        }
-        self.core.record(c);
-        Ok(())
+    fn update_u0(&mut self) {
+        FemCondensed::update_u0(self);
     }
 
-    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        self.core.set_loads(loads)?;
-        if self.core.ready() {
-            self.update_u0();
-        }
-        Ok(())
-    }
-
-    fn step(&mut self, _dt: Real) -> Result<StepInfo, SimError> {
-        if !self.core.ready() {
-            return Err(SimError::NotPositiveDefinite {
-                row: 0,
-                hint: "fem-condensed has no fixed surface vertices: fix at least three \
-                       non-collinear ones before stepping"
-                    .into(),
-            });
-        }
+    /// W_pp λ = u_p − (W f̃)_p, then u_s = W f̃ + W_{:,p} λ.
+    fn solve_contacts(&mut self) -> Result<(), SimError> {
         let m = self.core.targets.len();
         self.reserve_contacts(m / 3);
         let contacts = &self.core.contacts;
@@ -211,52 +193,23 @@ impl Deformable for FemCondensed {
             }
         }
         self.core.lambda.copy_from_slice(rhs);
-        self.core.accept();
-        Ok(StepInfo::default())
+        Ok(())
     }
 
-    fn reactions(&self) -> Reactions<'_> {
-        self.core.reactions()
-    }
-
-    fn cut(&mut self, _blade: &crate::model::CutPath) -> Result<crate::model::CutInfo, SimError> {
-        Err(SimError::Unsupported {
-            model: self.kind(),
-            operation: "cutting",
-            reason: "its surface compliance is pre-computed for a fixed topology; a cut \
-                     would need a new condensation and inversion"
-                .into(),
-        })
-    }
-
-    fn set_progress(&mut self, progress: Progress) {
-        self.core.progress = progress;
-    }
-
-    fn reset(&mut self) {
-        self.core.reset();
-    }
-
-    fn info(&self) -> ModelInfo {
+    fn own_memory_bytes(&self) -> usize {
         let n = self.w.nrows();
-        let mut info = self.core.fem.info();
-        info.kind = self.kind();
-        info.is_static = true;
-        info.memory_bytes = self.core.memory_bytes() + n * n * 8;
-        info.precompute_seconds += self.core.precompute_seconds;
-        info.details = vec![
+        n * n * 8
+    }
+
+    fn details(&self) -> Vec<(String, String)> {
+        let n = self.w.nrows();
+        vec![
             ("surface_dofs".into(), n.to_string()),
             ("compliance_bytes".into(), (n * n * 8).to_string()),
-            ("rebuilds".into(), self.core.rebuilds.to_string()),
-            (
-                "last_rebuild_s".into(),
-                format!("{:.4}", self.core.last_rebuild_seconds),
-            ),
             (
                 "contact_capacity".into(),
                 (self.small.a.nrows() / 3).to_string(),
             ),
-        ];
-        info
+        ]
     }
 }

@@ -18,15 +18,17 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
-use crate::interact::{Constraints, Loads};
+use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
+use crate::model::BuildInput;
 use crate::model::registry::parse_params;
-use crate::model::{BuildInput, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView};
 
 use super::static_model::{FemStatic, Order};
-use super::surface_response::{FixedSet, SmallDense, SurfaceCore, compliance, condense};
+use super::surface_response::{
+    FixedSet, SmallDense, SurfaceCore, SurfaceResponse, compliance, condense,
+};
 
 #[cfg(test)]
 mod tests;
@@ -186,48 +188,30 @@ impl FemPrecomputedTensors {
     }
 }
 
-impl Deformable for FemPrecomputedTensors {
-    fn kind(&self) -> &'static str {
-        "fem-precomputed-tensors"
+impl SurfaceResponse for FemPrecomputedTensors {
+    const KIND: &'static str = "fem-precomputed-tensors";
+    const REBUILD_STAGE: &'static str = "pre-computing the surface tensors";
+    const NO_CUT_REASON: &'static str = "its tensors are pre-computed for a fixed topology; \
+        a cut would need all n² tensors again";
+
+    fn core(&self) -> &SurfaceCore {
+        &self.core
     }
 
-    fn surface(&self) -> SurfaceView<'_> {
-        SurfaceView {
-            positions: self.core.surface_positions(),
-            triangles: self.core.fem.surface().triangles,
-        }
+    fn core_mut(&mut self) -> &mut SurfaceCore {
+        &mut self.core
     }
 
-    fn rest_surface(&self) -> &[Vec3] {
-        self.core.fem.rest_surface()
+    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
+        FemPrecomputedTensors::rebuild(self, progress)
     }
 
-    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        if self.core.check(c)? {
-            let progress = self.core.progress.clone();
-            self.rebuild(&|f| progress.report("pre-computing the surface tensors", f))?;
-        }
-        self.core.record(c);
-        Ok(())
+    fn update_u0(&mut self) {
+        FemPrecomputedTensors::update_u0(self);
     }
 
-    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        self.core.set_loads(loads)?;
-        if self.core.ready() {
-            self.update_u0();
-        }
-        Ok(())
-    }
-
-    fn step(&mut self, _dt: Real) -> Result<StepInfo, SimError> {
-        if !self.core.ready() {
-            return Err(SimError::NotPositiveDefinite {
-                row: 0,
-                hint: "fem-precomputed-tensors has no fixed surface vertices: fix at least \
-                       three non-collinear ones before stepping"
-                    .into(),
-            });
-        }
+    /// Σ_k T^U_jk a_k = target_j − u0_j for the virtual displacements a, then superposition.
+    fn solve_contacts(&mut self) -> Result<(), SimError> {
         let m = self.core.targets.len();
         self.reserve_contacts(m / 3);
         let (n, contacts) = (self.n, &self.core.contacts);
@@ -265,47 +249,17 @@ impl Deformable for FemPrecomputedTensors {
             let p = self.t_f[k as usize] * ak;
             self.core.lambda[3 * kb..3 * kb + 3].copy_from_slice(&p.to_array());
         }
-        self.core.accept();
-        Ok(StepInfo::default())
+        Ok(())
     }
 
-    fn reactions(&self) -> Reactions<'_> {
-        self.core.reactions()
+    fn own_memory_bytes(&self) -> usize {
+        self.tensor_bytes()
     }
 
-    fn cut(&mut self, _blade: &crate::model::CutPath) -> Result<crate::model::CutInfo, SimError> {
-        Err(SimError::Unsupported {
-            model: self.kind(),
-            operation: "cutting",
-            reason: "its tensors are pre-computed for a fixed topology; a cut would need \
-                     all n² tensors again"
-                .into(),
-        })
-    }
-
-    fn set_progress(&mut self, progress: Progress) {
-        self.core.progress = progress;
-    }
-
-    fn reset(&mut self) {
-        self.core.reset();
-    }
-
-    fn info(&self) -> ModelInfo {
-        let mut info = self.core.fem.info();
-        info.kind = self.kind();
-        info.is_static = true;
-        info.memory_bytes = self.core.memory_bytes() + self.tensor_bytes();
-        info.precompute_seconds += self.core.precompute_seconds;
-        info.details = vec![
+    fn details(&self) -> Vec<(String, String)> {
+        vec![
             ("surface_nodes".into(), self.n.to_string()),
             ("tensor_bytes".into(), self.tensor_bytes().to_string()),
-            ("rebuilds".into(), self.core.rebuilds.to_string()),
-            (
-                "last_rebuild_s".into(),
-                format!("{:.4}", self.core.last_rebuild_seconds),
-            ),
-        ];
-        info
+        ]
     }
 }

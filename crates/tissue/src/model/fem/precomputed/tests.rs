@@ -1,7 +1,8 @@
 //! The tensors against fem-static and fem-condensed, and the single-contact closed form.
 
 use super::*;
-use crate::interact::Prescribed;
+use crate::interact::{Loads, Prescribed};
+use crate::model::Deformable;
 use crate::mesh::generate::{BoxSplit, box_tets};
 use crate::model::fem::FemCondensed;
 use crate::model::fem::condensed::tests::{
