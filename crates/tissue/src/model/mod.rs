@@ -9,10 +9,12 @@
 mod deformable;
 pub mod fem;
 mod progress;
+mod reactions;
 pub mod registry;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
 };
 pub use progress::Progress;
+pub use reactions::ConstraintReactions;
 pub use registry::{BuildInput, KINDS, KindInfo, build};

@@ -28,20 +28,8 @@ impl FemStatic {
                 self.surface_reaction[b as usize] += half;
             }
         }
-        for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] = if self.fixed_owner[k] {
-                self.surface_reaction[v as usize]
-            } else {
-                Vec3::ZERO
-            };
-        }
-        for (k, p) in self.constraints.prescribed.iter().enumerate() {
-            self.prescribed_reactions[k] = if self.prescribed_owner[k] {
-                self.surface_reaction[p.vertex as usize]
-            } else {
-                Vec3::ZERO
-            };
-        }
+        let surface_reaction = &self.surface_reaction;
+        self.reactions.distribute(|v| surface_reaction[v as usize]);
     }
 
     fn update_positions(&mut self) {
@@ -105,21 +93,7 @@ impl Deformable for FemStatic {
         dp.finish();
         dp.forces = std::mem::take(&mut self.problem.forces);
         self.problem = dp;
-        let ns = self.boundary.nodes.len();
-        let mut taken = vec![false; ns];
-        self.fixed_owner = c
-            .fixed
-            .iter()
-            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-            .collect();
-        let mut owner = vec![false; c.prescribed.len()];
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
-        }
-        self.prescribed_owner = owner;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
+        self.reactions.set(c);
         Ok(())
     }
 
@@ -164,10 +138,7 @@ impl Deformable for FemStatic {
     }
 
     fn reactions(&self) -> Reactions<'_> {
-        Reactions {
-            fixed: &self.fixed_reactions,
-            prescribed: &self.prescribed_reactions,
-        }
+        self.reactions.reactions()
     }
 
     fn reset(&mut self) {

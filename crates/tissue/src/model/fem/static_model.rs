@@ -12,12 +12,12 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, SimError};
-use crate::interact::{Constraints, Loads};
+use crate::interact::Loads;
 use crate::material::Material;
 use crate::math::{Real, Vec3, is_finite_vec, triangle_area_vector};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
-use crate::model::BuildInput;
 use crate::model::registry::parse_params;
+use crate::model::{BuildInput, ConstraintReactions};
 
 use super::assembly::Assembler;
 use super::quadratic_mesh::QuadraticMesh;
@@ -97,13 +97,9 @@ pub struct FemStatic {
     /// Mid-edge nodes of boundary edges: (mid node, surface vertex a, surface vertex b).
     pub(super) surface_mids: Vec<(u32, u32, u32)>,
     pub(super) problem: DofProblem,
-    pub(super) constraints: Constraints,
     pub(super) loads: Loads,
     /// Which given constraint receives its vertex's reaction (the first mention; fixed wins).
-    pub(super) fixed_owner: Vec<bool>,
-    pub(super) prescribed_owner: Vec<bool>,
-    pub(super) fixed_reactions: Vec<Vec3>,
-    pub(super) prescribed_reactions: Vec<Vec3>,
+    pub(super) reactions: ConstraintReactions,
     pub(super) u: Vec<Real>,
     pub(super) r: Vec<Real>,
     pub(super) u_trial: Vec<Real>,
@@ -171,12 +167,8 @@ impl FemStatic {
             boundary,
             surface_mids,
             problem: DofProblem::new(dofs),
-            constraints: Constraints::default(),
             loads: Loads::default(),
-            fixed_owner: Vec::new(),
-            prescribed_owner: Vec::new(),
-            fixed_reactions: Vec::new(),
-            prescribed_reactions: Vec::new(),
+            reactions: ConstraintReactions::default(),
             u: vec![0.0; dofs],
             r: vec![0.0; dofs],
             u_trial: vec![0.0; dofs],

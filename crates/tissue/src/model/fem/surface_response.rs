@@ -21,7 +21,8 @@ use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{
-    CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
+    ConstraintReactions, CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo,
+    SurfaceView,
 };
 
 use super::static_model::{FemStatic, NodalSolution};
@@ -167,7 +168,6 @@ pub(crate) struct SurfaceCore {
     pub f_cond: Vec<Real>,
     /// Support reactions with the surface at rest.
     pub r_fixed0: Vec<Real>,
-    pub constraints: Constraints,
     pub loads: Loads,
     /// Contact (prescribed, not fixed) vertices as indices into `set.free`, and the target
     /// displacement of each (3 per contact).
@@ -176,9 +176,6 @@ pub(crate) struct SurfaceCore {
     contact_of: Vec<u32>,
     /// The fixed mask of the constraints being set (scratch).
     pub mask: Vec<bool>,
-    taken: Vec<bool>,
-    fixed_owner: Vec<bool>,
-    prescribed_owner: Vec<bool>,
     /// Displacements of the free surface vertices (3n), and a trial copy.
     pub us: Vec<Real>,
     pub us_trial: Vec<Real>,
@@ -186,8 +183,7 @@ pub(crate) struct SurfaceCore {
     pub lambda: Vec<Real>,
     surface_positions: Vec<Vec3>,
     surface_reaction: Vec<Vec3>,
-    fixed_reactions: Vec<Vec3>,
-    prescribed_reactions: Vec<Vec3>,
+    reactions: ConstraintReactions,
     pub precompute_seconds: Real,
     pub rebuilds: usize,
     pub last_rebuild_seconds: Real,
@@ -206,21 +202,16 @@ impl SurfaceCore {
             forces: vec![0.0; dofs],
             f_cond: Vec::new(),
             r_fixed0: Vec::new(),
-            constraints: Constraints::default(),
             loads: Loads::default(),
             contacts: Vec::new(),
             targets: Vec::new(),
             contact_of: vec![NONE; ns],
             mask: vec![false; ns],
-            taken: vec![false; ns],
-            fixed_owner: Vec::new(),
-            prescribed_owner: Vec::new(),
             us: Vec::new(),
             us_trial: Vec::new(),
             lambda: Vec::new(),
             surface_reaction: vec![Vec3::ZERO; ns],
-            fixed_reactions: Vec::new(),
-            prescribed_reactions: Vec::new(),
+            reactions: ConstraintReactions::default(),
             precompute_seconds: 0.0,
             rebuilds: 0,
             last_rebuild_seconds: 0.0,
@@ -307,26 +298,7 @@ impl SurfaceCore {
         for &a in &self.contacts {
             self.contact_of[self.set.free[a as usize] as usize] = NONE;
         }
-        self.fixed_owner.clear();
-        for &v in &c.fixed {
-            self.fixed_owner
-                .push(!std::mem::replace(&mut self.taken[v as usize], true));
-        }
-        self.prescribed_owner.clear();
-        self.prescribed_owner.resize(c.prescribed.len(), false);
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            self.prescribed_owner[k] = !std::mem::replace(&mut self.taken[p.vertex as usize], true);
-        }
-        self.taken.iter_mut().for_each(|t| *t = false);
-        self.fixed_reactions.clear();
-        self.fixed_reactions.resize(c.fixed.len(), Vec3::ZERO);
-        self.prescribed_reactions.clear();
-        self.prescribed_reactions
-            .resize(c.prescribed.len(), Vec3::ZERO);
-        self.constraints.fixed.clear();
-        self.constraints.fixed.extend_from_slice(&c.fixed);
-        self.constraints.prescribed.clear();
-        self.constraints.prescribed.extend_from_slice(&c.prescribed);
+        self.reactions.set(c);
         self.lambda.clear();
         self.lambda.resize(self.targets.len(), 0.0);
     }
@@ -412,20 +384,8 @@ impl SurfaceCore {
             }
             self.surface_reaction[v as usize] = Vec3::from_array(r);
         }
-        for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] = if self.fixed_owner[k] {
-                self.surface_reaction[v as usize]
-            } else {
-                Vec3::ZERO
-            };
-        }
-        for (k, p) in self.constraints.prescribed.iter().enumerate() {
-            self.prescribed_reactions[k] = if self.prescribed_owner[k] {
-                self.surface_reaction[p.vertex as usize]
-            } else {
-                Vec3::ZERO
-            };
-        }
+        let surface_reaction = &self.surface_reaction;
+        self.reactions.distribute(|v| surface_reaction[v as usize]);
     }
 
     pub fn surface_positions(&self) -> &[Vec3] {
@@ -433,10 +393,7 @@ impl SurfaceCore {
     }
 
     pub fn reactions(&self) -> crate::model::Reactions<'_> {
-        crate::model::Reactions {
-            fixed: &self.fixed_reactions,
-            prescribed: &self.prescribed_reactions,
-        }
+        self.reactions.reactions()
     }
 
     /// Back to rest: zero surface displacements and contact forces.

@@ -5,8 +5,8 @@ use std::cell::RefCell;
 
 use super::*;
 use crate::interact::{Loads, Prescribed};
-use crate::model::{Deformable, Reactions};
 use crate::mesh::generate::{BoxSplit, box_tets};
+use crate::model::{Deformable, Reactions};
 
 pub(crate) const LIVER: &str =
     concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");

@@ -30,20 +30,7 @@ impl FemCorotational {
                 .copied()
                 .unwrap_or(Vec3::ZERO)
         };
-        for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] = if self.fixed_owner[k] {
-                r(v)
-            } else {
-                Vec3::ZERO
-            };
-        }
-        for (k, p) in self.constraints.prescribed.iter().enumerate() {
-            self.prescribed_reactions[k] = if self.prescribed_owner[k] {
-                r(p.vertex)
-            } else {
-                Vec3::ZERO
-            };
-        }
+        self.reactions.distribute(r);
     }
 }
 
@@ -85,20 +72,7 @@ impl Deformable for FemCorotational {
             .map(|p| Ok((self.node_of(p.vertex)?, p.position)))
             .collect::<Result<Vec<_>, SimError>>()?;
         self.set_node_constraints(&fixed, &prescribed)?;
-        let mut taken = vec![false; self.boundary.nodes.len()];
-        self.fixed_owner = c
-            .fixed
-            .iter()
-            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-            .collect();
-        let mut owner = vec![false; c.prescribed.len()];
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
-        }
-        self.prescribed_owner = owner;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
+        self.reactions.set(c);
         Ok(())
     }
 
@@ -119,10 +93,7 @@ impl Deformable for FemCorotational {
     }
 
     fn reactions(&self) -> Reactions<'_> {
-        Reactions {
-            fixed: &self.fixed_reactions,
-            prescribed: &self.prescribed_reactions,
-        }
+        self.reactions.reactions()
     }
 
     fn reset(&mut self) {

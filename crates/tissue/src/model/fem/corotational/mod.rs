@@ -43,12 +43,12 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
-use crate::interact::{Constraints, Loads};
+use crate::interact::Loads;
 use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
-use crate::model::BuildInput;
 use crate::model::registry::parse_params;
+use crate::model::{BuildInput, ConstraintReactions};
 use crate::solve::CgWorkspace;
 
 use super::mass::lumped_masses;
@@ -134,12 +134,8 @@ pub struct FemCorotational {
     holds: Vec<Hold>,
     external: Vec<Vec3>,
     node_reactions: Vec<Vec3>,
-    constraints: Constraints,
     loads: Loads,
-    fixed_owner: Vec<bool>,
-    prescribed_owner: Vec<bool>,
-    fixed_reactions: Vec<Vec3>,
-    prescribed_reactions: Vec<Vec3>,
+    reactions: ConstraintReactions,
     ws: Workspace,
     precompute_seconds: Real,
     last_cg: crate::solve::CgResult,
@@ -204,12 +200,8 @@ impl FemCorotational {
             holds: vec![Hold::Free; n],
             external: vec![Vec3::ZERO; n],
             node_reactions: vec![Vec3::ZERO; n],
-            constraints: Constraints::default(),
             loads: Loads::default(),
-            fixed_owner: Vec::new(),
-            prescribed_owner: Vec::new(),
-            fixed_reactions: Vec::new(),
-            prescribed_reactions: Vec::new(),
+            reactions: ConstraintReactions::default(),
             ws: Workspace {
                 cg: CgWorkspace::new(3 * n),
                 stiffness: bsr::BlockStiffness::new(&elements, n),

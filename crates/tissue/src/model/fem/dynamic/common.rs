@@ -9,10 +9,10 @@
 use std::time::Instant;
 
 use crate::error::{Error, SimError};
-use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
+use crate::model::ConstraintReactions;
 
 use super::super::assembly::Assembler;
 use super::super::element_linear;
@@ -38,11 +38,7 @@ pub(super) struct Core {
     pub surface_positions: Vec<Vec3>,
     /// Held dofs, their targets and the external forces F.
     pub problem: DofProblem,
-    pub constraints: Constraints,
-    pub fixed_owner: Vec<bool>,
-    pub prescribed_owner: Vec<bool>,
-    pub fixed_reactions: Vec<Vec3>,
-    pub prescribed_reactions: Vec<Vec3>,
+    pub reactions: ConstraintReactions,
     /// U_t, U_{t−Δt} and the trial U_{t+Δt}.
     pub u: Vec<Real>,
     pub u_prev: Vec<Real>,
@@ -95,11 +91,7 @@ impl Core {
             surface_positions: boundary.surface.vertices.clone(),
             boundary,
             problem: DofProblem::new(dofs),
-            constraints: Constraints::default(),
-            fixed_owner: Vec::new(),
-            prescribed_owner: Vec::new(),
-            fixed_reactions: Vec::new(),
-            prescribed_reactions: Vec::new(),
+            reactions: ConstraintReactions::default(),
             u: vec![0.0; dofs],
             u_prev: vec![0.0; dofs],
             u_next: vec![0.0; dofs],

@@ -42,20 +42,7 @@ impl Core {
         dp.finish();
         dp.forces = std::mem::take(&mut self.problem.forces);
         self.problem = dp;
-        let mut taken = vec![false; disp.len()];
-        self.fixed_owner = c
-            .fixed
-            .iter()
-            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-            .collect();
-        let mut owner = vec![false; c.prescribed.len()];
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
-        }
-        self.prescribed_owner = owner;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
+        self.reactions.set(c);
         self.update_energy_floor();
         Ok(())
     }
@@ -115,26 +102,12 @@ impl Core {
             let n = n as usize;
             Vec3::new(self.r[3 * n], self.r[3 * n + 1], self.r[3 * n + 2])
         };
-        for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] =
-                match (self.fixed_owner[k], self.boundary.nodes.get(v as usize)) {
-                    (true, Some(&n)) => r(n),
-                    _ => Vec3::ZERO,
-                };
-        }
-        for (k, p) in self.constraints.prescribed.iter().enumerate() {
-            let node = self.boundary.nodes.get(p.vertex as usize);
-            self.prescribed_reactions[k] = match (self.prescribed_owner[k], node) {
-                (true, Some(&n)) => r(n),
-                _ => Vec3::ZERO,
-            };
-        }
+        let nodes = &self.boundary.nodes;
+        self.reactions
+            .distribute(|v| nodes.get(v as usize).map_or(Vec3::ZERO, |&n| r(n)));
     }
 
     pub fn reactions(&self) -> crate::model::Reactions<'_> {
-        crate::model::Reactions {
-            fixed: &self.fixed_reactions,
-            prescribed: &self.prescribed_reactions,
-        }
+        self.reactions.reactions()
     }
 }

@@ -2,8 +2,8 @@
 
 use super::*;
 use crate::interact::{Loads, Prescribed};
-use crate::model::Deformable;
 use crate::mesh::generate::{BoxSplit, box_tets};
+use crate::model::Deformable;
 use crate::model::fem::FemCondensed;
 use crate::model::fem::condensed::tests::{
     Rng, applied_load, apply, check_balance, compare, liver, liver_fixed, liver_material, loads,
