@@ -48,7 +48,9 @@ impl ConstraintReactions {
         self.fixed.resize(c.fixed.len(), Vec3::ZERO);
         self.prescribed.clear();
         self.prescribed.resize(c.prescribed.len(), Vec3::ZERO);
-        self.constraints.clone_from(c);
+        // Field by field: a derived `clone_from` would allocate anew on every contact update.
+        self.constraints.fixed.clone_from(&c.fixed);
+        self.constraints.prescribed.clone_from(&c.prescribed);
     }
 
     pub fn constraints(&self) -> &Constraints {
