@@ -460,3 +460,21 @@ fn scheme_names_are_the_scene_names() {
     }
     assert!(toml::from_str::<T>("integrator = \"leapfrog\"").is_err());
 }
+
+#[test]
+fn a_first_step_from_rest_under_gravity_is_not_taken_for_a_blow_up() {
+    // All at the origin, at rest: zero energy, yet every explicit scheme's first kick adds
+    // kinetic energy that no held particle put in.
+    for scheme in Scheme::ALL {
+        let (mut system, _, holds) = oscillator(0.0);
+        system.gravity = Vec3::new(0.0, 0.0, -9.81);
+        let mut state = ParticleState::at_rest(vec![Vec3::ZERO; 2]);
+        let mut integrator = Integrator::new(scheme);
+        for _ in 0..10 {
+            integrator
+                .step(&mut system, &mut state, &holds, 1e-3)
+                .unwrap();
+        }
+        assert!(state.x[1].z < 0.0, "{scheme}: {}", state.x[1]);
+    }
+}
