@@ -99,6 +99,10 @@ pub(crate) fn cut_model(model: &mut SpringModel, blade: &CutPath) -> Result<CutI
             crossed.entry(*e).or_insert(*s);
         }
     }
+    // A sweep starts where the last one ended, so it may graze the edges around an open tip:
+    // those crossings are dropped and the incision continues from the tip itself.
+    let tips = &model.cutter.tips;
+    crossed.retain(|e, _| !tips.contains(&e[0]) && !tips.contains(&e[1]));
     // 2. Which triangles are cut, and through which two of their features.
     let tris = model.triangles.clone();
     let mut cut_pair: Vec<Option<Cut>> = vec![None; tris.len()];
@@ -339,4 +343,10 @@ fn fans(v: u32, triangles: &[[u32; 3]], marked: &HashSet<[u32; 2]>) -> Vec<Vec<u
         groups[g].push(t);
     }
     groups
+}
+
+/// Number of fans around `v` (1 for a manifold vertex).
+#[cfg(test)]
+pub(crate) fn fan_count(v: u32, triangles: &[[u32; 3]]) -> usize {
+    fans(v, triangles, &HashSet::new()).len()
 }

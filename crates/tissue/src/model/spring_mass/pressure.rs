@@ -119,8 +119,8 @@ mod tests {
                 assert!((g + f[i][a]).abs() < 1e-5 * f[i][a].abs().max(1.0));
             }
         }
-        // An inflated body pushes outward.
-        assert!(f[0].dot(Vec3::ONE) < 0.0);
+        // An inflated body is pulled back in: corner 0 moves toward the others.
+        assert!(f[0].dot(Vec3::ONE) > 0.0);
     }
 
     #[test]
