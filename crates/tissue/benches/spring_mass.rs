@@ -67,11 +67,13 @@ fn bench(c: &mut Criterion) {
     let clamped = (0..rest.len() as u32)
         .filter(|&i| rest[i as usize].x == 0.0)
         .collect();
-    m.set_constraints(&Constraints::fixed(clamped)).expect("clamp");
+    m.set_constraints(&Constraints::fixed(clamped))
+        .expect("clamp");
     m.set_loads(&gravity()).expect("gravity");
-    group.bench_function(format!("box_{}_tets_symplectic-euler", mesh.tets.len()), |b| {
-        b.iter(|| black_box(m.step(1e-5).expect("step")))
-    });
+    group.bench_function(
+        format!("box_{}_tets_symplectic-euler", mesh.tets.len()),
+        |b| b.iter(|| black_box(m.step(1e-5).expect("step"))),
+    );
     group.finish();
 }
 

@@ -92,7 +92,11 @@ fn compare(kind: &str, table: &str) -> (Real, Real, Real) {
     let ff: Vec3 = fem.reactions().prescribed.iter().copied().sum();
 
     let mut springs = model_damped(kind, &mesh, 3000.0, 10.0, table);
-    assert_eq!(springs.rest_surface().len(), rest.len(), "{kind}: same surface");
+    assert_eq!(
+        springs.rest_surface().len(),
+        rest.len(),
+        "{kind}: same surface"
+    );
     springs.set_constraints(&c).expect("constraints");
     // Implicit Euler with a long step relaxes to equilibrium in a few dozen steps; a membrane
     // (no transverse stiffness at rest) needs shorter ones: halve on refusal, run 20 s.
@@ -118,12 +122,21 @@ fn compare(kind: &str, table: &str) -> (Real, Real, Real) {
         .map(|(p, r)| *p - *r)
         .collect();
     let fs: Vec3 = springs.reactions().prescribed.iter().copied().sum();
-    let num: Real = us.iter().zip(&uf).map(|(a, b)| (*a - *b).length_squared()).sum();
+    let num: Real = us
+        .iter()
+        .zip(&uf)
+        .map(|(a, b)| (*a - *b).length_squared())
+        .sum();
     let den: Real = uf.iter().map(|a| a.length_squared()).sum();
-    ((num / den).sqrt(), (fs - ff).length() / ff.length(), fs.length())
+    (
+        (num / den).sqrt(),
+        (fs - ff).length() / ff.length(),
+        fs.length(),
+    )
 }
 
-const IMPLICIT: &str = "integrator = \"implicit-euler\"\ncg_iterations = 400\ncg_tolerance = 1e-9\n";
+const IMPLICIT: &str =
+    "integrator = \"implicit-euler\"\ncg_iterations = 400\ncg_tolerance = 1e-9\n";
 
 #[test]
 fn volumetric_springs_are_within_the_measured_error_of_fem_static() {
@@ -172,8 +185,7 @@ fn stable(kind: &str, mesh: &MeshData, e: Real, scheme: &str, dt: Real, steps: u
     if m.set_loads(&g).is_err() {
         return false;
     }
-    (0..steps).all(|_| m.step(dt).is_ok())
-        && m.surface().positions.iter().all(|p| p.is_finite())
+    (0..steps).all(|_| m.step(dt).is_ok()) && m.surface().positions.iter().all(|p| p.is_finite())
 }
 
 /// Bisection in log dt between 1e-7 s and 0.1 s.
@@ -214,7 +226,10 @@ fn table_largest_stable_time_step() {
                 "implicit-euler",
             ] {
                 let dt = largest_stable_dt(kind, &mesh, e, scheme);
-                println!("| {kind} ({}) | {e:.0} | {scheme} | {dt:.3e} |", path.rsplit('/').next().unwrap_or(""));
+                println!(
+                    "| {kind} ({}) | {e:.0} | {scheme} | {dt:.3e} |",
+                    path.rsplit('/').next().unwrap_or("")
+                );
             }
         }
     }

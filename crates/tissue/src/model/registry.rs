@@ -74,8 +74,14 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
         "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
-        "spring-mass" => Ok(Box::new(SpringModel::from_input(SpringKind::Surface, input)?)),
-        "simplex-spring-mass" => Ok(Box::new(SpringModel::from_input(SpringKind::Simplex, input)?)),
+        "spring-mass" => Ok(Box::new(SpringModel::from_input(
+            SpringKind::Surface,
+            input,
+        )?)),
+        "simplex-spring-mass" => Ok(Box::new(SpringModel::from_input(
+            SpringKind::Simplex,
+            input,
+        )?)),
         "volumetric-spring-mass" => Ok(Box::new(SpringModel::from_input(
             SpringKind::Volumetric,
             input,

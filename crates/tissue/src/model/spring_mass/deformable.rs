@@ -45,7 +45,9 @@ impl SpringModel {
     }
 
     pub(crate) fn distribute_reactions(&mut self) {
-        self.fixed_reactions.iter_mut().for_each(|r| *r = Vec3::ZERO);
+        self.fixed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
         self.prescribed_reactions
             .iter_mut()
             .for_each(|r| *r = Vec3::ZERO);
@@ -148,7 +150,12 @@ impl Deformable for SpringModel {
                 reason: "must be finite".into(),
             });
         }
-        let mut external: Vec<Vec3> = self.body.masses.iter().map(|m| loads.gravity * *m).collect();
+        let mut external: Vec<Vec3> = self
+            .body
+            .masses
+            .iter()
+            .map(|m| loads.gravity * *m)
+            .collect();
         for &(v, f) in &loads.point_loads {
             if !is_finite_vec(f) {
                 return Err(SimError::BadParameter {
@@ -205,7 +212,10 @@ impl Deformable for SpringModel {
             ("springs".into(), self.body.network.len().to_string()),
             ("pressure".into(), self.body.pressure.is_some().to_string()),
             ("steps".into(), self.integrator.steps().to_string()),
-            ("last_cg_iterations".into(), self.last_info.iterations.to_string()),
+            (
+                "last_cg_iterations".into(),
+                self.last_info.iterations.to_string(),
+            ),
         ];
         if self.kind != Kind::Volumetric {
             details.push(("thickness_m".into(), self.params.thickness.to_string()));

@@ -131,12 +131,15 @@ impl SpringParams {
         if !(self.thickness.is_finite() && self.thickness > 0.0) {
             return bad("thickness", self.thickness, "must be a finite value > 0 m");
         }
-        if !(self.parent_depth.is_finite() && self.parent_depth > 0.0 && self.parent_depth < 1.0)
-        {
+        if !(self.parent_depth.is_finite() && self.parent_depth > 0.0 && self.parent_depth < 1.0) {
             return bad("parent_depth", self.parent_depth, "must lie in (0, 1)");
         }
         if !(self.cg_tolerance.is_finite() && self.cg_tolerance >= 0.0) {
-            return bad("cg_tolerance", self.cg_tolerance, "must be a finite value >= 0");
+            return bad(
+                "cg_tolerance",
+                self.cg_tolerance,
+                "must be a finite value >= 0",
+            );
         }
         Ok(self)
     }

@@ -104,7 +104,10 @@ mod tests {
         let (t, x0) = tet();
         let p = Pressure::new(t, &x0, 2000.0).unwrap();
         assert!((p.rest_volume - 1.0 / 6.0).abs() < 1e-15);
-        let x: Vec<Vec3> = x0.iter().map(|q| *q * 1.2 + Vec3::new(0.1, 0.0, 0.3)).collect();
+        let x: Vec<Vec3> = x0
+            .iter()
+            .map(|q| *q * 1.2 + Vec3::new(0.1, 0.0, 0.3))
+            .collect();
         let mut f = vec![Vec3::ZERO; 4];
         p.add_forces(&x, &mut f);
         let total: Vec3 = f.iter().copied().sum();

@@ -204,7 +204,10 @@ impl SimplexMesh {
         let c = mean(r, nodes);
         let mut normal = Vec3::ZERO;
         for i in 0..r.len() {
-            let (p, q) = (nodes[r[i] as usize] - c, nodes[r[(i + 1) % r.len()] as usize] - c);
+            let (p, q) = (
+                nodes[r[i] as usize] - c,
+                nodes[r[(i + 1) % r.len()] as usize] - c,
+            );
             normal += p.cross(q);
         }
         let n = normal.try_normalize()?;
@@ -248,7 +251,11 @@ pub(crate) fn build(
             };
             let lp2 = (s.vertices[q as usize] - s.vertices[p as usize]).length_squared();
             let ld = (nodes[*u as usize] - nodes[t]).length();
-            let stiffness = if ld > 0.0 { kp[e] * lp2 / (ld * ld) } else { kp[e] };
+            let stiffness = if ld > 0.0 {
+                kp[e] * lp2 / (ld * ld)
+            } else {
+                kp[e]
+            };
             springs.push(Spring {
                 a: t as u32,
                 b: *u,
@@ -330,7 +337,9 @@ mod tests {
             assert!((*a - (r * *b + Vec3::X)).length() < 1e-12);
         }
         // The face fans enclose a positive volume a little below the sphere's.
-        let vol = Pressure::new(m.face_fans(), &nodes, 1.0).unwrap().rest_volume;
+        let vol = Pressure::new(m.face_fans(), &nodes, 1.0)
+            .unwrap()
+            .rest_volume;
         assert!(vol > 0.0 && vol < s.signed_volume());
     }
 

@@ -247,7 +247,11 @@ mod tests {
                 xp[p][axis] += h;
                 xm[p][axis] -= h;
                 let g = (n.energy(&xp) - n.energy(&xm)) / (2.0 * h);
-                assert!((g + f[p][axis]).abs() < 1e-6, "{p} {axis}: {g} {}", f[p][axis]);
+                assert!(
+                    (g + f[p][axis]).abs() < 1e-6,
+                    "{p} {axis}: {g} {}",
+                    f[p][axis]
+                );
             }
         }
     }
@@ -294,7 +298,12 @@ mod tests {
     fn damping_product_matches_velocity_derivative() {
         let (mut n, x, v) = network();
         n.prepare(&x);
-        let dv = [Vec3::X, Vec3::new(0.0, 0.5, -0.2), Vec3::Z, Vec3::new(0.2, 0.2, 0.2)];
+        let dv = [
+            Vec3::X,
+            Vec3::new(0.0, 0.5, -0.2),
+            Vec3::Z,
+            Vec3::new(0.2, 0.2, 0.2),
+        ];
         let mut out = vec![Vec3::ZERO; 4];
         n.add_damping_product(&dv, &mut out);
         let force = |s: Real| {

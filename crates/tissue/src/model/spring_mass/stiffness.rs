@@ -175,8 +175,10 @@ fn element_stiffness<const D: usize, const N: usize>(
                         None => Real::from(u8::from(i == j)),
                         Some(n) => Real::from(u8::from(i == j)) - n[i] * n[j],
                     };
-                    k[3 * a + i][3 * b + j] =
-                        w * (lambda * g[a][i] * g[b][j] + mu * g[b][i] * g[a][j] + mu * dot * identity);
+                    k[3 * a + i][3 * b + j] = w
+                        * (lambda * g[a][i] * g[b][j]
+                            + mu * g[b][i] * g[a][j]
+                            + mu * dot * identity);
                 }
             }
         }
@@ -270,9 +272,20 @@ mod tests {
         let x = equilateral();
         let tris = [[0, 1, 2]];
         let edges = triangle_edges(&tris);
-        let k = membrane_stiffness(&x, &tris, &edges, 1000.0, 0.3, 0.01, StiffnessRule::VanGelder);
+        let k = membrane_stiffness(
+            &x,
+            &tris,
+            &edges,
+            1000.0,
+            0.3,
+            0.01,
+            StiffnessRule::VanGelder,
+        );
         for kc in k {
-            assert!((kc - 1000.0 * 0.01 * 3f64.sqrt() / 4.0).abs() < 1e-12, "{kc}");
+            assert!(
+                (kc - 1000.0 * 0.01 * 3f64.sqrt() / 4.0).abs() < 1e-12,
+                "{kc}"
+            );
         }
     }
 
@@ -283,8 +296,24 @@ mod tests {
         let x = equilateral();
         let tris = [[0, 1, 2]];
         let edges = triangle_edges(&tris);
-        let f = membrane_stiffness(&x, &tris, &edges, 1000.0, 1.0 / 3.0, 0.01, StiffnessRule::Fitted);
-        let g = membrane_stiffness(&x, &tris, &edges, 1000.0, 1.0 / 3.0, 0.01, StiffnessRule::VanGelder);
+        let f = membrane_stiffness(
+            &x,
+            &tris,
+            &edges,
+            1000.0,
+            1.0 / 3.0,
+            0.01,
+            StiffnessRule::Fitted,
+        );
+        let g = membrane_stiffness(
+            &x,
+            &tris,
+            &edges,
+            1000.0,
+            1.0 / 3.0,
+            0.01,
+            StiffnessRule::VanGelder,
+        );
         for (a, b) in f.iter().zip(&g) {
             assert!((a - b).abs() < 1e-9 * b, "{a} vs {b}");
         }
@@ -343,7 +372,14 @@ mod tests {
             assert!(k.iter().all(|&c| c > 0.0 && c.is_finite()), "{rule:?}");
         }
         // Van Gelder sums V/l² over the tets around each edge: total = E Σ_T Σ_edges V_T/l².
-        let k = tet_stiffness(&m.vertices, &m.tets, &edges, 1000.0, 0.3, StiffnessRule::VanGelder);
+        let k = tet_stiffness(
+            &m.vertices,
+            &m.tets,
+            &edges,
+            1000.0,
+            0.3,
+            StiffnessRule::VanGelder,
+        );
         let total: Real = k.iter().sum();
         let expected: Real = (0..m.tets.len())
             .map(|t| {

@@ -127,14 +127,17 @@ pub(crate) fn closed_pressure(mesh: &SurfaceMesh, material: &Material) -> Result
         }
         .into());
     }
-    Pressure::new(mesh.triangles.clone(), &mesh.vertices, material.bulk_modulus()).ok_or_else(
-        || {
-            SimError::BadParameter {
-                name: "pressure",
-                value: "true".into(),
-                reason: "the surface encloses no positive volume (is it oriented inward?)".into(),
-            }
-            .into()
-        },
+    Pressure::new(
+        mesh.triangles.clone(),
+        &mesh.vertices,
+        material.bulk_modulus(),
     )
+    .ok_or_else(|| {
+        SimError::BadParameter {
+            name: "pressure",
+            value: "true".into(),
+            reason: "the surface encloses no positive volume (is it oriented inward?)".into(),
+        }
+        .into()
+    })
 }

@@ -33,7 +33,12 @@ fn build(kind: Kind, mesh: &MeshData, m: Material, table: &str) -> SpringModel {
 
 /// Bar of `cells` along x, 0.1 × 0.02 × 0.02 m.
 fn bar() -> TetMesh {
-    box_tets(Vec3::ZERO, Vec3::new(0.1, 0.02, 0.02), [10, 2, 2], BoxSplit::Six)
+    box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.02, 0.02),
+        [10, 2, 2],
+        BoxSplit::Six,
+    )
 }
 
 /// Stretches the bar by strain `eps` (ends held) to equilibrium; returns E_eff = σ/ε.
@@ -113,7 +118,10 @@ fn internal_forces_conserve_momentum_in_free_flight() {
         model.step(1e-4).unwrap();
     }
     let p1 = momentum(&model);
-    assert!((p1 - p0).length() < 1e-12 * p0.length().max(1e-6), "{p0} {p1}");
+    assert!(
+        (p1 - p0).length() < 1e-12 * p0.length().max(1e-6),
+        "{p0} {p1}"
+    );
 }
 
 #[test]
@@ -126,7 +134,11 @@ fn rigid_motion_of_the_liver_gives_no_force_even_with_pressure() {
     for kind in [Kind::Surface, Kind::Simplex, Kind::Volumetric] {
         let model = build(kind, &liver, material(3000.0), "pressure = true");
         let r = Mat3ForTest::rotation();
-        let x: Vec<Vec3> = model.rest_positions().iter().map(|p| r * *p + Vec3::ONE).collect();
+        let x: Vec<Vec3> = model
+            .rest_positions()
+            .iter()
+            .map(|p| r * *p + Vec3::ONE)
+            .collect();
         let mut f = vec![Vec3::ZERO; x.len()];
         model.body.elastic_forces(&x, &mut f);
         let max = f.iter().map(|q| q.length()).fold(0.0, Real::max);
@@ -170,7 +182,10 @@ fn parent_nodes_fill_the_volume_of_a_sphere() {
     assert_eq!(tets.vertices.len(), 2 * s.vertices.len() + 1);
     assert_eq!(tets.tets.len(), 4 * s.triangles.len());
     assert!((0..tets.tets.len()).all(|t| tets.tet_volume(t) > 0.0));
-    assert!((tets.volume() - s.signed_volume()).abs() < 1e-12 * s.signed_volume().abs().max(1e-9) + 1e-15);
+    assert!(
+        (tets.volume() - s.signed_volume()).abs()
+            < 1e-12 * s.signed_volume().abs().max(1e-9) + 1e-15
+    );
     let model = volumetric::build_parents(&s, material(3000.0), SpringParams::default()).unwrap();
     let mass: Real = model.body().masses.iter().sum();
     assert!((mass - 1000.0 * s.signed_volume()).abs() < 1e-9 * mass);
@@ -199,11 +214,18 @@ fn bad_settings_are_named() {
         material: material(3000.0),
         params: &table,
     };
-    let e = SpringModel::from_input(Kind::Surface, &input).unwrap_err().to_string();
+    let e = SpringModel::from_input(Kind::Surface, &input)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("thickness"), "{e}");
     let table: toml::Table = toml::from_str("integrator = \"leapfrog\"").unwrap();
-    let input = BuildInput { params: &table, ..input };
-    let e = SpringModel::from_input(Kind::Surface, &input).unwrap_err().to_string();
+    let input = BuildInput {
+        params: &table,
+        ..input
+    };
+    let e = SpringModel::from_input(Kind::Surface, &input)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("leapfrog"), "{e}");
     // A surface cannot make a tet-edge model without `parents`.
     let input = BuildInput {
@@ -226,7 +248,9 @@ fn implicit_euler_steps_the_surface_model_at_a_large_step() {
     )
     .unwrap();
     assert!(model.explicit_time_step_estimate().unwrap() < 0.01);
-    model.set_constraints(&Constraints::fixed(vec![0, 1, 2])).unwrap();
+    model
+        .set_constraints(&Constraints::fixed(vec![0, 1, 2]))
+        .unwrap();
     model
         .set_loads(&Loads {
             gravity: Vec3::new(0.0, -9.81, 0.0),
@@ -255,7 +279,10 @@ fn check_manifold(triangles: &[[u32; 3]], vertex_count: usize) -> usize {
             assert!(directed.insert((p, q)), "directed edge ({p},{q}) twice");
         }
     }
-    let border = directed.iter().filter(|(p, q)| !directed.contains(&(*q, *p))).count();
+    let border = directed
+        .iter()
+        .filter(|(p, q)| !directed.contains(&(*q, *p)))
+        .count();
     // Vertex fans: triangles around v connected through shared edges at v.
     let mut around: HashMap<u32, Vec<usize>> = HashMap::new();
     for (t, tri) in triangles.iter().enumerate() {
@@ -286,7 +313,10 @@ fn a_sweep_opens_an_oriented_manifold_incision() {
         end: [Vec3::new(0.03, 0.001, 0.07), Vec3::new(0.03, 0.001, 0.03)],
     };
     let info = model.cut(&blade).unwrap();
-    assert!(info.added_vertices > 0 && info.removed_elements > 0, "{info:?}");
+    assert!(
+        info.added_vertices > 0 && info.removed_elements > 0,
+        "{info:?}"
+    );
     assert_eq!(model.rest.len(), n0 + info.added_vertices);
     let border = check_manifold(&model.triangles, model.rest.len());
     assert!(border >= 8, "{border}");
@@ -296,7 +326,11 @@ fn a_sweep_opens_an_oriented_manifold_incision() {
     assert!((mass1 - mass0).abs() < 1e-12 * mass0);
     // Every surface vertex is used and the model steps stably after the cut.
     let mut used = vec![false; model.rest.len()];
-    model.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+    model
+        .triangles
+        .iter()
+        .flatten()
+        .for_each(|&v| used[v as usize] = true);
     assert!(used.iter().all(|&u| u));
     for _ in 0..100 {
         model.step(1e-4).unwrap();
@@ -315,13 +349,18 @@ fn progressive_sweeps_make_one_continuous_incision() {
         },
     )
     .unwrap();
-    model.set_constraints(&Constraints::fixed(vec![5, 6])).unwrap();
+    model
+        .set_constraints(&Constraints::fixed(vec![5, 6]))
+        .unwrap();
     let steps = 12;
     let at = |i: usize| -0.03 + 0.06 * i as Real / steps as Real;
     for i in 0..steps {
         let blade = CutPath {
             start: [Vec3::new(at(i), 0.001, 0.07), Vec3::new(at(i), 0.001, 0.03)],
-            end: [Vec3::new(at(i + 1), 0.001, 0.07), Vec3::new(at(i + 1), 0.001, 0.03)],
+            end: [
+                Vec3::new(at(i + 1), 0.001, 0.07),
+                Vec3::new(at(i + 1), 0.001, 0.03),
+            ],
         };
         model.cut(&blade).unwrap();
         check_manifold(&model.triangles, model.rest.len());

@@ -89,7 +89,11 @@ pub fn parent_tets(s: &SurfaceMesh, depth: Real) -> TetMesh {
     let ns = s.vertices.len();
     let centre = s.vertices.iter().copied().sum::<Vec3>() / ns.max(1) as Real;
     let mut vertices = s.vertices.clone();
-    vertices.extend(s.vertices.iter().map(|&x| centre + (1.0 - depth) * (x - centre)));
+    vertices.extend(
+        s.vertices
+            .iter()
+            .map(|&x| centre + (1.0 - depth) * (x - centre)),
+    );
     vertices.push(centre);
     let parent = |v: u32| v + ns as u32;
     let mut tets = Vec::with_capacity(4 * s.triangles.len());
@@ -160,6 +164,10 @@ fn compact(mesh: &TetMesh) -> TetMesh {
             vertices.push(mesh.vertices[v]);
         }
     }
-    let tets = mesh.tets.iter().map(|t| t.map(|v| map[v as usize])).collect();
+    let tets = mesh
+        .tets
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
     TetMesh::new(vertices, tets)
 }
