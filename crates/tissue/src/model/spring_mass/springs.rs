@@ -175,7 +175,7 @@ mod tests {
     use super::*;
 
     fn network() -> (SpringNetwork, Vec<Vec3>, Vec<Vec3>) {
-        let x0 = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.3, 0.2, 1.0)];
+        let x0 = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.3, 0.2, 1.0)];
         let mut springs = Vec::new();
         for a in 0..4u32 {
             for b in a + 1..4 {
@@ -218,7 +218,7 @@ mod tests {
     #[test]
     fn rigid_motion_gives_zero_force() {
         let (n, _, _) = network();
-        let x0 = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.3, 0.2, 1.0)];
+        let x0 = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.3, 0.2, 1.0)];
         let r = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 3.0).normalize(), 1.1);
         let t = Vec3::new(0.4, -2.0, 7.0);
         let x: Vec<Vec3> = x0.iter().map(|p| r * *p + t).collect();

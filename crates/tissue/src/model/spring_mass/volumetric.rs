@@ -141,7 +141,7 @@ pub(crate) fn tet_parts(
             masses[v as usize] += m;
         }
     }
-    if let Some(v) = masses.iter().position(|m| !(*m > 0.0)) {
+    if let Some(v) = masses.iter().position(|m| m.is_nan() || *m <= 0.0) {
         return Err(MeshError::Invalid(format!(
             "node {v} has no mass: every tetrahedron around it is flat"
         )));
