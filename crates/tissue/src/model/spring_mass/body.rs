@@ -22,6 +22,10 @@ pub struct SpringBody {
     pub pressure: Option<Pressure>,
     /// Constant external force per particle (gravity share and point loads), in N.
     pub external: Vec<Vec3>,
+    /// Positions of the last `forces` call and the elastic energy there: the integrators ask
+    /// for the energy where they just evaluated forces, which saves a pass over the springs.
+    energy_at: Vec<Vec3>,
+    energy: Option<Real>,
 }
 
 impl SpringBody {
@@ -33,7 +37,15 @@ impl SpringBody {
             friction,
             pressure: None,
             external: vec![Vec3::ZERO; n],
+            energy_at: Vec::new(),
+            energy: None,
         }
+    }
+
+    /// Forgets the energy kept from the last force evaluation: call after changing springs,
+    /// pressure or masses.
+    pub fn changed(&mut self) {
+        self.energy = None;
     }
 
     /// Internal (elastic + pressure) forces only, without damping or loads.
@@ -41,7 +53,7 @@ impl SpringBody {
         f.fill(Vec3::ZERO);
         self.network.add_elastic_forces(x, f);
         if let Some(p) = &self.pressure {
-            p.add_forces(x, f);
+            let _ = p.add_forces(x, f);
         }
     }
 
@@ -57,10 +69,13 @@ impl ParticleSystem for SpringBody {
     }
 
     fn forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
-        self.network.add_forces(x, v, f);
+        let mut energy = self.network.add_forces(x, v, f);
         if let Some(p) = &self.pressure {
-            p.add_forces(x, f);
+            energy += p.add_forces(x, f);
         }
+        self.energy_at.clear();
+        self.energy_at.extend_from_slice(x);
+        self.energy = Some(energy);
         let alpha = self.friction;
         for (((fi, vi), m), e) in f.iter_mut().zip(v).zip(&self.masses).zip(&self.external) {
             *fi += *e - alpha * *m * *vi;
@@ -69,7 +84,11 @@ impl ParticleSystem for SpringBody {
 
     fn potential_energy(&self, x: &[Vec3]) -> Option<Real> {
         let load: Real = self.external.iter().zip(x).map(|(e, p)| e.dot(*p)).sum();
-        Some(self.elastic_energy(x) - load)
+        let elastic = match self.energy {
+            Some(e) if self.energy_at.as_slice() == x => e,
+            _ => self.elastic_energy(x),
+        };
+        Some(elastic - load)
     }
 
     fn prepare_jacobians(&mut self, x: &[Vec3], _v: &[Vec3]) -> Result<(), SimError> {

@@ -208,6 +208,7 @@ pub(crate) fn cut_model(model: &mut SpringModel, blade: &CutPath) -> Result<CutI
     model.body.network = network;
     model.body.masses = masses;
     model.body.pressure = pressure;
+    model.body.changed();
     let n = rest.len();
     model.state.x = xs;
     model.state.v = vs;

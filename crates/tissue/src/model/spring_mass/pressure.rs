@@ -41,14 +41,17 @@ impl Pressure {
         0.5 * self.bulk_modulus * dv * dv / self.rest_volume
     }
 
-    pub fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) {
-        let s = -self.bulk_modulus * (self.volume(x) - self.rest_volume) / self.rest_volume / 6.0;
+    /// Adds the pressure forces at `x` to `f`; returns the energy at `x`.
+    pub fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Real {
+        let dv = self.volume(x) - self.rest_volume;
+        let s = -self.bulk_modulus * dv / self.rest_volume / 6.0;
         for &[a, b, c] in &self.triangles {
             let (pa, pb, pc) = (x[a as usize], x[b as usize], x[c as usize]);
             f[a as usize] += s * pb.cross(pc);
             f[b as usize] += s * pc.cross(pa);
             f[c as usize] += s * pa.cross(pb);
         }
+        0.5 * self.bulk_modulus * dv * dv / self.rest_volume
     }
 
     pub fn prepare(&mut self, x: &[Vec3]) {

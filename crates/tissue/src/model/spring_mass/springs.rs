@@ -54,21 +54,26 @@ impl SpringNetwork {
         self.springs.is_empty()
     }
 
-    /// Adds the spring and damping forces at positions `x`, velocities `v` to `f`.
-    pub fn add_forces(&self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+    /// Adds the spring and damping forces at positions `x`, velocities `v` to `f`; returns
+    /// the elastic energy at `x` (the lengths are at hand, so it comes almost free).
+    pub fn add_forces(&self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) -> Real {
+        let mut energy = 0.0;
         for s in &self.springs {
             let (a, b) = (s.a as usize, s.b as usize);
             let d = x[b] - x[a];
             let l = d.length();
+            let stretch = l - s.rest_length;
+            energy += 0.5 * s.stiffness * stretch * stretch;
             if l <= DEGENERATE * s.rest_length.max(DEGENERATE) {
                 continue;
             }
             let u = d / l;
-            let magnitude = s.stiffness * (l - s.rest_length) + s.damping * (v[b] - v[a]).dot(u);
+            let magnitude = s.stiffness * stretch + s.damping * (v[b] - v[a]).dot(u);
             let fa = magnitude * u;
             f[a] += fa;
             f[b] -= fa;
         }
+        energy
     }
 
     /// Adds only the elastic forces (no damping) to `f`.

@@ -118,6 +118,11 @@ fn internal_forces_conserve_momentum_in_free_flight() {
         model.step(1e-4).unwrap();
     }
     let p1 = momentum(&model);
+    // The energy kept from the last force evaluation is the energy computed afresh.
+    let x = model.state().x.clone();
+    let kept = model.body.potential_energy(&x).unwrap();
+    assert!((kept - model.body.elastic_energy(&x)).abs() <= 1e-12 * kept.abs().max(1e-30));
+    assert!(kept > 0.0);
     assert!(
         (p1 - p0).length() < 1e-12 * p0.length().max(1e-6),
         "{p0} {p1}"
