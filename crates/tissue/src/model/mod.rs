@@ -11,6 +11,7 @@ pub mod fem;
 mod progress;
 mod reactions;
 pub mod registry;
+pub mod spring_mass;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,

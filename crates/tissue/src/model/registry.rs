@@ -5,6 +5,7 @@ use crate::material::Material;
 use crate::mesh::MeshData;
 use crate::model::Deformable;
 use crate::model::fem;
+use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
 
 /// A model kind and what it is, for `tissue models`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,6 +40,18 @@ pub const KINDS: &[KindInfo] = &[
         name: "fem-corotational",
         summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
     },
+    KindInfo {
+        name: "spring-mass",
+        summary: "damped springs on the surface triangles' edges, constants from E (van Gelder), cuts",
+    },
+    KindInfo {
+        name: "simplex-spring-mass",
+        summary: "springs on the T2 simplex mesh (dual of the surface, 3 links per node)",
+    },
+    KindInfo {
+        name: "volumetric-spring-mass",
+        summary: "springs on tetrahedron edges, or a surface with internal parent nodes",
+    },
 ];
 
 /// What a model is built from.
@@ -61,6 +74,18 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
         "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
+        "spring-mass" => Ok(Box::new(SpringModel::from_input(
+            SpringKind::Surface,
+            input,
+        )?)),
+        "simplex-spring-mass" => Ok(Box::new(SpringModel::from_input(
+            SpringKind::Simplex,
+            input,
+        )?)),
+        "volumetric-spring-mass" => Ok(Box::new(SpringModel::from_input(
+            SpringKind::Volumetric,
+            input,
+        )?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),
