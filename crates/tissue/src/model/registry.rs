@@ -4,6 +4,7 @@ use crate::error::{Error, SimError};
 use crate::material::Material;
 use crate::mesh::MeshData;
 use crate::model::Deformable;
+use crate::model::bem;
 use crate::model::fem;
 
 /// A model kind and what it is, for `tissue models`.
@@ -39,6 +40,10 @@ pub const KINDS: &[KindInfo] = &[
         name: "fem-corotational",
         summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
     },
+    KindInfo {
+        name: "bem",
+        summary: "linear elastostatics by boundary elements on the surface, pre-inverted, Woodbury contacts",
+    },
 ];
 
 /// What a model is built from.
@@ -61,6 +66,7 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
         "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
+        "bem" => Ok(Box::new(bem::Bem::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),
