@@ -78,18 +78,28 @@ fn block(cells: usize) -> (TetMesh, Constraints) {
 }
 
 #[test]
-fn block_indentation_agrees_with_quadratic_fem() {
-    let (mesh, c) = block(4);
-    let (b, f, n) = compare(&mesh, &c);
-    let force_gap = (b.force.z - f.force.z).abs() / f.force.z.abs();
-    let disp_gap = displacement_gap(&b, &f);
-    eprintln!(
-        "block, {n} surface vertices: force BEM {:.4e} N, FEM {:.4e} N ({:.1}%), displacement gap {:.1}%",
-        b.force.z, f.force.z, 100.0 * force_gap, 100.0 * disp_gap
-    );
-    assert!(b.force.z > 0.0 && f.force.z > 0.0, "the tissue pushes the probe up");
-    assert!(force_gap < 0.15, "{force_gap}");
-    assert!(disp_gap < 0.15, "{disp_gap}");
+fn block_indentation_approaches_quadratic_fem_under_refinement() {
+    // Not within 5% on meshes this coarse (see `block_convergence_table`): the BEM is
+    // stiffer on a given mesh and the gap shrinks about like h.
+    let mut gaps = Vec::new();
+    for cells in [2, 4] {
+        let (mesh, c) = block(cells);
+        let (b, f, n) = compare(&mesh, &c);
+        let force_gap = (b.force.z - f.force.z) / f.force.z;
+        let disp_gap = displacement_gap(&b, &f);
+        eprintln!(
+            "block, {n} surface vertices: force BEM {:.4e} N, FEM-P2 {:.4e} N ({:.1}%), displacement gap {:.1}%",
+            b.force.z,
+            f.force.z,
+            100.0 * force_gap,
+            100.0 * disp_gap
+        );
+        assert!(b.force.z > 0.0 && f.force.z > 0.0, "the tissue pushes the probe up");
+        gaps.push((force_gap, disp_gap));
+    }
+    assert!(gaps[1].0 > 0.0 && gaps[1].0 < 0.6 * gaps[0].0, "{gaps:?}");
+    assert!(gaps[1].1 < 0.6 * gaps[0].1, "{gaps:?}");
+    assert!(gaps[1].0 < 0.25 && gaps[1].1 < 0.2, "{gaps:?}");
 }
 
 #[test]
@@ -119,10 +129,17 @@ fn liver_indentation_against_quadratic_fem() {
     let mut tets = data.tet_mesh(LIVER_MSH).unwrap();
     tets.vertices.iter_mut().for_each(|p| *p *= 0.01);
     let surface = MeshData::from_tets(&tets).surface_mesh().unwrap();
-    let key = |p: Vec3| surface.vertices.iter().position(|q| (*q - p).length() < 1e-12);
+    // Supports are patches (every surface vertex within 1.2 cm of ligament nodes 3, 39
+    // and 64): a single held vertex is a point support whose compliance depends on the mesh
+    // (infinite in the continuum), not on the model.
     let mut c = Constraints::default();
     for file_vertex in [3usize, 39, 64] {
-        c.fixed.push(key(tets.vertices[file_vertex]).unwrap() as u32);
+        let centre = tets.vertices[file_vertex];
+        for (v, p) in surface.vertices.iter().enumerate() {
+            if (*p - centre).length() < 0.012 {
+                c.fixed.push(v as u32);
+            }
+        }
     }
     let probe = Vec3::new(-0.005, 0.0555, 0.0067);
     let near: Vec<usize> = (0..surface.vertices.len())
@@ -135,7 +152,8 @@ fn liver_indentation_against_quadratic_fem() {
     assert!(!c.prescribed.is_empty());
     let (b, f, n) = compare(&tets, &c);
     eprintln!(
-        "liver.msh, {n} surface vertices, {} pushed 3 mm: force BEM {:.4e} N, FEM-P2 {:.4e} N ({:.1}%), displacement gap {:.1}%",
+        "liver.msh, {n} surface vertices, {} held, {} pushed 3 mm: force BEM {:.4e} N, FEM-P2 {:.4e} N ({:.1}%), displacement gap {:.1}%",
+        c.fixed.len(),
         c.prescribed.len(),
         b.force.y,
         f.force.y,
