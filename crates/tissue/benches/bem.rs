@@ -46,18 +46,23 @@ fn bench(c: &mut Criterion) {
         b.iter(|| black_box(bem.step(0.01).expect("solves")))
     });
     // Two sets of 10 that share nothing: every iteration changes 10 contact vertices.
-    let (a, b) = (contacts(&rest, &fixed, 0, 10), contacts(&rest, &fixed, 10, 10));
+    let (a, b) = (
+        contacts(&rest, &fixed, 0, 10),
+        contacts(&rest, &fixed, 10, 10),
+    );
     let mut flip = false;
     c.bench_function("bem/woodbury_change_10_vertices", |bch| {
         bch.iter(|| {
             flip = !flip;
-            bem.set_constraints(if flip { &a } else { &b }).expect("updates");
+            bem.set_constraints(if flip { &a } else { &b })
+                .expect("updates");
         })
     });
     c.bench_function("bem/woodbury_change_10_then_update", |bch| {
         bch.iter(|| {
             flip = !flip;
-            bem.set_constraints(if flip { &a } else { &b }).expect("updates");
+            bem.set_constraints(if flip { &a } else { &b })
+                .expect("updates");
             black_box(bem.step(0.01).expect("solves"))
         })
     });

@@ -4,6 +4,7 @@
 
 use std::time::Instant;
 
+use tissue::Material;
 use tissue::interact::{Constraints, Prescribed};
 use tissue::math::{Real, Vec3};
 use tissue::mesh::generate::{BoxSplit, box_tets};
@@ -11,11 +12,12 @@ use tissue::mesh::{MeshData, TetMesh};
 use tissue::model::Deformable;
 use tissue::model::bem::{Bem, BemParams};
 use tissue::model::fem::{FemStatic, Order};
-use tissue::Material;
 
 const LIVER_MSH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
-const LIVER_SMOOTH: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver-smooth.obj");
+const LIVER_SMOOTH: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../assets/meshes/liver-smooth.obj"
+);
 
 fn material() -> Material {
     Material::new(3000.0, 0.3).unwrap()
@@ -44,7 +46,11 @@ fn compare(mesh: &TetMesh, c: &Constraints) -> (Indent, Indent, usize) {
     let surface = MeshData::from_tets(mesh).surface_mesh().unwrap();
     let mut bem = Bem::new(&surface, material(), BemParams::default()).unwrap();
     let mut fem = FemStatic::new(mesh, material(), Order::Quadratic).unwrap();
-    assert_eq!(bem.rest_surface(), fem.rest_surface(), "the same surface numbering");
+    assert_eq!(
+        bem.rest_surface(),
+        fem.rest_surface(),
+        "the same surface numbering"
+    );
     let n = bem.rest_surface().len();
     (run(&mut bem, c), run(&mut fem, c), n)
 }
@@ -57,7 +63,11 @@ fn displacement_gap(a: &Indent, b: &Indent) -> Real {
         .zip(&b.displacements)
         .map(|(x, y)| (*x - *y).length())
         .fold(0.0, Real::max);
-    gap / b.displacements.iter().map(|d| d.length()).fold(0.0, Real::max)
+    gap / b
+        .displacements
+        .iter()
+        .map(|d| d.length())
+        .fold(0.0, Real::max)
 }
 
 /// A 4 × 4 × 2 cm block on a fixed floor, a 2 cm square punch in the middle of the top
@@ -71,7 +81,10 @@ fn block(cells: usize) -> (TetMesh, Constraints) {
         if p.z < 1e-9 {
             c.fixed.push(v as u32);
         } else if p.z > 0.02 - 1e-9 && p.x.abs() < 0.01 + 1e-9 && p.y.abs() < 0.01 + 1e-9 {
-            c.prescribed.push(Prescribed { vertex: v as u32, position: *p - Vec3::Z * 0.001 });
+            c.prescribed.push(Prescribed {
+                vertex: v as u32,
+                position: *p - Vec3::Z * 0.001,
+            });
         }
     }
     (mesh, c)
@@ -94,7 +107,10 @@ fn block_indentation_approaches_quadratic_fem_under_refinement() {
             100.0 * force_gap,
             100.0 * disp_gap
         );
-        assert!(b.force.z > 0.0 && f.force.z > 0.0, "the tissue pushes the probe up");
+        assert!(
+            b.force.z > 0.0 && f.force.z > 0.0,
+            "the tissue pushes the probe up"
+        );
         gaps.push((force_gap, disp_gap));
     }
     assert!(gaps[1].0 > 0.0 && gaps[1].0 < 0.6 * gaps[0].0, "{gaps:?}");
@@ -105,7 +121,9 @@ fn block_indentation_approaches_quadratic_fem_under_refinement() {
 #[test]
 #[ignore = "slow: a refinement study, prints a table"]
 fn block_convergence_table() {
-    eprintln!("cells(z) | surface vertices | BEM force (N) | FEM-P2 force (N) | force gap | displacement gap | BEM s");
+    eprintln!(
+        "cells(z) | surface vertices | BEM force (N) | FEM-P2 force (N) | force gap | displacement gap | BEM s"
+    );
     for cells in [2, 4, 6, 8] {
         let (mesh, c) = block(cells);
         let start = Instant::now();
@@ -147,7 +165,10 @@ fn liver_indentation_against_quadratic_fem() {
         .collect();
     for v in near {
         let p = surface.vertices[v];
-        c.prescribed.push(Prescribed { vertex: v as u32, position: p - Vec3::Y * 0.003 });
+        c.prescribed.push(Prescribed {
+            vertex: v as u32,
+            position: p - Vec3::Y * 0.003,
+        });
     }
     assert!(!c.prescribed.is_empty());
     let (b, f, n) = compare(&tets, &c);
@@ -175,23 +196,36 @@ fn liver_smooth_speed() {
     let n = rest.len();
     // Three supports far apart (lowest x, highest x, lowest z).
     let by = |f: &dyn Fn(&Vec3) -> Real| {
-        (0..n).min_by(|&a, &b| f(&rest[a]).total_cmp(&f(&rest[b]))).unwrap() as u32
+        (0..n)
+            .min_by(|&a, &b| f(&rest[a]).total_cmp(&f(&rest[b])))
+            .unwrap() as u32
     };
     let fixed = vec![by(&|p| p.x), by(&|p| -p.x), by(&|p| p.z)];
     let start = Instant::now();
-    bem.set_constraints(&Constraints::fixed(fixed.clone())).unwrap();
+    bem.set_constraints(&Constraints::fixed(fixed.clone()))
+        .unwrap();
     let factor = start.elapsed().as_secs_f64();
     eprintln!("liver-smooth: {n} vertices, {} dofs", 3 * n);
-    eprintln!("assembly of H and G: {assembly:.2} s; LU of A0 and W = A0^-1 G: {factor:.2} s; total {:.2} s", assembly + factor);
+    eprintln!(
+        "assembly of H and G: {assembly:.2} s; LU of A0 and W = A0^-1 G: {factor:.2} s; total {:.2} s",
+        assembly + factor
+    );
     // 20 contacts around the top-most vertex, then 10 of them replaced.
     let top = by(&|p| -p.y) as usize;
     let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| (rest[a] - rest[top]).length().total_cmp(&(rest[b] - rest[top]).length()));
+    order.sort_by(|&a, &b| {
+        (rest[a] - rest[top])
+            .length()
+            .total_cmp(&(rest[b] - rest[top]).length())
+    });
     let set = |vs: &[usize]| Constraints {
         fixed: fixed.clone(),
         prescribed: vs
             .iter()
-            .map(|&v| Prescribed { vertex: v as u32, position: rest[v] - Vec3::Y * 0.002 })
+            .map(|&v| Prescribed {
+                vertex: v as u32,
+                position: rest[v] - Vec3::Y * 0.002,
+            })
             .collect(),
     };
     let first: Vec<usize> = order[..20].to_vec();
@@ -206,11 +240,18 @@ fn liver_smooth_speed() {
     let step = start.elapsed().as_secs_f64() / reps as f64;
     let start = Instant::now();
     for k in 0..reps {
-        bem.set_constraints(&set(if k % 2 == 0 { &second } else { &first })).unwrap();
+        bem.set_constraints(&set(if k % 2 == 0 { &second } else { &first }))
+            .unwrap();
     }
     let woodbury = start.elapsed().as_secs_f64() / reps as f64;
     bem.step(0.01).unwrap();
     eprintln!("static update, 20 contacts: {:.3} ms", 1e3 * step);
-    eprintln!("contact change of 10 vertices (Woodbury, set_constraints): {:.3} ms", 1e3 * woodbury);
-    eprintln!("probe force {:?} N", bem.reactions().prescribed.iter().copied().sum::<Vec3>());
+    eprintln!(
+        "contact change of 10 vertices (Woodbury, set_constraints): {:.3} ms",
+        1e3 * woodbury
+    );
+    eprintln!(
+        "probe force {:?} N",
+        bem.reactions().prescribed.iter().copied().sum::<Vec3>()
+    );
 }

@@ -62,7 +62,7 @@ impl Element {
         let [a, b, c] = corners;
         let cross = (b - a).cross(c - a);
         let jac = cross.length();
-        if !(jac > 0.0) || !jac.is_finite() {
+        if jac <= 0.0 || !jac.is_finite() {
             return None;
         }
         Some(Self {
@@ -94,7 +94,7 @@ pub(crate) fn assemble(
     let row = |(i, (hr, gr)): (usize, (&mut [Real], &mut [Real]))| {
         assemble_rows(i, vertices[i], elements, kelvin, &rules, hr, gr);
         let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-        if d % every == 0 || d == n {
+        if d.is_multiple_of(every) || d == n {
             progress(d as f64 / n as f64);
         }
     };

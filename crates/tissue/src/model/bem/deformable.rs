@@ -15,7 +15,9 @@ use crate::material::Material;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::mesh::SurfaceMesh;
 use crate::model::registry::parse_params;
-use crate::model::{BuildInput, CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::model::{
+    BuildInput, CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView,
+};
 
 use super::assembly::{Element, Influence, assemble};
 use super::kelvin::Kelvin;
@@ -94,7 +96,11 @@ impl Bem {
         }
     }
 
-    pub fn new(surface: &SurfaceMesh, material: Material, params: BemParams) -> Result<Self, Error> {
+    pub fn new(
+        surface: &SurfaceMesh,
+        material: Material,
+        params: BemParams,
+    ) -> Result<Self, Error> {
         Self::new_with_progress(surface, material, params, &|_| {})
     }
 
@@ -131,7 +137,13 @@ impl Bem {
         let kelvin = Kelvin::new(material.mu(), material.poisson_ratio);
         let inf = assemble(&surface.vertices, &elements, &kelvin, progress);
         let assembly_seconds = start.elapsed().as_secs_f64();
-        Ok(Self::from_parts(surface, material, params, inf, assembly_seconds))
+        Ok(Self::from_parts(
+            surface,
+            material,
+            params,
+            inf,
+            assembly_seconds,
+        ))
     }
 
     pub(super) fn from_parts(
@@ -206,7 +218,8 @@ impl Bem {
     /// Re-computes u_L = W P_load after a change of loads or of the factorisation.
     fn refresh_load_response(&mut self) -> Result<(), SimError> {
         if self.system.is_factored() {
-            self.system.load_response(&self.load_traction, &mut self.u_load)?;
+            self.system
+                .load_response(&self.load_traction, &mut self.u_load)?;
         }
         Ok(())
     }
@@ -228,14 +241,17 @@ impl Bem {
     fn solve_static(&mut self) -> Result<(), SimError> {
         let m = 3 * self.contact_targets.len();
         self.p_contact.resize(m, 0.0);
-        self.system
-            .solve(&self.contact_targets, &self.u_load, &mut self.x, &mut self.p_contact)?;
+        self.system.solve(
+            &self.contact_targets,
+            &self.u_load,
+            &mut self.x,
+            &mut self.p_contact,
+        )?;
         let fixed = self.system.fixed();
-        let n = self.surface.vertices.len();
         let at = |x: &[Real], v: usize| Vec3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
-        for v in 0..n {
+        for (v, &is_fixed) in fixed.iter().enumerate() {
             let rest = self.surface.vertices[v];
-            if fixed[v] {
+            if is_fixed {
                 self.target[v] = rest;
                 self.traction[v] = at(&self.x, v);
             } else {
@@ -251,7 +267,11 @@ impl Bem {
         // the support applies over the vertex's area.
         let reaction = |v: usize| self.point_forces[v] - self.traction[v] * self.areas[v];
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] = if self.fixed_owner[k] { reaction(v as usize) } else { Vec3::ZERO };
+            self.fixed_reactions[k] = if self.fixed_owner[k] {
+                reaction(v as usize)
+            } else {
+                Vec3::ZERO
+            };
         }
         for (k, p) in self.constraints.prescribed.iter().enumerate() {
             self.prescribed_reactions[k] = if self.prescribed_owner[k] {
@@ -292,10 +312,22 @@ fn checked_surface(s: &SurfaceMesh) -> Result<SurfaceMesh, MeshError> {
             vertices.push(s.vertices[v]);
         }
     }
-    let triangles: Vec<[u32; 3]> =
-        s.triangles.iter().map(|t| t.map(|v| map[v as usize])).collect();
-    if let Some((v, p)) = vertices.iter().enumerate().find(|(_, p)| !is_finite_vec(**p)) {
-        return Err(MeshError::NonFiniteVertex { vertex: v, x: p.x, y: p.y, z: p.z });
+    let triangles: Vec<[u32; 3]> = s
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
+    if let Some((v, p)) = vertices
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !is_finite_vec(**p))
+    {
+        return Err(MeshError::NonFiniteVertex {
+            vertex: v,
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        });
     }
     let mut edges = std::collections::HashMap::new();
     for tri in &triangles {
@@ -306,14 +338,22 @@ fn checked_surface(s: &SurfaceMesh) -> Result<SurfaceMesh, MeshError> {
     let unmap = |v: u32| map.iter().position(|&m| m == v).unwrap_or(v as usize);
     let border: Vec<_> = edges.iter().filter(|&(_, &c)| c == 1).collect();
     if let Some(&(&(a, b), _)) = border.first() {
-        return Err(MeshError::NotClosed { border_edges: border.len(), a: unmap(a), b: unmap(b) });
+        return Err(MeshError::NotClosed {
+            border_edges: border.len(),
+            a: unmap(a),
+            b: unmap(b),
+        });
     }
     if let Some((&(a, b), &faces)) = edges.iter().find(|&(_, &c)| c > 2) {
-        return Err(MeshError::NonManifoldEdge { a: unmap(a), b: unmap(b), faces });
+        return Err(MeshError::NonManifoldEdge {
+            a: unmap(a),
+            b: unmap(b),
+            faces,
+        });
     }
     let out = SurfaceMesh::new(vertices, triangles);
     let volume = out.signed_volume();
-    if !(volume > 0.0) {
+    if volume.is_nan() || volume <= 0.0 {
         return Err(MeshError::Invalid(format!(
             "the surface encloses a signed volume of {volume:.3e} m³: the BEM needs a closed \
              surface with outward normals"
@@ -328,7 +368,10 @@ impl Deformable for Bem {
     }
 
     fn surface(&self) -> SurfaceView<'_> {
-        SurfaceView { positions: &self.positions, triangles: &self.surface.triangles }
+        SurfaceView {
+            positions: &self.positions,
+            triangles: &self.surface.triangles,
+        }
     }
 
     fn rest_surface(&self) -> &[Vec3] {
@@ -354,10 +397,16 @@ impl Deformable for Bem {
         if changed {
             self.update_distances();
         }
-        self.contact_targets = contacts.iter().map(|&v| disp[v].unwrap_or(Vec3::ZERO)).collect();
+        self.contact_targets = contacts
+            .iter()
+            .map(|&v| disp[v].unwrap_or(Vec3::ZERO))
+            .collect();
         let mut taken = vec![false; n];
-        self.fixed_owner =
-            c.fixed.iter().map(|&v| !std::mem::replace(&mut taken[v as usize], true)).collect();
+        self.fixed_owner = c
+            .fixed
+            .iter()
+            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
+            .collect();
         let mut owner = vec![false; c.prescribed.len()];
         for (k, p) in c.prescribed.iter().enumerate().rev() {
             owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
@@ -383,9 +432,10 @@ impl Deformable for Bem {
         let n = self.surface.vertices.len();
         let mut forces = vec![Vec3::ZERO; n];
         for &(v, f) in &loads.point_loads {
-            let slot = forces
-                .get_mut(v as usize)
-                .ok_or(SimError::BadConstraint { vertex: v as usize, count: n })?;
+            let slot = forces.get_mut(v as usize).ok_or(SimError::BadConstraint {
+                vertex: v as usize,
+                count: n,
+            })?;
             if !is_finite_vec(f) {
                 return Err(SimError::BadParameter {
                     name: "point_loads",
@@ -410,7 +460,13 @@ impl Deformable for Bem {
         }
         self.solve_static()?;
         if self.params.alpha > 0.0 {
-            relax(&mut self.positions, &self.target, &self.distance, self.params.alpha, dt);
+            relax(
+                &mut self.positions,
+                &self.target,
+                &self.distance,
+                self.params.alpha,
+                dt,
+            );
         } else {
             self.positions.copy_from_slice(&self.target);
         }
@@ -418,7 +474,10 @@ impl Deformable for Bem {
     }
 
     fn reactions(&self) -> Reactions<'_> {
-        Reactions { fixed: &self.fixed_reactions, prescribed: &self.prescribed_reactions }
+        Reactions {
+            fixed: &self.fixed_reactions,
+            prescribed: &self.prescribed_reactions,
+        }
     }
 
     fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
@@ -434,8 +493,12 @@ impl Deformable for Bem {
         self.positions.copy_from_slice(&self.surface.vertices);
         self.target.copy_from_slice(&self.surface.vertices);
         self.traction.iter_mut().for_each(|t| *t = Vec3::ZERO);
-        self.fixed_reactions.iter_mut().for_each(|r| *r = Vec3::ZERO);
-        self.prescribed_reactions.iter_mut().for_each(|r| *r = Vec3::ZERO);
+        self.fixed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
+        self.prescribed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
     }
 
     fn info(&self) -> ModelInfo {

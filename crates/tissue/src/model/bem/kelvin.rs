@@ -63,8 +63,8 @@ impl Kelvin {
         for l in 0..3 {
             for k in 0..3 {
                 let delta = if l == k { self.b } else { 0.0 };
-                out[l][k] = s
-                    * (drdn * (delta + 3.0 * d[l] * d[k]) - self.b * (d[l] * n[k] - d[k] * n[l]));
+                out[l][k] =
+                    s * (drdn * (delta + 3.0 * d[l] * d[k]) - self.b * (d[l] * n[k] - d[k] * n[l]));
             }
         }
         out
@@ -104,17 +104,17 @@ mod tests {
         let r = Vec3::new(0.3, -0.2, 0.5);
         let n = Vec3::new(0.2, 0.9, -0.4).normalize();
         let t = k.t(r, n);
-        for l in 0..3 {
+        for (l, tl) in t.iter().enumerate() {
             let g = grad(&k, r, l);
             let div = g[0][0] + g[1][1] + g[2][2];
-            for c in 0..3 {
+            for (c, &tlc) in tl.iter().enumerate() {
                 let mut tc = 0.0;
                 for m in 0..3 {
                     let delta = if c == m { 1.0 } else { 0.0 };
                     let sigma = lame() * div * delta + MU * (g[c][m] + g[m][c]);
                     tc += sigma * n[m];
                 }
-                assert!((tc - t[l][c]).abs() < 1e-6 * t[l][c].abs().max(1e-3), "{l}{c}");
+                assert!((tc - tlc).abs() < 1e-6 * tlc.abs().max(1e-3), "{l}{c}");
             }
         }
     }

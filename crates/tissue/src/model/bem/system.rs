@@ -129,7 +129,7 @@ impl BemSystem {
         let (lo, hi) = pivots.fold((Real::INFINITY, 0.0), |(lo, hi): (Real, Real), v| {
             (lo.min(v), hi.max(v))
         });
-        if !(lo > PIVOT_RATIO * hi) {
+        if lo.is_nan() || lo <= PIVOT_RATIO * hi {
             return Err(singular());
         }
         let g = &self.inf.g;
@@ -165,7 +165,7 @@ impl BemSystem {
             let (lo, hi) = (0..m).fold((Real::INFINITY, 0.0), |(lo, hi): (Real, Real), i| {
                 (lo.min(u[(i, i)].abs()), hi.max(u[(i, i)].abs()))
             });
-            if !(lo > PIVOT_RATIO * hi) {
+            if lo.is_nan() || lo <= PIVOT_RATIO * hi {
                 return Err(SimError::NotPositiveDefinite {
                     row: contacts.first().copied().unwrap_or(0),
                     hint: "the contact compliance block is singular".into(),
@@ -267,9 +267,16 @@ fn axpy(y: &mut [Real], a: Real, x: &[Real]) {
 
 /// Solves L U X = P B in place, column blocks in parallel (faer itself runs sequentially
 /// here).
-fn solve_columns(lu: MatRef<'_, Real>, perm: faer::perm::PermRef<'_, usize>, rhs: MatMut<'_, Real>) {
+fn solve_columns(
+    lu: MatRef<'_, Real>,
+    perm: faer::perm::PermRef<'_, usize>,
+    rhs: MatMut<'_, Real>,
+) {
     #[cfg(feature = "parallel")]
-    let chunk = rhs.ncols().div_ceil(4 * rayon::current_num_threads()).max(64);
+    let chunk = rhs
+        .ncols()
+        .div_ceil(4 * rayon::current_num_threads())
+        .max(64);
     #[cfg(not(feature = "parallel"))]
     let chunk = rhs.ncols();
     split_solve(lu, perm, rhs, chunk);
@@ -285,7 +292,15 @@ fn split_solve(
     if k <= chunk {
         let n = lu.nrows();
         let mut mem = MemBuffer::new(solve::solve_in_place_scratch::<usize, Real>(n, k, Par::Seq));
-        solve::solve_in_place_with_conj(lu, lu, perm, Conj::No, rhs, Par::Seq, MemStack::new(&mut mem));
+        solve::solve_in_place_with_conj(
+            lu,
+            lu,
+            perm,
+            Conj::No,
+            rhs,
+            Par::Seq,
+            MemStack::new(&mut mem),
+        );
         return;
     }
     let (left, right) = rhs.split_at_col_mut(k / 2);

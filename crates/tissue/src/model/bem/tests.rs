@@ -33,7 +33,11 @@ impl Uniaxial {
     pub fn traction(&self, n: Vec3) -> Vec3 {
         let m = material();
         let (l, mu) = (m.lambda(), m.mu());
-        Vec3::new(l * self.eps * n.x, l * self.eps * n.y, (l + 2.0 * mu) * self.eps * n.z)
+        Vec3::new(
+            l * self.eps * n.x,
+            l * self.eps * n.y,
+            (l + 2.0 * mu) * self.eps * n.z,
+        )
     }
 }
 
@@ -46,13 +50,20 @@ fn uniaxial_errors(subdivisions: u32) -> (Real, Real) {
     let mut model = Bem::new(&s, material(), BemParams::default()).unwrap();
     let rest = model.rest_surface().to_vec();
     let normals: Vec<Vec3> = rest.iter().map(|p| p.normalize()).collect();
-    let fixed: Vec<u32> = (0..rest.len() as u32).filter(|&v| rest[v as usize].z.abs() < 1e-12).collect();
-    let cap: Vec<u32> = (0..rest.len() as u32).filter(|&v| rest[v as usize].z > 0.03).collect();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z.abs() < 1e-12)
+        .collect();
+    let cap: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.03)
+        .collect();
     let c = Constraints {
         fixed: fixed.clone(),
         prescribed: cap
             .iter()
-            .map(|&v| Prescribed { vertex: v, position: rest[v as usize] + field.u(rest[v as usize]) })
+            .map(|&v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] + field.u(rest[v as usize]),
+            })
             .collect(),
     };
     model.set_constraints(&c).unwrap();
@@ -61,7 +72,12 @@ fn uniaxial_errors(subdivisions: u32) -> (Real, Real) {
         .filter(|&v| !fixed.contains(&(v as u32)) && !cap.contains(&(v as u32)))
         .map(|v| (v as u32, field.traction(normals[v]) * areas[v]))
         .collect();
-    model.set_loads(&Loads { gravity: Vec3::ZERO, point_loads }).unwrap();
+    model
+        .set_loads(&Loads {
+            gravity: Vec3::ZERO,
+            point_loads,
+        })
+        .unwrap();
     model.step(0.01).unwrap();
     let du = model
         .surface()
@@ -70,7 +86,10 @@ fn uniaxial_errors(subdivisions: u32) -> (Real, Real) {
         .zip(&rest)
         .map(|(p, r)| (*p - *r - field.u(*r)).length())
         .fold(0.0, Real::max);
-    let umax = rest.iter().map(|r| field.u(*r).length()).fold(0.0, Real::max);
+    let umax = rest
+        .iter()
+        .map(|r| field.u(*r).length())
+        .fold(0.0, Real::max);
     let reactions = model.reactions().prescribed;
     let (mut dr, mut rmax) = (0.0 as Real, 0.0 as Real);
     for (k, &v) in cap.iter().enumerate() {
@@ -106,7 +125,11 @@ fn linear_field_satisfies_h_u_equals_g_p() {
         let m = Bem::new(&s, material(), BemParams::default()).unwrap();
         let inf = m.system().influence();
         let n = inf.dofs();
-        let u: Vec<Real> = s.vertices.iter().flat_map(|x| field.u(*x).to_array()).collect();
+        let u: Vec<Real> = s
+            .vertices
+            .iter()
+            .flat_map(|x| field.u(*x).to_array())
+            .collect();
         let p: Vec<Real> = s
             .vertices
             .iter()
@@ -130,7 +153,9 @@ fn linear_field_satisfies_h_u_equals_g_p() {
 #[test]
 fn uniaxial_strain_is_recovered() {
     let (du, dr) = uniaxial_errors(2);
-    eprintln!("uniaxial sphere, 162 vertices: displacement error {du:.3e}, reaction error {dr:.3e}");
+    eprintln!(
+        "uniaxial sphere, 162 vertices: displacement error {du:.3e}, reaction error {dr:.3e}"
+    );
     assert!(du < 0.02, "{du}");
     assert!(dr < 0.1, "{dr}");
 }
@@ -140,15 +165,22 @@ fn woodbury_equals_a_fresh_inversion() {
     let s = sphere(1);
     let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
     let rest = m.rest_surface().to_vec();
-    let fixed: Vec<u32> = (0..rest.len() as u32).filter(|&v| rest[v as usize].z < -0.03).collect();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z < -0.03)
+        .collect();
     let press = |vs: &[u32]| Constraints {
         fixed: fixed.clone(),
         prescribed: vs
             .iter()
-            .map(|&v| Prescribed { vertex: v, position: rest[v as usize] * 0.99 })
+            .map(|&v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] * 0.99,
+            })
             .collect(),
     };
-    let top: Vec<u32> = (0..rest.len() as u32).filter(|&v| rest[v as usize].z > 0.02).collect();
+    let top: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.02)
+        .collect();
     assert!(top.len() >= 10 && fixed.len() >= 3);
     for set in [&top[..3], &top[..10], &top[4..7]] {
         m.set_constraints(&press(set)).unwrap();
@@ -160,20 +192,26 @@ fn woodbury_equals_a_fresh_inversion() {
         let fresh = sys.reordered(&mask).partial_piv_lu().inverse();
         let updated = sys.explicit_inverse().unwrap();
         let rel = (&updated - &fresh).norm_l2() / fresh.norm_l2();
-        eprintln!("woodbury with {} contacts: relative difference {rel:.2e}", set.len());
+        eprintln!(
+            "woodbury with {} contacts: relative difference {rel:.2e}",
+            set.len()
+        );
         assert!(rel < 1e-8, "{rel}");
     }
     assert_eq!(m.system().factorizations, 1);
     assert_eq!(m.system().woodbury_updates, 3);
 }
 
-
 /// Equator fixed, the north pole pushed 1 mm down.
 fn pole_push(m: &Bem) -> Constraints {
     let rest = m.rest_surface();
-    let pole = (0..rest.len()).max_by(|&a, &b| rest[a].z.total_cmp(&rest[b].z)).unwrap();
+    let pole = (0..rest.len())
+        .max_by(|&a, &b| rest[a].z.total_cmp(&rest[b].z))
+        .unwrap();
     Constraints {
-        fixed: (0..rest.len() as u32).filter(|&v| rest[v as usize].z.abs() < 1e-12).collect(),
+        fixed: (0..rest.len() as u32)
+            .filter(|&v| rest[v as usize].z.abs() < 1e-12)
+            .collect(),
         prescribed: vec![Prescribed {
             vertex: pole as u32,
             position: rest[pole] - Vec3::Z * 1e-3,
@@ -189,7 +227,10 @@ fn quasi_viscous_steps_follow_eq_13_and_reach_the_static_state() {
     stat.set_constraints(&c).unwrap();
     stat.step(0.01).unwrap();
     let target = stat.surface().positions.to_vec();
-    let params = BemParams { alpha: 0.05, progress: false };
+    let params = BemParams {
+        alpha: 0.05,
+        progress: false,
+    };
     let mut visc = Bem::new(&s, material(), params).unwrap();
     assert!(!visc.info().is_static && stat.info().is_static);
     visc.set_constraints(&c).unwrap();
@@ -201,7 +242,10 @@ fn quasi_viscous_steps_follow_eq_13_and_reach_the_static_state() {
     for v in 0..rest.len() {
         let f = (-0.05 * d[v] / dt).exp();
         let expect = rest[v] + (target[v] - rest[v]) * f;
-        assert!((visc.surface().positions[v] - expect).length() < 1e-15, "vertex {v}");
+        assert!(
+            (visc.surface().positions[v] - expect).length() < 1e-15,
+            "vertex {v}"
+        );
     }
     let pole = c.prescribed[0].vertex as usize;
     assert_eq!(visc.surface().positions[pole], c.prescribed[0].position);
@@ -243,7 +287,11 @@ fn reactions_balance_and_follow_the_push() {
     m.step(0.01).unwrap();
     let probe2: Vec3 = m.reactions().prescribed.iter().copied().sum();
     assert!((probe2 - probe * 2.0).length() < 1e-12 * probe.length());
-    assert_eq!(m.system().factorizations, 1, "a contact change does not refactorise");
+    assert_eq!(
+        m.system().factorizations,
+        1,
+        "a contact change does not refactorise"
+    );
     m.reset();
     assert_eq!(m.surface().positions, m.rest_surface());
 }
@@ -254,12 +302,16 @@ fn bad_input_is_refused_with_its_reason() {
     // An open surface.
     let mut open = s.clone();
     open.triangles.pop();
-    let e = Bem::new(&open, material(), BemParams::default()).unwrap_err().to_string();
+    let e = Bem::new(&open, material(), BemParams::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("not closed"), "{e}");
     // Inward normals.
     let mut inward = s.clone();
     inward.triangles.iter_mut().for_each(|t| t.swap(1, 2));
-    let e = Bem::new(&inward, material(), BemParams::default()).unwrap_err().to_string();
+    let e = Bem::new(&inward, material(), BemParams::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("outward"), "{e}");
     // A triangle pointing at a vertex that does not exist.
     let mut bad = s.clone();
@@ -269,11 +321,20 @@ fn bad_input_is_refused_with_its_reason() {
     // Solving before any fixed set, too few fixed vertices, a vertex that does not exist.
     assert!(m.step(0.01).is_err());
     assert!(m.set_constraints(&Constraints::fixed(vec![0, 1])).is_err());
-    assert!(m.set_constraints(&Constraints::fixed(vec![0, 1, 500])).is_err());
-    let loads = Loads { gravity: Vec3::new(0.0, 0.0, -9.81), point_loads: vec![] };
+    assert!(
+        m.set_constraints(&Constraints::fixed(vec![0, 1, 500]))
+            .is_err()
+    );
+    let loads = Loads {
+        gravity: Vec3::new(0.0, 0.0, -9.81),
+        point_loads: vec![],
+    };
     let e = m.set_loads(&loads).unwrap_err().to_string();
     assert!(e.contains("gravity"), "{e}");
-    let loads = Loads { gravity: Vec3::ZERO, point_loads: vec![(7, Vec3::NAN)] };
+    let loads = Loads {
+        gravity: Vec3::ZERO,
+        point_loads: vec![(7, Vec3::NAN)],
+    };
     assert!(m.set_loads(&loads).is_err());
     // Unknown or bad settings name themselves.
     let mut params = toml::Table::new();
@@ -289,8 +350,16 @@ fn bad_input_is_refused_with_its_reason() {
     assert!(e.contains("viscosity"), "{e}");
     let mut negative = toml::Table::new();
     negative.insert("alpha".into(), toml::Value::Float(-1.0));
-    let input = crate::model::BuildInput { params: &negative, ..input };
-    assert!(Bem::from_input(&input).unwrap_err().to_string().contains("alpha"));
+    let input = crate::model::BuildInput {
+        params: &negative,
+        ..input
+    };
+    assert!(
+        Bem::from_input(&input)
+            .unwrap_err()
+            .to_string()
+            .contains("alpha")
+    );
 }
 
 #[test]

@@ -98,12 +98,7 @@ mod tests {
     #[test]
     fn distances_follow_edges() {
         // A unit square split along its diagonal (0,2): 0-1-2-3 around.
-        let v = vec![
-            Vec3::ZERO,
-            Vec3::X,
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::Y,
-        ];
+        let v = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
         let g = SurfaceGraph::new(&v, &[[0, 1, 2], [0, 2, 3]]);
         let d = g.distances(&[1]);
         assert_eq!(d[1], 0.0);
