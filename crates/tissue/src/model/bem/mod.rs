@@ -11,6 +11,7 @@
 mod assembly;
 mod deformable;
 mod kelvin;
+mod model;
 mod quadrature;
 mod system;
 mod viscous;
@@ -19,7 +20,7 @@ mod viscous;
 mod tests;
 
 pub use assembly::Influence;
-pub use deformable::{Bem, BemParams};
 pub use kelvin::Kelvin;
+pub use model::{Bem, BemParams};
 pub use system::BemSystem;
 pub use viscous::SurfaceGraph;
