@@ -7,6 +7,7 @@
 //! `SimError::Unsupported`.
 
 mod deformable;
+pub mod bem;
 pub mod fem;
 mod progress;
 mod reactions;

@@ -4,6 +4,7 @@ use crate::error::{Error, SimError};
 use crate::material::Material;
 use crate::mesh::MeshData;
 use crate::model::Deformable;
+use crate::model::bem;
 use crate::model::fem;
 use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
 
@@ -52,6 +53,10 @@ pub const KINDS: &[KindInfo] = &[
         name: "volumetric-spring-mass",
         summary: "springs on tetrahedron edges, or a surface with internal parent nodes",
     },
+    KindInfo {
+        name: "bem",
+        summary: "linear elastostatics by boundary elements on the surface, pre-inverted, Woodbury contacts",
+    },
 ];
 
 /// What a model is built from.
@@ -86,6 +91,7 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
             SpringKind::Volumetric,
             input,
         )?)),
+        "bem" => Ok(Box::new(bem::Bem::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

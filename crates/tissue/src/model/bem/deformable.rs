@@ -1,0 +1,244 @@
+//! `Deformable` for `Bem`: constraints become a fixed set (re-factorised when it changes)
+//! and a contact set (a Woodbury update); each step is one O(n·contacts) solve, optionally
+//! relaxed by eq. 13; reactions are tractions times tributary areas.
+
+use crate::error::SimError;
+use crate::interact::{Constraints, Loads};
+use crate::math::{Real, Vec3, is_finite_vec};
+use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+
+use super::model::Bem;
+use super::viscous::relax;
+
+impl Bem {
+    /// Re-computes u_L = W P_load after a change of loads or of the factorisation.
+    pub(super) fn refresh_load_response(&mut self) -> Result<(), SimError> {
+        if self.system.is_factored() {
+            self.system
+                .load_response(&self.load_traction, &mut self.u_load)?;
+        }
+        Ok(())
+    }
+
+    fn update_distances(&mut self) {
+        if self.params.alpha > 0.0 {
+            let contacts = self.system.contacts();
+            let sources: Vec<usize> = if contacts.is_empty() {
+                let f = self.system.fixed();
+                (0..f.len()).filter(|&v| f[v]).collect()
+            } else {
+                contacts.to_vec()
+            };
+            self.distance = self.graph.distances(&sources);
+        }
+    }
+
+    /// Static solution from the current constraints and loads: targets, tractions, reactions.
+    fn solve_static(&mut self) -> Result<(), SimError> {
+        let m = 3 * self.contact_targets.len();
+        self.p_contact.resize(m, 0.0);
+        self.system.solve(
+            &self.contact_targets,
+            &self.u_load,
+            &mut self.x,
+            &mut self.p_contact,
+        )?;
+        let fixed = self.system.fixed();
+        let at = |x: &[Real], v: usize| Vec3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
+        for (v, &is_fixed) in fixed.iter().enumerate() {
+            let rest = self.surface.vertices[v];
+            if is_fixed {
+                self.target[v] = rest;
+                self.traction[v] = at(&self.x, v);
+            } else {
+                self.target[v] = rest + at(&self.x, v);
+                self.traction[v] = at(&self.load_traction, v);
+            }
+        }
+        for (k, &v) in self.system.contacts().iter().enumerate() {
+            self.target[v] = self.surface.vertices[v] + self.contact_targets[k];
+            self.traction[v] += at(&self.p_contact, k);
+        }
+        // The tissue pushes on its support with the load on that vertex minus the traction
+        // the support applies over the vertex's area.
+        let reaction = |v: usize| self.point_forces[v] - self.traction[v] * self.areas[v];
+        for (k, &v) in self.constraints.fixed.iter().enumerate() {
+            self.fixed_reactions[k] = if self.fixed_owner[k] {
+                reaction(v as usize)
+            } else {
+                Vec3::ZERO
+            };
+        }
+        for (k, p) in self.constraints.prescribed.iter().enumerate() {
+            self.prescribed_reactions[k] = if self.prescribed_owner[k] {
+                reaction(p.vertex as usize)
+            } else {
+                Vec3::ZERO
+            };
+        }
+        Ok(())
+    }
+}
+
+impl Deformable for Bem {
+    fn kind(&self) -> &'static str {
+        "bem"
+    }
+
+    fn surface(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            positions: &self.positions,
+            triangles: &self.surface.triangles,
+        }
+    }
+
+    fn rest_surface(&self) -> &[Vec3] {
+        &self.surface.vertices
+    }
+
+    /// A new fixed set re-factorises (O(n³)); a new contact set costs a Woodbury update.
+    /// Reactions go to the first fixed entry of a vertex, else its last prescribed entry.
+    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let disp = c.surface_displacements(&self.surface.vertices)?;
+        let n = self.surface.vertices.len();
+        let mut fixed = vec![false; n];
+        for &v in &c.fixed {
+            fixed[v as usize] = true;
+        }
+        let contacts: Vec<usize> = (0..n).filter(|&v| !fixed[v] && disp[v].is_some()).collect();
+        if fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
+            self.system.factor(&fixed)?;
+            self.refresh_load_response()?;
+        }
+        let changed = contacts.as_slice() != self.system.contacts();
+        self.system.set_contacts(&contacts)?;
+        if changed {
+            self.update_distances();
+        }
+        self.contact_targets = contacts
+            .iter()
+            .map(|&v| disp[v].unwrap_or(Vec3::ZERO))
+            .collect();
+        let mut taken = vec![false; n];
+        self.fixed_owner = c
+            .fixed
+            .iter()
+            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
+            .collect();
+        let mut owner = vec![false; c.prescribed.len()];
+        for (k, p) in c.prescribed.iter().enumerate().rev() {
+            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+        }
+        self.prescribed_owner = owner;
+        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
+        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
+        self.constraints = c.clone();
+        Ok(())
+    }
+
+    /// Point loads become tractions over their vertex's tributary area. Gravity is refused:
+    /// a body force needs a volume integral that a surface-only model does not have.
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        if loads.gravity != Vec3::ZERO {
+            return Err(SimError::Unsupported {
+                model: "bem",
+                operation: "gravity",
+                reason: "body forces need a volume integral; the BEM discretises only the surface"
+                    .into(),
+            });
+        }
+        let n = self.surface.vertices.len();
+        let mut forces = vec![Vec3::ZERO; n];
+        for &(v, f) in &loads.point_loads {
+            let slot = forces.get_mut(v as usize).ok_or(SimError::BadConstraint {
+                vertex: v as usize,
+                count: n,
+            })?;
+            if !is_finite_vec(f) {
+                return Err(SimError::BadParameter {
+                    name: "point_loads",
+                    value: format!("surface vertex {v} -> {f}"),
+                    reason: "the force is not finite".into(),
+                });
+            }
+            *slot += f;
+        }
+        for (v, f) in forces.iter().enumerate() {
+            let p = *f / self.areas[v];
+            self.load_traction[3 * v..3 * v + 3].copy_from_slice(&[p.x, p.y, p.z]);
+        }
+        self.point_forces = forces;
+        self.refresh_load_response()
+    }
+
+    /// The static solution; with `alpha > 0`, one step of eq. 13 toward it.
+    fn step(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        if self.params.alpha > 0.0 && !(dt.is_finite() && dt > 0.0) {
+            return Err(SimError::BadTimeStep { dt });
+        }
+        self.solve_static()?;
+        if self.params.alpha > 0.0 {
+            relax(
+                &mut self.positions,
+                &self.target,
+                &self.distance,
+                self.params.alpha,
+                dt,
+            );
+        } else {
+            self.positions.copy_from_slice(&self.target);
+        }
+        Ok(StepInfo::default())
+    }
+
+    fn reactions(&self) -> Reactions<'_> {
+        Reactions {
+            fixed: &self.fixed_reactions,
+            prescribed: &self.prescribed_reactions,
+        }
+    }
+
+    fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
+        let _ = blade;
+        Err(SimError::Unsupported {
+            model: "bem",
+            operation: "cutting",
+            reason: "incisions are not implemented yet for the BEM".into(),
+        })
+    }
+
+    fn reset(&mut self) {
+        self.positions.copy_from_slice(&self.surface.vertices);
+        self.target.copy_from_slice(&self.surface.vertices);
+        self.traction.iter_mut().for_each(|t| *t = Vec3::ZERO);
+        self.fixed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
+        self.prescribed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
+    }
+
+    fn info(&self) -> ModelInfo {
+        let dofs = self.system.dofs();
+        let s = &self.system;
+        ModelInfo {
+            kind: self.kind(),
+            nodes: self.surface.vertices.len(),
+            dofs,
+            elements: self.surface.triangles.len(),
+            surface_vertices: self.surface.vertices.len(),
+            memory_bytes: 3 * dofs * dofs * 8,
+            precompute_seconds: self.assembly_seconds + s.last_factor_seconds,
+            is_static: self.params.alpha == 0.0,
+            details: vec![
+                ("assembly_s".into(), format!("{:.3}", self.assembly_seconds)),
+                ("factor_s".into(), format!("{:.3}", s.last_factor_seconds)),
+                ("factorizations".into(), s.factorizations.to_string()),
+                ("woodbury_updates".into(), s.woodbury_updates.to_string()),
+                ("contacts".into(), s.contacts().len().to_string()),
+                ("alpha".into(), self.params.alpha.to_string()),
+            ],
+        }
+    }
+}

@@ -1,0 +1,26 @@
+//! `bem`: linear elastostatics by the boundary element method on the rendered surface
+//! (survey section 3.2, eq. 11-13).
+//!
+//! Only the surface is discretised: linear triangles with displacement and traction unknowns
+//! at the vertices (`assembly`, with Kelvin's kernels from `kelvin` and the rules of
+//! `quadrature`). The system is reordered by column exchange and pre-inverted for the fixed
+//! vertices; contacts enter by the Woodbury formula (`system`). Reactions are tractions times
+//! tributary areas. With `alpha > 0` the static solution becomes a target approached with
+//! eq. 13 (`viscous`). Body forces (gravity) would need a volume integral and are refused.
+
+mod assembly;
+mod deformable;
+mod kelvin;
+mod model;
+mod quadrature;
+mod system;
+mod viscous;
+
+#[cfg(test)]
+mod tests;
+
+pub use assembly::Influence;
+pub use kelvin::Kelvin;
+pub use model::{Bem, BemParams};
+pub use system::BemSystem;
+pub use viscous::SurfaceGraph;

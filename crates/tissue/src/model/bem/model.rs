@@ -1,0 +1,293 @@
+//! `Bem`: the boundary element model's data and construction.
+//!
+//! Built in two stages: H and G are assembled when the model is built (the surface alone
+//! decides them); A₀ is factorised and W = A₀⁻¹ G computed when the fixed set is first known
+//! (in `set_constraints`) and again only when it changes. Contacts (prescribed vertices)
+//! change the system through the Woodbury capacitance only.
+
+use std::time::Instant;
+
+use serde::Deserialize;
+
+use crate::error::{Error, MeshError, SimError};
+use crate::interact::Constraints;
+use crate::material::Material;
+use crate::math::{Real, Vec3, is_finite_vec};
+use crate::mesh::SurfaceMesh;
+use crate::model::BuildInput;
+use crate::model::registry::parse_params;
+
+use super::assembly::{Element, Influence, assemble};
+use super::kelvin::Kelvin;
+use super::system::BemSystem;
+use super::viscous::SurfaceGraph;
+
+/// The `[model]` settings of `bem`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BemParams {
+    /// Quasi-viscosity α of eq. 13, in s/m (0: static, the target is reached at once).
+    #[serde(default)]
+    pub alpha: Real,
+    /// Prints the assembly's progress to stderr (useful for meshes of thousands of vertices).
+    #[serde(default)]
+    pub progress: bool,
+}
+
+/// Linear elastostatics by collocation BEM on the surface mesh.
+pub struct Bem {
+    pub(super) params: BemParams,
+    pub(super) material: Material,
+    pub(super) surface: SurfaceMesh,
+    pub(super) positions: Vec<Vec3>,
+    /// The static solution (eq. 13's target).
+    pub(super) target: Vec<Vec3>,
+    /// Tributary area of each vertex (a third of each adjacent triangle), in m².
+    pub(super) areas: Vec<Real>,
+    pub(super) graph: SurfaceGraph,
+    pub(super) distance: Vec<Real>,
+    pub(super) system: BemSystem,
+    pub(super) constraints: Constraints,
+    /// Contact vertices (prescribed, not fixed), ascending, and their displacements.
+    pub(super) contact_targets: Vec<Vec3>,
+    pub(super) point_forces: Vec<Vec3>,
+    /// Known tractions per dof (point loads over tributary areas), in Pa.
+    pub(super) load_traction: Vec<Real>,
+    pub(super) u_load: Vec<Real>,
+    pub(super) x: Vec<Real>,
+    pub(super) p_contact: Vec<Real>,
+    /// Traction per vertex after the last step, in Pa.
+    pub(super) traction: Vec<Vec3>,
+    pub(super) fixed_owner: Vec<bool>,
+    pub(super) prescribed_owner: Vec<bool>,
+    pub(super) fixed_reactions: Vec<Vec3>,
+    pub(super) prescribed_reactions: Vec<Vec3>,
+    pub(super) assembly_seconds: Real,
+}
+
+impl std::fmt::Debug for Bem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bem")
+            .field("vertices", &self.surface.vertices.len())
+            .field("triangles", &self.surface.triangles.len())
+            .finish()
+    }
+}
+
+impl Bem {
+    /// Builds from the registry's input: the mesh's triangles, or the boundary of its
+    /// tetrahedra when it has a volume.
+    pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
+        let params: BemParams = parse_params("bem", input.params)?;
+        let surface = input.mesh.surface_mesh()?;
+        if params.progress {
+            let last = std::sync::atomic::AtomicUsize::new(0);
+            let report = move |f: f64| {
+                let pct = (f * 100.0) as usize;
+                if pct / 10 > last.swap(pct / 10, std::sync::atomic::Ordering::Relaxed) {
+                    eprintln!("bem: assembling H and G {pct}%");
+                }
+            };
+            Self::new_with_progress(&surface, input.material, params, &report)
+        } else {
+            Self::new(&surface, input.material, params)
+        }
+    }
+
+    pub fn new(
+        surface: &SurfaceMesh,
+        material: Material,
+        params: BemParams,
+    ) -> Result<Self, Error> {
+        Self::new_with_progress(surface, material, params, &|_| {})
+    }
+
+    /// Checks the surface (closed, manifold, outward, no degenerate triangle), drops unused
+    /// vertices and assembles H and G; `progress` gets the fraction done.
+    pub fn new_with_progress(
+        surface: &SurfaceMesh,
+        material: Material,
+        params: BemParams,
+        progress: &(dyn Fn(f64) + Sync),
+    ) -> Result<Self, Error> {
+        let material = material.validated()?;
+        if !(params.alpha.is_finite() && params.alpha >= 0.0) {
+            return Err(SimError::BadParameter {
+                name: "alpha",
+                value: params.alpha.to_string(),
+                reason: "the quasi-viscosity must be finite and not negative".into(),
+            }
+            .into());
+        }
+        let surface = checked_surface(surface)?;
+        let elements = surface
+            .triangles
+            .iter()
+            .enumerate()
+            .map(|(t, &tri)| {
+                Element::new(&surface.vertices, tri).ok_or(MeshError::DegenerateTriangle {
+                    triangle: t,
+                    area: 0.0,
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let start = Instant::now();
+        let kelvin = Kelvin::new(material.mu(), material.poisson_ratio);
+        let inf = assemble(&surface.vertices, &elements, &kelvin, progress);
+        let assembly_seconds = start.elapsed().as_secs_f64();
+        Ok(Self::from_parts(
+            surface,
+            material,
+            params,
+            inf,
+            assembly_seconds,
+        ))
+    }
+
+    pub(super) fn from_parts(
+        surface: SurfaceMesh,
+        material: Material,
+        params: BemParams,
+        inf: Influence,
+        assembly_seconds: Real,
+    ) -> Self {
+        let n = surface.vertices.len();
+        let mut areas = vec![0.0; n];
+        for t in 0..surface.triangles.len() {
+            let [a, b, c] = surface.corners(t);
+            let third = 0.5 * (b - a).cross(c - a).length() / 3.0;
+            for v in surface.triangles[t] {
+                areas[v as usize] += third;
+            }
+        }
+        Self {
+            params,
+            material,
+            positions: surface.vertices.clone(),
+            target: surface.vertices.clone(),
+            graph: SurfaceGraph::new(&surface.vertices, &surface.triangles),
+            distance: vec![0.0; n],
+            areas,
+            system: BemSystem::new(inf),
+            constraints: Constraints::default(),
+            contact_targets: Vec::new(),
+            point_forces: vec![Vec3::ZERO; n],
+            load_traction: vec![0.0; 3 * n],
+            u_load: vec![0.0; 3 * n],
+            x: vec![0.0; 3 * n],
+            p_contact: Vec::new(),
+            traction: vec![Vec3::ZERO; n],
+            fixed_owner: Vec::new(),
+            prescribed_owner: Vec::new(),
+            fixed_reactions: Vec::new(),
+            prescribed_reactions: Vec::new(),
+            assembly_seconds,
+            surface,
+        }
+    }
+
+    pub fn params(&self) -> &BemParams {
+        &self.params
+    }
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+    /// H, G, W and the contact state.
+    pub fn system(&self) -> &BemSystem {
+        &self.system
+    }
+    /// Tributary area per surface vertex, in m².
+    pub fn areas(&self) -> &[Real] {
+        &self.areas
+    }
+    /// Traction per surface vertex after the last step (what the surroundings apply), in Pa.
+    pub fn tractions(&self) -> &[Vec3] {
+        &self.traction
+    }
+    /// Displacements of the static solution of the last step, in m.
+    pub fn static_displacements(&self) -> Vec<Vec3> {
+        self.target
+            .iter()
+            .zip(&self.surface.vertices)
+            .map(|(t, r)| *t - *r)
+            .collect()
+    }
+}
+
+/// The surface without unused vertices, or the reason it cannot bound a body.
+fn checked_surface(s: &SurfaceMesh) -> Result<SurfaceMesh, MeshError> {
+    s.validate_indices()?;
+    if s.triangles.is_empty() {
+        return Err(MeshError::Empty { what: "triangles" });
+    }
+    // Unused vertices would give zero columns; the others keep their order, so a surface
+    // without unused vertices keeps its numbering.
+    let mut map = vec![u32::MAX; s.vertices.len()];
+    for (t, tri) in s.triangles.iter().enumerate() {
+        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            return Err(MeshError::RepeatedVertex {
+                element_kind: "triangle",
+                element: t,
+                vertex: tri[1] as usize,
+            });
+        }
+        for &v in tri {
+            map[v as usize] = 0;
+        }
+    }
+    let mut vertices = Vec::new();
+    for (v, slot) in map.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = vertices.len() as u32;
+            vertices.push(s.vertices[v]);
+        }
+    }
+    let triangles: Vec<[u32; 3]> = s
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
+    if let Some((v, p)) = vertices
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !is_finite_vec(**p))
+    {
+        return Err(MeshError::NonFiniteVertex {
+            vertex: v,
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        });
+    }
+    let mut edges = std::collections::HashMap::new();
+    for tri in &triangles {
+        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+            *edges.entry((a.min(b), a.max(b))).or_insert(0usize) += 1;
+        }
+    }
+    let unmap = |v: u32| map.iter().position(|&m| m == v).unwrap_or(v as usize);
+    let border: Vec<_> = edges.iter().filter(|&(_, &c)| c == 1).collect();
+    if let Some(&(&(a, b), _)) = border.first() {
+        return Err(MeshError::NotClosed {
+            border_edges: border.len(),
+            a: unmap(a),
+            b: unmap(b),
+        });
+    }
+    if let Some((&(a, b), &faces)) = edges.iter().find(|&(_, &c)| c > 2) {
+        return Err(MeshError::NonManifoldEdge {
+            a: unmap(a),
+            b: unmap(b),
+            faces,
+        });
+    }
+    let out = SurfaceMesh::new(vertices, triangles);
+    let volume = out.signed_volume();
+    if volume.is_nan() || volume <= 0.0 {
+        return Err(MeshError::Invalid(format!(
+            "the surface encloses a signed volume of {volume:.3e} m³: the BEM needs a closed \
+             surface with outward normals"
+        )));
+    }
+    Ok(out)
+}

@@ -1,0 +1,317 @@
+//! The reordered BEM system and its pre-inverted form (eq. 11-12), with contact changes
+//! absorbed by the Woodbury formula.
+//!
+//! Per vertex, either the displacement is known (fixed: U = 0; contact: U = U*) and the
+//! traction unknown, or the traction is known (free: P = 0, or a point load) and the
+//! displacement unknown. Exchanging the columns of H and −G of the vertices whose traction
+//! is unknown gives the reordered matrix A with A x = b.
+//!
+//! The base matrix A₀ exchanges only the fixed vertices' columns (at least three
+//! non-collinear fixed vertices make it regular). It is factorised once per fixed set and
+//! W = A₀⁻¹ G is stored: column block j of W is the response of the whole surface (free
+//! displacements, fixed tractions) to a unit traction at vertex j. Making a set C of free
+//! vertices contacts changes A₀'s columns C from H to −G. Since A₀⁻¹ H_{:,C} = E_C, the
+//! Woodbury capacitance matrix of that change is exactly −W_CC, and the update reduces to
+//!   P_C = W_CC⁻¹ (U*_C − u_L,C),   x = u_L + W_{:,C} P_C,
+//! where u_L = W P_load. A contact change costs one small LU (3|C|)², a static update
+//! O(n·|C|); the n × n inverse of A is never formed (`explicit_inverse` builds it for
+//! checks).
+
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::lu::partial_pivoting::{factor, solve};
+use faer::linalg::solvers::{DenseSolveCore, PartialPivLu, Solve};
+use faer::{Conj, Mat, MatMut, MatRef, Par};
+
+use crate::error::SimError;
+use crate::math::{Real, Vec3};
+
+use super::assembly::Influence;
+
+/// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
+const PIVOT_RATIO: Real = 1e-12;
+
+/// H, G, the pre-inverted base system and the current contact set.
+pub struct BemSystem {
+    pub(crate) inf: Influence,
+    /// The fixed set A₀ was factorised for.
+    fixed: Vec<bool>,
+    /// W = A₀⁻¹ G (column-major, 3n × 3n); empty before the first factorisation.
+    w: Mat<Real>,
+    contacts: Vec<usize>,
+    /// LU of the capacitance matrix W_CC.
+    capacitance: Option<PartialPivLu<Real>>,
+    pub factorizations: usize,
+    pub woodbury_updates: usize,
+    pub last_factor_seconds: Real,
+}
+
+impl BemSystem {
+    pub fn new(inf: Influence) -> Self {
+        Self {
+            fixed: vec![false; inf.vertices],
+            inf,
+            w: Mat::zeros(0, 0),
+            contacts: Vec::new(),
+            capacitance: None,
+            factorizations: 0,
+            woodbury_updates: 0,
+            last_factor_seconds: 0.0,
+        }
+    }
+
+    pub fn dofs(&self) -> usize {
+        self.inf.dofs()
+    }
+    pub fn influence(&self) -> &Influence {
+        &self.inf
+    }
+    /// W = A₀⁻¹ G (empty before the first `factor`).
+    pub fn response(&self) -> &Mat<Real> {
+        &self.w
+    }
+    pub fn is_factored(&self) -> bool {
+        self.w.nrows() == self.dofs() && self.dofs() > 0
+    }
+    pub fn fixed(&self) -> &[bool] {
+        &self.fixed
+    }
+    pub fn contacts(&self) -> &[usize] {
+        &self.contacts
+    }
+
+    /// The reordered matrix: columns of −G for vertices whose traction is unknown
+    /// (`unknown_traction[v]`), of H otherwise.
+    pub fn reordered(&self, unknown_traction: &[bool]) -> Mat<Real> {
+        let n = self.dofs();
+        let (h, g) = (&self.inf.h, &self.inf.g);
+        Mat::from_fn(n, n, |r, c| {
+            if unknown_traction.get(c / 3).copied().unwrap_or(false) {
+                -g[r * n + c]
+            } else {
+                h[r * n + c]
+            }
+        })
+    }
+
+    /// Factorises A₀ for `fixed` and computes W = A₀⁻¹ G (the expensive pre-computation,
+    /// O(n³)); drops the contact set. Nothing changes on error.
+    pub fn factor(&mut self, fixed: &[bool]) -> Result<(), SimError> {
+        let start = Instant::now();
+        let n = self.dofs();
+        let singular = || SimError::NotPositiveDefinite {
+            row: 0,
+            hint: "the BEM system is singular: fix at least three non-collinear surface \
+                   vertices so that no rigid motion is left free"
+                .into(),
+        };
+        if fixed.len() != self.inf.vertices || fixed.iter().filter(|&&f| f).count() < 3 {
+            return Err(singular());
+        }
+        let mut a = self.reordered(fixed);
+        let mut perm = vec![0usize; n];
+        let mut perm_inv = vec![0usize; n];
+        let req = StackReq::any_of(&[
+            factor::lu_in_place_scratch::<usize, Real>(n, n, Par::Seq, Default::default()),
+            solve::solve_in_place_scratch::<usize, Real>(n, n, Par::Seq),
+        ]);
+        let mut mem = MemBuffer::new(req);
+        let (_, p) = factor::lu_in_place(
+            a.as_mut(),
+            &mut perm,
+            &mut perm_inv,
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        );
+        let pivots = (0..n).map(|i| a[(i, i)].abs());
+        let (lo, hi) = pivots.fold((Real::INFINITY, 0.0), |(lo, hi): (Real, Real), v| {
+            (lo.min(v), hi.max(v))
+        });
+        if lo.is_nan() || lo <= PIVOT_RATIO * hi {
+            return Err(singular());
+        }
+        let g = &self.inf.g;
+        let mut w = Mat::from_fn(n, n, |r, c| g[r * n + c]);
+        solve_columns(a.as_ref(), p, w.as_mut());
+        if w.col_iter().any(|c| c.iter().any(|v| !v.is_finite())) {
+            return Err(singular());
+        }
+        self.w = w;
+        self.fixed = fixed.to_vec();
+        self.contacts.clear();
+        self.capacitance = None;
+        self.factorizations += 1;
+        self.last_factor_seconds = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// The Woodbury update for a new contact set (vertices not fixed, no repeats): gathers
+    /// W_CC and factorises it, O(|C|³). Nothing changes on error.
+    pub fn set_contacts(&mut self, contacts: &[usize]) -> Result<(), SimError> {
+        if contacts == self.contacts.as_slice() {
+            return Ok(());
+        }
+        if !self.is_factored() {
+            return Err(not_factored());
+        }
+        let m = 3 * contacts.len();
+        let dof = |k: usize| 3 * contacts[k / 3] + k % 3;
+        let s = Mat::from_fn(m, m, |r, c| self.w[(dof(r), dof(c))]);
+        let lu = (m > 0).then(|| s.partial_piv_lu());
+        if let Some(lu) = &lu {
+            let u = lu.U();
+            let (lo, hi) = (0..m).fold((Real::INFINITY, 0.0), |(lo, hi): (Real, Real), i| {
+                (lo.min(u[(i, i)].abs()), hi.max(u[(i, i)].abs()))
+            });
+            if lo.is_nan() || lo <= PIVOT_RATIO * hi {
+                return Err(SimError::NotPositiveDefinite {
+                    row: contacts.first().copied().unwrap_or(0),
+                    hint: "the contact compliance block is singular".into(),
+                });
+            }
+        }
+        self.contacts = contacts.to_vec();
+        self.capacitance = lu;
+        self.woodbury_updates += 1;
+        Ok(())
+    }
+
+    /// u_L = W P for known tractions `p` (per dof; entries of fixed vertices ignored).
+    pub fn load_response(&self, p: &[Real], out: &mut [Real]) -> Result<(), SimError> {
+        if !self.is_factored() {
+            return Err(not_factored());
+        }
+        out.fill(0.0);
+        for (c, &pc) in p.iter().enumerate() {
+            if pc != 0.0 && !self.fixed[c / 3] {
+                axpy(out, pc, self.w.col_as_slice(c));
+            }
+        }
+        Ok(())
+    }
+
+    /// Solves with the current contacts held at displacements `targets` (one per contact):
+    /// `x` gets u_L + W_{:,C} P_C (free displacements, fixed tractions; contact rows equal
+    /// their targets) and `p_contact` the contact tractions. O(n·|C|).
+    pub fn solve(
+        &self,
+        targets: &[Vec3],
+        u_load: &[Real],
+        x: &mut [Real],
+        p_contact: &mut [Real],
+    ) -> Result<(), SimError> {
+        if !self.is_factored() {
+            return Err(not_factored());
+        }
+        x.copy_from_slice(u_load);
+        let m = 3 * self.contacts.len();
+        let Some(lu) = &self.capacitance else {
+            return Ok(());
+        };
+        let mut rhs = Mat::from_fn(m, 1, |r, _| {
+            let v = self.contacts[r / 3];
+            targets.get(r / 3).map_or(0.0, |t| t[r % 3]) - u_load[3 * v + r % 3]
+        });
+        lu.solve_in_place(rhs.as_mut());
+        for (r, pr) in p_contact.iter_mut().enumerate().take(m) {
+            *pr = rhs[(r, 0)];
+            if !pr.is_finite() {
+                return Err(SimError::NotPositiveDefinite {
+                    row: self.contacts[r / 3],
+                    hint: "the contact solve gave a non-finite traction".into(),
+                });
+            }
+            let col = 3 * self.contacts[r / 3] + r % 3;
+            axpy(x, *pr, self.w.col_as_slice(col));
+        }
+        Ok(())
+    }
+
+    /// A⁻¹ of the current reordered matrix (fixed and contacts exchanged) by the Woodbury
+    /// formula A⁻¹ = A₀⁻¹ − (W_{:,C} + E_C) W_CC⁻¹ (A₀⁻¹)_{C,:}. O(n³) for A₀⁻¹: for checks.
+    pub fn explicit_inverse(&self) -> Result<Mat<Real>, SimError> {
+        if !self.is_factored() {
+            return Err(not_factored());
+        }
+        let a0_inv = self.reordered(&self.fixed).partial_piv_lu().inverse();
+        let Some(lu) = &self.capacitance else {
+            return Ok(a0_inv);
+        };
+        let n = self.dofs();
+        let m = 3 * self.contacts.len();
+        let dof = |k: usize| 3 * self.contacts[k / 3] + k % 3;
+        let mut rows = Mat::from_fn(m, n, |r, c| a0_inv[(dof(r), c)]);
+        lu.solve_in_place(rows.as_mut());
+        let left = Mat::from_fn(n, m, |r, c| {
+            self.w[(r, dof(c))] + if r == dof(c) { 1.0 } else { 0.0 }
+        });
+        Ok(a0_inv - left * rows)
+    }
+}
+
+fn not_factored() -> SimError {
+    SimError::Unsupported {
+        model: "bem",
+        operation: "solving before the fixed vertices are known",
+        reason: "the BEM system is factorised for a fixed set; set constraints first".into(),
+    }
+}
+
+fn axpy(y: &mut [Real], a: Real, x: &[Real]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += a * x;
+    }
+}
+
+/// Solves L U X = P B in place, column blocks in parallel (faer itself runs sequentially
+/// here).
+fn solve_columns(
+    lu: MatRef<'_, Real>,
+    perm: faer::perm::PermRef<'_, usize>,
+    rhs: MatMut<'_, Real>,
+) {
+    #[cfg(feature = "parallel")]
+    let chunk = rhs
+        .ncols()
+        .div_ceil(4 * rayon::current_num_threads())
+        .max(64);
+    #[cfg(not(feature = "parallel"))]
+    let chunk = rhs.ncols();
+    split_solve(lu, perm, rhs, chunk);
+}
+
+fn split_solve(
+    lu: MatRef<'_, Real>,
+    perm: faer::perm::PermRef<'_, usize>,
+    rhs: MatMut<'_, Real>,
+    chunk: usize,
+) {
+    let k = rhs.ncols();
+    if k <= chunk {
+        let n = lu.nrows();
+        let mut mem = MemBuffer::new(solve::solve_in_place_scratch::<usize, Real>(n, k, Par::Seq));
+        solve::solve_in_place_with_conj(
+            lu,
+            lu,
+            perm,
+            Conj::No,
+            rhs,
+            Par::Seq,
+            MemStack::new(&mut mem),
+        );
+        return;
+    }
+    let (left, right) = rhs.split_at_col_mut(k / 2);
+    #[cfg(feature = "parallel")]
+    rayon::join(
+        || split_solve(lu, perm, left, chunk),
+        || split_solve(lu, perm, right, chunk),
+    );
+    #[cfg(not(feature = "parallel"))]
+    {
+        split_solve(lu, perm, left, chunk);
+        split_solve(lu, perm, right, chunk);
+    }
+}

@@ -1,0 +1,382 @@
+//! Checks of the BEM against invariants, exact elastic fields and a fresh inversion.
+
+use faer::linalg::solvers::DenseSolveCore;
+
+use super::*;
+use crate::interact::{Constraints, Loads, Prescribed};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::SurfaceMesh;
+use crate::mesh::generate::icosphere;
+use crate::model::Deformable;
+
+pub(super) const E: Real = 3000.0;
+pub(super) const NU: Real = 0.3;
+
+pub(super) fn material() -> Material {
+    Material::new(E, NU).unwrap()
+}
+
+pub(super) fn sphere(subdivisions: u32) -> SurfaceMesh {
+    icosphere(Vec3::ZERO, 0.05, subdivisions)
+}
+
+/// Uniaxial strain ε along z: u = ε z e_z, σ = λε I + 2με e_z e_z. Zero on z = 0.
+pub(super) struct Uniaxial {
+    pub eps: Real,
+}
+
+impl Uniaxial {
+    pub fn u(&self, x: Vec3) -> Vec3 {
+        Vec3::new(0.0, 0.0, self.eps * x.z)
+    }
+    pub fn traction(&self, n: Vec3) -> Vec3 {
+        let m = material();
+        let (l, mu) = (m.lambda(), m.mu());
+        Vec3::new(
+            l * self.eps * n.x,
+            l * self.eps * n.y,
+            (l + 2.0 * mu) * self.eps * n.z,
+        )
+    }
+}
+
+/// Fixes the equator of a sphere, prescribes the exact field on the cap z > 0.6 R and loads
+/// the rest with the exact tractions; returns the worst displacement error relative to the
+/// largest displacement, and the worst cap reaction error relative to the largest reaction.
+fn uniaxial_errors(subdivisions: u32) -> (Real, Real) {
+    let s = sphere(subdivisions);
+    let field = Uniaxial { eps: 0.01 };
+    let mut model = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let rest = model.rest_surface().to_vec();
+    let normals: Vec<Vec3> = rest.iter().map(|p| p.normalize()).collect();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z.abs() < 1e-12)
+        .collect();
+    let cap: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.03)
+        .collect();
+    let c = Constraints {
+        fixed: fixed.clone(),
+        prescribed: cap
+            .iter()
+            .map(|&v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] + field.u(rest[v as usize]),
+            })
+            .collect(),
+    };
+    model.set_constraints(&c).unwrap();
+    let areas = model.areas().to_vec();
+    let point_loads = (0..rest.len())
+        .filter(|&v| !fixed.contains(&(v as u32)) && !cap.contains(&(v as u32)))
+        .map(|v| (v as u32, field.traction(normals[v]) * areas[v]))
+        .collect();
+    model
+        .set_loads(&Loads {
+            gravity: Vec3::ZERO,
+            point_loads,
+        })
+        .unwrap();
+    model.step(0.01).unwrap();
+    let du = model
+        .surface()
+        .positions
+        .iter()
+        .zip(&rest)
+        .map(|(p, r)| (*p - *r - field.u(*r)).length())
+        .fold(0.0, Real::max);
+    let umax = rest
+        .iter()
+        .map(|r| field.u(*r).length())
+        .fold(0.0, Real::max);
+    let reactions = model.reactions().prescribed;
+    let (mut dr, mut rmax) = (0.0 as Real, 0.0 as Real);
+    for (k, &v) in cap.iter().enumerate() {
+        let exact = -field.traction(normals[v as usize]) * areas[v as usize];
+        dr = dr.max((reactions[k] - exact).length());
+        rmax = rmax.max(exact.length());
+    }
+    (du / umax, dr / rmax)
+}
+
+#[test]
+fn h_annihilates_rigid_translations() {
+    let s = sphere(2);
+    let m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let inf = m.system().influence();
+    let n = inf.dofs();
+    let hmax = inf.h.iter().fold(0.0 as Real, |a, v| a.max(v.abs()));
+    for r in 0..n {
+        for k in 0..3 {
+            let sum: Real = (0..n / 3).map(|j| inf.h_at(r, 3 * j + k)).sum();
+            assert!(sum.abs() < 1e-10 * hmax, "row {r} axis {k}: {sum:e}");
+        }
+    }
+}
+
+#[test]
+fn linear_field_satisfies_h_u_equals_g_p() {
+    // The exact uniaxial field makes H U − G P small, and smaller on a finer mesh.
+    let field = Uniaxial { eps: 0.01 };
+    let mut last = Real::INFINITY;
+    for sub in [1, 2] {
+        let s = sphere(sub);
+        let m = Bem::new(&s, material(), BemParams::default()).unwrap();
+        let inf = m.system().influence();
+        let n = inf.dofs();
+        let u: Vec<Real> = s
+            .vertices
+            .iter()
+            .flat_map(|x| field.u(*x).to_array())
+            .collect();
+        let p: Vec<Real> = s
+            .vertices
+            .iter()
+            .flat_map(|x| field.traction(x.normalize()).to_array())
+            .collect();
+        let (mut res, mut scale) = (0.0 as Real, 0.0 as Real);
+        for r in 0..n {
+            let hu: Real = (0..n).map(|c| inf.h_at(r, c) * u[c]).sum();
+            let gp: Real = (0..n).map(|c| inf.g_at(r, c) * p[c]).sum();
+            res = res.max((hu - gp).abs());
+            scale = scale.max(hu.abs());
+        }
+        let rel = res / scale;
+        eprintln!("subdivisions {sub}: max |HU - GP| / max |HU| = {rel:.3e}");
+        assert!(rel < 0.6 * last, "{rel} after {last}");
+        last = rel;
+    }
+    assert!(last < 0.05, "{last}");
+}
+
+#[test]
+fn uniaxial_strain_is_recovered() {
+    let (du, dr) = uniaxial_errors(2);
+    eprintln!(
+        "uniaxial sphere, 162 vertices: displacement error {du:.3e}, reaction error {dr:.3e}"
+    );
+    assert!(du < 0.02, "{du}");
+    assert!(dr < 0.1, "{dr}");
+}
+
+#[test]
+fn woodbury_equals_a_fresh_inversion() {
+    let s = sphere(1);
+    let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let rest = m.rest_surface().to_vec();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z < -0.03)
+        .collect();
+    let press = |vs: &[u32]| Constraints {
+        fixed: fixed.clone(),
+        prescribed: vs
+            .iter()
+            .map(|&v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] * 0.99,
+            })
+            .collect(),
+    };
+    let top: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.02)
+        .collect();
+    assert!(top.len() >= 10 && fixed.len() >= 3);
+    for set in [&top[..3], &top[..10], &top[4..7]] {
+        m.set_constraints(&press(set)).unwrap();
+        let sys = m.system();
+        let mut mask = sys.fixed().to_vec();
+        for &v in set {
+            mask[v as usize] = true;
+        }
+        let fresh = sys.reordered(&mask).partial_piv_lu().inverse();
+        let updated = sys.explicit_inverse().unwrap();
+        let rel = (&updated - &fresh).norm_l2() / fresh.norm_l2();
+        eprintln!(
+            "woodbury with {} contacts: relative difference {rel:.2e}",
+            set.len()
+        );
+        assert!(rel < 1e-8, "{rel}");
+    }
+    assert_eq!(m.system().factorizations, 1);
+    assert_eq!(m.system().woodbury_updates, 3);
+}
+
+/// Equator fixed, the north pole pushed 1 mm down.
+fn pole_push(m: &Bem) -> Constraints {
+    let rest = m.rest_surface();
+    let pole = (0..rest.len())
+        .max_by(|&a, &b| rest[a].z.total_cmp(&rest[b].z))
+        .unwrap();
+    Constraints {
+        fixed: (0..rest.len() as u32)
+            .filter(|&v| rest[v as usize].z.abs() < 1e-12)
+            .collect(),
+        prescribed: vec![Prescribed {
+            vertex: pole as u32,
+            position: rest[pole] - Vec3::Z * 1e-3,
+        }],
+    }
+}
+
+#[test]
+fn quasi_viscous_steps_follow_eq_13_and_reach_the_static_state() {
+    let s = sphere(1);
+    let mut stat = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let c = pole_push(&stat);
+    stat.set_constraints(&c).unwrap();
+    stat.step(0.01).unwrap();
+    let target = stat.surface().positions.to_vec();
+    let params = BemParams {
+        alpha: 0.05,
+        progress: false,
+    };
+    let mut visc = Bem::new(&s, material(), params).unwrap();
+    assert!(!visc.info().is_static && stat.info().is_static);
+    visc.set_constraints(&c).unwrap();
+    let dt = 0.01;
+    visc.step(dt).unwrap();
+    let rest = s.vertices.clone();
+    let graph = SurfaceGraph::new(&s.vertices, &s.triangles);
+    let d = graph.distances(&[c.prescribed[0].vertex as usize]);
+    for v in 0..rest.len() {
+        let f = (-0.05 * d[v] / dt).exp();
+        let expect = rest[v] + (target[v] - rest[v]) * f;
+        assert!(
+            (visc.surface().positions[v] - expect).length() < 1e-15,
+            "vertex {v}"
+        );
+    }
+    let pole = c.prescribed[0].vertex as usize;
+    assert_eq!(visc.surface().positions[pole], c.prescribed[0].position);
+    for _ in 0..200 {
+        visc.step(dt).unwrap();
+    }
+    let gap = visc
+        .surface()
+        .positions
+        .iter()
+        .zip(&target)
+        .map(|(a, b)| (*a - *b).length())
+        .fold(0.0, Real::max);
+    assert!(gap < 1e-9, "{gap}");
+    assert!(visc.step(0.0).is_err());
+}
+
+#[test]
+fn reactions_balance_and_follow_the_push() {
+    let s = sphere(2);
+    let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let c = pole_push(&m);
+    m.set_constraints(&c).unwrap();
+    m.step(0.01).unwrap();
+    let r = m.reactions();
+    let probe: Vec3 = r.prescribed.iter().copied().sum();
+    let support: Vec3 = r.fixed.iter().copied().sum();
+    // Pushed down, the tissue pushes the probe up; the supports take the opposite. The
+    // BIE does not impose global equilibrium exactly: it holds to discretisation error.
+    assert!(probe.z > 0.0, "{probe}");
+    let imbalance = (probe + support).length() / probe.length();
+    eprintln!("pole push: probe {probe} N, imbalance {imbalance:.2e}");
+    assert!(imbalance < 0.05, "{imbalance}");
+    // Linear: twice the push, twice the force.
+    let mut c2 = c.clone();
+    let rest = m.rest_surface()[c.prescribed[0].vertex as usize];
+    c2.prescribed[0].position = rest - Vec3::Z * 2e-3;
+    m.set_constraints(&c2).unwrap();
+    m.step(0.01).unwrap();
+    let probe2: Vec3 = m.reactions().prescribed.iter().copied().sum();
+    assert!((probe2 - probe * 2.0).length() < 1e-12 * probe.length());
+    assert_eq!(
+        m.system().factorizations,
+        1,
+        "a contact change does not refactorise"
+    );
+    m.reset();
+    assert_eq!(m.surface().positions, m.rest_surface());
+}
+
+#[test]
+fn bad_input_is_refused_with_its_reason() {
+    let s = sphere(1);
+    // An open surface.
+    let mut open = s.clone();
+    open.triangles.pop();
+    let e = Bem::new(&open, material(), BemParams::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not closed"), "{e}");
+    // Inward normals.
+    let mut inward = s.clone();
+    inward.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    let e = Bem::new(&inward, material(), BemParams::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("outward"), "{e}");
+    // A triangle pointing at a vertex that does not exist.
+    let mut bad = s.clone();
+    bad.triangles[3][1] = 999;
+    assert!(Bem::new(&bad, material(), BemParams::default()).is_err());
+    let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    // Solving before any fixed set, too few fixed vertices, a vertex that does not exist.
+    assert!(m.step(0.01).is_err());
+    assert!(m.set_constraints(&Constraints::fixed(vec![0, 1])).is_err());
+    assert!(
+        m.set_constraints(&Constraints::fixed(vec![0, 1, 500]))
+            .is_err()
+    );
+    let loads = Loads {
+        gravity: Vec3::new(0.0, 0.0, -9.81),
+        point_loads: vec![],
+    };
+    let e = m.set_loads(&loads).unwrap_err().to_string();
+    assert!(e.contains("gravity"), "{e}");
+    let loads = Loads {
+        gravity: Vec3::ZERO,
+        point_loads: vec![(7, Vec3::NAN)],
+    };
+    assert!(m.set_loads(&loads).is_err());
+    // Unknown or bad settings name themselves.
+    let mut params = toml::Table::new();
+    params.insert("viscosity".into(), toml::Value::Float(1.0));
+    let mesh = crate::mesh::MeshData::from_surface(&s);
+    let input = crate::model::BuildInput {
+        mesh: &mesh,
+        source: "sphere",
+        material: material(),
+        params: &params,
+    };
+    let e = Bem::from_input(&input).unwrap_err().to_string();
+    assert!(e.contains("viscosity"), "{e}");
+    let mut negative = toml::Table::new();
+    negative.insert("alpha".into(), toml::Value::Float(-1.0));
+    let input = crate::model::BuildInput {
+        params: &negative,
+        ..input
+    };
+    assert!(
+        Bem::from_input(&input)
+            .unwrap_err()
+            .to_string()
+            .contains("alpha")
+    );
+}
+
+#[test]
+fn builds_by_kind_from_a_tet_mesh_boundary() {
+    use crate::mesh::generate::{BoxSplit, box_tets};
+    let tets = box_tets(Vec3::ZERO, Vec3::splat(0.02), [2, 2, 2], BoxSplit::Six);
+    let mesh = crate::mesh::MeshData::from_tets(&tets);
+    let params = toml::Table::new();
+    let input = crate::model::BuildInput {
+        mesh: &mesh,
+        source: "box",
+        material: material(),
+        params: &params,
+    };
+    let m = crate::model::build("bem", &input).unwrap();
+    assert_eq!(m.kind(), "bem");
+    // 27 grid vertices, all but the centre on the boundary; 6 faces × 4 squares × 2 = 48.
+    assert_eq!(m.info().surface_vertices, 26);
+    assert_eq!(m.surface().triangles.len(), 48);
+}
