@@ -40,6 +40,7 @@ struct BenchOutput {
     ticks: u64,
     missed_deadlines: u64,
     max_force: Real,
+    realtime_priority: bool,
     sim_updates_hz: Real,
     sim_errors: u64,
     device_round_trip_p50_us: Real,
@@ -94,6 +95,7 @@ pub fn haptic_bench(args: &HapticBenchArgs) -> anyhow::Result<()> {
         .map_err(|_| anyhow::anyhow!("the emulator thread panicked"))??;
     bridge.stop();
     let max_force = handle.max_force();
+    let realtime_priority = handle.is_realtime();
     let stats = lp.stop();
 
     let out = BenchOutput {
@@ -107,6 +109,7 @@ pub fn haptic_bench(args: &HapticBenchArgs) -> anyhow::Result<()> {
         ticks: stats.ticks,
         missed_deadlines: stats.missed_deadlines,
         max_force,
+        realtime_priority,
         sim_updates_hz: coupling.update_rate_hz,
         sim_errors: coupling.errors,
         device_round_trip_p50_us: device.round_trip.p50_us,
@@ -127,6 +130,7 @@ pub fn haptic_bench(args: &HapticBenchArgs) -> anyhow::Result<()> {
             100.0 * out.missed_deadlines as Real / (out.ticks.max(1)) as Real
         );
         println!("  max_force          {:.4} N", out.max_force);
+        println!("  realtime priority  {}", out.realtime_priority);
         println!("  sim updates        {:.1} /s", out.sim_updates_hz);
         println!(
             "  device round trip  p50 {:.0} us, p99 {:.0} us ({} forces)",

@@ -114,6 +114,8 @@ fn receive(
     // Larger than any valid datagram, so an oversized one arrives long (or truncated to
     // this size) and fails the exact-length check.
     let mut buf = [0u8; 512];
+    // Poses should reach the slot as soon as they arrive, like the loop's own ticks.
+    crate::haptic::realtime::try_elevate();
     while !stop.load(Ordering::Relaxed) {
         let (n, from) = match socket.recv_from(&mut buf) {
             Ok(r) => r,

@@ -36,6 +36,9 @@ pub fn run_emulator(
     };
     let socket = UdpSocket::bind(bind)?;
     socket.set_nonblocking(true)?;
+    // A device driver runs its servo thread at real-time priority; so does the emulator
+    // (this thread only), so that the round trip measures the bridge, not the scheduler.
+    crate::haptic::realtime::try_elevate();
     let period = Duration::from_secs_f64(1.0 / rate_hz.clamp(1.0, 1e5));
     let count = (seconds.max(0.0) * rate_hz.clamp(1.0, 1e5)).round() as u64;
     // Send times by sequence number modulo the ring size (older answers are ignored).

@@ -64,6 +64,7 @@ struct Shared {
     sink: Mutex<Option<ForceSink>>,
     max_force_seen: Mutex<Real>,
     stop: AtomicBool,
+    realtime: AtomicBool,
 }
 
 /// Poisoning only means another thread panicked mid-update of plain data; keep going.
@@ -118,6 +119,11 @@ impl HapticHandle {
         *lock(&self.shared.max_force_seen)
     }
 
+    /// Whether the loop thread got real-time priority.
+    pub fn is_realtime(&self) -> bool {
+        self.shared.realtime.load(Ordering::Relaxed)
+    }
+
     /// Installs the per-tick sink (replacing any previous one).
     pub fn set_sink(&self, sink: Option<ForceSink>) {
         *lock(&self.shared.sink) = sink;
@@ -160,6 +166,7 @@ impl HapticLoop {
             sink: Mutex::new(None),
             max_force_seen: Mutex::new(0.0),
             stop: AtomicBool::new(false),
+            realtime: AtomicBool::new(false),
         });
         let s = Arc::clone(&shared);
         let thread = std::thread::Builder::new()
@@ -205,6 +212,8 @@ impl Drop for HapticLoop {
 const SPIN: Duration = Duration::from_micros(150);
 
 fn run(s: &Shared, period: Duration) {
+    s.realtime
+        .store(crate::haptic::realtime::try_elevate(), Ordering::Relaxed);
     let start = Instant::now();
     let mut tick: u64 = 0;
     let mut due = start;

@@ -13,6 +13,7 @@ pub mod emulator;
 pub mod haptic_loop;
 pub mod local_model;
 pub mod protocol;
+pub mod realtime;
 pub mod stats;
 
 #[cfg(test)]
