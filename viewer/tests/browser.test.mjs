@@ -79,6 +79,35 @@ try {
     check('shown force is non-zero', shown > 0 && s.force > 0, `force shown "${s.shown}"`);
     await page.mouse.up();
   }
+  // Every model kind the server lists: switch to it live, push the probe in, feel a force.
+  const kinds = await page.evaluate(() => window.__tissue.init.kinds.map((k) => k.name));
+  await page.keyboard.press('1');
+  for (const kind of kinds) {
+    const t0 = Date.now();
+    await page.evaluate((k) => window.__tissue.send({ type: 'set_model', kind: k }), kind);
+    try {
+      await page.waitForFunction((k) => window.__tissue.init.kind === k && !window.__tissue.last.building,
+        kind, { timeout: 60000 });
+    } catch {
+      check(`model ${kind}`, false, 'not running after 60 s');
+      continue;
+    }
+    const built = Date.now() - t0;
+    const q = await page.evaluate(() => window.__tissue.organScreenPoint());
+    if (!q) { check(`model ${kind}`, false, 'organ not under the pointer'); continue; }
+    await page.mouse.move(q[0], q[1]);
+    await page.mouse.down();
+    let f = 0;
+    for (let k = 0; k < 40 && !(f > 0); k++) {
+      await page.waitForTimeout(100);
+      f = await page.evaluate(() => window.__tissue.forceMagnitude);
+    }
+    const rates = await page.evaluate(() => [window.__tissue.last.sim_rate, window.__tissue.last.haptic_rate]);
+    await page.mouse.up();
+    check(`model ${kind}`, f > 0, `built and running in ${built} ms, probe force ${f.toFixed(4)} N, `
+      + `${rates[0].toFixed(0)} steps/s, haptic ${rates[1].toFixed(0)} Hz`);
+    await page.waitForTimeout(200);
+  }
   await page.close();
 } finally {
   await browser.close();

@@ -119,7 +119,10 @@ pub fn haptic_bench(args: &HapticBenchArgs) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        println!("haptic-bench {} ({}), {:.1} s", out.scene, out.model, seconds);
+        println!(
+            "haptic-bench {} ({}), {:.1} s",
+            out.scene, out.model, seconds
+        );
         println!("  rate_hz            {:.1}", out.rate_hz);
         println!("  p50_us             {:.0}", out.p50_us);
         println!("  p99_us             {:.0}", out.p99_us);
@@ -138,7 +141,10 @@ pub fn haptic_bench(args: &HapticBenchArgs) -> anyhow::Result<()> {
         );
     }
     if let Some(e) = coupling.last_error {
-        eprintln!("warning: {} simulation steps failed; last: {e}", coupling.errors);
+        eprintln!(
+            "warning: {} simulation steps failed; last: {e}",
+            coupling.errors
+        );
     }
     Ok(())
 }

@@ -82,7 +82,13 @@ pub fn serve(mut stream: TcpStream, head: &str, root: &Path) {
     let mut sink = vec![0u8; head.len()];
     let _ = stream.read_exact(&mut sink);
     let Some((method, path)) = request_line(head) else {
-        return respond(&mut stream, "400 Bad Request", "text/plain", b"bad request\n", false);
+        return respond(
+            &mut stream,
+            "400 Bad Request",
+            "text/plain",
+            b"bad request\n",
+            false,
+        );
     };
     let head_only = method == "HEAD";
     if method != "GET" && !head_only {

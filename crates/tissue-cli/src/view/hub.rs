@@ -15,11 +15,14 @@ pub struct Versioned {
     pub text: Arc<String>,
 }
 
+/// The newest notice id, and the notices kept with their ids.
+type NoticeLog = (u64, VecDeque<(u64, Arc<String>)>);
+
 #[derive(Default)]
 pub struct Hub {
     init: Mutex<Versioned>,
     frame: Mutex<Versioned>,
-    notices: Mutex<(u64, VecDeque<(u64, Arc<String>)>)>,
+    notices: Mutex<NoticeLog>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -67,12 +70,11 @@ impl Hub {
     /// Notices after `seen`, and the id of the newest.
     pub fn notices_since(&self, seen: u64) -> (Vec<Arc<String>>, u64) {
         let g = lock(&self.notices);
-        let new = g
-            .1
-            .iter()
-            .filter(|(id, _)| *id > seen)
-            .map(|(_, t)| Arc::clone(t))
-            .collect();
+        let new =
+            g.1.iter()
+                .filter(|(id, _)| *id > seen)
+                .map(|(_, t)| Arc::clone(t))
+                .collect();
         (new, g.0)
     }
 

@@ -22,7 +22,10 @@ pub enum Command {
     /// Opens the grasper.
     Release,
     /// A scalpel path over the surface, and the direction into the organ (unit).
-    Cut { path: Vec<Vec3>, into: Vec3 },
+    Cut {
+        path: Vec<Vec3>,
+        into: Vec3,
+    },
     /// Rebuilds the model with another kind.
     SetModel(String),
     /// Rebuilds the model with another material (E, ν; density and damping kept).
@@ -230,8 +233,7 @@ mod tests {
         );
         assert!(err(r#"{"type":"cut","path":[[0,0,0]],"into":[0,1,0]}"#).contains("1 points"));
         assert!(
-            err(r#"{"type":"cut","path":[[0,0,0],[0,0,0]],"into":[0,0,0]}"#)
-                .contains("non-zero")
+            err(r#"{"type":"cut","path":[[0,0,0],[0,0,0]],"into":[0,0,0]}"#).contains("non-zero")
         );
     }
 
@@ -243,10 +245,16 @@ mod tests {
         );
         let e = err(&big);
         assert!(e.contains("bytes rejected"), "{e}");
-        assert!(e.contains(&format!("message of {} bytes", big.len())), "{e}");
+        assert!(
+            e.contains(&format!("message of {} bytes", big.len())),
+            "{e}"
+        );
         // Just under the limit with a too-long path: rejected by count, not size.
         let pts: Vec<String> = (0..300).map(|_| "[0,0,0]".to_string()).collect();
-        let msg = format!(r#"{{"type":"cut","path":[{}],"into":[0,1,0]}}"#, pts.join(","));
+        let msg = format!(
+            r#"{{"type":"cut","path":[{}],"into":[0,1,0]}}"#,
+            pts.join(",")
+        );
         assert!(msg.len() < MAX_MESSAGE_BYTES);
         assert!(err(&msg).contains("300 points"));
     }

@@ -59,7 +59,10 @@ fn viewer_dir(args: &ViewArgs) -> anyhow::Result<PathBuf> {
             dir.join("index.html").display()
         );
     }
-    if !dir.join("node_modules/three/build/three.module.js").is_file() {
+    if !dir
+        .join("node_modules/three/build/three.module.js")
+        .is_file()
+    {
         bail!(
             "three.js is not installed in {}: run scripts/setup-viewer.sh first",
             dir.join("node_modules").display()
@@ -95,9 +98,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     let scene = Scene::load(&args.scene)?;
     let (setup, material) = Setup::load(&scene)?;
     let hub = Arc::new(Hub::default());
-    let device = args
-        .device_port
-        .map(|p| SocketAddr::new(args.host, p));
+    let device = args.device_port.map(|p| SocketAddr::new(args.host, p));
     let session = Session::new(setup, material, Arc::clone(&hub), device)
         .with_context(|| format!("building {}", args.scene.display()))?;
     let bounds = session.bounds();
@@ -109,13 +110,19 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         .name("tissue-view-sim".into())
         .spawn(move || session.run(rx))?;
     if !args.host.is_loopback() {
-        eprintln!("tissue view: warning: listening on {} (not loopback)", args.host);
+        eprintln!(
+            "tissue view: warning: listening on {} (not loopback)",
+            args.host
+        );
     }
     let host = match args.host {
         IpAddr::V6(h) => format!("[{h}]"),
         IpAddr::V4(h) => h.to_string(),
     };
-    println!("tissue view: http://{host}:{}/  (Ctrl-C stops)", addr.port());
+    println!(
+        "tissue view: http://{host}:{}/  (Ctrl-C stops)",
+        addr.port()
+    );
     let live = Arc::new(AtomicUsize::new(0));
     for stream in listener.incoming() {
         let Ok(stream) = stream else { continue };

@@ -14,9 +14,7 @@ use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use serde_json::json;
-use tissue::haptic::{
-    HapticConfig, HapticHandle, HapticLoop, Pose, UdpBridge, step_coupled,
-};
+use tissue::haptic::{HapticConfig, HapticHandle, HapticLoop, Pose, UdpBridge, step_coupled};
 use tissue::interact::{Instrument, InstrumentKind, Trajectory};
 use tissue::mesh::MeshData;
 use tissue::model::{self, BuildInput, KINDS};
@@ -341,7 +339,12 @@ impl Session {
             direction: -into,
             length: 2.0 * depth,
         };
-        match Instrument::new(SCALPEL, kind, self.setup.probe_radius, Trajectory::fixed(first)) {
+        match Instrument::new(
+            SCALPEL,
+            kind,
+            self.setup.probe_radius,
+            Trajectory::fixed(first),
+        ) {
             Ok(s) => self.sim.add_instrument(s),
             Err(e) => return self.hub.notify("error", &format!("scalpel: {e}")),
         }
@@ -366,7 +369,9 @@ impl Session {
             });
         match spawned {
             Ok(_) => self.building = Some(rx),
-            Err(e) => self.hub.notify("error", &format!("cannot start a build: {e}")),
+            Err(e) => self
+                .hub
+                .notify("error", &format!("cannot start a build: {e}")),
         }
     }
 
@@ -408,7 +413,11 @@ impl Session {
     fn step_once(&mut self) {
         if let Some(job) = &mut self.cut
             && let Some(tip) = job.remaining.pop_front()
-            && let Some(i) = self.sim.instruments().iter().position(|x| x.name == SCALPEL)
+            && let Some(i) = self
+                .sim
+                .instruments()
+                .iter()
+                .position(|x| x.name == SCALPEL)
         {
             let _ = self.sim.set_instrument_position(i, Some(tip));
         }
@@ -451,11 +460,21 @@ impl Session {
             return self.hub.notify("error", &msg);
         }
         if matches!(e, SimError::Diverged { .. }) && self.dt > 1e-6 {
-            self.dt *= 0.5;
+            // Models with a stability limit publish it; others get half the step.
+            let critical = self
+                .sim
+                .model()
+                .info()
+                .details
+                .iter()
+                .find(|(k, _)| k == "critical_dt")
+                .and_then(|(_, v)| v.parse::<Real>().ok())
+                .filter(|c| c.is_finite() && *c > 0.0 && *c < self.dt);
+            self.dt = critical.map_or(0.5 * self.dt, |c| 0.9 * c);
             self.sim.model_mut().reset();
             return self.hub.notify(
                 "error",
-                &format!("{e}; reset, and the time step halved to {:.3e} s", self.dt),
+                &format!("{e}; reset, and the time step is now {:.3e} s", self.dt),
             );
         }
         // The same failure every step would flood the log: say it once a second.

@@ -60,7 +60,10 @@ pub fn serve(
                 }
             },
             Ok(Message::Binary(b)) => {
-                let e = format!("binary message of {} bytes rejected: send JSON text", b.len());
+                let e = format!(
+                    "binary message of {} bytes rejected: send JSON text",
+                    b.len()
+                );
                 eprintln!("tissue view: {peer}: {e}");
                 if !send(&mut ws, &notice_json("error", &e)) {
                     break;

@@ -297,20 +297,25 @@ mod tests {
 
     #[test]
     fn sink_sees_every_tick_and_bad_config_is_rejected() {
-        assert!(HapticLoop::start(HapticConfig {
-            rate_hz: 0.0,
-            ..HapticConfig::default()
-        })
-        .is_err());
-        assert!(HapticLoop::start(HapticConfig {
-            max_force: Real::NAN,
-            ..HapticConfig::default()
-        })
-        .is_err());
+        assert!(
+            HapticLoop::start(HapticConfig {
+                rate_hz: 0.0,
+                ..HapticConfig::default()
+            })
+            .is_err()
+        );
+        assert!(
+            HapticLoop::start(HapticConfig {
+                max_force: Real::NAN,
+                ..HapticConfig::default()
+            })
+            .is_err()
+        );
         let lp = HapticLoop::start(HapticConfig::default()).unwrap_or_else(|e| panic!("{e}"));
         let count = Arc::new(Mutex::new(0u64));
         let c = Arc::clone(&count);
-        lp.handle().set_sink(Some(Box::new(move |_| *lock(&c) += 1)));
+        lp.handle()
+            .set_sink(Some(Box::new(move |_| *lock(&c) += 1)));
         std::thread::sleep(Duration::from_millis(100));
         lp.handle().set_sink(None);
         let n = *lock(&count);

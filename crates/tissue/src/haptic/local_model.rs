@@ -110,7 +110,11 @@ impl LocalContact {
             return Vec3::ZERO;
         }
         let n = f.length();
-        if n > self.max_force { f * (self.max_force / n) } else { f }
+        if n > self.max_force {
+            f * (self.max_force / n)
+        } else {
+            f
+        }
     }
 }
 
@@ -123,10 +127,9 @@ fn project_passive(k: Mat3, cap: Real) -> Mat3 {
     let s = (k + k.transpose()) * 0.5;
     let (values, vectors) = symmetric_eigen(s);
     let mut out = Mat3::ZERO;
-    for i in 0..3 {
-        let l = values[i].clamp(-cap, 0.0);
+    for (i, value) in values.iter().enumerate() {
         let v = vectors.col(i);
-        out += outer(v, v) * l;
+        out += outer(v, v) * value.clamp(-cap, 0.0);
     }
     out
 }
@@ -161,11 +164,9 @@ fn symmetric_eigen(m: Mat3) -> ([Real; 3], Mat3) {
                 row[p] = c * x - s * y;
                 row[q] = s * x + c * y;
             }
-            for k in 0..3 {
-                let (x, y) = (a[p][k], a[q][k]);
-                a[p][k] = c * x - s * y;
-                a[q][k] = s * x + c * y;
-            }
+            let (rp, rq) = (a[p], a[q]);
+            a[p] = std::array::from_fn(|k| c * rp[k] - s * rq[k]);
+            a[q] = std::array::from_fn(|k| s * rp[k] + c * rq[k]);
             for row in &mut v {
                 let (x, y) = (row[p], row[q]);
                 row[p] = c * x - s * y;
@@ -258,8 +259,8 @@ mod tests {
         let k = spring_k();
         let (l, v) = symmetric_eigen(k);
         let mut r = Mat3::ZERO;
-        for i in 0..3 {
-            r += outer(v.col(i), v.col(i)) * l[i];
+        for (i, li) in l.iter().enumerate() {
+            r += outer(v.col(i), v.col(i)) * *li;
         }
         assert!(close(r, k, 1e-10));
         let tr: Real = l.iter().sum();

@@ -260,19 +260,28 @@ mod tests {
         b[5] = TYPE_FORCE;
         assert!(matches!(
             PosePacket::decode(&b),
-            Err(ProtocolError::Type { got: 2, expected: 1 })
+            Err(ProtocolError::Type {
+                got: 2,
+                expected: 1
+            })
         ));
         let mut b = good.clone();
         b[12..20].copy_from_slice(&Real::NAN.to_le_bytes());
         assert!(matches!(
             PosePacket::decode(&b),
-            Err(ProtocolError::Field { field: "position", .. })
+            Err(ProtocolError::Field {
+                field: "position",
+                ..
+            })
         ));
         let mut b = good.clone();
         b[28..36].copy_from_slice(&1e3f64.to_le_bytes());
         assert!(matches!(
             PosePacket::decode(&b),
-            Err(ProtocolError::Field { field: "position", .. })
+            Err(ProtocolError::Field {
+                field: "position",
+                ..
+            })
         ));
         let mut b = good.clone();
         for k in 0..4 {
@@ -280,7 +289,10 @@ mod tests {
         }
         assert!(matches!(
             PosePacket::decode(&b),
-            Err(ProtocolError::Field { field: "orientation", .. })
+            Err(ProtocolError::Field {
+                field: "orientation",
+                ..
+            })
         ));
         // A force datagram is not a pose, even with the right length elsewhere.
         assert!(matches!(

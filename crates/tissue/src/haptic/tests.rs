@@ -20,17 +20,26 @@ fn emulator_feels_the_local_model_through_the_bridge() {
     let bridge = UdpBridge::start(loopback(), h.clone()).unwrap_or_else(|e| panic!("{e}"));
     // The device presses from y = 0 (0 N) to y = -0.01 m (1 N) in 0.2 s.
     let path = |t: f64| Vec3::new(0.0, -0.05 * t.min(0.2), 0.0);
-    let rep = run_emulator(bridge.local_addr(), 0.25, 1000.0, &path)
-        .unwrap_or_else(|e| panic!("{e}"));
+    let rep =
+        run_emulator(bridge.local_addr(), 0.25, 1000.0, &path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(rep.poses_sent, 250);
     assert_eq!(rep.bad_datagrams, 0);
-    assert_eq!(bridge.counters().rejected.load(std::sync::atomic::Ordering::Relaxed), 0);
+    assert_eq!(
+        bridge
+            .counters()
+            .rejected
+            .load(std::sync::atomic::Ordering::Relaxed),
+        0
+    );
     // The loop answers every tick once it knows the device: about as many forces as poses.
     assert!(rep.forces_received > 150, "{rep:?}");
     // Max force: 0.5 + 100 * 0.005 = 1.0 N at the deepest point.
     assert!((rep.max_force - 1.0).abs() < 1e-9, "{rep:?}");
     assert!((rep.last_force.y - 1.0).abs() < 1e-9, "{rep:?}");
-    assert!(rep.round_trip.ticks > 100 && rep.round_trip.p50_us < 5000.0, "{rep:?}");
+    assert!(
+        rep.round_trip.ticks > 100 && rep.round_trip.p50_us < 5000.0,
+        "{rep:?}"
+    );
     bridge.stop();
     let stats = lp.stop();
     assert!(stats.ticks > 150);
@@ -58,9 +67,11 @@ fn bridge_rejects_malformed_datagrams_and_keeps_the_pose() {
         good[..40].to_vec(),
         nan,
     ];
-    dev.send_to(&good, bridge.local_addr()).unwrap_or_else(|e| panic!("{e}"));
+    dev.send_to(&good, bridge.local_addr())
+        .unwrap_or_else(|e| panic!("{e}"));
     for b in &bad {
-        dev.send_to(b, bridge.local_addr()).unwrap_or_else(|e| panic!("{e}"));
+        dev.send_to(b, bridge.local_addr())
+            .unwrap_or_else(|e| panic!("{e}"));
     }
     let deadline = std::time::Instant::now() + Duration::from_secs(2);
     let c = bridge.counters();
