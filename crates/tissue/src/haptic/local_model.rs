@@ -5,9 +5,13 @@
 //! current position: it uses `f(x) = f0 + K (x - x0)` around the last update `(x0, f0)`,
 //! where `K = df/dx` is the contact stiffness of the touched region as seen by the
 //! instrument (the condensed stiffness of the touched vertices). `K` is estimated from
-//! successive full updates by Broyden's secant update, then symmetrised and clamped to be
-//! negative semi-definite with a bounded magnitude: a local model with a positive eigenvalue
-//! would push the hand further in and inject energy (an unstable, "active" haptic display).
+//! successive full updates by the symmetric (Powell) Broyden secant update: the stiffness of
+//! an elastic body is symmetric, and the symmetric update reproduces the last secant exactly
+//! (a plain Broyden update made symmetric afterwards does not). Its eigenvalues are capped in
+//! magnitude. Early estimates are indefinite (one secant says nothing about the other
+//! directions), so passivity is guarded where it matters, per evaluation: a displacement
+//! along which `K` would add energy (`dx·K dx > 0`, the force growing as the hand moves with
+//! it) gets the anchored force only, so the display never pushes the hand further on.
 
 use crate::math::{Mat3, Real, Vec3};
 
@@ -19,9 +23,9 @@ const MIN_STEP: Real = 1e-7;
 pub struct LocalContact {
     anchor: Vec3,
     force: Vec3,
-    /// Broyden's estimate as it stands (unprojected, so that secants keep refining it).
+    /// The secant estimate as it stands (uncapped, so that secants keep refining it).
     raw: Mat3,
-    /// `raw` made symmetric and passive: what `force_at` uses.
+    /// `raw` with its eigenvalues capped in magnitude: what `force_at` uses.
     stiffness: Mat3,
     in_contact: bool,
     /// Largest stiffness eigenvalue magnitude allowed, in N/m.
@@ -82,9 +86,11 @@ impl LocalContact {
             let df = force - self.force;
             let dx2 = dx.length_squared();
             if dx2 > MIN_STEP * MIN_STEP {
-                // Broyden: the smallest change of K that explains the last secant.
+                // Powell-symmetric-Broyden: the smallest symmetric change of K with
+                // K dx = df afterwards.
                 let r = df - self.raw * dx;
-                self.raw += outer(r, dx / dx2);
+                self.raw +=
+                    (outer(r, dx) + outer(dx, r)) / dx2 - outer(dx, dx) * (r.dot(dx) / (dx2 * dx2));
                 self.stiffness = project_passive(self.raw, self.max_stiffness);
             }
         } else if !in_contact {
@@ -103,7 +109,14 @@ impl LocalContact {
         if !self.in_contact || !crate::math::is_finite_vec(position) {
             return Vec3::ZERO;
         }
-        let f = self.force + self.stiffness * (position - self.anchor);
+        let dx = position - self.anchor;
+        let kdx = self.stiffness * dx;
+        // Energy guard: no force that grows along the motion (see the module doc).
+        let f = if dx.dot(kdx) > 0.0 {
+            self.force
+        } else {
+            self.force + kdx
+        };
         // Contact pushes: once the linear model would reverse the last force, the tool has
         // left the surface.
         if self.force.length_squared() > 0.0 && f.dot(self.force) <= 0.0 {
@@ -122,14 +135,14 @@ fn outer(a: Vec3, b: Vec3) -> Mat3 {
     Mat3::from_cols(a * b.x, a * b.y, a * b.z)
 }
 
-/// Symmetric part with its eigenvalues clamped to `[-cap, 0]`.
+/// Symmetric part with its eigenvalues clamped to `[-cap, cap]`.
 fn project_passive(k: Mat3, cap: Real) -> Mat3 {
     let s = (k + k.transpose()) * 0.5;
     let (values, vectors) = symmetric_eigen(s);
     let mut out = Mat3::ZERO;
     for (i, value) in values.iter().enumerate() {
         let v = vectors.col(i);
-        out += outer(v, v) * value.clamp(-cap, 0.0);
+        out += outer(v, v) * value.clamp(-cap, cap);
     }
     out
 }
@@ -199,6 +212,20 @@ mod tests {
     }
 
     #[test]
+    fn one_secant_is_reproduced_exactly() {
+        // The symmetric update keeps K dx = df: a prediction along the last move is exact
+        // for a linear force, whatever the off-diagonal coupling.
+        let k = spring_k();
+        let f = |x: Vec3| -(k * x) + Vec3::new(0.0, 2.0, 0.0);
+        let mut m = LocalContact::new(1e6, 1e3);
+        m.update(Vec3::ZERO, f(Vec3::ZERO), true);
+        let x1 = Vec3::new(0.0, -1e-3, 0.0);
+        m.update(x1, f(x1), true);
+        let x2 = Vec3::new(0.0, -3e-3, 0.0);
+        assert!((m.force_at(x2) - f(x2)).length() < 1e-12);
+    }
+
+    #[test]
     fn three_orthogonal_moves_recover_a_symmetric_stiffness_exactly() {
         let k = spring_k();
         let c = Vec3::new(0.01, 0.02, -0.03);
@@ -210,8 +237,8 @@ mod tests {
             x += 1e-3 * d;
             m.update(x, f(x), true);
         }
-        // Broyden with orthogonal steps fixes one column per step and leaves the others; the
-        // exact answer is symmetric and passive, so the projection keeps it.
+        // The symmetric update with orthogonal steps fixes one row and column per step and
+        // keeps the earlier ones; the exact answer is within the cap, so it is kept.
         assert!(close(m.stiffness(), -k, 1e-9), "{:?}", m.stiffness());
         let probe = x + Vec3::new(2e-4, -1e-4, 3e-4);
         assert!((m.force_at(probe) - f(probe)).length() < 1e-12);
@@ -219,11 +246,18 @@ mod tests {
 
     #[test]
     fn estimate_is_passive_and_capped() {
-        // Force grows as the tool moves out: a "pulling" secant that would be active.
+        // Force grows as the tool moves out: a "pulling" secant that would be active. The
+        // estimate keeps it (capped at 500 N/m), the evaluation does not use it.
         let mut m = LocalContact::new(500.0, 2.0);
         m.update(Vec3::ZERO, Vec3::new(0.0, 1.0, 0.0), true);
-        m.update(Vec3::new(0.0, 1e-3, 0.0), Vec3::new(0.0, 3.0, 0.0), true);
-        assert_eq!(m.stiffness(), Mat3::ZERO);
+        m.update(Vec3::new(0.0, 1e-3, 0.0), Vec3::new(0.0, 1.8, 0.0), true);
+        assert!((m.stiffness().y_axis.y - 500.0).abs() < 1e-9);
+        assert_eq!(
+            m.force_at(Vec3::new(0.0, 2e-3, 0.0)),
+            Vec3::new(0.0, 1.8, 0.0)
+        );
+        // Moving back along the secant is dissipative-looking (dx.K dx > 0 too): held.
+        assert_eq!(m.force_at(Vec3::ZERO), Vec3::new(0.0, 1.8, 0.0));
         // A very stiff secant is capped at 500 N/m.
         let mut m = LocalContact::new(500.0, 2.0);
         m.update(Vec3::ZERO, Vec3::new(0.0, 1.0, 0.0), true);
