@@ -13,8 +13,14 @@ if ! command -v chromium >/dev/null 2>&1 && [ ! -x /usr/bin/chromium ]; then
     apt-get install -y -q chromium >/dev/null 2>&1 \
         || { apt-get update -q >/dev/null && apt-get install -y -q chromium >/dev/null; }
 fi
-bash scripts/setup-viewer.sh >/dev/null
+if [ ! -f viewer/node_modules/three/build/three.module.js ] \
+    || [ ! -d viewer/node_modules/playwright-core ]; then
+    bash scripts/setup-viewer.sh >/dev/null
+fi
+SECONDS=0
 cargo build --release --locked -q -p tissue-cli
+echo "browser-test: build ${SECONDS} s"
+SECONDS=0
 
 OUT="$ROOT/target/browser-test"
 mkdir -p "$OUT"
@@ -34,18 +40,26 @@ done
 echo "browser-test: $URL"
 
 status=0
-timeout 150 node viewer/tests/browser.test.mjs "$URL" "$OUT/screenshot.png" || status=$?
+timeout 150 node viewer/tests/browser.test.mjs "$URL" "$OUT/screenshot.png" | tee "$OUT/page.log" \
+    || status=$?
+passed=$(grep -c '^ok ' "$OUT/page.log" || true)
+failed=$(grep -c '^FAIL' "$OUT/page.log" || true)
+# The page test died before its own verdict (timeout, crash): count that as a failure.
+if [ "$status" != 0 ] && [ "$failed" = 0 ]; then failed=1; fi
 
 # Closing the page must not stop the server.
 if kill -0 "$SERVER" 2>/dev/null && curl -fsS -o /dev/null "$URL"; then
-    echo "ok   server still serving after the page closed"
+    echo "ok   server still serving after the page closed"; passed=$((passed + 1))
 else
-    echo "FAIL server gone after the page closed"; status=1
+    echo "FAIL server gone after the page closed"; status=1; failed=$((failed + 1))
 fi
 if grep -q "rejected a message" "$LOG"; then
-    echo "ok   rejections logged by the server"
+    echo "ok   rejections logged by the server"; passed=$((passed + 1))
 else
-    echo "FAIL no rejection in the server log"; status=1
+    echo "FAIL no rejection in the server log"; status=1; failed=$((failed + 1))
 fi
 [ "$status" = 0 ] || { echo "--- server log"; tail -n 30 "$LOG"; }
+[ "$failed" = 0 ] || status=1
+echo "browser-test: page and checks ${SECONDS} s"
+echo "browser: $passed passed, $failed failed"
 exit "$status"

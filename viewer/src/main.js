@@ -288,7 +288,17 @@ window.addEventListener('resize', resize);
 resize();
 setTool('probe');
 
+let fpsCount = 0;
+let fpsStart = performance.now();
 function animate() {
+  fpsCount += 1;
+  const now = performance.now();
+  if (now - fpsStart >= 1000) {
+    state.fps = (1000 * fpsCount) / (now - fpsStart);
+    $('fps').textContent = `${state.fps.toFixed(0)} frames/s`;
+    fpsCount = 0;
+    fpsStart = now;
+  }
   updateProbe();
   plot.draw();
   renderer.render(scene, camera);

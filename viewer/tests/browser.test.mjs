@@ -22,7 +22,7 @@ const browser = await chromium.launch({
   ],
 });
 try {
-  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
+  const page = await browser.newPage({ viewport: { width: 1000, height: 700 } });
   page.on('pageerror', (e) => console.log(`page error: ${e.message}`));
   await page.goto(url);
   await page.waitForFunction(() => window.__tissue && window.__tissue.ready && window.__tissue.frames > 5,
@@ -79,6 +79,28 @@ try {
     check('shown force is non-zero', shown > 0 && s.force > 0, `force shown "${s.shown}"`);
     await page.mouse.up();
   }
+  // The page's own frame rate (software WebGL here: a floor, not what a GPU gives).
+  await page.waitForTimeout(1200);
+  const fps = await page.evaluate(() => window.__tissue.fps || 0);
+  // Informational: software rendering on a shared CI machine says little about a GPU.
+  console.log(`info page frame rate: ${fps.toFixed(1)} frames/s (SwiftShader, software WebGL)`);
+
+  // A scalpel path: a model that refuses cutting says so on the page.
+  await page.keyboard.press('3');
+  const c = await page.evaluate(() => window.__tissue.organScreenPoint());
+  if (c) {
+    const kind = await page.evaluate(() => window.__tissue.init.kind);
+    const n0 = await page.evaluate(() => window.__tissue.notices.length);
+    await page.mouse.move(c[0] - 40, c[1]);
+    await page.mouse.down();
+    for (let k = 0; k <= 16; k++) await page.mouse.move(c[0] - 40 + 5 * k, c[1] + 2 * k);
+    await page.mouse.up();
+    await page.waitForFunction((n) => window.__tissue.notices.length > n, n0, { timeout: 10000 }).catch(() => {});
+    const said = await page.evaluate((n) => window.__tissue.notices.slice(n).map((x) => x.message), n0);
+    check('scalpel answered', said.some((m) => m.includes('cannot cut') || m.includes('cut')),
+      `${kind}: ${said.join(' | ')}`);
+  }
+
   // Every model kind the server lists: switch to it live, push the probe in, feel a force.
   const kinds = await page.evaluate(() => window.__tissue.init.kinds.map((k) => k.name));
   await page.keyboard.press('1');
@@ -113,5 +135,5 @@ try {
   await browser.close();
 }
 const failed = results.filter((r) => !r.ok).length;
-console.log(`${results.length - failed} passed, ${failed} failed`);
+console.log(`page: ${results.length - failed} passed, ${failed} failed`);
 process.exit(failed ? 1 : 0);
