@@ -45,7 +45,8 @@ enum Raw {
     Grasp {
         position: [Real; 3],
     },
-    Release,
+    // Empty braces, not unit variants: serde's deny_unknown_fields skips unit variants.
+    Release {},
     Cut {
         path: Vec<[Real; 3]>,
         into: [Real; 3],
@@ -57,7 +58,7 @@ enum Raw {
         young_modulus: Real,
         poisson_ratio: Real,
     },
-    Reset,
+    Reset {},
 }
 
 /// Where positions may be: a ball around the organ.
@@ -99,7 +100,7 @@ pub fn parse(text: &str, bounds: &Bounds) -> Result<Command, String> {
                 .transpose()?,
         ),
         Raw::Grasp { position } => Command::Grasp(bounds.point(position, "grasp position")?),
-        Raw::Release => Command::Release,
+        Raw::Release {} => Command::Release,
         Raw::Cut { path, into } => {
             if path.len() < 2 || path.len() > MAX_CUT_POINTS {
                 return Err(format!(
@@ -150,7 +151,7 @@ pub fn parse(text: &str, bounds: &Bounds) -> Result<Command, String> {
                 poisson_ratio,
             }
         }
-        Raw::Reset => Command::Reset,
+        Raw::Reset {} => Command::Reset,
     })
 }
 
