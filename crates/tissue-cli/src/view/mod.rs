@@ -9,10 +9,14 @@ mod messages;
 mod session;
 mod ws;
 
+#[cfg(test)]
+mod tests;
+
 use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::Sender;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -123,6 +127,18 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         "tissue view: http://{host}:{}/  (Ctrl-C stops)",
         addr.port()
     );
+    accept_loop(listener, root, hub, tx, bounds);
+    Ok(())
+}
+
+/// Serves connections until the listener fails: static files, or `/ws` upgrades.
+fn accept_loop(
+    listener: TcpListener,
+    root: PathBuf,
+    hub: Arc<Hub>,
+    tx: Sender<messages::Command>,
+    bounds: messages::Bounds,
+) {
     let live = Arc::new(AtomicUsize::new(0));
     for stream in listener.incoming() {
         let Ok(stream) = stream else { continue };
@@ -157,5 +173,4 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
             eprintln!("tissue view: cannot start a connection thread");
         }
     }
-    Ok(())
 }
