@@ -6,7 +6,9 @@
 mod http;
 mod hub;
 mod messages;
+mod publish;
 mod session;
+mod setup;
 mod ws;
 
 #[cfg(test)]
@@ -24,7 +26,8 @@ use clap::Args;
 use tissue::scene::Scene;
 
 use hub::Hub;
-use session::{Session, Setup};
+use session::Session;
+use setup::Setup;
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {

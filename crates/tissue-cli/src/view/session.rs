@@ -13,121 +13,22 @@ use std::sync::Arc;
 use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
-use serde_json::json;
 use tissue::haptic::{HapticConfig, HapticHandle, HapticLoop, Pose, UdpBridge, step_coupled};
 use tissue::interact::{Instrument, InstrumentKind, Trajectory};
-use tissue::mesh::MeshData;
-use tissue::model::{self, BuildInput, KINDS};
-use tissue::scene::Scene;
 use tissue::sim::Simulation;
-use tissue::{Error, Material, Real, SimError, Vec3};
+use tissue::{Material, Real, SimError, Vec3};
 
 use super::hub::Hub;
 use super::messages::{Bounds, Command};
+use super::publish;
+use super::setup::Setup;
 
-const PROBE: &str = "viewer-probe";
-const GRASPER: &str = "viewer-grasper";
-const SCALPEL: &str = "viewer-scalpel";
+use super::setup::PROBE;
+pub const GRASPER: &str = "viewer-grasper";
+pub const SCALPEL: &str = "viewer-scalpel";
 /// Wall time spent stepping before a frame is published regardless.
 const STEP_BUDGET: Duration = Duration::from_millis(25);
 const FRAME_EVERY: Duration = Duration::from_millis(33);
-
-/// What does not change when the model is rebuilt.
-#[derive(Clone)]
-pub struct Setup {
-    /// The scene without its scripted instruments.
-    pub scene: Scene,
-    /// The scene's mesh, scaled.
-    pub mesh: MeshData,
-    pub source: String,
-    pub bounds: Bounds,
-    pub park: Vec3,
-    pub probe_radius: Real,
-    pub grasp_radius: Real,
-    pub scalpel_depth: Real,
-}
-
-impl Setup {
-    pub fn load(scene: &Scene) -> Result<(Setup, Material), Error> {
-        let path = scene.mesh_path();
-        let mut mesh = tissue::io::read(&path)?;
-        for v in &mut mesh.vertices {
-            *v *= scene.mesh.scale;
-        }
-        let material = match (scene.material, mesh.material) {
-            (Some(m), _) => m,
-            (None, Some(r)) => Material {
-                young_modulus: r.young_modulus,
-                poisson_ratio: r.poisson_ratio,
-                density: r.density,
-                damping: 0.0,
-                stiffness_damping: 0.0,
-            }
-            .validated()?,
-            (None, None) => Material::new(3000.0, 0.3)?,
-        };
-        let (lo, hi) = mesh.vertices.iter().fold(
-            (Vec3::splat(Real::INFINITY), Vec3::splat(-Real::INFINITY)),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        );
-        let (center, diag) = if mesh.vertices.is_empty() {
-            (Vec3::ZERO, 1.0)
-        } else {
-            ((lo + hi) * 0.5, (hi - lo).length().max(1e-6))
-        };
-        let probe_radius = scene
-            .instruments
-            .iter()
-            .find(|i| i.value.kind == "probe")
-            .and_then(|i| i.value.radius)
-            .unwrap_or(0.04 * diag);
-        let mut bare = scene.clone();
-        bare.instruments.clear();
-        Ok((
-            Setup {
-                scene: bare,
-                mesh,
-                source: path.display().to_string(),
-                bounds: Bounds {
-                    center,
-                    radius: 3.0 * diag,
-                },
-                park: center + Vec3::new(0.0, 20.0 * diag, 0.0),
-                probe_radius,
-                grasp_radius: 1.5 * probe_radius,
-                scalpel_depth: 0.15 * diag,
-            },
-            material,
-        ))
-    }
-
-    /// Builds a simulation of `kind` with the viewer's probe as instrument 0.
-    pub fn build(&self, kind: &str, material: Material) -> Result<Simulation, Error> {
-        // A kind's settings do not fit another kind: other kinds get their defaults.
-        let mut params = self.scene.model_params.clone();
-        if kind != self.scene.model_kind {
-            params.clear();
-        }
-        let model = model::build(
-            kind,
-            &BuildInput {
-                mesh: &self.mesh,
-                source: &self.source,
-                material,
-                params: &params,
-            },
-        )?;
-        let mut sim = self.scene.build_with_model(model, &self.mesh)?;
-        let probe = Instrument::new(
-            PROBE,
-            InstrumentKind::Probe,
-            self.probe_radius,
-            Trajectory::fixed(self.park),
-        )?;
-        sim.add_instrument(probe);
-        Ok(sim)
-    }
-}
 
 struct CutJob {
     remaining: VecDeque<Vec3>,
@@ -141,7 +42,7 @@ pub struct Session {
     material: Material,
     sim: Simulation,
     dt: Real,
-    haptic: HapticLoop,
+    _haptic: HapticLoop,
     handle: HapticHandle,
     _bridge: Option<UdpBridge>,
     hub: Arc<Hub>,
@@ -187,7 +88,7 @@ impl Session {
             material,
             sim,
             dt,
-            haptic,
+            _haptic: haptic,
             handle,
             _bridge: bridge,
             hub,
@@ -225,9 +126,9 @@ impl Session {
                 sim0 = self.sim.time();
             }
             let started = Instant::now();
+            // The current model keeps running while another one is being built.
             while self.sim.time() - sim0 < wall0.elapsed().as_secs_f64()
                 && started.elapsed() < STEP_BUDGET
-                && self.building.is_none()
             {
                 self.step_once();
             }
@@ -490,40 +391,8 @@ impl Session {
     }
 
     fn publish_init(&self) {
-        let m = self.sim.model();
-        let s = m.surface();
-        let info = m.info();
-        let rest: Vec<f32> = m
-            .rest_surface()
-            .iter()
-            .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
-            .collect();
-        let triangles: Vec<u32> = s.triangles.iter().flatten().copied().collect();
-        let kinds: Vec<_> = KINDS
-            .iter()
-            .map(|k| json!({ "name": k.name, "summary": k.summary }))
-            .collect();
-        let b = self.setup.bounds;
-        let msg = json!({
-            "type": "init",
-            "kind": self.kind,
-            "kinds": kinds,
-            "is_static": info.is_static,
-            "material": {
-                "young_modulus": self.material.young_modulus,
-                "poisson_ratio": self.material.poisson_ratio,
-            },
-            "rest": rest,
-            "triangles": triangles,
-            "fixed": self.sim.fixed(),
-            "center": b.center.to_array(),
-            "size": b.radius / 3.0,
-            "probe_radius": self.setup.probe_radius,
-            "grasp_radius": self.setup.grasp_radius,
-            "dt": self.dt,
-            "scene": self.setup.scene.path.display().to_string(),
-        });
-        self.hub.set_init(msg.to_string());
+        let msg = publish::init_message(&self.sim, &self.setup, &self.kind, self.material, self.dt);
+        self.hub.set_init(msg);
     }
 
     fn publish_frame(&mut self) {
@@ -533,45 +402,18 @@ impl Session {
             self.steps_in_window = 0;
             self.window_start = Instant::now();
         }
-        let m = self.sim.model();
-        let s = m.surface();
-        let positions: Vec<f32> = s
-            .positions
-            .iter()
-            .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
-            .collect();
-        let tool = |name: &str| {
-            self.sim.instruments().iter().find(|i| i.name == name).map(|i| {
-                json!({
-                    "position": i.position().to_array(),
-                    "force": i.force().to_array(),
-                    "radius": i.radius(),
-                    "contacts": i.contacts().len(),
-                    "blade": i.blade_at(i.position()).map(|b| [b[0].to_array(), b[1].to_array()]),
-                })
-            })
+        let figures = publish::Figures {
+            dt: self.dt,
+            sim_rate: self.sim_rate,
+            haptic: self.handle.stats(),
+            haptic_force: self.handle.latest().force,
+            probe_active: self.handle.pose().position != self.setup.park,
+            building: self.building.is_some(),
         };
-        let hstats = self.handle.stats();
-        let haptic_force = self.handle.latest().force;
-        let probe_active = self.handle.pose().position != self.setup.park;
-        let msg = json!({
-            "type": "frame",
-            "time": self.sim.time(),
-            "steps": self.sim.steps(),
-            "dt": self.dt,
-            "positions": positions,
-            "probe": tool(PROBE),
-            "probe_active": probe_active,
-            "grasper": tool(GRASPER),
-            "scalpel": tool(SCALPEL),
-            "haptic_force": haptic_force.to_array(),
-            "sim_rate": self.sim_rate,
-            "haptic_rate": hstats.rate_hz,
-            "haptic_p99_us": hstats.p99_us,
-            "haptic_missed": hstats.missed_deadlines,
-            "building": self.building.is_some(),
-        });
-        self.hub.set_frame(msg.to_string());
-        let _ = &self.haptic;
+        self.hub.set_frame(publish::frame_message(
+            &self.sim,
+            &figures,
+            [PROBE, GRASPER, SCALPEL],
+        ));
     }
 }
