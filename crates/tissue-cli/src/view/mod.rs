@@ -40,7 +40,8 @@ pub struct ViewArgs {
     /// Address to listen on; anything but loopback exposes the simulation to the network.
     #[arg(long, default_value = "127.0.0.1")]
     pub host: IpAddr,
-    /// The page's directory (default: the repository's `viewer/`).
+    /// The page's directory (default: $TISSUE_VIEWER_DIR, else the `viewer/` of the
+    /// repository the binary was built from).
     #[arg(long)]
     pub viewer_dir: Option<PathBuf>,
     /// Also listen for a haptic device on this UDP port (docs/haptic-protocol.md); it drives
