@@ -14,3 +14,6 @@ cargo test --release --workspace --locked
 
 echo "== benches compile"
 cargo bench --workspace --locked --no-run
+
+echo "== browser (the viewer in headless Chromium)"
+bash scripts/browser-test.sh

@@ -1,8 +1,10 @@
 //! `tissue`: run, inspect and convert deformable tissue models from the command line.
 
 mod demo;
+mod haptic_bench;
 mod mesh_cmd;
 mod run;
+mod view;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -30,6 +32,10 @@ enum Command {
     Mesh(MeshCommand),
     /// List the model kinds built in: name, then a one-line description.
     Models,
+    /// Serve the interactive browser viewer of a scene on 127.0.0.1 and print its URL.
+    View(view::ViewArgs),
+    /// Drive the 1 kHz haptic loop with a scripted device over UDP and print its timing.
+    HapticBench(haptic_bench::HapticBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -92,6 +98,8 @@ fn main() -> ExitCode {
         Command::Run(args) => run::run(&args),
         Command::Demo(args) => demo::demo(&args),
         Command::Mesh(cmd) => mesh_cmd::mesh(&cmd),
+        Command::View(args) => view::view(&args),
+        Command::HapticBench(args) => haptic_bench::haptic_bench(&args),
         Command::Models => {
             for k in tissue::model::KINDS {
                 println!("{:<26} {}", k.name, k.summary);

@@ -87,6 +87,11 @@ impl Simulation {
         self.instruments.push(instrument);
     }
 
+    /// Removes instrument `index`; what it held is let go from the next step on.
+    pub fn remove_instrument(&mut self, index: usize) -> Option<Instrument> {
+        (index < self.instruments.len()).then(|| self.instruments.remove(index))
+    }
+
     /// Caps the solves per step of the static contact loop (at least 1).
     pub fn set_max_contact_iterations(&mut self, n: usize) {
         self.max_contact_iterations = n.max(1);

@@ -1,0 +1,180 @@
+//! `tissue view SCENE`: the interactive browser viewer. The simulation runs in this process
+//! (`session`); a std `TcpListener` serves the page from the repository's `viewer/`
+//! directory (`http`) and upgrades `/ws` to a WebSocket (`ws`) that carries JSON messages
+//! (`messages`). One thread per connection, one for the simulation, one for the haptic loop.
+
+mod http;
+mod hub;
+mod messages;
+mod publish;
+mod session;
+mod setup;
+mod ws;
+
+#[cfg(test)]
+mod tests;
+
+use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::Sender;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use clap::Args;
+use tissue::scene::Scene;
+
+use hub::Hub;
+use session::Session;
+use setup::Setup;
+
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// The scene file (TOML): mesh, material, model, fixed regions. Its scripted
+    /// instruments are replaced by the mouse-driven ones.
+    pub scene: PathBuf,
+    /// TCP port (0 picks a free one).
+    #[arg(long, default_value_t = 8765)]
+    pub port: u16,
+    /// Address to listen on; anything but loopback exposes the simulation to the network.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: IpAddr,
+    /// The page's directory (default: $TISSUE_VIEWER_DIR, else the `viewer/` of the
+    /// repository the binary was built from).
+    #[arg(long)]
+    pub viewer_dir: Option<PathBuf>,
+    /// Also listen for a haptic device on this UDP port (docs/haptic-protocol.md); it drives
+    /// the probe.
+    #[arg(long)]
+    pub device_port: Option<u16>,
+}
+
+/// Connections served at once; more are refused (a page needs one or two).
+const MAX_CONNECTIONS: usize = 32;
+
+fn viewer_dir(args: &ViewArgs) -> anyhow::Result<PathBuf> {
+    let dir = match &args.viewer_dir {
+        Some(d) => d.clone(),
+        None => std::env::var_os("TISSUE_VIEWER_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../viewer")),
+    };
+    if !dir.join("index.html").is_file() {
+        bail!(
+            "the viewer's page is missing: no {} (pass --viewer-dir, or run from a checkout \
+             of the repository)",
+            dir.join("index.html").display()
+        );
+    }
+    if !dir
+        .join("node_modules/three/build/three.module.js")
+        .is_file()
+    {
+        bail!(
+            "three.js is not installed in {}: run scripts/setup-viewer.sh first",
+            dir.join("node_modules").display()
+        );
+    }
+    Ok(dir)
+}
+
+/// Reads the request head without consuming it: `ws` needs it intact for its handshake.
+fn peek_head(stream: &TcpStream) -> Option<String> {
+    let _ = stream.set_read_timeout(Some(Duration::from_millis(200)));
+    let mut buf = vec![0u8; http::MAX_HEAD];
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(5) {
+        let n = stream.peek(&mut buf).ok()?;
+        if n == 0 {
+            return None;
+        }
+        let got = buf.get(..n)?;
+        if let Some(end) = got.windows(4).position(|w| w == b"\r\n\r\n") {
+            return String::from_utf8(got.get(..end + 4)?.to_vec()).ok();
+        }
+        if n == buf.len() {
+            return None; // head larger than the cap
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    None
+}
+
+pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
+    let root = viewer_dir(args)?;
+    let scene = Scene::load(&args.scene)?;
+    let (setup, material) = Setup::load(&scene)?;
+    let hub = Arc::new(Hub::default());
+    let device = args.device_port.map(|p| SocketAddr::new(args.host, p));
+    let session = Session::new(setup, material, Arc::clone(&hub), device)
+        .with_context(|| format!("building {}", args.scene.display()))?;
+    let bounds = session.bounds();
+    let listener = TcpListener::bind((args.host, args.port))
+        .with_context(|| format!("cannot listen on {}:{}", args.host, args.port))?;
+    let addr = listener.local_addr()?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::Builder::new()
+        .name("tissue-view-sim".into())
+        .spawn(move || session.run(rx))?;
+    if !args.host.is_loopback() {
+        eprintln!(
+            "tissue view: warning: listening on {} (not loopback)",
+            args.host
+        );
+    }
+    let host = match args.host {
+        IpAddr::V6(h) => format!("[{h}]"),
+        IpAddr::V4(h) => h.to_string(),
+    };
+    println!(
+        "tissue view: http://{host}:{}/  (Ctrl-C stops)",
+        addr.port()
+    );
+    accept_loop(listener, root, hub, tx, bounds);
+    Ok(())
+}
+
+/// Serves connections until the listener fails: static files, or `/ws` upgrades.
+fn accept_loop(
+    listener: TcpListener,
+    root: PathBuf,
+    hub: Arc<Hub>,
+    tx: Sender<messages::Command>,
+    bounds: messages::Bounds,
+) {
+    let live = Arc::new(AtomicUsize::new(0));
+    for stream in listener.incoming() {
+        let Ok(stream) = stream else { continue };
+        if live.load(Ordering::Relaxed) >= MAX_CONNECTIONS {
+            continue; // dropped: closes the socket
+        }
+        live.fetch_add(1, Ordering::Relaxed);
+        let (hub, tx, root, done) = (
+            Arc::clone(&hub),
+            tx.clone(),
+            root.clone(),
+            Arc::clone(&live),
+        );
+        let spawned = std::thread::Builder::new()
+            .name("tissue-view-conn".into())
+            .spawn(move || {
+                let peer = stream
+                    .peer_addr()
+                    .map_or_else(|_| "?".to_string(), |a| a.to_string());
+                if let Some(head) = peek_head(&stream) {
+                    let ws_path = http::request_line(&head).is_some_and(|(_, p)| p == "/ws");
+                    if ws_path && http::is_websocket(&head) {
+                        ws::serve(stream, peer, hub, tx, bounds);
+                    } else {
+                        http::serve(stream, &head, &root);
+                    }
+                }
+                done.fetch_sub(1, Ordering::Relaxed);
+            });
+        if spawned.is_err() {
+            live.fetch_sub(1, Ordering::Relaxed);
+            eprintln!("tissue view: cannot start a connection thread");
+        }
+    }
+}

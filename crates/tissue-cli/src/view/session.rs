@@ -1,0 +1,419 @@
+//! The viewer's simulation thread: owns the `Simulation`, applies the page's commands, steps
+//! the model in real time (never ahead of the wall clock, dropping time when the model is
+//! slower), runs the 1 kHz haptic loop on the probe, and publishes frames at ~30 Hz.
+//!
+//! The viewer's own instruments replace the scene's scripted ones: a probe (always present,
+//! parked far from the organ when not in use, driven by the page or a UDP device), a grasper
+//! created when the page grasps and removed when it lets go, and a scalpel that exists while
+//! a drawn path is swept.
+
+use std::collections::VecDeque;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, TryRecvError};
+use std::time::{Duration, Instant};
+
+use tissue::haptic::{HapticConfig, HapticHandle, HapticLoop, Pose, UdpBridge, step_coupled};
+use tissue::interact::{Instrument, InstrumentKind, Trajectory};
+use tissue::sim::Simulation;
+use tissue::{Material, Real, SimError, Vec3};
+
+use super::hub::Hub;
+use super::messages::{Bounds, Command};
+use super::publish;
+use super::setup::Setup;
+
+use super::setup::PROBE;
+pub const GRASPER: &str = "viewer-grasper";
+pub const SCALPEL: &str = "viewer-scalpel";
+/// Wall time spent stepping before a frame is published regardless.
+const STEP_BUDGET: Duration = Duration::from_millis(25);
+const FRAME_EVERY: Duration = Duration::from_millis(33);
+
+struct CutJob {
+    remaining: VecDeque<Vec3>,
+}
+
+type Built = Result<(Simulation, String, Material), String>;
+
+pub struct Session {
+    setup: Arc<Setup>,
+    kind: String,
+    material: Material,
+    sim: Simulation,
+    dt: Real,
+    _haptic: HapticLoop,
+    handle: HapticHandle,
+    _bridge: Option<UdpBridge>,
+    hub: Arc<Hub>,
+    grasp: Option<Vec3>,
+    cut: Option<CutJob>,
+    building: Option<Receiver<Built>>,
+    steps_in_window: u64,
+    window_start: Instant,
+    sim_rate: Real,
+    last_error: Option<(String, Instant)>,
+}
+
+impl Session {
+    pub fn new(
+        setup: Setup,
+        material: Material,
+        hub: Arc<Hub>,
+        device: Option<SocketAddr>,
+    ) -> anyhow::Result<Session> {
+        let kind = setup.scene.model_kind.clone();
+        let sim = setup.build(&kind, material)?;
+        let haptic = HapticLoop::start(HapticConfig::default())?;
+        let handle = haptic.handle();
+        handle.set_pose(Pose {
+            position: setup.park,
+            ..Pose::default()
+        });
+        let bridge = match device {
+            Some(addr) => {
+                let b = UdpBridge::start(addr, handle.clone())?;
+                eprintln!(
+                    "tissue view: haptic device bridge listening on udp://{}",
+                    b.local_addr()
+                );
+                Some(b)
+            }
+            None => None,
+        };
+        let dt = setup.scene.run.dt;
+        let s = Session {
+            setup: Arc::new(setup),
+            kind,
+            material,
+            sim,
+            dt,
+            _haptic: haptic,
+            handle,
+            _bridge: bridge,
+            hub,
+            grasp: None,
+            cut: None,
+            building: None,
+            steps_in_window: 0,
+            window_start: Instant::now(),
+            sim_rate: 0.0,
+            last_error: None,
+        };
+        s.publish_init();
+        Ok(s)
+    }
+
+    pub fn bounds(&self) -> Bounds {
+        self.setup.bounds
+    }
+
+    /// Runs until the command channel closes (the server is gone).
+    pub fn run(mut self, commands: Receiver<Command>) {
+        let mut wall0 = Instant::now();
+        let mut sim0 = self.sim.time();
+        let mut last_frame = Instant::now() - FRAME_EVERY;
+        loop {
+            loop {
+                match commands.try_recv() {
+                    Ok(c) => self.apply(c),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => return,
+                }
+            }
+            if self.poll_build() {
+                wall0 = Instant::now();
+                sim0 = self.sim.time();
+            }
+            let started = Instant::now();
+            // The current model keeps running while another one is being built.
+            while self.sim.time() - sim0 < wall0.elapsed().as_secs_f64()
+                && started.elapsed() < STEP_BUDGET
+            {
+                self.step_once();
+            }
+            let behind = wall0.elapsed().as_secs_f64() - (self.sim.time() - sim0);
+            if behind > 0.1 {
+                // Slower than real time: drop the backlog rather than chase it.
+                wall0 = Instant::now();
+                sim0 = self.sim.time();
+            }
+            if last_frame.elapsed() >= FRAME_EVERY {
+                last_frame = Instant::now();
+                self.publish_frame();
+            }
+            let ahead = (self.sim.time() - sim0) - wall0.elapsed().as_secs_f64();
+            std::thread::sleep(Duration::from_secs_f64(ahead.clamp(0.0005, 0.005)));
+        }
+    }
+
+    fn index_of(&self, name: &str) -> Option<usize> {
+        self.sim.instruments().iter().position(|i| i.name == name)
+    }
+
+    fn apply(&mut self, c: Command) {
+        match c {
+            Command::Probe(p) => self.handle.set_pose(Pose {
+                position: p.unwrap_or(self.setup.park),
+                ..self.handle.pose()
+            }),
+            Command::Grasp(p) => self.grasp_at(p),
+            Command::Release => {
+                self.grasp = None;
+                if let Some(i) = self.index_of(GRASPER) {
+                    self.sim.remove_instrument(i);
+                }
+            }
+            Command::Cut { path, into } => self.start_cut(path, into),
+            Command::SetModel(kind) => self.rebuild(kind, self.material),
+            Command::SetMaterial {
+                young_modulus,
+                poisson_ratio,
+            } => {
+                let m = Material {
+                    young_modulus,
+                    poisson_ratio,
+                    ..self.material
+                };
+                match m.validated() {
+                    Ok(m) => self.rebuild(self.kind.clone(), m),
+                    Err(e) => self.hub.notify("error", &format!("material rejected: {e}")),
+                }
+            }
+            Command::Reset => {
+                self.drop_tools();
+                self.sim.model_mut().reset();
+                self.dt = self.setup.scene.run.dt;
+                self.hub.notify("info", "reset to the rest state");
+            }
+        }
+    }
+
+    fn drop_tools(&mut self) {
+        for name in [GRASPER, SCALPEL] {
+            if let Some(i) = self.index_of(name) {
+                self.sim.remove_instrument(i);
+            }
+        }
+        self.grasp = None;
+        self.cut = None;
+        self.handle.set_pose(Pose {
+            position: self.setup.park,
+            ..self.handle.pose()
+        });
+        self.handle.clear_contact();
+    }
+
+    fn grasp_at(&mut self, p: Vec3) {
+        if self.index_of(GRASPER).is_none() {
+            // Reach at least the nearest surface vertex, so a grasp never comes up empty on a
+            // coarse mesh.
+            let nearest = self
+                .sim
+                .model()
+                .surface()
+                .positions
+                .iter()
+                .map(|q| q.distance(p))
+                .fold(Real::INFINITY, Real::min);
+            let radius = self.setup.grasp_radius.max(1.05 * nearest);
+            let kind = InstrumentKind::Grasper {
+                grasp_at: self.sim.time(),
+                release_at: None,
+            };
+            match Instrument::new(GRASPER, kind, radius, Trajectory::fixed(p)) {
+                Ok(g) => self.sim.add_instrument(g),
+                Err(e) => return self.hub.notify("error", &format!("grasp: {e}")),
+            }
+        }
+        self.grasp = Some(p);
+    }
+
+    fn start_cut(&mut self, path: Vec<Vec3>, into: Vec3) {
+        if self.cut.is_some() {
+            return self.hub.notify("error", "a cut is already in progress");
+        }
+        let depth = self.setup.scalpel_depth;
+        let tips: VecDeque<Vec3> = path.iter().map(|&p| p + into * depth).collect();
+        let Some(&first) = tips.front() else { return };
+        let kind = InstrumentKind::Scalpel {
+            direction: -into,
+            length: 2.0 * depth,
+        };
+        match Instrument::new(
+            SCALPEL,
+            kind,
+            self.setup.probe_radius,
+            Trajectory::fixed(first),
+        ) {
+            Ok(s) => self.sim.add_instrument(s),
+            Err(e) => return self.hub.notify("error", &format!("scalpel: {e}")),
+        }
+        self.cut = Some(CutJob { remaining: tips });
+    }
+
+    fn rebuild(&mut self, kind: String, material: Material) {
+        if self.building.is_some() {
+            return self.hub.notify("error", "a model is already being built");
+        }
+        self.hub.notify("info", &format!("building {kind} ..."));
+        let (tx, rx) = std::sync::mpsc::channel();
+        let setup = Arc::clone(&self.setup);
+        let spawned = std::thread::Builder::new()
+            .name("tissue-view-build".into())
+            .spawn(move || {
+                let r = setup
+                    .build(&kind, material)
+                    .map(|sim| (sim, kind.clone(), material))
+                    .map_err(|e| format!("building {kind} failed: {e}"));
+                let _ = tx.send(r);
+            });
+        match spawned {
+            Ok(_) => self.building = Some(rx),
+            Err(e) => self
+                .hub
+                .notify("error", &format!("cannot start a build: {e}")),
+        }
+    }
+
+    /// Swaps in a finished build; true when the simulation changed.
+    fn poll_build(&mut self) -> bool {
+        let Some(rx) = &self.building else {
+            return false;
+        };
+        let result = match rx.try_recv() {
+            Ok(r) => r,
+            Err(TryRecvError::Empty) => return false,
+            Err(TryRecvError::Disconnected) => Err("the build thread stopped".into()),
+        };
+        self.building = None;
+        match result {
+            Ok((sim, kind, material)) => {
+                self.drop_tools();
+                self.sim = sim;
+                self.kind = kind;
+                self.material = material;
+                self.dt = self.setup.scene.run.dt;
+                self.publish_init();
+                self.hub.notify(
+                    "info",
+                    &format!(
+                        "now running {} (E = {} Pa, nu = {})",
+                        self.kind, material.young_modulus, material.poisson_ratio
+                    ),
+                );
+                true
+            }
+            Err(e) => {
+                self.hub.notify("error", &e);
+                false
+            }
+        }
+    }
+
+    fn step_once(&mut self) {
+        if let Some(job) = &mut self.cut
+            && let Some(tip) = job.remaining.pop_front()
+            && let Some(i) = self
+                .sim
+                .instruments()
+                .iter()
+                .position(|x| x.name == SCALPEL)
+        {
+            let _ = self.sim.set_instrument_position(i, Some(tip));
+        }
+        if let (Some(p), Some(i)) = (self.grasp, self.index_of(GRASPER)) {
+            let _ = self.sim.set_instrument_position(i, Some(p));
+        }
+        let triangles = self.sim.model().surface().triangles.len();
+        match step_coupled(&mut self.sim, 0, &self.handle, self.dt) {
+            Ok(_) => {
+                self.steps_in_window += 1;
+                if self.cut.as_ref().is_some_and(|j| j.remaining.is_empty()) {
+                    self.finish_cut("the cut is done");
+                }
+                if self.sim.model().surface().triangles.len() != triangles {
+                    self.publish_init();
+                }
+            }
+            Err(e) => self.step_failed(e),
+        }
+    }
+
+    fn finish_cut(&mut self, message: &str) {
+        self.cut = None;
+        if let Some(i) = self.index_of(SCALPEL) {
+            self.sim.remove_instrument(i);
+        }
+        self.hub.notify("info", message);
+    }
+
+    fn step_failed(&mut self, e: SimError) {
+        if self.cut.is_some() {
+            self.cut = None;
+            if let Some(i) = self.index_of(SCALPEL) {
+                self.sim.remove_instrument(i);
+            }
+            let msg = match &e {
+                SimError::Unsupported { .. } => format!("{} cannot cut: {e}", self.kind),
+                _ => format!("cutting failed: {e}"),
+            };
+            return self.hub.notify("error", &msg);
+        }
+        if matches!(e, SimError::Diverged { .. }) && self.dt > 1e-6 {
+            // Models with a stability limit publish it; others get half the step.
+            let critical = self
+                .sim
+                .model()
+                .info()
+                .details
+                .iter()
+                .find(|(k, _)| k == "critical_dt")
+                .and_then(|(_, v)| v.parse::<Real>().ok())
+                .filter(|c| c.is_finite() && *c > 0.0 && *c < self.dt);
+            self.dt = critical.map_or(0.5 * self.dt, |c| 0.9 * c);
+            self.sim.model_mut().reset();
+            return self.hub.notify(
+                "error",
+                &format!("{e}; reset, and the time step is now {:.3e} s", self.dt),
+            );
+        }
+        // The same failure every step would flood the log: say it once a second.
+        let text = e.to_string();
+        let repeat = self
+            .last_error
+            .as_ref()
+            .is_some_and(|(t, at)| *t == text && at.elapsed() < Duration::from_secs(1));
+        if !repeat {
+            self.hub.notify("error", &format!("step failed: {text}"));
+            self.last_error = Some((text, Instant::now()));
+        }
+    }
+
+    fn publish_init(&self) {
+        let msg = publish::init_message(&self.sim, &self.setup, &self.kind, self.material, self.dt);
+        self.hub.set_init(msg);
+    }
+
+    fn publish_frame(&mut self) {
+        let secs = self.window_start.elapsed().as_secs_f64();
+        if secs >= 0.5 {
+            self.sim_rate = self.steps_in_window as Real / secs;
+            self.steps_in_window = 0;
+            self.window_start = Instant::now();
+        }
+        let figures = publish::Figures {
+            dt: self.dt,
+            sim_rate: self.sim_rate,
+            haptic: self.handle.stats(),
+            haptic_force: self.handle.latest().force,
+            probe_active: self.handle.pose().position != self.setup.park,
+            building: self.building.is_some(),
+        };
+        self.hub.set_frame(publish::frame_message(
+            &self.sim,
+            &figures,
+            [PROBE, GRASPER, SCALPEL],
+        ));
+    }
+}
