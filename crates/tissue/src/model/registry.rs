@@ -5,6 +5,7 @@ use crate::material::Material;
 use crate::mesh::MeshData;
 use crate::model::Deformable;
 use crate::model::fem;
+use crate::model::spline;
 
 /// A model kind and what it is, for `tissue models`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,6 +40,10 @@ pub const KINDS: &[KindInfo] = &[
         name: "fem-corotational",
         summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
     },
+    KindInfo {
+        name: "spline",
+        summary: "deformable cubic B-spline shell (Terzopoulos): sheets and tubes fitted to a mesh",
+    },
 ];
 
 /// What a model is built from.
@@ -61,6 +66,7 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
         "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
+        "spline" => Ok(Box::new(spline::SplineModel::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

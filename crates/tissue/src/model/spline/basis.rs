@@ -144,8 +144,7 @@ impl Basis {
         let deriv = |p: usize, lower: &[Real; 5], j: usize| {
             let i = k + j - 3;
             p as Real
-                * (ratio(lower[j], u(i + p) - u(i))
-                    - ratio(lower[j + 1], u(i + p + 1) - u(i + 1)))
+                * (ratio(lower[j], u(i + p) - u(i)) - ratio(lower[j + 1], u(i + p + 1) - u(i + 1)))
         };
         let mut d2 = [0.0; 5];
         for (j, d) in d2.iter_mut().enumerate().take(4) {

@@ -101,7 +101,15 @@ impl Frame {
     }
 
     /// Adds Σ_c s_c ∂ε_c/∂x_i + Σ_c m_c ∂κ_c/∂x_i, times `sign`, to `out` for each node.
-    fn scatter(&self, st: &Stencil, w: &[[Real; 16]; 6], s: [Real; 3], m: [Real; 3], sign: Real, out: &mut [Vec3]) {
+    fn scatter(
+        &self,
+        st: &Stencil,
+        w: &[[Real; 16]; 6],
+        s: [Real; 3],
+        m: [Real; 3],
+        sign: Real,
+        out: &mut [Vec3],
+    ) {
         let big = m[0] * self.p[0] + m[1] * self.p[1] + m[2] * self.p[2];
         let c1 = self.a2.cross(big) * self.inv_len;
         let c2 = big.cross(self.a1) * self.inv_len;
@@ -138,7 +146,11 @@ pub struct ShellEnergy {
 
 impl ShellEnergy {
     /// Quadrature and rest forms of `rest`; E and ν from `material`, thickness in m.
-    pub fn new(rest: &SplineSurface, material: &Material, thickness: Real) -> Result<Self, SimError> {
+    pub fn new(
+        rest: &SplineSurface,
+        material: &Material,
+        thickness: Real,
+    ) -> Result<Self, SimError> {
         let material = material.validated()?;
         if !(thickness.is_finite() && thickness > 0.0) {
             return Err(SimError::BadParameter {
@@ -269,7 +281,11 @@ impl ShellEnergy {
             let w = q.stencil.all_weights();
             let d: [Vec3; 6] = std::array::from_fn(|c| q.stencil.combine(dx, &w[c]));
             let (d1, d2) = (d[Deriv::U as usize], d[Deriv::V as usize]);
-            let de = [fr.a1.dot(d1), fr.a2.dot(d2), 0.5 * (fr.a2.dot(d1) + fr.a1.dot(d2))];
+            let de = [
+                fr.a1.dot(d1),
+                fr.a2.dot(d2),
+                0.5 * (fr.a2.dot(d1) + fr.a1.dot(d2)),
+            ];
             let dk: [Real; 3] = std::array::from_fn(|c| {
                 fr.n.dot(d[3 + c])
                     + fr.inv_len * (d1.dot(fr.a2.cross(fr.p[c])) + d2.dot(fr.p[c].cross(fr.a1)))
@@ -305,11 +321,21 @@ impl ShellEnergy {
 }
 
 /// Rest forms and plane-stress tensor at (s, t).
-fn rest_point(rest: &SplineSurface, s: Real, t: Real, param_weight: Real, nu: Real) -> Result<QuadPoint, SimError> {
+fn rest_point(
+    rest: &SplineSurface,
+    s: Real,
+    t: Real,
+    param_weight: Real,
+    nu: Real,
+) -> Result<QuadPoint, SimError> {
     let stencil = rest.stencil(s, t);
     let w = stencil.all_weights();
     let f = Frame::at(&stencil, &w, &rest.control);
-    let area = if f.inv_len > 0.0 { 1.0 / f.inv_len } else { 0.0 };
+    let area = if f.inv_len > 0.0 {
+        1.0 / f.inv_len
+    } else {
+        0.0
+    };
     let [g11, g22, g12] = f.metric();
     let det = g11 * g22 - g12 * g12;
     let scale = g11.max(g22);
@@ -317,7 +343,8 @@ fn rest_point(rest: &SplineSurface, s: Real, t: Real, param_weight: Real, nu: Re
         return Err(SimError::BadParameter {
             name: "control",
             value: format!("surface at (u, v) = ({s:.4}, {t:.4})"),
-            reason: "the rest surface is degenerate there (S_u and S_v are parallel or zero)".into(),
+            reason: "the rest surface is degenerate there (S_u and S_v are parallel or zero)"
+                .into(),
         });
     }
     // Contravariant metric A^αβ.
@@ -325,7 +352,8 @@ fn rest_point(rest: &SplineSurface, s: Real, t: Real, param_weight: Real, nu: Re
     let pair = [(0, 0), (1, 1), (0, 1)];
     let factor = [1.0, 1.0, 2.0];
     let c = |a: usize, b: usize, g: usize, d: usize| {
-        nu * inv[a][b] * inv[g][d] + 0.5 * (1.0 - nu) * (inv[a][g] * inv[b][d] + inv[a][d] * inv[b][g])
+        nu * inv[a][b] * inv[g][d]
+            + 0.5 * (1.0 - nu) * (inv[a][g] * inv[b][d] + inv[a][d] * inv[b][g])
     };
     let h = std::array::from_fn(|r| {
         std::array::from_fn(|col| {

@@ -23,7 +23,7 @@ use std::f64::consts::TAU;
 
 use crate::error::{MeshError, SimError};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::mesh::topology::{components, edge_faces, euler_characteristic, UnionFind};
+use crate::mesh::topology::{UnionFind, components, edge_faces, euler_characteristic};
 use crate::solve::{BlockPattern, SparseCholesky};
 
 use super::basis::{Basis, KnotKind};
@@ -74,8 +74,18 @@ pub fn classify(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Result<Topology, S
             }
         }
     }
-    if let Some((v, p)) = vertices.iter().enumerate().find(|(_, p)| !is_finite_vec(**p)) {
-        return Err(MeshError::NonFiniteVertex { vertex: v, x: p.x, y: p.y, z: p.z }.into());
+    if let Some((v, p)) = vertices
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !is_finite_vec(**p))
+    {
+        return Err(MeshError::NonFiniteVertex {
+            vertex: v,
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        }
+        .into());
     }
     let parts = components(triangles).count;
     if parts != 1 {
@@ -85,7 +95,12 @@ pub fn classify(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Result<Topology, S
     }
     let ef = edge_faces(triangles);
     if let Some((e, f)) = ef.non_manifold_edges().next() {
-        return Err(MeshError::NonManifoldEdge { a: e[0] as usize, b: e[1] as usize, faces: f.len() }.into());
+        return Err(MeshError::NonManifoldEdge {
+            a: e[0] as usize,
+            b: e[1] as usize,
+            faces: f.len(),
+        }
+        .into());
     }
     let loops = border_loops(&ef.border_edges().collect::<Vec<_>>()).len() as i64;
     let chi = euler_characteristic(triangles);
@@ -121,7 +136,10 @@ fn border_loops(edges: &[[u32; 2]]) -> Vec<Vec<u32>> {
     }
     let mut groups: Vec<(usize, u32)> = ids.iter().map(|&v| (uf.find(slot(v)), v)).collect();
     groups.sort_unstable();
-    groups.chunk_by(|a, b| a.0 == b.0).map(|g| g.iter().map(|x| x.1).collect()).collect()
+    groups
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|g| g.iter().map(|x| x.1).collect())
+        .collect()
 }
 
 /// Fits a `nu` × `nv` control net to a sheet or tube mesh (unused vertices are ignored).
@@ -134,7 +152,10 @@ pub fn fit_mesh(
 ) -> Result<Fit, SimError> {
     let topology = classify(vertices, triangles)?;
     let mut used = vec![false; vertices.len()];
-    triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+    triangles
+        .iter()
+        .flatten()
+        .for_each(|&v| used[v as usize] = true);
     let params = match topology {
         Topology::Tube => tube_parameters(vertices, triangles)?,
         Topology::Sheet => sheet_parameters(vertices, triangles, &used)?,
@@ -157,23 +178,41 @@ pub fn fit_mesh(
         .zip(&params)
         .map(|(p, &(s, t))| surface.point(s, t).distance(*p))
         .collect();
-    let rms_error = (errors.iter().map(|e| e * e).sum::<Real>() / errors.len().max(1) as Real).sqrt();
+    let rms_error =
+        (errors.iter().map(|e| e * e).sum::<Real>() / errors.len().max(1) as Real).sqrt();
     let max_error = errors.iter().copied().fold(0.0, Real::max);
-    Ok(Fit { surface, topology, rms_error, max_error })
+    Ok(Fit {
+        surface,
+        topology,
+        rms_error,
+        max_error,
+    })
 }
 
-fn tube_parameters(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Result<Vec<(Real, Real)>, SimError> {
+fn tube_parameters(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+) -> Result<Vec<(Real, Real)>, SimError> {
     let ef = edge_faces(triangles);
     let loops = border_loops(&ef.border_edges().collect::<Vec<_>>());
-    let centroid = |l: &[u32]| l.iter().map(|&v| vertices[v as usize]).sum::<Vec3>() / l.len().max(1) as Real;
+    let centroid =
+        |l: &[u32]| l.iter().map(|&v| vertices[v as usize]).sum::<Vec3>() / l.len().max(1) as Real;
     let (c0, c1) = match loops.as_slice() {
         [a, b] => (centroid(a), centroid(b)),
         _ => return Err(refuse("a tube needs exactly two boundary loops".into())),
     };
     let axis = c1 - c0;
     let length = axis.length();
-    let first = loops.first().and_then(|l| l.first()).map(|&v| vertices[v as usize]).unwrap_or(c0);
-    let d = if length > 0.0 { axis / length } else { Vec3::ZERO };
+    let first = loops
+        .first()
+        .and_then(|l| l.first())
+        .map(|&v| vertices[v as usize])
+        .unwrap_or(c0);
+    let d = if length > 0.0 {
+        axis / length
+    } else {
+        Vec3::ZERO
+    };
     let e1 = (first - c0) - (first - c0).dot(d) * d;
     if length <= 0.0 || e1.length() <= 1e-9 * length {
         return Err(refuse(
@@ -195,18 +234,30 @@ fn tube_parameters(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Result<Vec<(Rea
         .collect())
 }
 
-fn sheet_parameters(vertices: &[Vec3], triangles: &[[u32; 3]], used: &[bool]) -> Result<Vec<(Real, Real)>, SimError> {
+fn sheet_parameters(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    used: &[bool],
+) -> Result<Vec<(Real, Real)>, SimError> {
     let corner = |t: &[u32; 3], k: usize| vertices[t[k] as usize];
     let normal: Vec3 = triangles
         .iter()
         .map(|t| (corner(t, 1) - corner(t, 0)).cross(corner(t, 2) - corner(t, 0)))
         .sum();
     if normal.length() <= 0.0 {
-        return Err(refuse("the sheet has no mean plane (its area vectors cancel)".into()));
+        return Err(refuse(
+            "the sheet has no mean plane (its area vectors cancel)".into(),
+        ));
     }
     let n = normal.normalize();
     let count = used.iter().filter(|u| **u).count().max(1) as Real;
-    let c = vertices.iter().zip(used).filter(|(_, u)| **u).map(|(p, _)| *p).sum::<Vec3>() / count;
+    let c = vertices
+        .iter()
+        .zip(used)
+        .filter(|(_, u)| **u)
+        .map(|(p, _)| *p)
+        .sum::<Vec3>()
+        / count;
     // Principal directions within the plane: eigenvectors of the 2 × 2 covariance.
     let a = n.any_orthonormal_vector();
     let b = n.cross(a);
@@ -220,7 +271,10 @@ fn sheet_parameters(vertices: &[Vec3], triangles: &[[u32; 3]], used: &[bool]) ->
     let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
     let e1 = angle.cos() * a + angle.sin() * b;
     let e2 = n.cross(e1);
-    let proj: Vec<(Real, Real)> = vertices.iter().map(|p| ((*p - c).dot(e1), (*p - c).dot(e2))).collect();
+    let proj: Vec<(Real, Real)> = vertices
+        .iter()
+        .map(|p| ((*p - c).dot(e1), (*p - c).dot(e2)))
+        .collect();
     for (t, tri) in triangles.iter().enumerate() {
         let [p, q, r] = tri.map(|v| proj[v as usize]);
         let area = (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0);
@@ -231,13 +285,22 @@ fn sheet_parameters(vertices: &[Vec3], triangles: &[[u32; 3]], used: &[bool]) ->
             )));
         }
     }
-    let (mut lo, mut hi) = ((Real::INFINITY, Real::INFINITY), (Real::NEG_INFINITY, Real::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        (Real::INFINITY, Real::INFINITY),
+        (Real::NEG_INFINITY, Real::NEG_INFINITY),
+    );
     for (p, _) in proj.iter().zip(used).filter(|(_, u)| **u) {
         lo = (lo.0.min(p.0), lo.1.min(p.1));
         hi = (hi.0.max(p.0), hi.1.max(p.1));
     }
-    let (wx, wy) = ((hi.0 - lo.0).max(Real::MIN_POSITIVE), (hi.1 - lo.1).max(Real::MIN_POSITIVE));
-    Ok(proj.iter().map(|p| ((p.0 - lo.0) / wx, (p.1 - lo.1) / wy)).collect())
+    let (wx, wy) = (
+        (hi.0 - lo.0).max(Real::MIN_POSITIVE),
+        (hi.1 - lo.1).max(Real::MIN_POSITIVE),
+    );
+    Ok(proj
+        .iter()
+        .map(|p| ((p.0 - lo.0) / wx, (p.1 - lo.1) / wy))
+        .collect())
 }
 
 /// Least-squares control net for points with known parameters (see the module doc).
@@ -252,7 +315,8 @@ pub fn fit_points(
         return Err(SimError::BadParameter {
             name: "smoothing",
             value: smoothing.to_string(),
-            reason: "must be a finite value > 0 (it keeps control points without data defined)".into(),
+            reason: "must be a finite value > 0 (it keeps control points without data defined)"
+                .into(),
         });
     }
     if points.len() != params.len() || points.is_empty() {
@@ -316,7 +380,11 @@ pub fn fit_points(
         }
     }
     let mut chol = SparseCholesky::new(&pattern)?;
-    chol.factorize(&pattern, &values, "the fit's normal equations are singular (too few data points?)")?;
+    chol.factorize(
+        &pattern,
+        &values,
+        "the fit's normal equations are singular (too few data points?)",
+    )?;
     let mut control = vec![Vec3::ZERO; n];
     for axis in 0..3 {
         let mut b: Vec<Real> = rhs.iter().map(|r| r[axis]).collect();
@@ -339,7 +407,12 @@ mod tests {
         let fit = fit_mesh(&m.vertices, &m.triangles, 16, 10, 1e-6).unwrap();
         assert_eq!(fit.topology, Topology::Tube);
         // The mesh is a 48-gon prism; a 16-point periodic cubic fits it within 0.2% of R.
-        assert!(fit.max_error < 2e-5, "max {} rms {}", fit.max_error, fit.rms_error);
+        assert!(
+            fit.max_error < 2e-5,
+            "max {} rms {}",
+            fit.max_error,
+            fit.rms_error
+        );
         let p = fit.surface.point(0.3, 0.5);
         assert!(((p.x * p.x + p.y * p.y).sqrt() - 0.01).abs() < 2e-5);
         assert!((p.z - 0.025).abs() < 1e-6);
@@ -355,17 +428,31 @@ mod tests {
             .collect();
         let id = |i: u32, j: u32| i + (k as u32 + 1) * j;
         let triangles: Vec<[u32; 3]> = (0..k as u32)
-            .flat_map(|j| (0..k as u32).flat_map(move |i| [[id(i, j), id(i + 1, j), id(i + 1, j + 1)], [id(i, j), id(i + 1, j + 1), id(i, j + 1)]]))
+            .flat_map(|j| {
+                (0..k as u32).flat_map(move |i| {
+                    [
+                        [id(i, j), id(i + 1, j), id(i + 1, j + 1)],
+                        [id(i, j), id(i + 1, j + 1), id(i, j + 1)],
+                    ]
+                })
+            })
             .collect();
         let fit = fit_mesh(&vertices, &triangles, 10, 10, 1e-8).unwrap();
         assert_eq!(fit.topology, Topology::Sheet);
-        assert!(fit.max_error < 2e-5, "max {} rms {}", fit.max_error, fit.rms_error);
+        assert!(
+            fit.max_error < 2e-5,
+            "max {} rms {}",
+            fit.max_error,
+            fit.rms_error
+        );
     }
 
     #[test]
     fn closed_organ_and_two_pieces_are_refused_with_the_reason() {
         let s = icosphere(Vec3::ZERO, 1.0, 2);
-        let e = fit_mesh(&s.vertices, &s.triangles, 8, 8, 1e-6).unwrap_err().to_string();
+        let e = fit_mesh(&s.vertices, &s.triangles, 8, 8, 1e-6)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("closed surface of genus 0"), "{e}");
         let a = tube(1.0, 1.0, 8, 2);
         let mut tris = a.triangles.clone();

@@ -230,7 +230,10 @@ mod tests {
         for i in 0..n {
             let t = i as Real / n as Real;
             let p = s.point(t, 0.4);
-            assert!(((p.x * p.x + p.y * p.y).sqrt() - r).abs() < 1e-15 * 10.0, "{i}");
+            assert!(
+                ((p.x * p.x + p.y * p.y).sqrt() - r).abs() < 1e-15 * 10.0,
+                "{i}"
+            );
             let a = std::f64::consts::TAU * t;
             assert!((p.y.atan2(p.x) - a).sin().abs() < 1e-12);
             assert!((p.z - 0.04).abs() < 1e-15);

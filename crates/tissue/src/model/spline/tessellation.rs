@@ -88,9 +88,8 @@ impl Tessellation {
         for j in 0..self.nv {
             let row = &control[self.nu * j..self.nu * (j + 1)];
             for (a, c) in self.cols.iter().enumerate() {
-                self.scratch[a + nc * j] = (0..4)
-                    .map(|k| c.n[0][k] * row[c.index[k] as usize])
-                    .sum();
+                self.scratch[a + nc * j] =
+                    (0..4).map(|k| c.n[0][k] * row[c.index[k] as usize]).sum();
             }
         }
         for (b, r) in self.rows.iter().enumerate() {
@@ -152,8 +151,17 @@ mod tests {
             assert!((lhs - rhs).abs() < 1e-12 * lhs.abs().max(1.0));
             // Every triangle is proper and the periodic grid is closed around.
             let mesh = crate::mesh::SurfaceMesh::new(s.clone(), t.triangles.clone());
-            let borders = crate::mesh::topology::edge_faces(&mesh.triangles).border_edges().count();
-            assert_eq!(borders, if periodic { 2 * su } else { 2 * su + 2 * (r - 1) });
+            let borders = crate::mesh::topology::edge_faces(&mesh.triangles)
+                .border_edges()
+                .count();
+            assert_eq!(
+                borders,
+                if periodic {
+                    2 * su
+                } else {
+                    2 * su + 2 * (r - 1)
+                }
+            );
         }
     }
 }

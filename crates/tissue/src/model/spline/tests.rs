@@ -8,9 +8,13 @@ use crate::solve::CgWorkspace;
 
 /// A deterministic pseudo-random displacement in [−1, 1]³ per point.
 fn wiggle(n: usize, seed: u64) -> Vec<Vec3> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     let mut next = || {
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((s >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
     };
     (0..n).map(|_| Vec3::new(next(), next(), next())).collect()
@@ -28,14 +32,11 @@ fn curved_tube() -> (SplineSurface, ShellEnergy) {
 
 #[test]
 fn forces_are_the_exact_gradient() {
-    for (surf, energy) in [
-        curved_tube(),
-        {
-            let s = SplineSurface::flat_patch(0.05, 0.03, 6, 5).unwrap();
-            let e = ShellEnergy::new(&s, &material(2e4, 0.45), 2e-3).unwrap();
-            (s, e)
-        },
-    ] {
+    for (surf, energy) in [curved_tube(), {
+        let s = SplineSurface::flat_patch(0.05, 0.03, 6, 5).unwrap();
+        let e = ShellEnergy::new(&s, &material(2e4, 0.45), 2e-3).unwrap();
+        (s, e)
+    }] {
         let x: Vec<Vec3> = surf
             .control
             .iter()
@@ -54,7 +55,11 @@ fn forces_are_the_exact_gradient() {
                 xp[i][c] += h;
                 xm[i][c] -= h;
                 let fd = -(energy.energy(&xp) - energy.energy(&xm)) / (2.0 * h);
-                assert!((fd - f[i][c]).abs() < 1e-6 * scale, "node {i} axis {c}: {fd} vs {}", f[i][c]);
+                assert!(
+                    (fd - f[i][c]).abs() < 1e-6 * scale,
+                    "node {i} axis {c}: {fd} vs {}",
+                    f[i][c]
+                );
             }
         }
     }
@@ -70,7 +75,11 @@ fn rigid_motion_costs_nothing() {
     let stretched: Vec<Vec3> = surf.control.iter().map(|p| *p * 1.01).collect();
     let reference = energy.energy(&stretched);
     assert!(reference > 0.0);
-    assert!(energy.energy(&x) < 1e-20 * reference.max(1.0), "{}", energy.energy(&x));
+    assert!(
+        energy.energy(&x) < 1e-20 * reference.max(1.0),
+        "{}",
+        energy.energy(&x)
+    );
     let mut f = vec![Vec3::ZERO; x.len()];
     energy.add_forces(&x, &mut f);
     let fmax = f.iter().map(|v| v.length()).fold(0.0, Real::max);
@@ -93,7 +102,12 @@ fn stiffness_product_matches_force_differences_at_rest_and_is_symmetric() {
     // At rest the Gauss–Newton stiffness is the Hessian: compare with −Δf/Δx.
     let h = 1e-7;
     let f_at = |s: Real| {
-        let x: Vec<Vec3> = surf.control.iter().zip(&a).map(|(p, d)| *p + s * *d).collect();
+        let x: Vec<Vec3> = surf
+            .control
+            .iter()
+            .zip(&a)
+            .map(|(p, d)| *p + s * *d)
+            .collect();
         let mut f = vec![Vec3::ZERO; n];
         energy.add_forces(&x, &mut f);
         f
@@ -210,7 +224,10 @@ fn clamped_plate_matches_kirchhoff() {
 #[ignore = "convergence study; prints numbers"]
 fn clamped_plate_convergence() {
     for n in [6, 8, 10, 12, 16, 20, 24] {
-        println!("control {n} x {n}: w / w_Kirchhoff = {:.5}", clamped_plate_ratio(n));
+        println!(
+            "control {n} x {n}: w / w_Kirchhoff = {:.5}",
+            clamped_plate_ratio(n)
+        );
     }
 }
 
