@@ -28,9 +28,9 @@ fn tube_model(scheme: Scheme, damping: Real) -> SplineModel {
 fn energy_decreases_under_damping_with_every_scheme() {
     for (scheme, dt) in [
         (Scheme::ImplicitEuler, 2e-3),
-        (Scheme::SymplecticEuler, 5e-5),
-        (Scheme::VelocityVerlet, 5e-5),
-        (Scheme::Rk4, 5e-5),
+        (Scheme::SymplecticEuler, 1e-4),
+        (Scheme::VelocityVerlet, 1e-4),
+        (Scheme::Rk4, 1e-4),
     ] {
         let mut m = tube_model(scheme, 50.0);
         // Start squeezed into an ellipse, at rest.
@@ -47,9 +47,9 @@ fn energy_decreases_under_damping_with_every_scheme() {
         assert!(e0 > 0.0);
         let mut last = e0;
         let steps = if scheme == Scheme::ImplicitEuler {
-            100
+            50
         } else {
-            2000
+            1000
         };
         for s in 0..steps {
             m.step(dt).unwrap();
@@ -57,7 +57,7 @@ fn energy_decreases_under_damping_with_every_scheme() {
             assert!(e <= last * (1.0 + 1e-9), "{scheme} step {s}: {e} > {last}");
             last = e;
         }
-        // Damped to well below the start (α = 50/s over 0.1-0.2 s).
+        // Damped to well below the start (α = 50/s over 0.1 s).
         assert!(last < 0.05 * e0, "{scheme}: {last} vs {e0}");
     }
 }

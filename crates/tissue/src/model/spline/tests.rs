@@ -222,12 +222,14 @@ fn clamped_plate_matches_kirchhoff() {
 
 #[test]
 #[ignore = "convergence study; prints numbers"]
-fn clamped_plate_convergence() {
+fn convergence_studies() {
     for n in [6, 8, 10, 12, 16, 20, 24] {
-        println!(
-            "control {n} x {n}: w / w_Kirchhoff = {:.5}",
-            clamped_plate_ratio(n)
-        );
+        let r = clamped_plate_ratio(n);
+        println!("clamped plate, control {n} x {n}: w / w_Kirchhoff = {r:.5}");
+    }
+    for (a, b) in [(8, 5), (12, 7), (16, 9), (24, 13)] {
+        let r = inflated_tube_ratio(a, b);
+        println!("inflated tube, control {a} x {b}: dr / dr_thin-walled = {r:.5}");
     }
 }
 
