@@ -223,7 +223,7 @@ fn clamped_plate_matches_kirchhoff() {
 #[test]
 #[ignore = "convergence study; prints numbers"]
 fn convergence_studies() {
-    for n in [6, 8, 10, 12, 16, 20, 24] {
+    for n in [6, 8, 10, 12, 16, 20] {
         let r = clamped_plate_ratio(n);
         println!("clamped plate, control {n} x {n}: w / w_Kirchhoff = {r:.5}");
     }
