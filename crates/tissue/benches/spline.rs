@@ -39,11 +39,15 @@ fn tube_model(scheme: Scheme) -> SplineModel {
     m
 }
 
-fn bench(c: &mut Criterion) {
+fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let mut group = c.benchmark_group("spline");
     group.sample_size(10);
     for scheme in Scheme::ALL {
-        let dt = if scheme == Scheme::ImplicitEuler { 1e-3 } else { 5e-5 };
+        let dt = if scheme == Scheme::ImplicitEuler {
+            1e-3
+        } else {
+            5e-5
+        };
         let mut m = tube_model(scheme);
         group.bench_function(format!("tube_32x64_step_{}", scheme.name()), |b| {
             b.iter(|| black_box(m.step(dt).expect("step")))
@@ -52,9 +56,10 @@ fn bench(c: &mut Criterion) {
     let rest = SplineSurface::tube(0.01, 0.1, 32, 64).expect("tube");
     let mut tess = Tessellation::new(&rest, 3);
     let mut out = vec![Vec3::ZERO; tess.len()];
-    group.bench_function(format!("tube_32x64_tessellate_{}_vertices", tess.len()), |b| {
-        b.iter(|| tess.apply(black_box(&rest.control), &mut out))
-    });
+    group.bench_function(
+        format!("tube_32x64_tessellate_{}_vertices", tess.len()),
+        |b| b.iter(|| tess.apply(black_box(&rest.control), &mut out)),
+    );
     group.finish();
 }
 

@@ -497,7 +497,7 @@ impl Deformable for SplineModel {
             dofs: 3 * n,
             elements: q / 16,
             surface_vertices: self.surface_positions.len(),
-            memory_bytes: q * std::mem::size_of::<super::energy::QuadPoint>()
+            memory_bytes: std::mem::size_of_val(self.net.energy.points())
                 + n * 10 * 24
                 + self.surface_positions.len() * 4 * 24,
             precompute_seconds: self.precompute_seconds,

@@ -216,8 +216,8 @@ mod tests {
             assert!(d[0].distance(Vec3::new(2.0 * a, 3.0 * b, 0.0)) < 1e-13);
             assert!(d[1].distance(Vec3::new(2.0, 0.0, 0.0)) < 1e-12);
             assert!(d[2].distance(Vec3::new(0.0, 3.0, 0.0)) < 1e-12);
-            for k in 3..6 {
-                assert!(d[k].length() < 1e-10, "{k} {:?}", d[k]);
+            for (k, dk) in d.iter().enumerate().skip(3) {
+                assert!(dk.length() < 1e-10, "{k} {dk:?}");
             }
         }
     }

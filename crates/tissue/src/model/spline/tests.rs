@@ -197,7 +197,7 @@ fn clamped_plate_ratio(n: usize) -> Real {
     let d = e * h * h * h / (12.0 * (1.0 - nu * nu));
     // Deflection 1% of the thickness: the linear (Kirchhoff) regime.
     let expected = 0.01 * h;
-    let q = expected * d / (0.001_2653 * a.powi(4));
+    let q = expected * d / (0.001_265_3 * a.powi(4));
     let load = energy.area_load(|_, _| Vec3::new(0.0, 0.0, -q));
     // Clamped: the two outer rows of control points on every edge (position and slope).
     let held: Vec<bool> = (0..n * n)
