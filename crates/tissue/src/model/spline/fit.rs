@@ -268,7 +268,40 @@ fn sheet_parameters(
         syy += y * y;
         sxy += x * y;
     }
-    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    // The patch covers the bounding rectangle of the projection: orient it to the smallest
+    // rectangle among the principal axes and the directions of (up to 256) border edges, so
+    // that a square sheet (isotropic covariance, arbitrary principal axes) gets its own edges.
+    let mut angles = vec![0.5 * (2.0 * sxy).atan2(sxx - syy)];
+    let border: Vec<[u32; 2]> = edge_faces(triangles).border_edges().collect();
+    let stride = border.len().div_ceil(256).max(1);
+    for e in border.iter().step_by(stride) {
+        let d = vertices[e[1] as usize] - vertices[e[0] as usize];
+        angles.push(d.dot(b).atan2(d.dot(a)));
+    }
+    let area_at = |angle: Real| {
+        let (e1, e2) = (
+            angle.cos() * a + angle.sin() * b,
+            angle.sin() * -a + angle.cos() * b,
+        );
+        let (mut lo, mut hi) = ([Real::INFINITY; 2], [Real::NEG_INFINITY; 2]);
+        for (p, _) in vertices.iter().zip(used).filter(|(_, u)| **u) {
+            let q = [(*p - c).dot(e1), (*p - c).dot(e2)];
+            for k in 0..2 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+        (hi[0] - lo[0]) * (hi[1] - lo[1])
+    };
+    let mut angle = angles[0];
+    let mut best = area_at(angle);
+    for &t in &angles[1..] {
+        let area = area_at(t);
+        // Prefer the principal axes unless an edge direction is clearly tighter.
+        if area < best * (1.0 - 1e-9) {
+            (angle, best) = (t, area);
+        }
+    }
     let e1 = angle.cos() * a + angle.sin() * b;
     let e2 = n.cross(e1);
     let proj: Vec<(Real, Real)> = vertices
@@ -445,6 +478,37 @@ mod tests {
             fit.max_error,
             fit.rms_error
         );
+    }
+
+    #[test]
+    fn square_sheet_patch_has_the_sheet_s_corners() {
+        // Isotropic covariance: the principal axes are arbitrary, the border edges are not.
+        let k = 6u32;
+        let vertices: Vec<Vec3> = (0..=k)
+            .flat_map(|j| (0..=k).map(move |i| Vec3::new(0.01 * i as Real, 0.01 * j as Real, 0.0)))
+            .collect();
+        let id = |i: u32, j: u32| i + (k + 1) * j;
+        let triangles: Vec<[u32; 3]> = (0..k)
+            .flat_map(|j| {
+                (0..k).flat_map(move |i| {
+                    [
+                        [id(i, j), id(i + 1, j), id(i + 1, j + 1)],
+                        [id(i, j), id(i + 1, j + 1), id(i, j + 1)],
+                    ]
+                })
+            })
+            .collect();
+        let fit = fit_mesh(&vertices, &triangles, 6, 6, 1e-6).unwrap();
+        let corners = [
+            Vec3::ZERO,
+            Vec3::new(0.06, 0.0, 0.0),
+            Vec3::new(0.0, 0.06, 0.0),
+            Vec3::new(0.06, 0.06, 0.0),
+        ];
+        for (s, t) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let p = fit.surface.point(s, t);
+            assert!(corners.iter().any(|c| c.distance(p) < 1e-7), "{p}");
+        }
     }
 
     #[test]
