@@ -167,6 +167,17 @@ impl SplineModel {
             )
             .into());
         }
+        // The rendered grid is (spans·k + 1)² at most: keep it below 2^24 vertices.
+        let k = params.subdivisions;
+        let grid = (rest.u.spans() * k + 1) * (rest.v.spans() * k + 1);
+        if grid > 1 << 24 {
+            return Err(bad(
+                "subdivisions",
+                k.to_string(),
+                "the rendered surface would exceed 2^24 vertices",
+            )
+            .into());
+        }
         let energy = ShellEnergy::new(&rest, &material, params.thickness)?;
         let stiffness = params
             .hold_stiffness

@@ -182,6 +182,26 @@ fn cut_closed_organs_and_bad_settings_are_refused_by_name() {
     let info = m.info();
     assert_eq!((info.kind, info.nodes), ("spline", 96));
     assert_eq!(info.surface_vertices, 36 * 16);
+    for (text, key) in [
+        ("control = [100000, 100000]", "control"),
+        ("control = [3, 8]", "control"),
+        ("thickness = -1.0", "thickness"),
+        ("subdivisions = 0", "subdivisions"),
+        ("integrator = \"leapfrog\"", "leapfrog"),
+    ] {
+        let bad: toml::Table = toml::from_str(text).unwrap();
+        let input = BuildInput {
+            mesh: &mesh,
+            source: "tube",
+            material,
+            params: &bad,
+        };
+        let e = crate::model::build("spline", &input)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains(key), "{text}: {e}");
+    }
     let bad: toml::Table = toml::from_str("thicknes = 1.0").unwrap();
     let input = BuildInput {
         mesh: &mesh,

@@ -27,7 +27,7 @@ use crate::mesh::topology::{UnionFind, components, edge_faces, euler_characteris
 use crate::solve::{BlockPattern, SparseCholesky};
 
 use super::basis::{Basis, KnotKind};
-use super::surface::{Deriv, SplineSurface};
+use super::surface::{Deriv, SplineSurface, check_net_size};
 
 /// What a single spline patch can represent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -150,6 +150,7 @@ pub fn fit_mesh(
     nv: usize,
     smoothing: Real,
 ) -> Result<Fit, SimError> {
+    check_net_size(nu, nv)?;
     let topology = classify(vertices, triangles)?;
     let mut used = vec![false; vertices.len()];
     triangles
@@ -360,6 +361,7 @@ pub fn fit_points(
         });
     }
     let (nu, nv) = (u.count(), v.count());
+    check_net_size(nu, nv)?;
     let n = nu * nv;
     let shape = SplineSurface::new(u, v, vec![Vec3::ZERO; n])?;
     let stencils: Vec<_> = params.iter().map(|&(s, t)| shape.stencil(s, t)).collect();

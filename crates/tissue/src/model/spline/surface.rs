@@ -13,6 +13,22 @@ use crate::math::{Real, Vec3, is_finite_vec};
 
 use super::basis::{Basis, BasisValues, KnotKind};
 
+/// Largest control net accepted (nu · nv): its quadrature data alone takes about 7 kB per
+/// control point, so this bounds a model near 0.5 GB.
+pub const MAX_CONTROL_POINTS: usize = 1 << 16;
+
+/// Refuses nets larger than `MAX_CONTROL_POINTS` before anything is allocated for them.
+pub fn check_net_size(nu: usize, nv: usize) -> Result<(), SimError> {
+    match nu.checked_mul(nv) {
+        Some(n) if n <= MAX_CONTROL_POINTS => Ok(()),
+        _ => Err(SimError::BadParameter {
+            name: "control",
+            value: format!("[{nu}, {nv}]"),
+            reason: format!("at most {MAX_CONTROL_POINTS} control points in all"),
+        }),
+    }
+}
+
 /// Which derivative of S a stencil weight belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Deriv {
@@ -100,6 +116,7 @@ impl SplineSurface {
                 reason: "the closed (periodic) direction must be u".into(),
             });
         }
+        check_net_size(u.count(), v.count())?;
         let expected = u.count() * v.count();
         if control.len() != expected || !control.iter().all(|p| is_finite_vec(*p)) {
             return Err(SimError::BadParameter {
