@@ -22,6 +22,7 @@ pub mod basis;
 mod deformable;
 pub mod energy;
 pub mod fit;
+mod params;
 pub mod surface;
 pub mod system;
 pub mod tessellation;

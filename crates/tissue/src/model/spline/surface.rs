@@ -158,8 +158,7 @@ impl SplineSurface {
         let control = (0..nv)
             .flat_map(|j| {
                 let z = length * gv[j];
-                // Node j of a uniform periodic cubic sits at span start s = i − 1 … the ring
-                // point P_i is weighted most at t = (i − 1)/n; shift the angles accordingly.
+                // P_i carries the most weight (4/6) at t = (i − 1)/n: put it at that angle.
                 (0..nu).map(move |i| {
                     let a = step * (i as Real - 1.0);
                     Vec3::new(r * a.cos(), r * a.sin(), z)
