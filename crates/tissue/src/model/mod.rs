@@ -13,6 +13,7 @@ mod progress;
 mod reactions;
 pub mod registry;
 pub mod spring_mass;
+pub mod spline;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,

@@ -7,6 +7,7 @@ use crate::model::Deformable;
 use crate::model::bem;
 use crate::model::fem;
 use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
+use crate::model::spline;
 
 /// A model kind and what it is, for `tissue models`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,6 +58,10 @@ pub const KINDS: &[KindInfo] = &[
         name: "bem",
         summary: "linear elastostatics by boundary elements on the surface, pre-inverted, Woodbury contacts",
     },
+    KindInfo {
+        name: "spline",
+        summary: "deformable cubic B-spline shell (Terzopoulos): sheets and tubes fitted to a mesh",
+    },
 ];
 
 /// What a model is built from.
@@ -92,6 +97,7 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
             input,
         )?)),
         "bem" => Ok(Box::new(bem::Bem::from_input(input)?)),
+        "spline" => Ok(Box::new(spline::SplineModel::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

@@ -1,0 +1,160 @@
+//! The control net as a particle system for the shared integrators: lumped masses
+//! ρ h ∫ N_i dA₀, elastic forces from the shell energy, mass-proportional damping, constant
+//! nodal loads, and penalty springs that hold surface vertices.
+//!
+//! Holding a surface vertex. A rendered vertex is a combination of 16 control points, so it
+//! cannot be held by holding one particle. We hold it with a stiff zero-length spring from the
+//! vertex to its target, acting on the control points through the tessellation's transpose:
+//! energy ½ k |S_s(x) − t|², force −k w_i (S_s − t) on control point i. The reaction the
+//! instrument feels is exactly the spring force k (S_s − t), so it is honest; the price is
+//! that the vertex sits a distance |f|/k from its target. k defaults to 100 E h (the membrane
+//! stiffness scale, N/m), which keeps that gap a small fraction of the indentation; the
+//! explicit schemes need a time step a few times below the membrane limit because of it.
+
+use crate::error::SimError;
+use crate::integrate::ParticleSystem;
+use crate::math::{Real, Vec3};
+
+use super::energy::ShellEnergy;
+
+/// A surface vertex held by a penalty spring.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spring {
+    pub vertex: u32,
+    pub nodes: [u32; 16],
+    pub weights: [Real; 16],
+    pub target: Vec3,
+}
+
+impl Spring {
+    /// The spring's vertex position for control positions `x`.
+    pub fn position(&self, x: &[Vec3]) -> Vec3 {
+        let mut s = Vec3::ZERO;
+        for k in 0..16 {
+            s += self.weights[k] * x[self.nodes[k] as usize];
+        }
+        s
+    }
+}
+
+/// Control net mechanics (see the module doc).
+#[derive(Clone, Debug)]
+pub struct ControlNet {
+    pub energy: ShellEnergy,
+    masses: Vec<Real>,
+    /// Mass-proportional damping α, 1/s.
+    pub damping: Real,
+    /// Constant nodal loads (gravity share, mapped point loads), N.
+    pub external: Vec<Vec3>,
+    pub springs: Vec<Spring>,
+    /// Penalty stiffness of the springs, N/m.
+    pub stiffness: Real,
+}
+
+impl ControlNet {
+    /// Masses from the density ρ (kg/m³) and thickness h (m) of the shell.
+    pub fn new(
+        energy: ShellEnergy,
+        density: Real,
+        thickness: Real,
+        damping: Real,
+        stiffness: Real,
+    ) -> Result<Self, SimError> {
+        if !(stiffness.is_finite() && stiffness > 0.0) {
+            return Err(SimError::BadParameter {
+                name: "hold_stiffness",
+                value: stiffness.to_string(),
+                reason: "must be a finite value > 0 N/m".into(),
+            });
+        }
+        let masses: Vec<Real> = energy
+            .node_areas()
+            .iter()
+            .map(|a| density * thickness * a)
+            .collect();
+        let n = masses.len();
+        Ok(Self {
+            energy,
+            masses,
+            damping,
+            external: vec![Vec3::ZERO; n],
+            springs: Vec::new(),
+            stiffness,
+        })
+    }
+
+    /// Total mass, kg.
+    pub fn total_mass(&self) -> Real {
+        self.masses.iter().sum()
+    }
+
+    /// Force the tissue exerts on the holder of spring `s` at positions `x`: k (S_s − t).
+    pub fn spring_reaction(&self, s: &Spring, x: &[Vec3]) -> Vec3 {
+        self.stiffness * (s.position(x) - s.target)
+    }
+}
+
+impl ParticleSystem for ControlNet {
+    fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+
+    fn forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+        self.energy.add_forces(x, f);
+        for (i, fi) in f.iter_mut().enumerate() {
+            *fi += self.external[i] - self.damping * self.masses[i] * v[i];
+        }
+        for s in &self.springs {
+            let pull = -self.stiffness * (s.position(x) - s.target);
+            for k in 0..16 {
+                f[s.nodes[k] as usize] += s.weights[k] * pull;
+            }
+        }
+    }
+
+    fn potential_energy(&self, x: &[Vec3]) -> Option<Real> {
+        let springs: Real = self
+            .springs
+            .iter()
+            .map(|s| 0.5 * self.stiffness * (s.position(x) - s.target).length_squared())
+            .sum();
+        let loads: Real = self.external.iter().zip(x).map(|(f, p)| f.dot(*p)).sum();
+        Some(self.energy.energy(x) + springs - loads)
+    }
+
+    fn prepare_jacobians(&mut self, x: &[Vec3], _v: &[Vec3]) -> Result<(), SimError> {
+        self.energy.prepare(x);
+        Ok(())
+    }
+
+    fn stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
+        out.fill(Vec3::ZERO);
+        self.energy.product(dx, out);
+        for s in &self.springs {
+            let d = self.stiffness * s.position(dx);
+            for k in 0..16 {
+                out[s.nodes[k] as usize] += s.weights[k] * d;
+            }
+        }
+    }
+
+    fn damping_product(&self, dv: &[Vec3], out: &mut [Vec3]) {
+        for ((o, d), m) in out.iter_mut().zip(dv).zip(&self.masses) {
+            *o = self.damping * m * *d;
+        }
+    }
+
+    fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
+        stiffness.fill(Vec3::ZERO);
+        self.energy.diagonal(stiffness);
+        for s in &self.springs {
+            for k in 0..16 {
+                stiffness[s.nodes[k] as usize] +=
+                    Vec3::splat(self.stiffness * s.weights[k] * s.weights[k]);
+            }
+        }
+        for (d, m) in damping.iter_mut().zip(&self.masses) {
+            *d = Vec3::splat(self.damping * m);
+        }
+    }
+}
