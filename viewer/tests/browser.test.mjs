@@ -104,14 +104,26 @@ try {
   // Every model kind the server lists: switch to it live, push the probe in, feel a force.
   const kinds = await page.evaluate(() => window.__tissue.init.kinds.map((k) => k.name));
   await page.keyboard.press('1');
+  // Kinds that cannot represent a closed organ must refuse it with the reason on the page.
+  const refusesClosedOrgan = { spline: 'genus' };
   for (const kind of kinds) {
     const t0 = Date.now();
+    const n0 = await page.evaluate(() => window.__tissue.notices.length);
     await page.evaluate((k) => window.__tissue.send({ type: 'set_model', kind: k }), kind);
     try {
-      await page.waitForFunction((k) => window.__tissue.init.kind === k && !window.__tissue.last.building,
-        kind, { timeout: 60000 });
+      await page.waitForFunction(([k, n]) =>
+        (window.__tissue.init.kind === k && !window.__tissue.last.building)
+        || window.__tissue.notices.slice(n).some((x) => x.message.includes(`building ${k} failed`)),
+      [kind, n0], { timeout: 60000 });
     } catch {
       check(`model ${kind}`, false, 'not running after 60 s');
+      continue;
+    }
+    const failure = await page.evaluate(([k, n]) => window.__tissue.notices.slice(n)
+      .map((x) => x.message).find((m) => m.includes(`building ${k} failed`)), [kind, n0]);
+    if (failure) {
+      const reason = refusesClosedOrgan[kind];
+      check(`model ${kind}`, reason !== undefined && failure.includes(reason), `refused: ${failure}`);
       continue;
     }
     const built = Date.now() - t0;

@@ -6,14 +6,14 @@
 //! vertices are constraints with zero displacement. Cutting is accepted or refused with
 //! `SimError::Unsupported`.
 
-mod deformable;
 pub mod bem;
+mod deformable;
 pub mod fem;
 mod progress;
 mod reactions;
 pub mod registry;
-pub mod spring_mass;
 pub mod spline;
+pub mod spring_mass;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,

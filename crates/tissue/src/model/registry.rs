@@ -6,8 +6,8 @@ use crate::mesh::MeshData;
 use crate::model::Deformable;
 use crate::model::bem;
 use crate::model::fem;
-use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
 use crate::model::spline;
+use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
 
 /// A model kind and what it is, for `tissue models`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
