@@ -6,6 +6,7 @@
 //! vertices are constraints with zero displacement. Cutting is accepted or refused with
 //! `SimError::Unsupported`.
 
+pub mod chainmail;
 mod deformable;
 pub mod fem;
 pub mod registry;
