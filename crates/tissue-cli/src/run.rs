@@ -5,6 +5,7 @@
 use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -13,7 +14,7 @@ use serde_json::{Value, json};
 use tissue::Real;
 use tissue::io::{WriteOptions, write_with};
 use tissue::mesh::{Field, MeshData, surface::signed_volume_of};
-use tissue::model::Deformable;
+use tissue::model::{Deformable, Progress};
 use tissue::scene::Scene;
 use tissue::sim::Simulation;
 
@@ -21,7 +22,18 @@ use crate::RunArgs;
 
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let scene = Scene::load(&args.scene)?;
-    let sim = scene.build()?;
+    let sim = scene.build_with_progress(precompute_progress(args.quiet))?;
+    if !args.quiet {
+        let info = sim.model().info();
+        eprintln!(
+            "{}: {} nodes, {} elements, built in {:.3} s, {:.1} MB",
+            info.kind,
+            info.nodes,
+            info.elements,
+            info.precompute_seconds,
+            info.memory_bytes as Real / 1e6
+        );
+    }
     let outcome = execute(&scene, sim, Some(&args.out), args.quiet)?;
     if !args.quiet {
         eprintln!(
@@ -36,6 +48,37 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some(e) => anyhow::bail!(e),
         None => Ok(()),
     }
+}
+
+/// A progress display for models that pre-compute: a bar on a terminal, a line per quarter
+/// otherwise (logs), nothing when quiet.
+fn precompute_progress(quiet: bool) -> Progress {
+    if quiet {
+        return Progress::silent();
+    }
+    if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(1000);
+        if let Ok(style) = ProgressStyle::with_template("{msg} {bar:40} {percent}% {elapsed}") {
+            bar.set_style(style);
+        }
+        return Progress::new(move |stage, fraction| {
+            bar.set_message(stage.to_string());
+            bar.set_position((fraction * 1000.0) as u64);
+            if fraction >= 1.0 {
+                bar.finish_and_clear();
+            }
+        });
+    }
+    let quarter = Mutex::new(-1);
+    Progress::new(move |stage, fraction| {
+        let q = (fraction * 4.0).floor() as i32;
+        if let Ok(mut last) = quarter.lock()
+            && q > *last
+        {
+            *last = q;
+            eprintln!("{stage}: {:.0}%", fraction * 100.0);
+        }
+    })
 }
 
 /// What a run measured; `error` is set when a step failed.

@@ -4,6 +4,8 @@ use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3};
 
+use super::Progress;
+
 /// The surface as it is now: what to draw and what instruments touch.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfaceView<'a> {
@@ -121,6 +123,12 @@ pub trait Deformable: Send {
 
     /// Returns to the rest state, keeping constraints and loads.
     fn reset(&mut self);
+
+    /// Where long pre-computations (done when built or when the fixed set changes) report
+    /// their progress. Models without any ignore it.
+    fn set_progress(&mut self, progress: Progress) {
+        let _ = progress;
+    }
 
     fn info(&self) -> ModelInfo;
 }

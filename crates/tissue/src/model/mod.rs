@@ -9,9 +9,11 @@
 pub mod chainmail;
 mod deformable;
 pub mod fem;
+mod progress;
 pub mod registry;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
 };
+pub use progress::Progress;
 pub use registry::{BuildInput, KINDS, KindInfo, build};

@@ -18,7 +18,7 @@ use crate::interact::Loads;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::MeshData;
-use crate::model::{self, BuildInput, Deformable, KINDS};
+use crate::model::{self, BuildInput, Deformable, KINDS, Progress};
 use crate::sim::Simulation;
 
 use checks::{check_region, check_run, known_kinds, make_instrument, region_label, select};
@@ -197,6 +197,11 @@ impl Scene {
 
     /// Loads the mesh and builds the simulation.
     pub fn build(&self) -> Result<Simulation, Error> {
+        self.build_with_progress(Progress::silent())
+    }
+
+    /// Like `build`; models that pre-compute report how far they have gone to `progress`.
+    pub fn build_with_progress(&self, progress: Progress) -> Result<Simulation, Error> {
         let resolved = self.mesh_path();
         if !resolved.is_file() {
             return Err(self.invalid(format!(
@@ -206,11 +211,20 @@ impl Scene {
             )));
         }
         let mesh = crate::io::read(&resolved)?;
-        self.build_with_mesh(mesh, &resolved.display().to_string())
+        self.build_from(mesh, &resolved.display().to_string(), progress)
     }
 
     /// Builds the simulation from a mesh already loaded (unscaled); `source` names it.
-    pub fn build_with_mesh(&self, mut mesh: MeshData, source: &str) -> Result<Simulation, Error> {
+    pub fn build_with_mesh(&self, mesh: MeshData, source: &str) -> Result<Simulation, Error> {
+        self.build_from(mesh, source, Progress::silent())
+    }
+
+    fn build_from(
+        &self,
+        mut mesh: MeshData,
+        source: &str,
+        progress: Progress,
+    ) -> Result<Simulation, Error> {
         for v in &mut mesh.vertices {
             *v *= self.mesh.scale;
         }
@@ -230,7 +244,7 @@ impl Scene {
                 )));
             }
         };
-        let model = model::build(
+        let mut model = model::build(
             &self.model_kind,
             &BuildInput {
                 mesh: &mesh,
@@ -239,6 +253,7 @@ impl Scene {
                 params: &self.model_params,
             },
         )?;
+        model.set_progress(progress);
         self.build_with_model(model, &mesh)
     }
 

@@ -20,7 +20,7 @@ use faer::{Mat, Side};
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::model::Deformable;
+use crate::model::{Deformable, Progress};
 
 use super::static_model::{FemStatic, NodalSolution};
 use super::system::DofProblem;
@@ -189,6 +189,8 @@ pub(crate) struct SurfaceCore {
     pub precompute_seconds: Real,
     pub rebuilds: usize,
     pub last_rebuild_seconds: Real,
+    /// Where a re-condensation reports how far it has gone.
+    pub progress: Progress,
 }
 
 impl SurfaceCore {
@@ -220,6 +222,7 @@ impl SurfaceCore {
             precompute_seconds: 0.0,
             rebuilds: 0,
             last_rebuild_seconds: 0.0,
+            progress: Progress::silent(),
             fem,
         }
     }

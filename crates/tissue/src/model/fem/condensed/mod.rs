@@ -20,7 +20,7 @@ use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
-use crate::model::{BuildInput, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::model::{BuildInput, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView};
 
 use super::static_model::{FemStatic, Order};
 use super::surface_response::{FixedSet, SmallDense, SurfaceCore, compliance, condense};
@@ -164,7 +164,8 @@ impl Deformable for FemCondensed {
     /// re-condenses (see `info()` for its cost).
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
         if self.core.check(c)? {
-            self.rebuild(&|_| {})?;
+            let progress = self.core.progress.clone();
+            self.rebuild(&|f| progress.report("condensing the stiffness to the surface", f))?;
         }
         self.core.record(c);
         Ok(())
@@ -226,6 +227,10 @@ impl Deformable for FemCondensed {
                      would need a new condensation and inversion"
                 .into(),
         })
+    }
+
+    fn set_progress(&mut self, progress: Progress) {
+        self.core.progress = progress;
     }
 
     fn reset(&mut self) {

@@ -312,3 +312,23 @@ fn contact_buffers_grow_only_when_more_contacts_appear() {
     model.step(0.0).unwrap();
     assert_eq!(capacity(&model), "32");
 }
+
+#[test]
+fn condensation_reports_its_progress_once_per_free_surface_vertex() {
+    use std::sync::{Arc, Mutex};
+    let mesh = liver();
+    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
+    let fixed = liver_fixed(&fem);
+    let free = fem.rest_surface().len() - fixed.len();
+    let mut model = FemCondensed::new(&mesh, liver_material(), &[]).unwrap();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let sink = seen.clone();
+    model.set_progress(crate::model::Progress::new(move |_, f| {
+        sink.lock().unwrap().push(f)
+    }));
+    model.set_constraints(&Constraints::fixed(fixed)).unwrap();
+    let seen = seen.lock().unwrap();
+    assert_eq!(seen.len(), free);
+    assert!(seen.windows(2).all(|w| w[0] < w[1]));
+    assert_eq!(seen.last().copied(), Some(1.0));
+}

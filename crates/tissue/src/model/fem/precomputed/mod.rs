@@ -23,7 +23,7 @@ use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
-use crate::model::{BuildInput, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::model::{BuildInput, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView};
 
 use super::static_model::{FemStatic, Order};
 use super::surface_response::{FixedSet, SmallDense, SurfaceCore, compliance, condense};
@@ -204,7 +204,8 @@ impl Deformable for FemPrecomputedTensors {
 
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
         if self.core.check(c)? {
-            self.rebuild(&|_| {})?;
+            let progress = self.core.progress.clone();
+            self.rebuild(&|f| progress.report("pre-computing the surface tensors", f))?;
         }
         self.core.record(c);
         Ok(())
@@ -280,6 +281,10 @@ impl Deformable for FemPrecomputedTensors {
                      all n² tensors again"
                 .into(),
         })
+    }
+
+    fn set_progress(&mut self, progress: Progress) {
+        self.core.progress = progress;
     }
 
     fn reset(&mut self) {
