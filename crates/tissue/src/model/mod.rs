@@ -9,6 +9,7 @@
 pub mod chainmail;
 mod deformable;
 pub mod fem;
+pub mod linked_volumes;
 mod progress;
 pub mod registry;
 

@@ -26,7 +26,7 @@ pub use distance::DistanceMap;
 pub use embed::TrilinearEmbedding;
 pub use marching::marching_surface;
 pub use select::{from_image_labels, from_image_threshold};
-pub use voxelize::voxelize_surface;
+pub use voxelize::{voxelize_surface, voxelize_to};
 
 /// A label per voxel on an axis-aligned lattice.
 #[derive(Clone, Debug, PartialEq)]

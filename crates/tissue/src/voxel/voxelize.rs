@@ -130,6 +130,20 @@ fn lattice_range(
     (a <= b).then(|| a as usize..=b as usize)
 }
 
+/// Voxelises at `voxel_size` (m), or at `resolution` voxels along the surface's longest
+/// side when no size is given, with one empty voxel of padding.
+pub fn voxelize_to(
+    surface: &SurfaceMesh,
+    voxel_size: Option<Real>,
+    resolution: usize,
+) -> Result<VoxelGrid, MeshError> {
+    let (lo, hi) = surface
+        .bounds()
+        .ok_or(MeshError::Empty { what: "vertices" })?;
+    let h = voxel_size.unwrap_or((hi - lo).max_element() / resolution.max(1) as Real);
+    voxelize_surface(surface, h, 1)
+}
+
 fn minmax(v: [Real; 3]) -> (Real, Real) {
     (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]))
 }

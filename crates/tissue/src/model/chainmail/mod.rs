@@ -41,7 +41,9 @@ use crate::math::{Real, Vec3};
 use crate::mesh::SurfaceMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
-use crate::voxel::{DistanceMap, TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface};
+use crate::voxel::{
+    DistanceMap, TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface, voxelize_to,
+};
 
 pub use lattice::{Lattice, Limits, Propagation};
 
@@ -184,7 +186,7 @@ impl ChainMail {
         let params: ChainMailParams = parse_params("chainmail", input.params)?;
         params.check()?;
         let surface = input.mesh.surface_mesh()?;
-        let grid = voxelize_for(&surface, params.voxel_size, params.resolution)?;
+        let grid = voxelize_to(&surface, params.voxel_size, params.resolution)?;
         Self::new(grid, Some(surface), input.material, params)
     }
 
@@ -267,17 +269,4 @@ impl ChainMail {
         self.embedding
             .apply(&self.lattice.x, &self.lattice.rest, &mut self.surface);
     }
-}
-
-/// Voxelises a surface at `voxel_size`, or at `resolution` voxels along its longest side.
-pub fn voxelize_for(
-    surface: &SurfaceMesh,
-    voxel_size: Option<Real>,
-    resolution: usize,
-) -> Result<VoxelGrid, MeshError> {
-    let (lo, hi) = surface
-        .bounds()
-        .ok_or(MeshError::Empty { what: "vertices" })?;
-    let h = voxel_size.unwrap_or((hi - lo).max_element() / resolution.max(1) as Real);
-    crate::voxel::voxelize_surface(surface, h, 1)
 }
