@@ -5,6 +5,7 @@ use crate::material::Material;
 use crate::mesh::MeshData;
 use crate::model::Deformable;
 use crate::model::fem;
+use crate::model::{chainmail, linked_volumes};
 
 /// A model kind and what it is, for `tissue models`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,6 +40,14 @@ pub const KINDS: &[KindInfo] = &[
         name: "fem-corotational",
         summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
     },
+    KindInfo {
+        name: "chainmail",
+        summary: "3D ChainMail on voxels: link limits, wavefront propagation, relaxation, cut/carve/join",
+    },
+    KindInfo {
+        name: "linked-volumes",
+        summary: "voxel masses linked by springs and dampers (6/18/26 neighbours), stiffness from E",
+    },
 ];
 
 /// What a model is built from.
@@ -61,6 +70,8 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
         "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
+        "chainmail" => Ok(Box::new(chainmail::ChainMail::from_input(input)?)),
+        "linked-volumes" => Ok(Box::new(linked_volumes::LinkedVolumes::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

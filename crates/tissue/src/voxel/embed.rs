@@ -131,10 +131,8 @@ impl TrilinearEmbedding {
     pub fn apply_transpose(&self, surface_forces: &[Vec3], forces: &mut [Vec3]) {
         for ((f, ids), w) in surface_forces.iter().zip(&self.nodes).zip(&self.weights) {
             for k in 0..8 {
-                if w[k] != 0.0 {
-                    if let Some(g) = forces.get_mut(ids[k] as usize) {
-                        *g += w[k] * *f;
-                    }
+                if let Some(g) = forces.get_mut(ids[k] as usize).filter(|_| w[k] != 0.0) {
+                    *g += w[k] * *f;
                 }
             }
         }

@@ -127,7 +127,7 @@ fn lattice_range(
 ) -> Option<std::ops::RangeInclusive<usize>> {
     let a = ((lo - origin) / spacing).ceil().max(0.0);
     let b = ((hi - origin) / spacing).floor().min(n as Real - 1.0);
-    (a <= b).then(|| a as usize..=b as usize)
+    (a <= b).then_some(a as usize..=b as usize)
 }
 
 /// Voxelises at `voxel_size` (m), or at `resolution` voxels along the surface's longest

@@ -116,8 +116,8 @@ impl Deformable for ChainMail {
             is_fixed[v as usize] = true;
         }
         let mut fixed = Vec::new();
-        for v in 0..held.len() {
-            if is_fixed[v] {
+        for (v, _) in is_fixed.iter().enumerate().filter(|(_, f)| **f) {
+            {
                 for (k, &n) in self.embedding.nodes[v].iter().enumerate() {
                     if self.embedding.weights[v][k] != 0.0 {
                         fixed.push(n);
@@ -153,9 +153,7 @@ impl Deformable for ChainMail {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(SimError::BadTimeStep { dt });
         }
-        for &v in &self.pinned {
-            self.lattice.pinned[v as usize] = false;
-        }
+        self.lattice.unpin(&self.pinned);
         let is_fixed: std::collections::HashSet<u32> =
             self.fixed_elements.iter().copied().collect();
         let mut moves: Vec<(u32, Vec3)> = self
@@ -254,11 +252,9 @@ impl Deformable for ChainMail {
                 continue;
             }
             for d in [1, 3, 5] {
-                if let Some(b) = l.neighbour(a, d) {
-                    if crosses(xa, l.x[b]) {
-                        l.unlink(a, d);
-                        removed += 1;
-                    }
+                if l.neighbour(a, d).is_some_and(|b| crosses(xa, l.x[b])) {
+                    l.unlink(a, d);
+                    removed += 1;
                 }
             }
         }

@@ -299,6 +299,15 @@ impl Lattice {
         }
     }
 
+    /// Unpins the given elements (cheaper than `unpin_all` on a large lattice).
+    pub fn unpin(&mut self, elements: &[u32]) {
+        for &v in elements {
+            if let Some(p) = self.pinned.get_mut(v as usize) {
+                *p = false;
+            }
+        }
+    }
+
     pub fn unpin_all(&mut self) {
         self.pinned.fill(false);
     }
@@ -406,9 +415,9 @@ impl Lattice {
             }
             let (i, j, k) = (a % nx, (a / nx) % ny, a / (nx * ny));
             let has = [i + 1 < nx, j + 1 < ny, k + 1 < nz];
-            for axis in 0..3 {
+            for (axis, &inside) in has.iter().enumerate() {
                 let d = 2 * axis + 1;
-                if !has[axis] || self.links[a] & (1 << d) != 0 {
+                if !inside || self.links[a] & (1 << d) != 0 {
                     continue;
                 }
                 let b = (a as isize + self.strides[d]) as usize;

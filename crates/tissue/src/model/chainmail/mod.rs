@@ -133,15 +133,14 @@ impl ChainMailParams {
         if self.resolution == 0 || self.resolution > 1000 {
             return bad("resolution", self.resolution as Real, "must be in 1..=1000");
         }
-        if let Some(h) = self.voxel_size {
-            if !(h.is_finite() && h > 0.0) {
-                return bad("voxel_size", h, "must be finite and > 0");
-            }
+        if let Some(h) = self.voxel_size.filter(|h| !(h.is_finite() && *h > 0.0)) {
+            return bad("voxel_size", h, "must be finite and > 0");
         }
-        if let Some(k) = self.force_stiffness {
-            if !(k.is_finite() && k >= 0.0) {
-                return bad("force_stiffness", k, "must be finite and >= 0");
-            }
+        if let Some(k) = self
+            .force_stiffness
+            .filter(|k| !(k.is_finite() && *k >= 0.0))
+        {
+            return bad("force_stiffness", k, "must be finite and >= 0");
         }
         Ok(())
     }

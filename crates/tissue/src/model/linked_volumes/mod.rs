@@ -138,9 +138,9 @@ impl LinkedVolumes {
         // Compact element ids over the occupied voxels.
         let mut id = vec![u32::MAX; grid.len()];
         let mut rest = Vec::new();
-        for v in 0..grid.len() {
+        for (v, slot) in id.iter_mut().enumerate() {
             if grid.is_occupied(v) {
-                id[v] = rest.len() as u32;
+                *slot = rest.len() as u32;
                 rest.push(grid.centre_of(v));
             }
         }
@@ -258,10 +258,8 @@ fn check_size(p: &LinkedVolumesParams) -> Result<(), SimError> {
     if p.substeps == 0 || p.substeps > 10_000 {
         return bad("substeps", p.substeps.to_string(), "must be in 1..=10000");
     }
-    if let Some(h) = p.voxel_size {
-        if !(h.is_finite() && h > 0.0) {
-            return bad("voxel_size", h.to_string(), "must be finite and > 0");
-        }
+    if let Some(h) = p.voxel_size.filter(|h| !(h.is_finite() && *h > 0.0)) {
+        return bad("voxel_size", h.to_string(), "must be finite and > 0");
     }
     family_coefficients(p.neighbours).map(|_| ())
 }
