@@ -23,8 +23,8 @@ pub struct DistanceMap {
 impl DistanceMap {
     /// The map of the grid's occupied voxels.
     pub fn of(grid: &VoxelGrid) -> Self {
-        let inside = chamfer(grid, |v| !grid.is_occupied(v));
-        let outside = chamfer(grid, |v| grid.is_occupied(v));
+        let inside = chamfer(grid, |v| !grid.is_occupied(v), true);
+        let outside = chamfer(grid, |v| grid.is_occupied(v), false);
         let values = (0..grid.len())
             .map(|v| {
                 if grid.is_occupied(v) {
@@ -78,13 +78,37 @@ impl DistanceMap {
     }
 }
 
-/// Chamfer distance from each voxel centre to the nearest centre where `source` holds.
-fn chamfer(grid: &VoxelGrid, source: impl Fn(usize) -> bool) -> Vec<Real> {
+/// Chamfer distance from each voxel centre to the nearest centre where `source` holds;
+/// with `outside_is_source`, the voxels just beyond the grid count as sources too (the
+/// object ends at the grid's border, as marching tetrahedra draws it).
+fn chamfer(
+    grid: &VoxelGrid,
+    source: impl Fn(usize) -> bool,
+    outside_is_source: bool,
+) -> Vec<Real> {
     let [nx, ny, nz] = grid.dims;
     let s = grid.spacing;
     let far = Real::INFINITY;
+    let border = |v: usize| {
+        let c = grid.coords(v);
+        let mut d = far;
+        for (axis, n) in [nx, ny, nz].into_iter().enumerate() {
+            if c[axis] == 0 || c[axis] + 1 == n {
+                d = d.min(s[axis]);
+            }
+        }
+        d
+    };
     let mut d: Vec<Real> = (0..grid.len())
-        .map(|v| if source(v) { 0.0 } else { far })
+        .map(|v| {
+            if source(v) {
+                0.0
+            } else if outside_is_source {
+                border(v)
+            } else {
+                far
+            }
+        })
         .collect();
     // The 13 neighbours before a voxel in scan order, with their step lengths.
     let mut back = Vec::new();
@@ -135,7 +159,8 @@ mod tests {
 
     #[test]
     fn a_slab_has_exact_depths_and_interpolates() {
-        // A slab 9 voxels thick in z inside a 5x5x13 grid with spacing 0.1.
+        // A slab 9 voxels thick in z inside a 5x5x13 grid with spacing 0.1; it also ends at
+        // the grid's sides, 0.05 beyond the outer centres.
         let mut g = VoxelGrid::new([5, 5, 13], Vec3::splat(0.1), Vec3::ZERO);
         for v in 0..g.len() {
             let [_, _, k] = g.coords(v);
@@ -146,12 +171,15 @@ mod tests {
         let m = DistanceMap::of(&g);
         // Surface planes at z = 0.15 and z = 1.05; centre at 0.6: depth 0.45.
         let at = |k: usize| m.values[g.index(2, 2, k).unwrap()];
-        assert!((at(6) - 0.45).abs() < 1e-12);
+        assert!((m.values[g.index(0, 2, 6).unwrap()] - 0.05).abs() < 1e-12);
+        assert!((m.values[g.index(1, 2, 6).unwrap()] - 0.15).abs() < 1e-12);
+        assert!((at(6) - 0.25).abs() < 1e-12);
         assert!((at(2) - 0.05).abs() < 1e-12);
         assert!((at(1) + 0.05).abs() < 1e-12);
         assert!((at(0) + 0.15).abs() < 1e-12);
         assert!((m.depth_at(Vec3::new(0.2, 0.2, 0.35)) - 0.2).abs() < 1e-12);
-        assert!((m.max_depth() - 0.45).abs() < 1e-12);
+        // The deepest point is the centre column, 0.25 from the sides.
+        assert!((m.max_depth() - 0.25).abs() < 1e-12);
         assert_eq!(m.depth_at(Vec3::NAN), 0.0);
     }
 }

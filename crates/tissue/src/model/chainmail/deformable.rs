@@ -188,6 +188,12 @@ impl Deformable for ChainMail {
         self.last = self.lattice.move_elements(&moves);
         self.lattice
             .relax(self.params.relax_iterations, self.params.relax_rate);
+        if self.params.relax_iterations > 0 {
+            let enforced = self.lattice.enforce();
+            self.last.moved += enforced.moved;
+            self.last.checks += enforced.checks;
+            self.last.converged &= enforced.converged;
+        }
         self.refresh_surface();
         if let Some(v) = self.surface.iter().position(|p| !is_finite_vec(*p)) {
             self.lattice.reset();

@@ -232,6 +232,20 @@ impl Lattice {
         self.propagate()
     }
 
+    /// Propagates from every displaced element: restores the limits after relaxation,
+    /// which moves elements without looking at them.
+    pub fn enforce(&mut self) -> Propagation {
+        self.queue.clear();
+        for k in 0..self.active.len() {
+            let v = self.active[k] as usize;
+            if !self.queued[v] {
+                self.queued[v] = true;
+                self.queue.push(v as u32);
+            }
+        }
+        self.propagate()
+    }
+
     fn activate(&mut self, v: usize) {
         if !self.is_active[v] {
             self.is_active[v] = true;

@@ -7,7 +7,8 @@
 //! and no time integration: an instrument moves the elements under its contact and the
 //! move propagates as a wavefront only as far as links are violated; between interactions
 //! the elements relax toward the rest shape (`relax_iterations` Gauss-Seidel sweeps of
-//! rate `relax_rate` per step, so relaxation speed is per step, not per second).
+//! rate `relax_rate` per step, so relaxation speed is per step, not per second), after
+//! which a propagation from the displaced elements restores any limit relaxation broke.
 //!
 //! The rendered surface is the given triangle surface embedded trilinearly in the lattice
 //! (`voxel::TrilinearEmbedding`), or marching tetrahedra over the voxels when the model is

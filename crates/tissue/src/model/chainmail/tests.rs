@@ -261,6 +261,7 @@ fn the_liver_is_pressed_released_and_returns() {
     m.step(0.01).unwrap();
     assert!(m.surface().positions[top].distance(target) < 1e-12);
     assert!(m.last_propagation().converged && m.last_propagation().moved > 0);
+    assert!(m.lattice().violated_links(1e-12).is_empty());
     let f = m.reactions().prescribed[0];
     let expect = m.force_stiffness * m.rest_depth(target).abs() * m.vertex_area[top];
     assert!(f.y > 0.0 && (f.length() - expect).abs() < 1e-12 * expect.max(1e-300));
@@ -287,4 +288,47 @@ fn the_liver_is_pressed_released_and_returns() {
         .unwrap_err();
     assert!(e.to_string().contains("1000000"));
     assert!(m.step(-1.0).is_err());
+}
+
+#[test]
+fn a_model_from_an_image_draws_a_closed_marching_surface() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/images/");
+    let img = crate::image::read_image(format!("{dir}anatomical.nii"), 1.0).unwrap();
+    let (lo, hi) = img.min_max().unwrap();
+    let grid = crate::voxel::from_image_threshold(&img, lo + 0.3 * (hi - lo), hi, 2).unwrap();
+    let mut m = ChainMail::new(
+        grid,
+        None,
+        Material::new(3000.0, 0.3).unwrap(),
+        ChainMailParams::default(),
+    )
+    .unwrap();
+    let s = m.surface();
+    let ef = crate::mesh::topology::edge_faces(s.triangles);
+    assert_eq!(ef.border_edges().count(), 0);
+    assert!(crate::mesh::surface::signed_volume_of(s.positions, s.triangles) > 0.0);
+    // Every marching vertex is the midpoint of an occupied-empty lattice edge (at most a
+    // body diagonal, √3 h long), so the depth map puts it within (√3 − 1/2) h of zero.
+    let h = m.lattice().spacing.max_element();
+    let worst = s
+        .positions
+        .iter()
+        .map(|p| m.rest_depth(*p).abs())
+        .fold(0.0, Real::max);
+    assert!(worst <= 1.24 * h);
+    let top = (0..s.positions.len())
+        .max_by(|&a, &b| s.positions[a].z.total_cmp(&s.positions[b].z))
+        .unwrap();
+    let target = s.positions[top] - Vec3::Z * h;
+    m.set_constraints(&Constraints {
+        fixed: vec![],
+        prescribed: vec![Prescribed {
+            vertex: top as u32,
+            position: target,
+        }],
+    })
+    .unwrap();
+    m.step(0.01).unwrap();
+    assert!(m.surface().positions[top].distance(target) < 1e-9 * h.max(1.0));
+    assert!(m.lattice().violated_links(1e-12).is_empty());
 }
