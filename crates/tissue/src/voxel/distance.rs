@@ -81,11 +81,7 @@ impl DistanceMap {
 /// Chamfer distance from each voxel centre to the nearest centre where `source` holds;
 /// with `outside_is_source`, the voxels just beyond the grid count as sources too (the
 /// object ends at the grid's border, as marching tetrahedra draws it).
-fn chamfer(
-    grid: &VoxelGrid,
-    source: impl Fn(usize) -> bool,
-    outside_is_source: bool,
-) -> Vec<Real> {
+fn chamfer(grid: &VoxelGrid, source: impl Fn(usize) -> bool, outside_is_source: bool) -> Vec<Real> {
     let [nx, ny, nz] = grid.dims;
     let s = grid.spacing;
     let far = Real::INFINITY;
