@@ -183,11 +183,15 @@ pub struct ChainMail {
 impl ChainMail {
     /// Builds from the scene input: the surface (or the tet mesh's boundary) is voxelised.
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
+        let start = Instant::now();
         let params: ChainMailParams = parse_params("chainmail", input.params)?;
         params.check()?;
         let surface = input.mesh.surface_mesh()?;
         let grid = voxelize_to(&surface, params.voxel_size, params.resolution)?;
-        Self::new(grid, Some(surface), input.material, params)
+        let mut model = Self::new(grid, Some(surface), input.material, params)?;
+        // The build time includes the voxelisation.
+        model.precompute_seconds = start.elapsed().as_secs_f64();
+        Ok(model)
     }
 
     /// Builds on a voxel grid (labels are material classes; every class gets

@@ -108,11 +108,15 @@ pub struct LinkedVolumes {
 impl LinkedVolumes {
     /// Builds from the scene input: the surface (or the tet mesh's boundary) is voxelised.
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
+        let start = Instant::now();
         let params: LinkedVolumesParams = parse_params("linked-volumes", input.params)?;
         let surface = input.mesh.surface_mesh()?;
         check_size(&params)?;
         let grid = voxelize_to(&surface, params.voxel_size, params.resolution)?;
-        Self::new(grid, Some(surface), input.material, params)
+        let mut model = Self::new(grid, Some(surface), input.material, params)?;
+        // The build time includes the voxelisation.
+        model.precompute_seconds = start.elapsed().as_secs_f64();
+        Ok(model)
     }
 
     /// Builds on a voxel grid (its largest connected part); without a surface, marching
