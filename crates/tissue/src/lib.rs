@@ -18,6 +18,7 @@ pub mod model;
 pub mod scene;
 pub mod sim;
 pub mod solve;
+pub mod voxel;
 
 pub use error::{Error, IoError, MeshError, SceneError, SimError};
 pub use material::Material;

@@ -7,8 +7,10 @@
 //! `SimError::Unsupported`.
 
 pub mod bem;
+pub mod chainmail;
 mod deformable;
 pub mod fem;
+pub mod linked_volumes;
 mod progress;
 mod reactions;
 pub mod registry;

@@ -8,6 +8,7 @@ use crate::model::bem;
 use crate::model::fem;
 use crate::model::spline;
 use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
+use crate::model::{chainmail, linked_volumes};
 
 /// A model kind and what it is, for `tissue models`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,6 +63,14 @@ pub const KINDS: &[KindInfo] = &[
         name: "spline",
         summary: "deformable cubic B-spline shell (Terzopoulos): sheets and tubes fitted to a mesh",
     },
+    KindInfo {
+        name: "chainmail",
+        summary: "3D ChainMail on voxels: link limits, wavefront propagation, relaxation, cut/carve/join",
+    },
+    KindInfo {
+        name: "linked-volumes",
+        summary: "voxel masses linked by springs and dampers (6/18/26 neighbours), stiffness from E",
+    },
 ];
 
 /// What a model is built from.
@@ -98,6 +107,8 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         )?)),
         "bem" => Ok(Box::new(bem::Bem::from_input(input)?)),
         "spline" => Ok(Box::new(spline::SplineModel::from_input(input)?)),
+        "chainmail" => Ok(Box::new(chainmail::ChainMail::from_input(input)?)),
+        "linked-volumes" => Ok(Box::new(linked_volumes::LinkedVolumes::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

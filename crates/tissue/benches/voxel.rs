@@ -1,0 +1,88 @@
+//! Voxel models: a ChainMail probe move on a 1,000,000-voxel lattice (the issue's target: a
+//! move displacing up to 10,000 elements propagates in under 1 ms on one core), and
+//! linked-volumes steps at 100,000 voxels with 26-neighbour springs.
+//!
+//! Run: `cargo bench --offline -p tissue --bench voxel -- --warm-up-time 1 --measurement-time 3`
+//! Times are the benchmark thread's CPU time (`support/cpu_time.rs`).
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use tissue::integrate::Scheme;
+use tissue::material::Material;
+use tissue::math::Vec3;
+use tissue::model::Deformable;
+use tissue::model::chainmail::{ChainMailParams, Lattice};
+use tissue::model::linked_volumes::{LinkedVolumes, LinkedVolumesParams};
+use tissue::voxel::VoxelGrid;
+
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
+
+fn chainmail(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
+    let mut group = c.benchmark_group("chainmail");
+    let h = 0.001;
+    let grid = VoxelGrid::filled([100, 100, 100], h);
+    let mut lattice = Lattice::new(&grid, &[ChainMailParams::default().limits(); 2]);
+    // The centre of the top face, pushed down by 2.4 voxels: the wave displaces an
+    // octahedral half-ball of about 10,000 elements (printed below).
+    let probe = grid.index(50, 50, 99).expect("in the grid") as u32;
+    let target = lattice.rest[probe as usize] - Vec3::Z * 2.4 * h;
+    let p = lattice.move_elements(&[(probe, target)]);
+    eprintln!(
+        "chainmail 1M: a 2.4-voxel probe move displaces {} elements ({} link checks, converged {})",
+        p.moved, p.checks, p.converged
+    );
+    lattice.unpin(&[probe]);
+    lattice.reset();
+    group.bench_function("probe_move_1M_voxels_propagate_and_reset", |b| {
+        b.iter(|| {
+            let p = lattice.move_elements(&[(probe, target)]);
+            lattice.unpin(&[probe]);
+            lattice.reset();
+            black_box(p)
+        })
+    });
+    group.finish();
+}
+
+fn linked_volumes(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
+    let mut group = c.benchmark_group("linked_volumes");
+    group.sample_size(10);
+    let material = Material::new(3000.0, 0.3).expect("material");
+    // Implicit Euler (CG) on a 27,000-voxel lattice keeps the bench short; at 100k voxels
+    // it took 237 ms per step (closing note of issue 7).
+    let runs = [
+        (Scheme::SymplecticEuler, 1e-4, [50, 50, 40]),
+        (Scheme::ImplicitEuler, 1e-2, [30, 30, 30]),
+    ];
+    for (scheme, dt, dims) in runs {
+        let params = LinkedVolumesParams {
+            neighbours: 26,
+            integrator: scheme,
+            ..Default::default()
+        };
+        let grid = VoxelGrid::filled(dims, 0.002);
+        let mut m = LinkedVolumes::new(grid, None, material, params).expect("model");
+        m.set_loads(&tissue::interact::Loads {
+            gravity: Vec3::new(0.0, 0.0, -9.81),
+            point_loads: Vec::new(),
+        })
+        .expect("gravity");
+        let info = m.info();
+        eprintln!(
+            "linked-volumes {scheme}: {} voxels, {} springs",
+            info.nodes, info.elements
+        );
+        let name = format!("step_{}_voxels_26_{scheme}", info.nodes);
+        group.bench_function(name, |b| b.iter(|| black_box(m.step(dt).expect("step"))));
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
+    targets = chainmail, linked_volumes
+}
+criterion_main!(benches);
