@@ -9,6 +9,7 @@
 mod deformable;
 pub mod fem;
 pub mod registry;
+pub mod tensor_mass;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,

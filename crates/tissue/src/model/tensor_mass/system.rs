@@ -1,0 +1,266 @@
+//! The mechanical system both kinds integrate: tetrahedra with their tensors, lumped
+//! masses, damping and external loads, seen as particles with forces.
+//!
+//! Forces, all per node: elastic −K u (linear tensors), plus the St Venant–Kirchhoff
+//! terms of the tetrahedra in the non-linear set, plus the volume penalty, minus damping
+//! α m v + β K v (Rayleigh, with the linear K), plus loads. Removing a tetrahedron (cut)
+//! updates every tensor it contributed to, and its lumped mass, in O(1).
+
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::TetMesh;
+
+use crate::model::fem::mass::lumped_masses;
+
+use super::element;
+use super::elasticity::{Elasticity, TetRest};
+use super::stvk::NonlinearTensors;
+use super::tensors::{LinearTensors, Topology, tet_blocks};
+
+/// The tensors, masses and loads of a tensor-mass model.
+#[derive(Clone, Debug)]
+pub struct TensorSystem {
+    pub(super) tets: Vec<[u32; 4]>,
+    pub(super) rest_tets: Vec<TetRest>,
+    pub(super) elasticity: Vec<Elasticity>,
+    pub(super) alive: Vec<bool>,
+    pub(super) alive_count: usize,
+    pub(super) topo: Topology,
+    pub(super) linear: LinearTensors,
+    pub(super) nonlinear: Option<NonlinearTensors>,
+    pub(super) rest: Vec<Vec3>,
+    pub(super) masses: Vec<Real>,
+    /// Mass of each node as built (a node that loses all its tetrahedra keeps it, held).
+    pub(super) built_masses: Vec<Real>,
+    pub(super) density: Real,
+    pub(super) damping: Real,
+    pub(super) stiffness_damping: Real,
+    pub(super) volume_penalty: Real,
+    /// Gravity share and point loads per node, in N.
+    pub(super) external: Vec<Vec3>,
+    pub(super) gravity: Vec3,
+    u: Vec<Vec3>,
+    kv: Vec<Vec3>,
+}
+
+impl TensorSystem {
+    /// Builds the tensors of every tetrahedron of a validated mesh whose tets have positive
+    /// volume; `nonlinear` adds the St Venant–Kirchhoff tensors of all of them.
+    pub fn new(
+        mesh: &TetMesh,
+        rest_tets: Vec<TetRest>,
+        elasticity: Vec<Elasticity>,
+        material: &Material,
+        volume_penalty: Real,
+        nonlinear: bool,
+    ) -> Self {
+        let n = mesh.vertices.len();
+        let topo = Topology::new(&mesh.tets);
+        let mut linear = LinearTensors::empty(n, &topo);
+        let mut nl = nonlinear.then(|| NonlinearTensors::empty(n, &mesh.tets, &topo));
+        let masses = lumped_masses(mesh, material.density);
+        for (t, tet) in mesh.tets.iter().enumerate() {
+            linear.update_tet(
+                &topo,
+                t,
+                tet,
+                &tet_blocks(&rest_tets[t], &elasticity[t]),
+                true,
+            );
+            if let Some(nl) = nl.as_mut() {
+                nl.update_tet(&topo, t, tet, &rest_tets[t], &elasticity[t], true);
+            }
+        }
+        Self {
+            alive: vec![true; mesh.tets.len()],
+            alive_count: mesh.tets.len(),
+            tets: mesh.tets.clone(),
+            rest_tets,
+            elasticity,
+            topo,
+            linear,
+            nonlinear: nl,
+            rest: mesh.vertices.clone(),
+            built_masses: masses.clone(),
+            masses,
+            density: material.density,
+            damping: material.damping,
+            stiffness_damping: material.stiffness_damping,
+            volume_penalty,
+            external: vec![Vec3::ZERO; n],
+            gravity: Vec3::ZERO,
+            u: vec![Vec3::ZERO; n],
+            kv: vec![Vec3::ZERO; n],
+        }
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Tetrahedra still in the mesh.
+    pub fn alive_count(&self) -> usize {
+        self.alive_count
+    }
+
+    pub fn is_alive(&self, t: usize) -> bool {
+        self.alive.get(t).copied().unwrap_or(false)
+    }
+
+    /// True when node `n` still belongs to a tetrahedron.
+    pub fn is_attached(&self, n: usize) -> bool {
+        self.linear.vertex_tets(n) > 0
+    }
+
+    /// Tetrahedra in the non-linear set (0 for the linear kind).
+    pub fn nonlinear_count(&self) -> usize {
+        self.nonlinear.as_ref().map_or(0, |nl| nl.count())
+    }
+
+    fn corners<T: Copy>(&self, t: usize, x: &[T]) -> [T; 4] {
+        self.tets[t].map(|v| x[v as usize])
+    }
+
+    /// Elastic (and volume-penalty) forces at positions `x`, added to `f`.
+    pub fn add_elastic_forces(&mut self, x: &[Vec3], f: &mut [Vec3]) {
+        for ((u, x), r) in self.u.iter_mut().zip(x).zip(&self.rest) {
+            *u = *x - *r;
+        }
+        self.linear.add_forces(&self.topo, &self.u, f);
+        if let Some(nl) = self.nonlinear.as_mut() {
+            nl.add_forces(&self.topo, &self.u, f);
+        }
+        if self.volume_penalty > 0.0 {
+            for t in 0..self.tets.len() {
+                if !self.alive[t] {
+                    continue;
+                }
+                let fe =
+                    element::volume_forces(&self.corners(t, x), self.rest_tets[t].volume, self.volume_penalty);
+                for (k, &v) in self.tets[t].iter().enumerate() {
+                    f[v as usize] += fe[k];
+                }
+            }
+        }
+    }
+
+    /// All forces at (x, v): elastic, penalty, damping and loads, added to `f`.
+    pub fn add_forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+        self.add_elastic_forces(x, f);
+        for ((fi, vi), (m, e)) in f
+            .iter_mut()
+            .zip(v)
+            .zip(self.masses.iter().zip(&self.external))
+        {
+            *fi += *e - *vi * (self.damping * m);
+        }
+        if self.stiffness_damping > 0.0 {
+            self.kv.iter_mut().for_each(|k| *k = Vec3::ZERO);
+            self.linear.add_forces(&self.topo, v, &mut self.kv);
+            for (fi, k) in f.iter_mut().zip(&self.kv) {
+                *fi += *k * self.stiffness_damping;
+            }
+        }
+    }
+
+    /// Elastic + penalty energy at `x` minus the work of the loads: what the blow-up guard
+    /// watches. Per element, from the deformation gradient.
+    pub fn potential_energy(&self, x: &[Vec3]) -> Real {
+        let mut w = 0.0;
+        for t in 0..self.tets.len() {
+            if !self.alive[t] {
+                continue;
+            }
+            let xs = self.corners(t, x);
+            let rs = self.corners(t, &self.rest);
+            let u = [xs[0] - rs[0], xs[1] - rs[1], xs[2] - rs[2], xs[3] - rs[3]];
+            let (r, el) = (&self.rest_tets[t], &self.elasticity[t]);
+            let in_nl = self.nonlinear.as_ref().is_some_and(|nl| nl.contains(t));
+            w += if in_nl {
+                element::stvk_energy(r, el, &u)
+            } else {
+                element::linear_energy(r, el, &u)
+            };
+            if self.volume_penalty > 0.0 {
+                w += element::volume_energy(&xs, r.volume, self.volume_penalty);
+            }
+        }
+        for ((e, x), r) in self.external.iter().zip(x).zip(&self.rest) {
+            w -= e.dot(*x - *r);
+        }
+        w
+    }
+
+    /// The hybrid switch: tetrahedra whose Green strain norm exceeds `threshold` join the
+    /// non-linear set, those below half of it leave (the gap stops flickering). Returns how
+    /// many switched.
+    pub fn switch_hybrid(&mut self, x: &[Vec3], threshold: Real) -> usize {
+        let Some(nl) = self.nonlinear.as_mut() else {
+            return 0;
+        };
+        let mut switched = 0;
+        for t in 0..self.tets.len() {
+            if !self.alive[t] {
+                continue;
+            }
+            let tet = self.tets[t];
+            let u = tet.map(|v| x[v as usize] - self.rest[v as usize]);
+            let s = element::strain_norm(&self.rest_tets[t], &u);
+            let inside = nl.contains(t);
+            let want = if inside { s >= 0.5 * threshold } else { s > threshold };
+            if want != inside {
+                nl.update_tet(&self.topo, t, &tet, &self.rest_tets[t], &self.elasticity[t], want);
+                switched += 1;
+            }
+        }
+        switched
+    }
+
+    /// Removes tetrahedron `t`: its tensors leave its vertices, edges and triangles, its
+    /// mass leaves its corners. O(1).
+    pub fn remove_tet(&mut self, t: usize) -> bool {
+        if !self.is_alive(t) {
+            return false;
+        }
+        let tet = self.tets[t];
+        let (r, el) = (self.rest_tets[t], self.elasticity[t]);
+        self.linear
+            .update_tet(&self.topo, t, &tet, &tet_blocks(&r, &el), false);
+        if let Some(nl) = self.nonlinear.as_mut() {
+            nl.update_tet(&self.topo, t, &tet, &r, &el, false);
+        }
+        let quarter = 0.25 * self.density * r.volume;
+        for &v in &tet {
+            let v = v as usize;
+            if self.linear.vertex_tets(v) == 0 {
+                // Detached: it keeps a mass so that the integrator can hold it still.
+                self.masses[v] = self.built_masses[v];
+                self.external[v] = Vec3::ZERO;
+            } else {
+                let old = self.masses[v];
+                self.masses[v] = (old - quarter).max(0.0);
+                self.external[v] -= self.gravity * (old - self.masses[v]);
+            }
+        }
+        self.alive[t] = false;
+        self.alive_count -= 1;
+        true
+    }
+
+    /// Sets the loads: gravity as the lumped share m g, plus point forces per node.
+    pub fn set_node_loads(&mut self, gravity: Vec3, forces: &[(usize, Vec3)]) {
+        self.gravity = gravity;
+        for (n, e) in self.external.iter_mut().enumerate() {
+            *e = if self.linear.vertex_tets(n) > 0 {
+                gravity * self.masses[n]
+            } else {
+                Vec3::ZERO
+            };
+        }
+        for &(n, f) in forces {
+            if let Some(e) = self.external.get_mut(n) {
+                *e += f;
+            }
+        }
+    }
+}
