@@ -7,6 +7,7 @@
 
 pub mod error;
 pub mod image;
+pub mod integrate;
 pub mod interact;
 pub mod io;
 pub mod material;

@@ -39,6 +39,21 @@ pub fn flatten_mut(v: &mut [Vec3]) -> &mut [Real] {
     unsafe { std::slice::from_raw_parts_mut(v.as_mut_ptr().cast::<Real>(), v.len() * 3) }
 }
 
+/// Views a flat slice of reals as 3-vectors, without copying; a trailing partial vector is
+/// left out.
+#[inline]
+pub fn unflatten(v: &[Real]) -> &[Vec3] {
+    // SAFETY: as in `flatten`; DVec3 has the alignment of f64.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<Vec3>(), v.len() / 3) }
+}
+
+/// Mutable 3-vector view of a flat slice of reals.
+#[inline]
+pub fn unflatten_mut(v: &mut [Real]) -> &mut [Vec3] {
+    // SAFETY: as in `unflatten`.
+    unsafe { std::slice::from_raw_parts_mut(v.as_mut_ptr().cast::<Vec3>(), v.len() / 3) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -55,5 +70,9 @@ mod tests {
     fn flat_view_matches_components() {
         let v = vec![Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 5.0, 6.0)];
         assert_eq!(flatten(&v), &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        assert_eq!(
+            unflatten(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]),
+            v.as_slice()
+        );
     }
 }

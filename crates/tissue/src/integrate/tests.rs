@@ -1,0 +1,462 @@
+//! The integrators against exact solutions and invariants, on small spring systems written
+//! here (the models' own spring networks are tested in their modules).
+
+use super::*;
+
+/// Springs between particles, dashpots along them, and gravity.
+struct Springs {
+    masses: Vec<Real>,
+    /// (a, b, stiffness N/m, rest length m, damping N·s/m)
+    springs: Vec<(usize, usize, Real, Real, Real)>,
+    gravity: Vec3,
+    /// Per-spring 3x3 stiffness at the linearisation point.
+    jacobians: Vec<Mat3>,
+    /// Forces become NaN after this many evaluations (to test the guard).
+    poison_after: Option<usize>,
+    evaluations: usize,
+}
+
+use crate::math::Mat3;
+
+impl Springs {
+    fn new(masses: Vec<Real>, springs: Vec<(usize, usize, Real, Real, Real)>) -> Self {
+        Self {
+            masses,
+            springs,
+            gravity: Vec3::ZERO,
+            jacobians: Vec::new(),
+            poison_after: None,
+            evaluations: 0,
+        }
+    }
+}
+
+impl ParticleSystem for Springs {
+    fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+
+    fn forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+        self.evaluations += 1;
+        for (i, fi) in f.iter_mut().enumerate() {
+            *fi += self.masses[i] * self.gravity;
+        }
+        for &(a, b, k, rest, c) in &self.springs {
+            let d = x[b] - x[a];
+            let len = d.length();
+            let dir = if len > 0.0 { d / len } else { Vec3::ZERO };
+            let elastic = if rest == 0.0 {
+                k * d
+            } else {
+                k * (len - rest) * dir
+            };
+            let damping = c * (v[b] - v[a]);
+            f[a] += elastic + damping;
+            f[b] -= elastic + damping;
+        }
+        if self.poison_after.is_some_and(|p| self.evaluations > p) {
+            f[0] = Vec3::NAN;
+        }
+    }
+
+    fn potential_energy(&self, x: &[Vec3]) -> Option<Real> {
+        let elastic: Real = self
+            .springs
+            .iter()
+            .map(|&(a, b, k, rest, _)| {
+                let stretch = if rest == 0.0 {
+                    (x[b] - x[a]).length()
+                } else {
+                    (x[b] - x[a]).length() - rest
+                };
+                0.5 * k * stretch * stretch
+            })
+            .sum();
+        let gravity: Real = x
+            .iter()
+            .zip(&self.masses)
+            .map(|(x, m)| -m * self.gravity.dot(*x))
+            .sum();
+        Some(elastic + gravity)
+    }
+
+    fn prepare_jacobians(&mut self, x: &[Vec3], _v: &[Vec3]) -> Result<(), SimError> {
+        self.jacobians = self
+            .springs
+            .iter()
+            .map(|&(a, b, k, rest, _)| {
+                let d = x[b] - x[a];
+                let len = d.length();
+                if rest == 0.0 || len == 0.0 {
+                    return Mat3::from_diagonal(Vec3::splat(k));
+                }
+                let u = d / len;
+                let uu = Mat3::from_cols(u * u.x, u * u.y, u * u.z);
+                k * uu + k * (1.0 - rest / len) * (Mat3::IDENTITY - uu)
+            })
+            .collect();
+        Ok(())
+    }
+
+    fn stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
+        out.fill(Vec3::ZERO);
+        for (&(a, b, ..), j) in self.springs.iter().zip(&self.jacobians) {
+            let r = *j * (dx[b] - dx[a]);
+            out[b] += r;
+            out[a] -= r;
+        }
+    }
+
+    fn damping_product(&self, dv: &[Vec3], out: &mut [Vec3]) {
+        out.fill(Vec3::ZERO);
+        for &(a, b, _, _, c) in &self.springs {
+            let r = c * (dv[b] - dv[a]);
+            out[b] += r;
+            out[a] -= r;
+        }
+    }
+
+    fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
+        stiffness.fill(Vec3::ZERO);
+        damping.fill(Vec3::ZERO);
+        for (&(a, b, _, _, c), j) in self.springs.iter().zip(&self.jacobians) {
+            let d = Vec3::new(j.x_axis.x, j.y_axis.y, j.z_axis.z);
+            for p in [a, b] {
+                stiffness[p] += d;
+                damping[p] += Vec3::splat(c);
+            }
+        }
+    }
+}
+
+/// Particle 1 on a zero-length spring to particle 0, which is held at the origin: a 3D
+/// harmonic oscillator with ω = sqrt(k/m).
+fn oscillator(damping: Real) -> (Springs, ParticleState, [Hold; 1]) {
+    let system = Springs::new(vec![1.0, 2.0], vec![(0, 1, 8.0, 0.0, damping)]);
+    let state = ParticleState {
+        x: vec![Vec3::ZERO, Vec3::new(0.1, 0.0, 0.0)],
+        v: vec![Vec3::ZERO, Vec3::new(0.0, 0.3, 0.0)],
+    };
+    (
+        system,
+        state,
+        [Hold {
+            particle: 0,
+            target: Vec3::ZERO,
+        }],
+    )
+}
+
+/// Position error at t = 1 s against the exact solution, stepping with `steps` steps.
+fn oscillator_error(scheme: Scheme, steps: usize) -> Real {
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let mut integrator = Integrator::new(scheme);
+    integrator.settings.cg_tolerance = 1e-14;
+    integrator.settings.energy_growth = 10.0;
+    let dt = 1.0 / steps as Real;
+    for _ in 0..steps {
+        integrator
+            .step(&mut system, &mut state, &holds, dt)
+            .unwrap();
+    }
+    let omega: Real = 2.0; // sqrt(8 / 2)
+    let exact = Vec3::new(0.1 * omega.cos(), 0.3 / omega * omega.sin(), 0.0);
+    (state.x[1] - exact).length()
+}
+
+#[test]
+fn each_scheme_converges_at_its_order_on_a_harmonic_oscillator() {
+    for (scheme, order) in [
+        (Scheme::ExplicitEuler, 1.0),
+        (Scheme::SymplecticEuler, 1.0),
+        (Scheme::VelocityVerlet, 2.0),
+        (Scheme::Rk4, 4.0),
+        (Scheme::ImplicitEuler, 1.0),
+    ] {
+        let coarse = oscillator_error(scheme, 200);
+        let fine = oscillator_error(scheme, 400);
+        let observed = (coarse / fine).log2();
+        assert!(
+            (observed - order).abs() < 0.1,
+            "{scheme}: observed order {observed:.3} (errors {coarse:.3e}, {fine:.3e})"
+        );
+    }
+    // RK4 is also accurate in absolute terms: 1e-9 of the 0.1 m amplitude.
+    assert!(oscillator_error(Scheme::Rk4, 200) < 1e-10);
+}
+
+#[test]
+fn symplectic_euler_keeps_the_energy_of_an_undamped_oscillator_bounded() {
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let energy = |s: &Springs, st: &ParticleState| {
+        0.5 * s.masses[1] * st.v[1].length_squared() + s.potential_energy(&st.x).unwrap()
+    };
+    let e0 = energy(&system, &state);
+    let dt = 0.05; // ω·dt = 0.07
+    let mut symplectic = Integrator::new(Scheme::SymplecticEuler);
+    let mut worst: Real = 0.0;
+    for _ in 0..20_000 {
+        symplectic
+            .step(&mut system, &mut state, &holds, dt)
+            .unwrap();
+        worst = worst.max((energy(&system, &state) / e0 - 1.0).abs());
+    }
+    // 1000 s, about 225 periods: the energy error stays of order ω·dt, with no drift.
+    assert!(worst < 0.1, "energy wandered by {worst}");
+
+    // Explicit Euler gains (1 + ω²dt²) per step and implicit Euler loses about as much.
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let mut explicit = Integrator::new(Scheme::ExplicitEuler);
+    for _ in 0..1000 {
+        explicit.step(&mut system, &mut state, &holds, dt).unwrap();
+    }
+    let gained = energy(&system, &state) / e0;
+    let expected = (1.0 + 4.0 * dt * dt).powi(1000);
+    assert!(
+        (gained / expected - 1.0).abs() < 0.02,
+        "{gained} vs {expected}"
+    );
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let mut implicit = Integrator::new(Scheme::ImplicitEuler);
+    implicit.settings.cg_tolerance = 1e-14;
+    for _ in 0..1000 {
+        implicit.step(&mut system, &mut state, &holds, dt).unwrap();
+    }
+    let lost = energy(&system, &state) / e0;
+    let expected = (1.0 + 4.0 * dt * dt).powi(-1000);
+    assert!((lost / expected - 1.0).abs() < 0.02, "{lost} vs {expected}");
+}
+
+/// Three free particles on a triangle of springs (non-zero rest lengths, dashpots), flung.
+fn free_triangle() -> (Springs, ParticleState) {
+    let system = Springs::new(
+        vec![1.0, 2.0, 0.5],
+        vec![
+            (0, 1, 50.0, 1.0, 0.3),
+            (1, 2, 80.0, 1.2, 0.1),
+            (2, 0, 30.0, 0.9, 0.2),
+        ],
+    );
+    let state = ParticleState {
+        x: vec![
+            Vec3::ZERO,
+            Vec3::new(1.3, 0.1, 0.0),
+            Vec3::new(0.2, 0.8, 0.3),
+        ],
+        v: vec![
+            Vec3::new(0.5, -0.2, 0.1),
+            Vec3::new(-0.3, 0.4, 0.0),
+            Vec3::new(0.1, 0.1, -0.7),
+        ],
+    };
+    (system, state)
+}
+
+fn momentum(system: &Springs, state: &ParticleState) -> Vec3 {
+    state
+        .v
+        .iter()
+        .zip(&system.masses)
+        .map(|(v, m)| *m * *v)
+        .sum()
+}
+
+#[test]
+fn internal_forces_conserve_momentum_in_every_scheme() {
+    for scheme in Scheme::ALL {
+        let (mut system, mut state) = free_triangle();
+        let p0 = momentum(&system, &state);
+        let mut integrator = Integrator::new(scheme);
+        integrator.settings.cg_tolerance = 1e-13;
+        for _ in 0..500 {
+            integrator
+                .step(&mut system, &mut state, &[], 0.002)
+                .unwrap();
+        }
+        let drift = (momentum(&system, &state) - p0).length() / p0.length();
+        assert!(drift < 1e-11, "{scheme}: momentum drifted by {drift:e}");
+        // And the springs did move things: this is not a trivially static system.
+        assert!((state.x[1] - Vec3::new(1.3, 0.1, 0.0)).length() > 0.05);
+    }
+}
+
+#[test]
+fn a_hanging_chain_comes_to_rest_with_its_weight_on_the_support() {
+    // Particle 0 held (a massless hook); 1..4 hang below on damped springs under gravity.
+    let masses = vec![0.0, 0.2, 0.3, 0.1, 0.4];
+    let springs: Vec<_> = (0..4).map(|i| (i, i + 1, 200.0, 0.1, 2.0)).collect();
+    for scheme in Scheme::ALL {
+        let mut system = Springs::new(masses.clone(), springs.clone());
+        system.gravity = Vec3::new(0.0, 0.0, -9.81);
+        let x = (0..5)
+            .map(|i| Vec3::new(0.0, 0.0, -0.1 * i as Real))
+            .collect();
+        let mut state = ParticleState::at_rest(x);
+        let holds = [Hold {
+            particle: 0,
+            target: Vec3::ZERO,
+        }];
+        let mut integrator = Integrator::new(scheme);
+        integrator.settings.cg_tolerance = 1e-12;
+        integrator.settings.cg_max_iterations = 200;
+        for _ in 0..20_000 {
+            integrator
+                .step(&mut system, &mut state, &holds, 0.002)
+                .unwrap();
+        }
+        // The support carries the hanging weight, 1.0 kg × g, pulling down on it.
+        let weight = 1.0 * 9.81;
+        let reaction = integrator.held_forces()[0];
+        assert!(
+            (reaction.z + weight).abs() < 1e-6 * weight && reaction.x.abs() < 1e-9,
+            "{scheme}: reaction {reaction}"
+        );
+        // The top spring stretched by the weight below it over k: 1.0 × 9.81 / 200.
+        let top = 0.1 + weight / 200.0;
+        let length = (state.x[0] - state.x[1]).length();
+        assert!((length - top).abs() < 1e-7, "{scheme}: {length} vs {top}");
+    }
+}
+
+#[test]
+fn a_step_past_the_stability_limit_is_refused_and_the_state_kept() {
+    for scheme in [
+        Scheme::ExplicitEuler,
+        Scheme::SymplecticEuler,
+        Scheme::VelocityVerlet,
+        Scheme::Rk4,
+    ] {
+        let (mut system, mut state, holds) = oscillator(0.0);
+        let mut integrator = Integrator::new(scheme);
+        integrator
+            .step(&mut system, &mut state, &holds, 0.01)
+            .unwrap();
+        let good = state.clone();
+        // ω = 2 rad/s; dt = 5 s is far beyond every explicit limit (≤ 2.83/ω).
+        let err = integrator
+            .step(&mut system, &mut state, &holds, 5.0)
+            .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                SimError::Diverged {
+                    step: 2,
+                    node: 1,
+                    ..
+                }
+            ),
+            "{scheme}: {err}"
+        );
+        assert_eq!(state, good, "{scheme}");
+        // The model stays usable at a sane step.
+        integrator
+            .step(&mut system, &mut state, &holds, 0.01)
+            .unwrap();
+        assert_eq!(integrator.steps(), 2);
+    }
+    // Implicit Euler takes the same step and loses energy instead.
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let e0 = system.potential_energy(&state.x).unwrap() + 0.5 * 2.0 * 0.09;
+    let mut implicit = Integrator::new(Scheme::ImplicitEuler);
+    implicit.step(&mut system, &mut state, &holds, 5.0).unwrap();
+    let e1 = system.potential_energy(&state.x).unwrap() + 0.5 * 2.0 * state.v[1].length_squared();
+    assert!(e1 < e0 / 10.0, "{e1} vs {e0}");
+}
+
+#[test]
+fn non_finite_forces_and_bad_input_leave_the_state_alone() {
+    let (mut system, mut state, holds) = oscillator(0.1);
+    system.poison_after = Some(3);
+    let mut integrator = Integrator::new(Scheme::Rk4);
+    let good = state.clone();
+    let err = integrator
+        .step(&mut system, &mut state, &holds, 0.01)
+        .unwrap_err();
+    assert!(matches!(err, SimError::Diverged { step: 1, .. }), "{err}");
+    assert_eq!(state, good);
+
+    let (mut system, mut state, _) = oscillator(0.1);
+    for dt in [0.0, -1.0, Real::NAN, Real::INFINITY] {
+        let err = integrator
+            .step(&mut system, &mut state, &[], dt)
+            .unwrap_err();
+        assert!(matches!(err, SimError::BadTimeStep { .. }), "{err}");
+    }
+    let far = [Hold {
+        particle: 7,
+        target: Vec3::ZERO,
+    }];
+    let err = integrator
+        .step(&mut system, &mut state, &far, 0.01)
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            SimError::BadConstraint {
+                vertex: 7,
+                count: 2
+            }
+        ),
+        "{err}"
+    );
+    // Particle 0 has mass 1 but particle masses of zero must be held.
+    system.masses[1] = 0.0;
+    let err = integrator
+        .step(&mut system, &mut state, &[], 0.01)
+        .unwrap_err();
+    assert!(err.to_string().contains("particle 1"), "{err}");
+    assert_eq!(state, good);
+}
+
+#[test]
+fn a_held_particle_reaches_its_target_and_feels_the_spring() {
+    // Pull particle 0 of the oscillator 5 cm along x in one step; particle 1 lags behind.
+    for scheme in Scheme::ALL {
+        let (mut system, mut state, _) = oscillator(0.0);
+        state.v[1] = Vec3::ZERO;
+        let target = Vec3::new(0.05, 0.0, 0.0);
+        let holds = [Hold {
+            particle: 0,
+            target,
+        }];
+        let mut integrator = Integrator::new(scheme);
+        integrator
+            .step(&mut system, &mut state, &holds, 1e-3)
+            .unwrap();
+        assert_eq!(state.x[0], target);
+        // The zero-length spring pulls the held particle toward particle 1 with k·(x1 − x0).
+        let expected = 8.0 * (state.x[1] - target);
+        assert!(
+            (integrator.held_forces()[0] - expected).length() < 1e-12,
+            "{scheme}"
+        );
+    }
+}
+
+#[test]
+fn implicit_euler_matches_the_closed_form_of_one_damped_oscillator_step() {
+    // One free particle: (m + h c + h² k) Δv = h (f0 − h k v0) in each direction.
+    let (mut system, mut state, holds) = oscillator(0.4);
+    let (m, k, c, h) = (2.0, 8.0, 0.4, 0.1);
+    let (x0, v0) = (state.x[1], state.v[1]);
+    let f0 = -k * x0 - c * v0;
+    let dv = h * (f0 - h * k * v0) / (m + h * c + h * h * k);
+    let mut implicit = Integrator::new(Scheme::ImplicitEuler);
+    implicit.settings.cg_tolerance = 1e-15;
+    implicit.step(&mut system, &mut state, &holds, h).unwrap();
+    assert!((state.v[1] - (v0 + dv)).length() < 1e-14);
+    assert!((state.x[1] - (x0 + h * (v0 + dv))).length() < 1e-14);
+}
+
+#[test]
+fn scheme_names_are_the_scene_names() {
+    #[derive(serde::Deserialize)]
+    struct T {
+        integrator: Scheme,
+    }
+    for scheme in Scheme::ALL {
+        let t: T = toml::from_str(&format!("integrator = \"{}\"", scheme.name())).unwrap();
+        assert_eq!(t.integrator, scheme);
+    }
+    assert!(toml::from_str::<T>("integrator = \"leapfrog\"").is_err());
+}
