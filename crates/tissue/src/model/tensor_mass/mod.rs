@@ -15,10 +15,16 @@
 //! - `tensors`: edges, the vertex and edge tensors, their local update (Cotin)
 //! - `stvk`: the non-linear tensors on vertices, edges, triangles, tetrahedra (Picinbono)
 //! - `element`: plain per-element StVK (cross-check, energy, tangent), volume penalty
-//! - `system`: tensors + masses + damping + loads → forces; the hybrid switch; tet removal
+//! - `system`: tensors + masses + damping + loads → forces (the `ParticleSystem` the shared
+//!   integrators step); the hybrid switch; tetrahedron removal
+//! - `cut`: which tetrahedra a blade touches, the local surface patch, fragments
+//! - `model`: `TensorMass`, state + integrator + constraints; `deformable`: the interface
 
-pub mod element;
+pub mod cut;
+mod deformable;
 pub mod elasticity;
+pub mod element;
+mod model;
 pub mod stvk;
 pub mod system;
 pub mod tensors;
@@ -31,6 +37,7 @@ use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 
 use elasticity::{Elasticity, TetRest};
+pub use model::TensorMass;
 pub use system::TensorSystem;
 
 /// What happens to pieces a cut separates from the largest one.

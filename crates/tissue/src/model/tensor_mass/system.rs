@@ -6,6 +6,8 @@
 //! α m v + β K v (Rayleigh, with the linear K), plus loads. Removing a tetrahedron (cut)
 //! updates every tensor it contributed to, and its lumped mass, in O(1).
 
+use crate::error::SimError;
+use crate::integrate::ParticleSystem;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
@@ -41,6 +43,11 @@ pub struct TensorSystem {
     pub(super) gravity: Vec3,
     u: Vec<Vec3>,
     kv: Vec<Vec3>,
+    /// Elastic + penalty energy of the last force evaluation and where it was done.
+    energy: Option<Real>,
+    energy_at: Vec<Vec3>,
+    /// Displacements at which `prepare_jacobians` linearised.
+    jacobian_u: Vec<Vec3>,
 }
 
 impl TensorSystem {
@@ -91,6 +98,9 @@ impl TensorSystem {
             gravity: Vec3::ZERO,
             u: vec![Vec3::ZERO; n],
             kv: vec![Vec3::ZERO; n],
+            energy: None,
+            energy_at: vec![Vec3::ZERO; n],
+            jacobian_u: vec![Vec3::ZERO; n],
         }
     }
 
@@ -121,32 +131,42 @@ impl TensorSystem {
         self.tets[t].map(|v| x[v as usize])
     }
 
-    /// Elastic (and volume-penalty) forces at positions `x`, added to `f`.
-    pub fn add_elastic_forces(&mut self, x: &[Vec3], f: &mut [Vec3]) {
+    /// Elastic (and volume-penalty) forces at positions `x`, added to `f`; returns the
+    /// elastic + penalty energy, got on the way: ½uᵀKu = −½ u·f_linear, and the
+    /// non-linear terms sum their own.
+    pub fn add_elastic_forces(&mut self, x: &[Vec3], f: &mut [Vec3]) -> Real {
         for ((u, x), r) in self.u.iter_mut().zip(x).zip(&self.rest) {
             *u = *x - *r;
         }
+        let dot = |u: &[Vec3], f: &[Vec3]| u.iter().zip(f).map(|(a, b)| a.dot(*b)).sum::<Real>();
+        let before = dot(&self.u, f);
         self.linear.add_forces(&self.topo, &self.u, f);
+        let mut w = -0.5 * (dot(&self.u, f) - before);
         if let Some(nl) = self.nonlinear.as_mut() {
-            nl.add_forces(&self.topo, &self.u, f);
+            w += nl.add_forces(&self.topo, &self.u, f);
         }
         if self.volume_penalty > 0.0 {
             for t in 0..self.tets.len() {
                 if !self.alive[t] {
                     continue;
                 }
-                let fe =
-                    element::volume_forces(&self.corners(t, x), self.rest_tets[t].volume, self.volume_penalty);
+                let xs = self.corners(t, x);
+                let v0 = self.rest_tets[t].volume;
+                w += element::volume_energy(&xs, v0, self.volume_penalty);
+                let fe = element::volume_forces(&xs, v0, self.volume_penalty);
                 for (k, &v) in self.tets[t].iter().enumerate() {
                     f[v as usize] += fe[k];
                 }
             }
         }
+        w
     }
 
     /// All forces at (x, v): elastic, penalty, damping and loads, added to `f`.
     pub fn add_forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
-        self.add_elastic_forces(x, f);
+        let w = self.add_elastic_forces(x, f);
+        self.energy_at.clone_from_slice(x);
+        self.energy = Some(w);
         for ((fi, vi), (m, e)) in f
             .iter_mut()
             .zip(v)
@@ -164,8 +184,24 @@ impl TensorSystem {
     }
 
     /// Elastic + penalty energy at `x` minus the work of the loads: what the blow-up guard
-    /// watches. Per element, from the deformation gradient.
+    /// watches. The value from the last force evaluation when `x` is where it was done (the
+    /// integrators ask right after evaluating), else per element.
     pub fn potential_energy(&self, x: &[Vec3]) -> Real {
+        let load: Real = self
+            .external
+            .iter()
+            .zip(x)
+            .zip(&self.rest)
+            .map(|((e, x), r)| e.dot(*x - *r))
+            .sum();
+        match self.energy {
+            Some(w) if self.energy_at == x => w - load,
+            _ => self.element_energy(x) - load,
+        }
+    }
+
+    /// Elastic + penalty energy at `x`, element by element.
+    pub fn element_energy(&self, x: &[Vec3]) -> Real {
         let mut w = 0.0;
         for t in 0..self.tets.len() {
             if !self.alive[t] {
@@ -184,9 +220,6 @@ impl TensorSystem {
             if self.volume_penalty > 0.0 {
                 w += element::volume_energy(&xs, r.volume, self.volume_penalty);
             }
-        }
-        for ((e, x), r) in self.external.iter().zip(x).zip(&self.rest) {
-            w -= e.dot(*x - *r);
         }
         w
     }
@@ -209,6 +242,7 @@ impl TensorSystem {
             let inside = nl.contains(t);
             let want = if inside { s >= 0.5 * threshold } else { s > threshold };
             if want != inside {
+                self.energy = None;
                 nl.update_tet(&self.topo, t, &tet, &self.rest_tets[t], &self.elasticity[t], want);
                 switched += 1;
             }
@@ -244,12 +278,14 @@ impl TensorSystem {
         }
         self.alive[t] = false;
         self.alive_count -= 1;
+        self.energy = None;
         true
     }
 
     /// Sets the loads: gravity as the lumped share m g, plus point forces per node.
     pub fn set_node_loads(&mut self, gravity: Vec3, forces: &[(usize, Vec3)]) {
         self.gravity = gravity;
+        self.energy = None;
         for (n, e) in self.external.iter_mut().enumerate() {
             *e = if self.linear.vertex_tets(n) > 0 {
                 gravity * self.masses[n]
@@ -261,6 +297,92 @@ impl TensorSystem {
             if let Some(e) = self.external.get_mut(n) {
                 *e += f;
             }
+        }
+    }
+}
+
+impl ParticleSystem for TensorSystem {
+    fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+
+    fn forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+        self.add_forces(x, v, f);
+    }
+
+    fn potential_energy(&self, x: &[Vec3]) -> Option<Real> {
+        Some(TensorSystem::potential_energy(self, x))
+    }
+
+    fn prepare_jacobians(&mut self, x: &[Vec3], _v: &[Vec3]) -> Result<(), SimError> {
+        for ((u, x), r) in self.jacobian_u.iter_mut().zip(x).zip(&self.rest) {
+            *u = *x - *r;
+        }
+        Ok(())
+    }
+
+    /// K dx: the linear tensors, corrected to the St Venant–Kirchhoff tangent on the
+    /// tetrahedra of the non-linear set, plus the Gauss–Newton part of the volume penalty.
+    fn stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
+        out.fill(Vec3::ZERO);
+        self.linear.add_forces(&self.topo, dx, out);
+        out.iter_mut().for_each(|o| *o = -*o);
+        let nl = self.nonlinear.as_ref();
+        for t in 0..self.tets.len() {
+            if !self.alive[t] {
+                continue;
+            }
+            let (r, el) = (&self.rest_tets[t], &self.elasticity[t]);
+            let d = self.corners(t, dx);
+            let mut add = [Vec3::ZERO; 4];
+            let mut any = false;
+            if nl.is_some_and(|nl| nl.contains(t)) {
+                let u = self.corners(t, &self.jacobian_u);
+                let k = element::stvk_tangent_product(r, el, &u, &d);
+                let k0 = element::stvk_tangent_product(r, el, &[Vec3::ZERO; 4], &d);
+                for a in 0..4 {
+                    add[a] += k[a] - k0[a];
+                }
+                any = true;
+            }
+            if self.volume_penalty > 0.0 {
+                let x = self.corners(t, &self.rest);
+                let u = self.corners(t, &self.jacobian_u);
+                let g = element::volume_gradient(&[x[0] + u[0], x[1] + u[1], x[2] + u[2], x[3] + u[3]]);
+                let s = self.volume_penalty / r.volume * (0..4).map(|a| g[a].dot(d[a])).sum::<Real>();
+                for a in 0..4 {
+                    add[a] += g[a] * s;
+                }
+                any = true;
+            }
+            if any {
+                for (a, &v) in self.tets[t].iter().enumerate() {
+                    out[v as usize] += add[a];
+                }
+            }
+        }
+    }
+
+    fn damping_product(&self, dv: &[Vec3], out: &mut [Vec3]) {
+        out.fill(Vec3::ZERO);
+        if self.stiffness_damping > 0.0 {
+            self.linear.add_forces(&self.topo, dv, out);
+            out.iter_mut().for_each(|o| *o *= -self.stiffness_damping);
+        }
+        for ((o, d), m) in out.iter_mut().zip(dv).zip(&self.masses) {
+            *o += *d * (self.damping * m);
+        }
+    }
+
+    fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
+        for (((s, d), k), m) in stiffness
+            .iter_mut()
+            .zip(damping.iter_mut())
+            .zip(self.linear.diagonal())
+            .zip(&self.masses)
+        {
+            *s = k;
+            *d = k * self.stiffness_damping + Vec3::splat(self.damping * m);
         }
     }
 }

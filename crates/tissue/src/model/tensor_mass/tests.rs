@@ -176,3 +176,92 @@ fn tangent_product_matches_finite_differences() {
     let rel = max_diff(&k, &fd) / max_norm(&fd);
     assert!(rel < 1e-6, "{rel} (tet {tet:?})");
 }
+
+/// −Σ_e K_e u over the alive tetrahedra, per element (the tangent at u = 0 is K_e).
+fn element_linear_force(s: &TensorSystem, x: &[Vec3]) -> Vec<Vec3> {
+    let mut f = vec![Vec3::ZERO; x.len()];
+    for (t, tet) in s.tets.iter().enumerate() {
+        if !s.is_alive(t) {
+            continue;
+        }
+        let u = tet.map(|v| x[v as usize] - s.rest[v as usize]);
+        let fe = stvk_tangent_product(&s.rest_tets[t], &s.elasticity[t], &[Vec3::ZERO; 4], &u);
+        for (k, &v) in tet.iter().enumerate() {
+            f[v as usize] -= fe[k];
+        }
+    }
+    f
+}
+
+#[test]
+fn local_removal_equals_the_forces_of_the_remaining_tetrahedra() {
+    let params = TensorMassParams {
+        fibre: Some([1.0, 0.0, 0.0]),
+        fibre_lambda: 2000.0,
+        ..Default::default()
+    };
+    for nonlinear in [false, true] {
+        let (mesh, mut s) = build_system(&liver(), material(), &params, nonlinear).unwrap();
+        // Every third tetrahedron, then some twice (a no-op).
+        for t in (0..mesh.tets.len()).step_by(3).chain([0, 3]) {
+            s.remove_tet(t);
+        }
+        assert_eq!(s.alive_count(), mesh.tets.len() - mesh.tets.len().div_ceil(3));
+        let u = random_field(mesh.vertices.len(), 9, 0.01);
+        let x = displaced(&mesh.vertices, &u);
+        let f = elastic(&mut s, &x);
+        let e = if nonlinear {
+            element_force(&s, &x)
+        } else {
+            element_linear_force(&s, &x)
+        };
+        let rel = max_diff(&f, &e) / max_norm(&e);
+        assert!(rel < 1e-10, "nonlinear {nonlinear}: {rel}");
+        // The lumped masses follow: a quarter of ρV per remaining corner.
+        let total: Real = s.masses.iter().enumerate().filter(|(n, _)| s.is_attached(*n)).map(|(_, m)| m).sum();
+        let volume: Real = (0..mesh.tets.len()).filter(|&t| s.is_alive(t)).map(|t| s.rest_tets[t].volume).sum();
+        assert!((total - 1000.0 * volume).abs() < 1e-12 * total, "{total}");
+    }
+}
+
+#[test]
+fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
+    let (mesh, mut s) = build_system(&liver(), material(), &TensorMassParams::default(), true).unwrap();
+    // A displacement that strains one end of the liver only.
+    let c = mesh.vertices.iter().copied().sum::<Vec3>() / mesh.vertices.len() as Real;
+    let x: Vec<Vec3> = mesh
+        .vertices
+        .iter()
+        .map(|p| {
+            let d = *p - c;
+            if d.x > 0.0 { *p + Vec3::new(0.3 * d.x, 0.0, 0.3 * d.x * d.y / 0.05) } else { *p }
+        })
+        .collect();
+    s.switch_hybrid(&mesh.vertices, Real::INFINITY);
+    assert_eq!(s.nonlinear_count(), 0);
+    s.switch_hybrid(&x, 0.05);
+    let n = s.nonlinear_count();
+    eprintln!("hybrid: {n} of {} tetrahedra non-linear", mesh.tets.len());
+    assert!(n > 0 && n < mesh.tets.len(), "{n}");
+    let f = elastic(&mut s, &x);
+    let mut e = vec![Vec3::ZERO; x.len()];
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        let u = tet.map(|v| x[v as usize] - mesh.vertices[v as usize]);
+        let (r, el) = (&s.rest_tets[t], &s.elasticity[t]);
+        let fe = if s.nonlinear.as_ref().unwrap().contains(t) {
+            stvk_forces(r, el, &u)
+        } else {
+            stvk_tangent_product(r, el, &[Vec3::ZERO; 4], &u).map(|v| -v)
+        };
+        for (k, &v) in tet.iter().enumerate() {
+            e[v as usize] += fe[k];
+        }
+    }
+    let rel = max_diff(&f, &e) / max_norm(&e);
+    assert!(rel < 1e-10, "{rel}");
+    // Energies: tensor-side (from the force pass) and element-side agree.
+    let mut g = vec![Vec3::ZERO; x.len()];
+    let w = s.add_elastic_forces(&x, &mut g);
+    let we = s.element_energy(&x);
+    assert!((w - we).abs() < 1e-10 * we.abs(), "{w} vs {we}");
+}
