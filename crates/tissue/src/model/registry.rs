@@ -5,6 +5,7 @@ use crate::material::Material;
 use crate::mesh::MeshData;
 use crate::model::Deformable;
 use crate::model::fem;
+use crate::model::tensor_mass;
 
 /// A model kind and what it is, for `tissue models`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,6 +40,14 @@ pub const KINDS: &[KindInfo] = &[
         name: "fem-corotational",
         summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
     },
+    KindInfo {
+        name: "tensor-mass",
+        summary: "Cotin's tensor-mass: linear stiffness tensors on vertices and edges, explicit, cuts",
+    },
+    KindInfo {
+        name: "tensor-mass-nonlinear",
+        summary: "Picinbono's St Venant-Kirchhoff tensor-mass, volume penalty, fibres, hybrid, cuts",
+    },
 ];
 
 /// What a model is built from.
@@ -61,6 +70,8 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "fem-explicit" => Ok(Box::new(fem::FemExplicit::from_input(input)?)),
         "fem-semi-implicit" => Ok(Box::new(fem::FemSemiImplicit::from_input(input)?)),
         "fem-corotational" => Ok(Box::new(fem::FemCorotational::from_input(input)?)),
+        "tensor-mass" => Ok(Box::new(tensor_mass::TensorMass::from_input(input, false)?)),
+        "tensor-mass-nonlinear" => Ok(Box::new(tensor_mass::TensorMass::from_input(input, true)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

@@ -119,24 +119,21 @@ impl TensorMassParams {
     }
 }
 
-/// Drops vertices no tetrahedron uses (they would have no mass).
+/// Drops vertices no tetrahedron uses (they would have no mass), keeping the order of the
+/// others, so that a mesh without unused vertices keeps its numbering.
 fn compact(mesh: &TetMesh) -> TetMesh {
     let mut map = vec![u32::MAX; mesh.vertices.len()];
+    for &v in mesh.tets.iter().flatten() {
+        map[v as usize] = 0;
+    }
     let mut vertices = Vec::new();
-    let tets = mesh
-        .tets
-        .iter()
-        .map(|t| {
-            t.map(|v| {
-                let slot = &mut map[v as usize];
-                if *slot == u32::MAX {
-                    *slot = vertices.len() as u32;
-                    vertices.push(mesh.vertices[v as usize]);
-                }
-                *slot
-            })
-        })
-        .collect();
+    for (v, slot) in map.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = vertices.len() as u32;
+            vertices.push(mesh.vertices[v]);
+        }
+    }
+    let tets = mesh.tets.iter().map(|t| t.map(|v| map[v as usize])).collect();
     TetMesh::new(vertices, tets)
 }
 
@@ -180,3 +177,5 @@ pub fn build_system(
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_dynamics;

@@ -272,7 +272,9 @@ impl TensorSystem {
                 self.external[v] = Vec3::ZERO;
             } else {
                 let old = self.masses[v];
-                self.masses[v] = (old - quarter).max(0.0);
+                // Floored at half the built mass: a node left on a thin sliver would
+                // otherwise get a tiny mass and a stable time step far below the built one.
+                self.masses[v] = (old - quarter).max(0.5 * self.built_masses[v]);
                 self.external[v] -= self.gravity * (old - self.masses[v]);
             }
         }
