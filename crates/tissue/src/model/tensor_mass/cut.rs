@@ -124,7 +124,10 @@ impl CutSurface {
     }
 
     pub fn surface_vertex(&self, node: usize) -> Option<u32> {
-        self.node_to_surface.get(node).copied().filter(|&s| s != u32::MAX)
+        self.node_to_surface
+            .get(node)
+            .copied()
+            .filter(|&s| s != u32::MAX)
     }
 }
 
@@ -138,6 +141,8 @@ pub struct CutReport {
     /// Tetrahedra removed as fragments (0 when fragments are kept).
     pub fragment_tets: usize,
     pub added_vertices: usize,
+    /// Every tetrahedron removed, in order.
+    pub removed: Vec<usize>,
 }
 
 /// Removes the tetrahedra touched by the blade's sweep and patches the surface; fragments
@@ -159,19 +164,23 @@ pub fn cut(
         .filter(|&t| system.is_alive(t))
         .filter(|&t| {
             let p = system.tets[t].map(|v| x[v as usize]);
-            let (pl, ph) = (p[0].min(p[1]).min(p[2]).min(p[3]), p[0].max(p[1]).max(p[2]).max(p[3]));
-            pl.cmple(hi).all() && ph.cmpge(lo).all() && quads.iter().any(|q| tet_meets_triangle(&p, q))
+            let (pl, ph) = (
+                p[0].min(p[1]).min(p[2]).min(p[3]),
+                p[0].max(p[1]).max(p[2]).max(p[3]),
+            );
+            pl.cmple(hi).all()
+                && ph.cmpge(lo).all()
+                && quads.iter().any(|q| tet_meets_triangle(&p, q))
         })
         .collect();
+    let mut report = CutReport::default();
     for &t in &touched {
         if system.remove_tet(t) {
             surface.on_removed(t, system, x);
+            report.removed.push(t);
         }
     }
-    let mut report = CutReport {
-        cut_tets: touched.len(),
-        ..Default::default()
-    };
+    report.cut_tets = report.removed.len();
     if !touched.is_empty() {
         let pieces = pieces(system, &surface.neighbours);
         let largest = pieces.iter().map(Vec::len).max().unwrap_or(0);
@@ -185,6 +194,7 @@ pub fn cut(
                 for &t in piece {
                     if system.remove_tet(t) {
                         surface.on_removed(t, system, x);
+                        report.removed.push(t);
                     }
                 }
                 report.fragment_tets += piece.len();

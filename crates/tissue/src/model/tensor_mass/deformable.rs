@@ -30,12 +30,12 @@ impl Deformable for TensorMass {
         &self.surface.rest_positions
     }
 
-    /// All tetrahedra as built, cut ones included (the volume view has no removal flag).
+    /// The tetrahedra that survive the cuts.
     fn volume(&self) -> Option<VolumeView<'_>> {
         Some(VolumeView {
             positions: &self.state.x,
             rest_positions: &self.mesh.vertices,
-            tets: &self.mesh.tets,
+            tets: &self.alive_tets,
         })
     }
 
@@ -115,16 +115,19 @@ impl Deformable for TensorMass {
             details: vec![
                 ("integrator".into(), self.integrator.scheme.name().into()),
                 ("edges".into(), s.topo.edges.len().to_string()),
-                (
-                    "nonlinear_tets".into(),
-                    s.nonlinear_count().to_string(),
-                ),
+                ("nonlinear_tets".into(), s.nonlinear_count().to_string()),
                 (
                     "strain_threshold".into(),
                     self.params.strain_threshold.to_string(),
                 ),
-                ("volume_penalty".into(), self.params.volume_penalty.to_string()),
-                ("removed_tets".into(), (s.tets.len() - s.alive_count()).to_string()),
+                (
+                    "volume_penalty".into(),
+                    self.params.volume_penalty.to_string(),
+                ),
+                (
+                    "removed_tets".into(),
+                    (s.tets.len() - s.alive_count()).to_string(),
+                ),
                 ("fragments".into(), self.fragments_seen.to_string()),
                 ("topology_version".into(), self.topology_version.to_string()),
                 ("steps".into(), self.integrator.steps().to_string()),

@@ -59,6 +59,10 @@ pub struct TensorMassParams {
     /// use St Venant–Kirchhoff, the others the linear force. 0 (default): all non-linear.
     #[serde(default)]
     pub strain_threshold: Real,
+    /// Steps between two hybrid checks (default 10): the check costs about one linear
+    /// force evaluation, so it is not done every step.
+    #[serde(default = "default_interval")]
+    pub hybrid_interval: u32,
     /// Volume-conservation penalty κ, in Pa (default 0: off).
     #[serde(default)]
     pub volume_penalty: Real,
@@ -75,10 +79,15 @@ pub struct TensorMassParams {
     pub fragments: Fragments,
 }
 
+fn default_interval() -> u32 {
+    10
+}
+
 impl Default for TensorMassParams {
     fn default() -> Self {
         Self {
             strain_threshold: 0.0,
+            hybrid_interval: default_interval(),
             volume_penalty: 0.0,
             fibre: None,
             fibre_lambda: 0.0,
@@ -133,7 +142,11 @@ fn compact(mesh: &TetMesh) -> TetMesh {
             vertices.push(mesh.vertices[v]);
         }
     }
-    let tets = mesh.tets.iter().map(|t| t.map(|v| map[v as usize])).collect();
+    let tets = mesh
+        .tets
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
     TetMesh::new(vertices, tets)
 }
 

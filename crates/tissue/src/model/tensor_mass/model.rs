@@ -39,6 +39,10 @@ pub struct TensorMass {
     pub(super) topology_version: u32,
     pub(super) last_cut: CutReport,
     pub(super) fragments_seen: usize,
+    /// The surviving tetrahedra, for the volume view (swap-removed on cuts).
+    pub(super) alive_tets: Vec<[u32; 4]>,
+    alive_slot: Vec<u32>,
+    alive_owner: Vec<u32>,
     pub(super) switched: usize,
     pub(super) precompute_seconds: Real,
 }
@@ -54,13 +58,11 @@ impl TensorMass {
         let mut table = input.params.clone();
         let scheme = match table.remove("integrator") {
             None => Scheme::default(),
-            Some(v) => {
-                Scheme::deserialize(v.clone()).map_err(|e| SimError::BadParameter {
-                    name: "integrator",
-                    value: v.to_string(),
-                    reason: e.to_string().trim().to_string(),
-                })?
-            }
+            Some(v) => Scheme::deserialize(v.clone()).map_err(|e| SimError::BadParameter {
+                name: "integrator",
+                value: v.to_string(),
+                reason: e.to_string().trim().to_string(),
+            })?,
         };
         let params: TensorMassParams = parse_params(kind, &table)?;
         let mesh = input.mesh.tet_mesh(input.source)?;
@@ -93,6 +95,9 @@ impl TensorMass {
             topology_version: 0,
             last_cut: CutReport::default(),
             fragments_seen: 0,
+            alive_tets: mesh.tets.clone(),
+            alive_slot: (0..mesh.tets.len() as u32).collect(),
+            alive_owner: (0..mesh.tets.len() as u32).collect(),
             switched: 0,
             precompute_seconds: 0.0,
             params,
@@ -204,7 +209,8 @@ impl TensorMass {
     /// One step: the hybrid switch (if on), then the shared integrator. On error the state
     /// is the last good one.
     pub fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
-        if self.nonlinear && self.params.strain_threshold > 0.0 {
+        let check = self.integrator.steps() % u64::from(self.params.hybrid_interval.max(1)) == 0;
+        if self.nonlinear && self.params.strain_threshold > 0.0 && check {
             let n = self
                 .system
                 .switch_hybrid(&self.state.x, self.params.strain_threshold);
@@ -272,6 +278,14 @@ impl TensorMass {
             remove,
         );
         let removed = report.cut_tets + report.fragment_tets;
+        for &t in &report.removed {
+            let slot = self.alive_slot[t] as usize;
+            self.alive_tets.swap_remove(slot);
+            self.alive_owner.swap_remove(slot);
+            if let Some(&moved) = self.alive_owner.get(slot) {
+                self.alive_slot[moved as usize] = slot as u32;
+            }
+        }
         if removed > 0 {
             self.topology_version += 1;
             self.fragments_seen += report.fragments.len();
@@ -299,7 +313,9 @@ impl TensorMass {
                 h.target = self.state.x[h.particle];
             }
         }
-        self.fixed_reactions.iter_mut().for_each(|r| *r = Vec3::ZERO);
+        self.fixed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
         self.prescribed_reactions
             .iter_mut()
             .for_each(|r| *r = Vec3::ZERO);

@@ -214,14 +214,24 @@ impl NonlinearTensors {
         // and then left alone below.
         for &n in tet {
             let n = n as usize;
-            update_count(&mut self.vertex_n[n], add, &mut self.vertex_c[n], Vec3::ZERO);
+            update_count(
+                &mut self.vertex_n[n],
+                add,
+                &mut self.vertex_c[n],
+                Vec3::ZERO,
+            );
             if self.vertex_n[n] == 0 {
                 self.vertex_d[n] = 0.0;
             }
         }
         for &e in &topo.tet_edges[t] {
             let e = e as usize;
-            update_count(&mut self.edge_n[e], add, &mut self.edge_c[e], [Vec3::ZERO; 4]);
+            update_count(
+                &mut self.edge_n[e],
+                add,
+                &mut self.edge_c[e],
+                [Vec3::ZERO; 4],
+            );
             if self.edge_n[e] == 0 {
                 self.edge_d[e] = [0.0; 4];
             }
@@ -457,6 +467,15 @@ impl NonlinearTensors {
             f[j] -= ui * g;
         }
         w
+    }
+
+    /// Bytes the force evaluation reads and writes: the live entities' tensors and ids, and
+    /// the P and G scratch (written, then read).
+    pub fn step_traffic_bytes(&self) -> usize {
+        self.live_vertices.len() * (24 + 8 + 4 + 4 * 8)
+            + self.live_edges.len() * (96 + 32 + 8 + 4 + 4 * 8)
+            + self.live_tris.len() * (12 + 12 + 72 + 48 + 4)
+            + self.live_tets.len() * (24 + 24 + 4)
     }
 
     pub fn memory_bytes(&self) -> usize {

@@ -14,8 +14,8 @@ use crate::mesh::TetMesh;
 
 use crate::model::fem::mass::lumped_masses;
 
-use super::element;
 use super::elasticity::{Elasticity, TetRest};
+use super::element;
 use super::stvk::NonlinearTensors;
 use super::tensors::{LinearTensors, Topology, tet_blocks};
 
@@ -240,10 +240,21 @@ impl TensorSystem {
             let u = tet.map(|v| x[v as usize] - self.rest[v as usize]);
             let s = element::strain_norm(&self.rest_tets[t], &u);
             let inside = nl.contains(t);
-            let want = if inside { s >= 0.5 * threshold } else { s > threshold };
+            let want = if inside {
+                s >= 0.5 * threshold
+            } else {
+                s > threshold
+            };
             if want != inside {
                 self.energy = None;
-                nl.update_tet(&self.topo, t, &tet, &self.rest_tets[t], &self.elasticity[t], want);
+                nl.update_tet(
+                    &self.topo,
+                    t,
+                    &tet,
+                    &self.rest_tets[t],
+                    &self.elasticity[t],
+                    want,
+                );
                 switched += 1;
             }
         }
@@ -282,6 +293,20 @@ impl TensorSystem {
         self.alive_count -= 1;
         self.energy = None;
         true
+    }
+
+    /// Estimated bytes one explicit step moves to and from memory: every tensor read once
+    /// (vertex and edge tensors; the non-linear set's tensors and scratch) plus about 36
+    /// passes over per-node 3-vectors (state copies, forces, displacements, the shared
+    /// integrator's bookkeeping) and 4 over per-node scalars. A model, not a measurement.
+    pub fn step_traffic_bytes(&self) -> usize {
+        let n = self.node_count();
+        let linear = n * 72 + self.topo.edges.len() * (72 + 8);
+        let nonlinear = self
+            .nonlinear
+            .as_ref()
+            .map_or(0, |nl| nl.step_traffic_bytes());
+        linear + nonlinear + n * (36 * 24 + 4 * 8)
     }
 
     /// Sets the loads: gravity as the lumped share m g, plus point forces per node.
@@ -350,8 +375,10 @@ impl ParticleSystem for TensorSystem {
             if self.volume_penalty > 0.0 {
                 let x = self.corners(t, &self.rest);
                 let u = self.corners(t, &self.jacobian_u);
-                let g = element::volume_gradient(&[x[0] + u[0], x[1] + u[1], x[2] + u[2], x[3] + u[3]]);
-                let s = self.volume_penalty / r.volume * (0..4).map(|a| g[a].dot(d[a])).sum::<Real>();
+                let g =
+                    element::volume_gradient(&[x[0] + u[0], x[1] + u[1], x[2] + u[2], x[3] + u[3]]);
+                let s =
+                    self.volume_penalty / r.volume * (0..4).map(|a| g[a].dot(d[a])).sum::<Real>();
                 for a in 0..4 {
                     add[a] += g[a] * s;
                 }

@@ -117,7 +117,12 @@ impl LinearTensors {
         let sign = if add { 1.0 } else { -1.0 };
         for (a, &n) in tet.iter().enumerate() {
             let n = n as usize;
-            update_count(&mut self.vertex_tets[n], add, &mut self.vertex[n], Mat3::ZERO);
+            update_count(
+                &mut self.vertex_tets[n],
+                add,
+                &mut self.vertex[n],
+                Mat3::ZERO,
+            );
             if self.vertex_tets[n] > 0 {
                 self.vertex[n] += blocks[a][a] * sign;
             }

@@ -33,9 +33,7 @@ pub(super) fn random_field(n: usize, seed: u64, scale: Real) -> Vec<Vec3> {
             .wrapping_add(1442695040888963407);
         ((s >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
     };
-    (0..n)
-        .map(|_| Vec3::new(r(), r(), r()) * scale)
-        .collect()
+    (0..n).map(|_| Vec3::new(r(), r(), r()) * scale).collect()
 }
 
 pub(super) fn max_norm(f: &[Vec3]) -> Real {
@@ -102,7 +100,12 @@ fn linear_tensor_forces_equal_assembled_fem_k_u() {
         ("liver", liver()),
         (
             "box",
-            box_tets(Vec3::ZERO, Vec3::new(0.1, 0.05, 0.04), [5, 3, 2], BoxSplit::Five),
+            box_tets(
+                Vec3::ZERO,
+                Vec3::new(0.1, 0.05, 0.04),
+                [5, 3, 2],
+                BoxSplit::Five,
+            ),
         ),
     ] {
         let (mesh, mut s) =
@@ -206,7 +209,10 @@ fn local_removal_equals_the_forces_of_the_remaining_tetrahedra() {
         for t in (0..mesh.tets.len()).step_by(3).chain([0, 3]) {
             s.remove_tet(t);
         }
-        assert_eq!(s.alive_count(), mesh.tets.len() - mesh.tets.len().div_ceil(3));
+        assert_eq!(
+            s.alive_count(),
+            mesh.tets.len() - mesh.tets.len().div_ceil(3)
+        );
         let u = random_field(mesh.vertices.len(), 9, 0.01);
         let x = displaced(&mesh.vertices, &u);
         let f = elastic(&mut s, &x);
@@ -235,7 +241,8 @@ fn local_removal_equals_the_forces_of_the_remaining_tetrahedra() {
 
 #[test]
 fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
-    let (mesh, mut s) = build_system(&liver(), material(), &TensorMassParams::default(), true).unwrap();
+    let (mesh, mut s) =
+        build_system(&liver(), material(), &TensorMassParams::default(), true).unwrap();
     // A displacement that strains one end of the liver only.
     let c = mesh.vertices.iter().copied().sum::<Vec3>() / mesh.vertices.len() as Real;
     let x: Vec<Vec3> = mesh
@@ -243,7 +250,11 @@ fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
         .iter()
         .map(|p| {
             let d = *p - c;
-            if d.x > 0.0 { *p + Vec3::new(0.3 * d.x, 0.0, 0.3 * d.x * d.y / 0.05) } else { *p }
+            if d.x > 0.0 {
+                *p + Vec3::new(0.3 * d.x, 0.0, 0.3 * d.x * d.y / 0.05)
+            } else {
+                *p
+            }
         })
         .collect();
     s.switch_hybrid(&mesh.vertices, Real::INFINITY);

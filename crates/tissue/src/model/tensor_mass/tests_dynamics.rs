@@ -136,6 +136,7 @@ fn repeated_cuts_keep_the_model_stable_and_the_surface_closed() {
             for _ in 0..300 {
                 m.step(4e-5).unwrap();
             }
+            assert_eq!(m.volume().unwrap().tets.len(), m.system().alive_count());
             let s = m.surface();
             assert!(closed_and_oriented(s.triangles), "cut {k}");
             let rest_volume = enclosed_volume(m.rest_surface(), s.triangles);
@@ -143,8 +144,13 @@ fn repeated_cuts_keep_the_model_stable_and_the_surface_closed() {
                 .filter(|&t| m.system().is_alive(t))
                 .map(|t| m.system().rest_tets[t].volume)
                 .sum();
-            assert!((rest_volume - tets).abs() < 1e-9 * tets, "{rest_volume} vs {tets}");
-            assert!((enclosed_volume(s.positions, s.triangles) - volume_of(&m)).abs() < 1e-9 * tets);
+            assert!(
+                (rest_volume - tets).abs() < 1e-9 * tets,
+                "{rest_volume} vs {tets}"
+            );
+            assert!(
+                (enclosed_volume(s.positions, s.triangles) - volume_of(&m)).abs() < 1e-9 * tets
+            );
         }
         let s = m.surface();
         let mesh = SurfaceMesh::new(s.positions.to_vec(), s.triangles.to_vec());
@@ -166,11 +172,18 @@ fn repeated_cuts_keep_the_model_stable_and_the_surface_closed() {
         eprintln!(
             "6 cuts ({}): {per_cut:?} = {removed} of {n_tets} tets removed, last cut {:?}, \
              max |u| {u_max:.4} m, {} surface triangles",
-            if nonlinear { "StVK, fragments removed" } else { "linear, fragments kept" },
+            if nonlinear {
+                "StVK, fragments removed"
+            } else {
+                "linear, fragments kept"
+            },
             m.last_cut(),
             s.triangles.len()
         );
-        assert!(per_cut.iter().filter(|&&r| r > 0).count() >= 4, "{per_cut:?}");
+        assert!(
+            per_cut.iter().filter(|&&r| r > 0).count() >= 4,
+            "{per_cut:?}"
+        );
         assert!(removed < n_tets);
         assert!(u_max < 0.5 * size.length(), "{u_max}");
     }
@@ -179,10 +192,19 @@ fn repeated_cuts_keep_the_model_stable_and_the_surface_closed() {
 #[test]
 fn a_blow_up_is_an_error_and_keeps_the_last_good_state() {
     for nonlinear in [false, true] {
-        let mut m = model(damped(3000.0, 0.45, 1.0), nonlinear, TensorMassParams::default());
+        let mut m = model(
+            damped(3000.0, 0.45, 1.0),
+            nonlinear,
+            TensorMassParams::default(),
+        );
         let n = m.positions().len();
         let u = random_field(n, 4, 1e-3);
-        let x: Vec<Vec3> = m.rest_nodes().iter().zip(&u).map(|(a, b)| *a + *b).collect();
+        let x: Vec<Vec3> = m
+            .rest_nodes()
+            .iter()
+            .zip(&u)
+            .map(|(a, b)| *a + *b)
+            .collect();
         m.set_state(&x, &vec![Vec3::ZERO; n]).unwrap();
         m.step(1e-4).unwrap();
         let (x0, v0) = (m.positions().to_vec(), m.velocities().to_vec());
@@ -197,7 +219,10 @@ fn a_blow_up_is_an_error_and_keeps_the_last_good_state() {
             }
         }
         let err = err.expect("a step 500 times too large must fail");
-        assert!(matches!(err, crate::error::SimError::Diverged { .. }), "{err}");
+        assert!(
+            matches!(err, crate::error::SimError::Diverged { .. }),
+            "{err}"
+        );
         // The failed step left the state of the last good one; stepping on works.
         let (x1, v1) = (m.positions().to_vec(), m.velocities().to_vec());
         assert!(x1.iter().chain(&v1).all(|p| p.is_finite()));
@@ -212,7 +237,12 @@ fn stable(e: Real, nu: Real, nonlinear: bool, dt: Real, steps: usize) -> bool {
     let mut m = model(damped(e, nu, 0.0), nonlinear, TensorMassParams::default());
     let n = m.positions().len();
     let u = random_field(n, 11, 1e-4);
-    let x: Vec<Vec3> = m.rest_nodes().iter().zip(&u).map(|(a, b)| *a + *b).collect();
+    let x: Vec<Vec3> = m
+        .rest_nodes()
+        .iter()
+        .zip(&u)
+        .map(|(a, b)| *a + *b)
+        .collect();
     m.set_state(&x, &vec![Vec3::ZERO; n]).unwrap();
     (0..steps).all(|_| m.step(dt).is_ok())
         && m.positions()
@@ -238,8 +268,13 @@ pub(super) fn largest_stable_dt(e: Real, nu: Real, nonlinear: bool) -> Real {
 #[test]
 #[ignore = "a table: cargo test --release -p tissue stable_time_step_table -- --ignored --nocapture"]
 fn stable_time_step_table() {
-    eprintln!("liver.msh (596 tets, m), symplectic Euler, no damping, 400 steps from a 0.1 mm perturbation");
-    eprintln!("{:>9} {:>5} {:>14} {:>14}", "E (Pa)", "nu", "linear dt (s)", "StVK dt (s)");
+    eprintln!(
+        "liver.msh (596 tets, m), symplectic Euler, no damping, 400 steps from a 0.1 mm perturbation"
+    );
+    eprintln!(
+        "{:>9} {:>5} {:>14} {:>14}",
+        "E (Pa)", "nu", "linear dt (s)", "StVK dt (s)"
+    );
     for e in [1e3, 1e4, 1e5, 1e6] {
         for nu in [0.3, 0.4, 0.45, 0.49] {
             let l = largest_stable_dt(e, nu, false);
