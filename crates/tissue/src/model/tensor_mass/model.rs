@@ -209,7 +209,10 @@ impl TensorMass {
     /// One step: the hybrid switch (if on), then the shared integrator. On error the state
     /// is the last good one.
     pub fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
-        let check = self.integrator.steps() % u64::from(self.params.hybrid_interval.max(1)) == 0;
+        let check = self
+            .integrator
+            .steps()
+            .is_multiple_of(u64::from(self.params.hybrid_interval.max(1)));
         if self.nonlinear && self.params.strain_threshold > 0.0 && check {
             let n = self
                 .system

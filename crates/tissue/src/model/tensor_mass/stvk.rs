@@ -68,8 +68,8 @@ fn tet_terms(rest: &TetRest, el: &Elasticity) -> TetTerms {
         for b in 0..4 {
             for c in 0..4 {
                 terms.c[a][b][c] = t[a][b] * g[c] * (0.5 * v);
-                for d in 0..4 {
-                    terms.d[a][b][c][d] = 0.125 * v * ddot(&s[a][b], &t[c][d]);
+                for (d, tcd) in t[c].iter().enumerate() {
+                    terms.d[a][b][c][d] = 0.125 * v * ddot(&s[a][b], tcd);
                 }
             }
         }

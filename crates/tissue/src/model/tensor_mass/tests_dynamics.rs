@@ -210,12 +210,9 @@ fn a_blow_up_is_an_error_and_keeps_the_last_good_state() {
         let (x0, v0) = (m.positions().to_vec(), m.velocities().to_vec());
         let mut err = None;
         for _ in 0..50 {
-            match m.step(0.05) {
-                Err(e) => {
-                    err = Some(e);
-                    break;
-                }
-                Ok(_) => {}
+            if let Err(e) = m.step(0.05) {
+                err = Some(e);
+                break;
             }
         }
         let err = err.expect("a step 500 times too large must fail");
