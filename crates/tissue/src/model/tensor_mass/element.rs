@@ -28,6 +28,16 @@ pub fn stvk_forces(rest: &TetRest, el: &Elasticity, u: &[Vec3; 4]) -> [Vec3; 4] 
     rest.gradients.map(|g| p * g)
 }
 
+/// `stvk_forces` and the energy V ψ(E) = ½ V E:S in one pass.
+#[inline]
+pub fn stvk_forces_energy(rest: &TetRest, el: &Elasticity, u: &[Vec3; 4]) -> ([Vec3; 4], Real) {
+    let h = rest.displacement_gradient(u);
+    let e = green(&h);
+    let s = el.apply(e);
+    let p = (Mat3::IDENTITY + h) * s * (-rest.volume);
+    (rest.gradients.map(|g| p * g), 0.5 * rest.volume * ddot(&e, &s))
+}
+
 /// V ψ(E) of the St Venant–Kirchhoff energy.
 pub fn stvk_energy(rest: &TetRest, el: &Elasticity, u: &[Vec3; 4]) -> Real {
     let e = green(&rest.displacement_gradient(u));

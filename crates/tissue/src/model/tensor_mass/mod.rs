@@ -38,7 +38,7 @@ use crate::mesh::TetMesh;
 
 use elasticity::{Elasticity, TetRest};
 pub use model::TensorMass;
-pub use system::TensorSystem;
+pub use system::{NonlinearForm, TensorSystem};
 
 /// What happens to pieces a cut separates from the largest one.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
@@ -63,6 +63,10 @@ pub struct TensorMassParams {
     /// force evaluation, so it is not done every step.
     #[serde(default = "default_interval")]
     pub hybrid_interval: u32,
+    /// Non-linear kind: `tensors` (default, Picinbono's tensor form) or `elements` (the
+    /// same forces per element from the deformation gradient, cheaper).
+    #[serde(default)]
+    pub form: NonlinearForm,
     /// Volume-conservation penalty κ, in Pa (default 0: off).
     #[serde(default)]
     pub volume_penalty: Real,
@@ -88,6 +92,7 @@ impl Default for TensorMassParams {
         Self {
             strain_threshold: 0.0,
             hybrid_interval: default_interval(),
+            form: NonlinearForm::Tensors,
             volume_penalty: 0.0,
             fibre: None,
             fibre_lambda: 0.0,
@@ -183,7 +188,7 @@ pub fn build_system(
         elasticity,
         &material,
         params.volume_penalty,
-        nonlinear,
+        nonlinear.then_some(params.form),
     );
     Ok((mesh, system))
 }

@@ -19,6 +19,25 @@ use super::element;
 use super::stvk::NonlinearTensors;
 use super::tensors::{LinearTensors, Topology, tet_blocks};
 
+/// How the non-linear set's forces are computed: Picinbono's tensors (on vertices, edges,
+/// triangles, tetrahedra) or per element from the deformation gradient (same forces to
+/// rounding, fewer operations).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NonlinearForm {
+    #[default]
+    Tensors,
+    Elements,
+}
+
+/// The element form's non-linear set.
+#[derive(Clone, Debug, Default)]
+pub struct ElementSet {
+    in_set: Vec<bool>,
+    list: Vec<u32>,
+    dirty: bool,
+}
+
 /// The tensors, masses and loads of a tensor-mass model.
 #[derive(Clone, Debug)]
 pub struct TensorSystem {
@@ -30,6 +49,11 @@ pub struct TensorSystem {
     pub(super) topo: Topology,
     pub(super) linear: LinearTensors,
     pub(super) nonlinear: Option<NonlinearTensors>,
+    /// The element form of the non-linear set: its tetrahedra leave the linear tensors and
+    /// get the per-element St Venant–Kirchhoff force instead.
+    pub(super) elements: Option<ElementSet>,
+    /// Tetrahedra left at each node (attachment; the linear tensors may count fewer).
+    node_tets: Vec<u32>,
     pub(super) rest: Vec<Vec3>,
     pub(super) masses: Vec<Real>,
     /// Mass of each node as built (a node that loses all its tetrahedra keeps it, held).
@@ -59,12 +83,17 @@ impl TensorSystem {
         elasticity: Vec<Elasticity>,
         material: &Material,
         volume_penalty: Real,
-        nonlinear: bool,
+        nonlinear: Option<NonlinearForm>,
     ) -> Self {
         let n = mesh.vertices.len();
         let topo = Topology::new(&mesh.tets);
         let mut linear = LinearTensors::empty(n, &topo);
-        let mut nl = nonlinear.then(|| NonlinearTensors::empty(n, &mesh.tets, &topo));
+        let mut nl = (nonlinear == Some(NonlinearForm::Tensors))
+            .then(|| NonlinearTensors::empty(n, &mesh.tets, &topo));
+        let mut node_tets = vec![0u32; n];
+        for &v in mesh.tets.iter().flatten() {
+            node_tets[v as usize] += 1;
+        }
         let masses = lumped_masses(mesh, material.density);
         for (t, tet) in mesh.tets.iter().enumerate() {
             linear.update_tet(
@@ -78,7 +107,7 @@ impl TensorSystem {
                 nl.update_tet(&topo, t, tet, &rest_tets[t], &elasticity[t], true);
             }
         }
-        Self {
+        let mut system = Self {
             alive: vec![true; mesh.tets.len()],
             alive_count: mesh.tets.len(),
             tets: mesh.tets.clone(),
@@ -87,6 +116,8 @@ impl TensorSystem {
             topo,
             linear,
             nonlinear: nl,
+            elements: None,
+            node_tets,
             rest: mesh.vertices.clone(),
             built_masses: masses.clone(),
             masses,
@@ -101,7 +132,44 @@ impl TensorSystem {
             energy: None,
             energy_at: vec![Vec3::ZERO; n],
             jacobian_u: vec![Vec3::ZERO; n],
+        };
+        if nonlinear == Some(NonlinearForm::Elements) {
+            system.elements = Some(ElementSet {
+                in_set: vec![false; system.tets.len()],
+                list: Vec::new(),
+                dirty: true,
+            });
+            for t in 0..system.tets.len() {
+                system.set_membership(t, true);
+            }
         }
+        system
+    }
+
+    /// Is tetrahedron `t` in the non-linear set (either form)?
+    pub fn in_nonlinear_set(&self, t: usize) -> bool {
+        self.nonlinear.as_ref().is_some_and(|nl| nl.contains(t))
+            || self
+                .elements
+                .as_ref()
+                .is_some_and(|e| e.in_set.get(t).copied().unwrap_or(false))
+    }
+
+    /// Moves tetrahedron `t` into (`want`) or out of the non-linear set: O(1).
+    fn set_membership(&mut self, t: usize, want: bool) {
+        let tet = self.tets[t];
+        let (r, el) = (self.rest_tets[t], self.elasticity[t]);
+        if let Some(nl) = self.nonlinear.as_mut() {
+            nl.update_tet(&self.topo, t, &tet, &r, &el, want);
+        } else if let Some(es) = self.elements.as_mut() {
+            if es.in_set[t] != want {
+                es.in_set[t] = want;
+                es.dirty = true;
+                self.linear
+                    .update_tet(&self.topo, t, &tet, &tet_blocks(&r, &el), !want);
+            }
+        }
+        self.energy = None;
     }
 
     pub fn node_count(&self) -> usize {
@@ -119,12 +187,16 @@ impl TensorSystem {
 
     /// True when node `n` still belongs to a tetrahedron.
     pub fn is_attached(&self, n: usize) -> bool {
-        self.linear.vertex_tets(n) > 0
+        self.node_tets.get(n).is_some_and(|&c| c > 0)
     }
 
     /// Tetrahedra in the non-linear set (0 for the linear kind).
     pub fn nonlinear_count(&self) -> usize {
         self.nonlinear.as_ref().map_or(0, |nl| nl.count())
+            + self
+                .elements
+                .as_ref()
+                .map_or(0, |e| e.in_set.iter().filter(|&&b| b).count())
     }
 
     fn corners<T: Copy>(&self, t: usize, x: &[T]) -> [T; 4] {
@@ -144,6 +216,25 @@ impl TensorSystem {
         let mut w = -0.5 * (dot(&self.u, f) - before);
         if let Some(nl) = self.nonlinear.as_mut() {
             w += nl.add_forces(&self.topo, &self.u, f);
+        }
+        if let Some(es) = self.elements.as_mut() {
+            if es.dirty {
+                es.list = (0..es.in_set.len() as u32)
+                    .filter(|&t| es.in_set[t as usize])
+                    .collect();
+                es.dirty = false;
+            }
+            for &t in &es.list {
+                let t = t as usize;
+                let tet = self.tets[t];
+                let u = tet.map(|v| self.u[v as usize]);
+                let (fe, we) =
+                    element::stvk_forces_energy(&self.rest_tets[t], &self.elasticity[t], &u);
+                w += we;
+                for (k, &v) in tet.iter().enumerate() {
+                    f[v as usize] += fe[k];
+                }
+            }
         }
         if self.volume_penalty > 0.0 {
             for t in 0..self.tets.len() {
@@ -211,7 +302,7 @@ impl TensorSystem {
             let rs = self.corners(t, &self.rest);
             let u = [xs[0] - rs[0], xs[1] - rs[1], xs[2] - rs[2], xs[3] - rs[3]];
             let (r, el) = (&self.rest_tets[t], &self.elasticity[t]);
-            let in_nl = self.nonlinear.as_ref().is_some_and(|nl| nl.contains(t));
+            let in_nl = self.in_nonlinear_set(t);
             w += if in_nl {
                 element::stvk_energy(r, el, &u)
             } else {
@@ -228,33 +319,24 @@ impl TensorSystem {
     /// non-linear set, those below half of it leave (the gap stops flickering). Returns how
     /// many switched.
     pub fn switch_hybrid(&mut self, x: &[Vec3], threshold: Real) -> usize {
-        let Some(nl) = self.nonlinear.as_mut() else {
+        if self.nonlinear.is_none() && self.elements.is_none() {
             return 0;
-        };
+        }
         let mut switched = 0;
         for t in 0..self.tets.len() {
             if !self.alive[t] {
                 continue;
             }
-            let tet = self.tets[t];
-            let u = tet.map(|v| x[v as usize] - self.rest[v as usize]);
+            let u = self.tets[t].map(|v| x[v as usize] - self.rest[v as usize]);
             let s = element::strain_norm(&self.rest_tets[t], &u);
-            let inside = nl.contains(t);
+            let inside = self.in_nonlinear_set(t);
             let want = if inside {
                 s >= 0.5 * threshold
             } else {
                 s > threshold
             };
             if want != inside {
-                self.energy = None;
-                nl.update_tet(
-                    &self.topo,
-                    t,
-                    &tet,
-                    &self.rest_tets[t],
-                    &self.elasticity[t],
-                    want,
-                );
+                self.set_membership(t, want);
                 switched += 1;
             }
         }
@@ -267,17 +349,20 @@ impl TensorSystem {
         if !self.is_alive(t) {
             return false;
         }
+        // Out of the non-linear set first (the element form puts it back into the linear
+        // tensors), then out of the linear tensors.
+        self.set_membership(t, false);
         let tet = self.tets[t];
         let (r, el) = (self.rest_tets[t], self.elasticity[t]);
         self.linear
             .update_tet(&self.topo, t, &tet, &tet_blocks(&r, &el), false);
-        if let Some(nl) = self.nonlinear.as_mut() {
-            nl.update_tet(&self.topo, t, &tet, &r, &el, false);
+        for &v in &tet {
+            self.node_tets[v as usize] = self.node_tets[v as usize].saturating_sub(1);
         }
         let quarter = 0.25 * self.density * r.volume;
         for &v in &tet {
             let v = v as usize;
-            if self.linear.vertex_tets(v) == 0 {
+            if !self.is_attached(v) {
                 // Detached: it keeps a mass so that the integrator can hold it still.
                 self.masses[v] = self.built_masses[v];
                 self.external[v] = Vec3::ZERO;
@@ -305,7 +390,11 @@ impl TensorSystem {
         let nonlinear = self
             .nonlinear
             .as_ref()
-            .map_or(0, |nl| nl.step_traffic_bytes());
+            .map_or(0, |nl| nl.step_traffic_bytes())
+            + self
+                .elements
+                .as_ref()
+                .map_or(0, |e| e.list.len() * (4 + 16 + 104 + 4 * 24 * 2));
         linear + nonlinear + n * (36 * 24 + 4 * 8)
     }
 
@@ -314,7 +403,7 @@ impl TensorSystem {
         self.gravity = gravity;
         self.energy = None;
         for (n, e) in self.external.iter_mut().enumerate() {
-            *e = if self.linear.vertex_tets(n) > 0 {
+            *e = if self.node_tets[n] > 0 {
                 gravity * self.masses[n]
             } else {
                 Vec3::ZERO
@@ -354,7 +443,6 @@ impl ParticleSystem for TensorSystem {
         out.fill(Vec3::ZERO);
         self.linear.add_forces(&self.topo, dx, out);
         out.iter_mut().for_each(|o| *o = -*o);
-        let nl = self.nonlinear.as_ref();
         for t in 0..self.tets.len() {
             if !self.alive[t] {
                 continue;
@@ -363,7 +451,7 @@ impl ParticleSystem for TensorSystem {
             let d = self.corners(t, dx);
             let mut add = [Vec3::ZERO; 4];
             let mut any = false;
-            if nl.is_some_and(|nl| nl.contains(t)) {
+            if self.in_nonlinear_set(t) {
                 let u = self.corners(t, &self.jacobian_u);
                 let k = element::stvk_tangent_product(r, el, &u, &d);
                 let k0 = element::stvk_tangent_product(r, el, &[Vec3::ZERO; 4], &d);

@@ -285,3 +285,44 @@ fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
     let we = s.element_energy(&x);
     assert!((w - we).abs() < 1e-10 * we.abs(), "{w} vs {we}");
 }
+
+#[test]
+fn element_form_equals_tensor_form_with_hybrid_and_removal() {
+    let base = TensorMassParams {
+        volume_penalty: 500.0,
+        ..Default::default()
+    };
+    let elements = TensorMassParams {
+        form: NonlinearForm::Elements,
+        ..base.clone()
+    };
+    let (mesh, mut a) = build_system(&liver(), material(), &base, true).unwrap();
+    let (_, mut b) = build_system(&liver(), material(), &elements, true).unwrap();
+    let c = mesh.vertices.iter().copied().sum::<Vec3>() / mesh.vertices.len() as Real;
+    let u = random_field(mesh.vertices.len(), 21, 1e-4);
+    let x: Vec<Vec3> = mesh
+        .vertices
+        .iter()
+        .zip(&u)
+        .map(|(p, r)| {
+            let d = *p - c;
+            *p + *r + Vec3::new(0.3 * d.x.max(0.0), 0.0, 0.3 * d.x.max(0.0) * d.y / 0.05)
+        })
+        .collect();
+    for s in [&mut a, &mut b] {
+        s.switch_hybrid(&x, 0.05);
+        for t in (0..mesh.tets.len()).step_by(7) {
+            s.remove_tet(t);
+        }
+    }
+    let n = a.nonlinear_count();
+    assert_eq!(n, b.nonlinear_count());
+    assert!(n > 0 && n < a.alive_count(), "{n}");
+    let (mut fa, mut fb) = (vec![Vec3::ZERO; x.len()], vec![Vec3::ZERO; x.len()]);
+    let wa = a.add_elastic_forces(&x, &mut fa);
+    let wb = b.add_elastic_forces(&x, &mut fb);
+    let rel = max_diff(&fa, &fb) / max_norm(&fa);
+    assert!(rel < 1e-10, "{rel}");
+    assert!((wa - wb).abs() < 1e-10 * wa.abs(), "{wa} {wb}");
+    assert!((wb - b.element_energy(&x)).abs() < 1e-10 * wb.abs());
+}
