@@ -3,6 +3,8 @@
 //! ν = 0.45, mass damping 5/s, symplectic Euler (the default), dt = 1e-4 s, one face
 //! clamped, from a stretched start so that every term is non-zero.
 //!
+//! Non-linear: the tensor form (default) and the element form (`form = "elements"`).
+//!
 //! After criterion's groups it prints a table: steps/s, the model's estimate of bytes moved
 //! per step (`TensorSystem::step_traffic_bytes`), the bandwidth that implies, and its ratio
 //! to a STREAM-like copy measured in the same run; plus the hybrid model with about a tenth
@@ -21,7 +23,7 @@ use tissue::interact::Constraints;
 use tissue::math::{Real, Vec3};
 use tissue::mesh::generate::{BoxSplit, box_tets};
 use tissue::model::Deformable;
-use tissue::model::tensor_mass::{TensorMass, TensorMassParams};
+use tissue::model::tensor_mass::{NonlinearForm, TensorMass, TensorMassParams};
 
 const DT: Real = 1e-4;
 
@@ -77,14 +79,18 @@ const SIZES: [usize; 3] = [10, 16, 25];
 
 fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("tensor_mass");
+    let elements = TensorMassParams {
+        form: NonlinearForm::Elements,
+        ..Default::default()
+    };
     for cells in SIZES {
-        for nonlinear in [false, true] {
-            let mut m = model(cells, nonlinear, TensorMassParams::default());
-            let name = format!(
-                "{}_{}_tets_step",
-                if nonlinear { "stvk" } else { "linear" },
-                5 * cells * cells * cells
-            );
+        for (kind, nonlinear, params) in [
+            ("linear", false, TensorMassParams::default()),
+            ("stvk_tensors", true, TensorMassParams::default()),
+            ("stvk_elements", true, elements.clone()),
+        ] {
+            let mut m = model(cells, nonlinear, params);
+            let name = format!("{kind}_{}_tets_step", 5 * cells * cells * cells);
             group.bench_function(name, |b| b.iter(|| black_box(m.step(DT).expect("step"))));
         }
     }
@@ -100,7 +106,8 @@ fn bench(c: &mut Criterion) {
         let mut lin_rate = 0.0;
         for (kind, nonlinear, params) in [
             ("linear", false, TensorMassParams::default()),
-            ("stvk", true, TensorMassParams::default()),
+            ("stvk-t", true, TensorMassParams::default()),
+            ("stvk-e", true, elements.clone()),
             (
                 "hybrid",
                 true,
