@@ -35,7 +35,10 @@ pub fn stvk_forces_energy(rest: &TetRest, el: &Elasticity, u: &[Vec3; 4]) -> ([V
     let e = green(&h);
     let s = el.apply(e);
     let p = (Mat3::IDENTITY + h) * s * (-rest.volume);
-    (rest.gradients.map(|g| p * g), 0.5 * rest.volume * ddot(&e, &s))
+    (
+        rest.gradients.map(|g| p * g),
+        0.5 * rest.volume * ddot(&e, &s),
+    )
 }
 
 /// V ψ(E) of the St Venant–Kirchhoff energy.
