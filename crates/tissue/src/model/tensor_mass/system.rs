@@ -161,13 +161,13 @@ impl TensorSystem {
         let (r, el) = (self.rest_tets[t], self.elasticity[t]);
         if let Some(nl) = self.nonlinear.as_mut() {
             nl.update_tet(&self.topo, t, &tet, &r, &el, want);
-        } else if let Some(es) = self.elements.as_mut() {
-            if es.in_set[t] != want {
-                es.in_set[t] = want;
-                es.dirty = true;
-                self.linear
-                    .update_tet(&self.topo, t, &tet, &tet_blocks(&r, &el), !want);
-            }
+        } else if let Some(es) = self.elements.as_mut()
+            && es.in_set[t] != want
+        {
+            es.in_set[t] = want;
+            es.dirty = true;
+            self.linear
+                .update_tet(&self.topo, t, &tet, &tet_blocks(&r, &el), !want);
         }
         self.energy = None;
     }
