@@ -16,6 +16,7 @@ mod reactions;
 pub mod registry;
 pub mod spline;
 pub mod spring_mass;
+pub mod tensor_mass;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,

@@ -8,6 +8,7 @@ use crate::model::bem;
 use crate::model::fem;
 use crate::model::spline;
 use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
+use crate::model::tensor_mass;
 use crate::model::{chainmail, linked_volumes};
 
 /// A model kind and what it is, for `tissue models`.
@@ -71,6 +72,14 @@ pub const KINDS: &[KindInfo] = &[
         name: "linked-volumes",
         summary: "voxel masses linked by springs and dampers (6/18/26 neighbours), stiffness from E",
     },
+    KindInfo {
+        name: "tensor-mass",
+        summary: "Cotin's tensor-mass: linear stiffness tensors on vertices and edges, explicit, cuts",
+    },
+    KindInfo {
+        name: "tensor-mass-nonlinear",
+        summary: "Picinbono's St Venant-Kirchhoff tensor-mass, volume penalty, fibres, hybrid, cuts",
+    },
 ];
 
 /// What a model is built from.
@@ -109,6 +118,8 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "spline" => Ok(Box::new(spline::SplineModel::from_input(input)?)),
         "chainmail" => Ok(Box::new(chainmail::ChainMail::from_input(input)?)),
         "linked-volumes" => Ok(Box::new(linked_volumes::LinkedVolumes::from_input(input)?)),
+        "tensor-mass" => Ok(Box::new(tensor_mass::TensorMass::from_input(input, false)?)),
+        "tensor-mass-nonlinear" => Ok(Box::new(tensor_mass::TensorMass::from_input(input, true)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

@@ -1,0 +1,137 @@
+//! `Deformable` for `TensorMass`: both kinds, surface constraints held through the
+//! integrator, cutting by tetrahedron removal.
+
+use crate::error::SimError;
+use crate::interact::{Constraints, Loads};
+use crate::math::{Real, Vec3};
+use crate::model::{
+    CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
+};
+
+use super::model::TensorMass;
+
+impl Deformable for TensorMass {
+    fn kind(&self) -> &'static str {
+        if self.nonlinear {
+            "tensor-mass-nonlinear"
+        } else {
+            "tensor-mass"
+        }
+    }
+
+    fn surface(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            positions: &self.surface.positions,
+            triangles: &self.surface.triangles,
+        }
+    }
+
+    fn rest_surface(&self) -> &[Vec3] {
+        &self.surface.rest_positions
+    }
+
+    /// The tetrahedra that survive the cuts.
+    fn volume(&self) -> Option<VolumeView<'_>> {
+        Some(VolumeView {
+            positions: &self.state.x,
+            rest_positions: &self.mesh.vertices,
+            tets: &self.alive_tets,
+        })
+    }
+
+    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        self.apply_constraints(c)
+    }
+
+    /// Gravity acts as the lumped share m_i g; point loads on their vertex's node.
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        if !loads.gravity.is_finite() {
+            return Err(SimError::BadParameter {
+                name: "gravity",
+                value: loads.gravity.to_string(),
+                reason: "must be finite".into(),
+            });
+        }
+        let mut forces = Vec::with_capacity(loads.point_loads.len());
+        for &(v, f) in &loads.point_loads {
+            let node = self
+                .surface
+                .nodes
+                .get(v as usize)
+                .ok_or(SimError::BadConstraint {
+                    vertex: v as usize,
+                    count: self.surface.nodes.len(),
+                })?;
+            if !f.is_finite() {
+                return Err(SimError::BadParameter {
+                    name: "point_loads",
+                    value: format!("surface vertex {v} -> {f}"),
+                    reason: "the force must be finite".into(),
+                });
+            }
+            forces.push((*node as usize, f));
+        }
+        self.system.set_node_loads(loads.gravity, &forces);
+        self.integrator.invalidate();
+        self.loads = loads.clone();
+        Ok(())
+    }
+
+    fn step(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        self.advance(dt)
+    }
+
+    fn reactions(&self) -> Reactions<'_> {
+        Reactions {
+            fixed: &self.fixed_reactions,
+            prescribed: &self.prescribed_reactions,
+        }
+    }
+
+    fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
+        self.cut_along(blade)
+    }
+
+    fn reset(&mut self) {
+        self.reset_state();
+    }
+
+    fn info(&self) -> ModelInfo {
+        let s = &self.system;
+        let n = s.node_count();
+        let memory_bytes = s.linear.memory_bytes()
+            + s.nonlinear.as_ref().map_or(0, |nl| nl.memory_bytes())
+            + s.tets.len() * (16 + 104 + 64)
+            + n * (24 * 6 + 16);
+        ModelInfo {
+            kind: self.kind(),
+            nodes: n,
+            dofs: 3 * n,
+            elements: s.alive_count(),
+            surface_vertices: self.surface.nodes.len(),
+            memory_bytes,
+            precompute_seconds: self.precompute_seconds,
+            is_static: false,
+            details: vec![
+                ("integrator".into(), self.integrator.scheme.name().into()),
+                ("edges".into(), s.topo.edges.len().to_string()),
+                ("nonlinear_tets".into(), s.nonlinear_count().to_string()),
+                (
+                    "strain_threshold".into(),
+                    self.params.strain_threshold.to_string(),
+                ),
+                (
+                    "volume_penalty".into(),
+                    self.params.volume_penalty.to_string(),
+                ),
+                (
+                    "removed_tets".into(),
+                    (s.tets.len() - s.alive_count()).to_string(),
+                ),
+                ("fragments".into(), self.fragments_seen.to_string()),
+                ("topology_version".into(), self.topology_version.to_string()),
+                ("steps".into(), self.integrator.steps().to_string()),
+            ],
+        }
+    }
+}

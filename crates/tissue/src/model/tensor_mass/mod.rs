@@ -1,0 +1,199 @@
+//! The tensor-mass family: `tensor-mass` (Cotin et al. 1999, linear) and
+//! `tensor-mass-nonlinear` (Picinbono et al. 2000/2003, St Venant–Kirchhoff), survey §2.4.
+//!
+//! Masses are lumped on the vertices of a tetrahedral mesh; the elastic forces come from
+//! stiffness tensors stored on the mesh's vertices and edges (and, for the non-linear kind,
+//! triangles and tetrahedra), each a sum over the tetrahedra that share it. The forces are
+//! those of linear FEM (`tensor-mass`, checked against the assembled K·u) or of St
+//! Venant–Kirchhoff (checked against a per-element computation), so the non-linear kind is
+//! invariant under rigid rotations where the linear one inflates. Time integration is the
+//! shared `integrate` module (explicit by default). Because every tensor is a sum over
+//! tetrahedra, removing tetrahedra touched by a scalpel (cutting, electrocautery style)
+//! updates the tensors locally.
+//!
+//! - `elasticity`: ℂ (isotropic + transversely isotropic fibre), per-tetrahedron rest data
+//! - `tensors`: edges, the vertex and edge tensors, their local update (Cotin)
+//! - `stvk`: the non-linear tensors on vertices, edges, triangles, tetrahedra (Picinbono)
+//! - `element`: plain per-element StVK (cross-check, energy, tangent), volume penalty
+//! - `system`: tensors + masses + damping + loads → forces (the `ParticleSystem` the shared
+//!   integrators step); the hybrid switch; tetrahedron removal
+//! - `cut`: which tetrahedra a blade touches, the local surface patch, fragments
+//! - `model`: `TensorMass`, state + integrator + constraints; `deformable`: the interface
+
+pub mod cut;
+mod deformable;
+pub mod elasticity;
+pub mod element;
+mod model;
+pub mod stvk;
+pub mod system;
+pub mod tensors;
+
+use serde::Deserialize;
+
+use crate::error::{Error, MeshError, SimError};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::TetMesh;
+
+use elasticity::{Elasticity, TetRest};
+pub use model::TensorMass;
+pub use system::{NonlinearForm, TensorSystem};
+
+/// What happens to pieces a cut separates from the largest one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Fragments {
+    /// They keep simulating (falling under gravity, say).
+    Keep,
+    /// Their tetrahedra are removed too.
+    #[default]
+    Remove,
+}
+
+/// The `[model]` settings of both kinds.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TensorMassParams {
+    /// Hybrid switch (non-linear kind only): tetrahedra with a Green strain norm above this
+    /// use St Venant–Kirchhoff, the others the linear force. 0 (default): all non-linear.
+    #[serde(default)]
+    pub strain_threshold: Real,
+    /// Steps between two hybrid checks (default 10): the check costs about one linear
+    /// force evaluation, so it is not done every step.
+    #[serde(default = "default_interval")]
+    pub hybrid_interval: u32,
+    /// Non-linear kind: `tensors` (default, Picinbono's tensor form) or `elements` (the
+    /// same forces per element from the deformation gradient, cheaper).
+    #[serde(default)]
+    pub form: NonlinearForm,
+    /// Volume-conservation penalty κ, in Pa (default 0: off).
+    #[serde(default)]
+    pub volume_penalty: Real,
+    /// Fibre direction of a transversely isotropic material (default: isotropic).
+    #[serde(default)]
+    pub fibre: Option<[Real; 3]>,
+    /// Extra stiffness along the fibre, λ_f and μ_f, in Pa.
+    #[serde(default)]
+    pub fibre_lambda: Real,
+    #[serde(default)]
+    pub fibre_mu: Real,
+    /// `remove` (default) or `keep` the pieces a cut separates.
+    #[serde(default)]
+    pub fragments: Fragments,
+}
+
+fn default_interval() -> u32 {
+    10
+}
+
+impl Default for TensorMassParams {
+    fn default() -> Self {
+        Self {
+            strain_threshold: 0.0,
+            hybrid_interval: default_interval(),
+            form: NonlinearForm::Tensors,
+            volume_penalty: 0.0,
+            fibre: None,
+            fibre_lambda: 0.0,
+            fibre_mu: 0.0,
+            fragments: Fragments::Remove,
+        }
+    }
+}
+
+impl TensorMassParams {
+    fn validated(self) -> Result<Self, SimError> {
+        let check = |name: &'static str, v: Real| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(SimError::BadParameter {
+                    name,
+                    value: v.to_string(),
+                    reason: "must be a finite value >= 0".into(),
+                })
+            }
+        };
+        check("strain_threshold", self.strain_threshold)?;
+        check("volume_penalty", self.volume_penalty)?;
+        check("fibre_lambda", self.fibre_lambda)?;
+        check("fibre_mu", self.fibre_mu)?;
+        if let Some(a) = self.fibre {
+            let v = Vec3::from_array(a);
+            if !(v.is_finite() && v.length() > 0.0) {
+                return Err(SimError::BadParameter {
+                    name: "fibre",
+                    value: format!("{a:?}"),
+                    reason: "must be a finite non-zero direction".into(),
+                });
+            }
+        }
+        Ok(self)
+    }
+}
+
+/// Drops vertices no tetrahedron uses (they would have no mass), keeping the order of the
+/// others, so that a mesh without unused vertices keeps its numbering.
+fn compact(mesh: &TetMesh) -> TetMesh {
+    let mut map = vec![u32::MAX; mesh.vertices.len()];
+    for &v in mesh.tets.iter().flatten() {
+        map[v as usize] = 0;
+    }
+    let mut vertices = Vec::new();
+    for (v, slot) in map.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = vertices.len() as u32;
+            vertices.push(mesh.vertices[v]);
+        }
+    }
+    let tets = mesh
+        .tets
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
+    TetMesh::new(vertices, tets)
+}
+
+/// Validates the mesh, material and settings and builds the system (all tetrahedra in the
+/// non-linear set when `nonlinear`, before any hybrid switch).
+pub fn build_system(
+    mesh: &TetMesh,
+    material: Material,
+    params: &TensorMassParams,
+    nonlinear: bool,
+) -> Result<(TetMesh, TensorSystem), Error> {
+    let material = material.validated()?;
+    let params = params.clone().validated()?;
+    mesh.validate_for_simulation()?;
+    let mesh = compact(mesh);
+    let mut rest = Vec::with_capacity(mesh.tets.len());
+    for t in 0..mesh.tets.len() {
+        rest.push(
+            TetRest::new(&mesh.corners(t)).ok_or(MeshError::DegenerateTet {
+                tet: t,
+                volume: mesh.tet_volume(t),
+                quality: 0.0,
+            })?,
+        );
+    }
+    let mut el = Elasticity::isotropic(material.lambda(), material.mu());
+    if let Some(a) = params.fibre {
+        el = el.with_fibre(Vec3::from_array(a), params.fibre_lambda, params.fibre_mu);
+    }
+    let elasticity = vec![el; mesh.tets.len()];
+    let system = TensorSystem::new(
+        &mesh,
+        rest,
+        elasticity,
+        &material,
+        params.volume_penalty,
+        nonlinear.then_some(params.form),
+    );
+    Ok((mesh, system))
+}
+
+#[cfg(test)]
+mod tests;
+#[cfg(test)]
+mod tests_dynamics;

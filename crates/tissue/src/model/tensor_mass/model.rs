@@ -1,0 +1,326 @@
+//! `TensorMass`: a `TensorSystem` with its state, the shared integrator, the cut surface,
+//! constraints, loads and reactions. One type for both kinds (`nonlinear` picks the tensors).
+
+use std::time::Instant;
+
+use serde::Deserialize;
+
+use crate::error::{Error, SimError};
+use crate::integrate::{Hold, Integrator, ParticleState, Scheme};
+use crate::interact::{Constraints, Loads};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::TetMesh;
+use crate::model::registry::parse_params;
+use crate::model::{BuildInput, CutInfo, CutPath, StepInfo};
+
+use super::cut::{CutReport, CutSurface, cut};
+use super::{Fragments, TensorMassParams, TensorSystem, build_system};
+
+/// A tensor-mass model (see the module doc of `tensor_mass`).
+#[derive(Debug)]
+pub struct TensorMass {
+    pub(super) nonlinear: bool,
+    pub(super) params: TensorMassParams,
+    pub(super) material: Material,
+    pub(super) mesh: TetMesh,
+    pub(super) system: TensorSystem,
+    pub(super) state: ParticleState,
+    pub(super) integrator: Integrator,
+    pub(super) surface: CutSurface,
+    /// Held nodes from the constraints (fixed at rest, prescribed at their target).
+    pub(super) holds: Vec<Hold>,
+    /// The constraints' holds plus the detached nodes, held where they are.
+    pub(super) step_holds: Vec<Hold>,
+    pub(super) constraints: Constraints,
+    pub(super) loads: Loads,
+    pub(super) fixed_reactions: Vec<Vec3>,
+    pub(super) prescribed_reactions: Vec<Vec3>,
+    pub(super) topology_version: u32,
+    pub(super) last_cut: CutReport,
+    pub(super) fragments_seen: usize,
+    /// The surviving tetrahedra, for the volume view (swap-removed on cuts).
+    pub(super) alive_tets: Vec<[u32; 4]>,
+    alive_slot: Vec<u32>,
+    alive_owner: Vec<u32>,
+    pub(super) switched: usize,
+    pub(super) precompute_seconds: Real,
+}
+
+impl TensorMass {
+    /// Builds either kind from the registry's input.
+    pub fn from_input(input: &BuildInput<'_>, nonlinear: bool) -> Result<Self, Error> {
+        let kind = if nonlinear {
+            "tensor-mass-nonlinear"
+        } else {
+            "tensor-mass"
+        };
+        let mut table = input.params.clone();
+        let scheme = match table.remove("integrator") {
+            None => Scheme::default(),
+            Some(v) => Scheme::deserialize(v.clone()).map_err(|e| SimError::BadParameter {
+                name: "integrator",
+                value: v.to_string(),
+                reason: e.to_string().trim().to_string(),
+            })?,
+        };
+        let params: TensorMassParams = parse_params(kind, &table)?;
+        let mesh = input.mesh.tet_mesh(input.source)?;
+        Self::new(&mesh, input.material, params, nonlinear, scheme)
+    }
+
+    /// Validates and builds: tensors of every tetrahedron, lumped masses, the surface.
+    pub fn new(
+        mesh: &TetMesh,
+        material: Material,
+        params: TensorMassParams,
+        nonlinear: bool,
+        scheme: Scheme,
+    ) -> Result<Self, Error> {
+        let start = Instant::now();
+        let (mesh, system) = build_system(mesh, material, &params, nonlinear)?;
+        let surface = CutSurface::new(&mesh.tets, &mesh.vertices);
+        let mut m = Self {
+            nonlinear,
+            material,
+            state: ParticleState::at_rest(mesh.vertices.clone()),
+            integrator: Integrator::new(scheme),
+            surface,
+            holds: Vec::new(),
+            step_holds: Vec::new(),
+            constraints: Constraints::default(),
+            loads: Loads::default(),
+            fixed_reactions: Vec::new(),
+            prescribed_reactions: Vec::new(),
+            topology_version: 0,
+            last_cut: CutReport::default(),
+            fragments_seen: 0,
+            alive_tets: mesh.tets.clone(),
+            alive_slot: (0..mesh.tets.len() as u32).collect(),
+            alive_owner: (0..mesh.tets.len() as u32).collect(),
+            switched: 0,
+            precompute_seconds: 0.0,
+            params,
+            mesh,
+            system,
+        };
+        if nonlinear && m.params.strain_threshold > 0.0 {
+            // Start from the linear force everywhere; the switch brings tetrahedra in.
+            m.system.switch_hybrid(&m.mesh.vertices, Real::INFINITY);
+            m.switched = 0;
+        }
+        m.precompute_seconds = start.elapsed().as_secs_f64();
+        Ok(m)
+    }
+
+    pub fn system(&self) -> &TensorSystem {
+        &self.system
+    }
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+    pub fn params(&self) -> &TensorMassParams {
+        &self.params
+    }
+    pub fn integrator(&self) -> &Integrator {
+        &self.integrator
+    }
+    /// Chooses the integration scheme.
+    pub fn set_scheme(&mut self, scheme: Scheme) {
+        self.integrator = Integrator::with_settings(scheme, self.integrator.settings);
+    }
+    pub fn positions(&self) -> &[Vec3] {
+        &self.state.x
+    }
+    pub fn velocities(&self) -> &[Vec3] {
+        &self.state.v
+    }
+    pub fn rest_nodes(&self) -> &[Vec3] {
+        &self.mesh.vertices
+    }
+    /// What the last cut did (fragments found, tetrahedra removed).
+    pub fn last_cut(&self) -> &CutReport {
+        &self.last_cut
+    }
+    /// The mechanical node of each surface vertex.
+    pub fn surface_nodes(&self) -> &[u32] {
+        &self.surface.nodes
+    }
+
+    /// Replaces positions and velocities (lengths must match, values finite).
+    pub fn set_state(&mut self, x: &[Vec3], v: &[Vec3]) -> Result<(), SimError> {
+        let n = self.state.x.len();
+        if x.len() != n || v.len() != n || !x.iter().chain(v).all(|p| p.is_finite()) {
+            return Err(SimError::BadParameter {
+                name: "state",
+                value: format!("{} positions, {} velocities", x.len(), v.len()),
+                reason: format!("needs {n} finite positions and velocities"),
+            });
+        }
+        self.state.x.copy_from_slice(x);
+        self.state.v.copy_from_slice(v);
+        self.integrator.invalidate();
+        self.surface.update_positions(&self.state.x);
+        Ok(())
+    }
+
+    /// Holds from surface constraints: fixed vertices at rest, prescribed ones at their
+    /// target (fixed wins; the last of two prescriptions wins).
+    pub(super) fn apply_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let disp = c.surface_displacements(&self.surface.rest_positions)?;
+        self.holds = disp
+            .iter()
+            .enumerate()
+            .filter_map(|(s, d)| {
+                let n = self.surface.nodes[s] as usize;
+                d.map(|d| Hold {
+                    particle: n,
+                    target: self.mesh.vertices[n] + d,
+                })
+            })
+            .collect();
+        self.constraints = c.clone();
+        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
+        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
+        self.refresh_step_holds();
+        Ok(())
+    }
+
+    /// Adds the nodes no tetrahedron holds any more, kept where they are.
+    fn refresh_step_holds(&mut self) {
+        let mut held = vec![false; self.state.x.len()];
+        self.step_holds.clear();
+        for h in &self.holds {
+            if self.system.is_attached(h.particle) && !held[h.particle] {
+                held[h.particle] = true;
+                self.step_holds.push(*h);
+            }
+        }
+        for (n, x) in self.state.x.iter().enumerate() {
+            if !held[n] && !self.system.is_attached(n) {
+                self.step_holds.push(Hold {
+                    particle: n,
+                    target: *x,
+                });
+            }
+        }
+    }
+
+    /// One step: the hybrid switch (if on), then the shared integrator. On error the state
+    /// is the last good one.
+    pub fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        let check = self
+            .integrator
+            .steps()
+            .is_multiple_of(u64::from(self.params.hybrid_interval.max(1)));
+        if self.nonlinear && self.params.strain_threshold > 0.0 && check {
+            let n = self
+                .system
+                .switch_hybrid(&self.state.x, self.params.strain_threshold);
+            if n > 0 {
+                self.switched += n;
+                self.integrator.invalidate();
+            }
+        }
+        for h in &mut self.step_holds {
+            if !self.system.is_attached(h.particle) {
+                h.target = self.state.x[h.particle];
+            }
+        }
+        let info = self
+            .integrator
+            .step(&mut self.system, &mut self.state, &self.step_holds, dt)?;
+        self.surface.update_positions(&self.state.x);
+        self.distribute_reactions();
+        Ok(info)
+    }
+
+    /// Each constrained vertex's reaction goes to its first fixed entry, else its last
+    /// prescribed one; other entries for the same vertex get zero.
+    fn distribute_reactions(&mut self) {
+        let mut node_force = vec![None; self.state.x.len()];
+        for (h, f) in self.step_holds.iter().zip(self.integrator.held_forces()) {
+            node_force[h.particle] = Some(*f);
+        }
+        let nodes = &self.surface.nodes;
+        let mut taken = vec![false; nodes.len()];
+        let mut take = |v: u32| -> Vec3 {
+            let v = v as usize;
+            match (taken.get(v), nodes.get(v)) {
+                (Some(false), Some(&n)) => {
+                    taken[v] = true;
+                    node_force[n as usize].unwrap_or(Vec3::ZERO)
+                }
+                _ => Vec3::ZERO,
+            }
+        };
+        for (k, &v) in self.constraints.fixed.iter().enumerate() {
+            self.fixed_reactions[k] = take(v);
+        }
+        for (k, p) in self.constraints.prescribed.iter().enumerate().rev() {
+            self.prescribed_reactions[k] = take(p.vertex);
+        }
+    }
+
+    /// Removes what the blade touches (see `cut`).
+    pub fn cut_along(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
+        let ok = |p: &[Vec3; 2]| p.iter().all(|v| v.is_finite());
+        if !(ok(&blade.start) && ok(&blade.end)) {
+            return Err(SimError::BadParameter {
+                name: "blade",
+                value: format!("{blade:?}"),
+                reason: "the blade positions must be finite".into(),
+            });
+        }
+        let remove = self.params.fragments == Fragments::Remove;
+        let report = cut(
+            &mut self.system,
+            &mut self.surface,
+            &self.state.x,
+            blade,
+            remove,
+        );
+        let removed = report.cut_tets + report.fragment_tets;
+        for &t in &report.removed {
+            let slot = self.alive_slot[t] as usize;
+            self.alive_tets.swap_remove(slot);
+            self.alive_owner.swap_remove(slot);
+            if let Some(&moved) = self.alive_owner.get(slot) {
+                self.alive_slot[moved as usize] = slot as u32;
+            }
+        }
+        if removed > 0 {
+            self.topology_version += 1;
+            self.fragments_seen += report.fragments.len();
+            self.integrator.invalidate();
+            self.refresh_step_holds();
+            // Surface vertex count grew: constraint bookkeeping stays valid (stable ids).
+        }
+        let info = CutInfo {
+            removed_elements: removed,
+            added_vertices: report.added_vertices,
+            topology_version: self.topology_version,
+        };
+        self.last_cut = report;
+        Ok(info)
+    }
+
+    /// Back to rest with zero velocity (cuts stay; constraints and loads kept).
+    pub fn reset_state(&mut self) {
+        self.state.x.copy_from_slice(&self.mesh.vertices);
+        self.state.v.iter_mut().for_each(|v| *v = Vec3::ZERO);
+        self.integrator.invalidate();
+        self.surface.update_positions(&self.state.x);
+        for h in &mut self.step_holds {
+            if !self.system.is_attached(h.particle) {
+                h.target = self.state.x[h.particle];
+            }
+        }
+        self.fixed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
+        self.prescribed_reactions
+            .iter_mut()
+            .for_each(|r| *r = Vec3::ZERO);
+    }
+}

@@ -1,0 +1,505 @@
+//! The mechanical system both kinds integrate: tetrahedra with their tensors, lumped
+//! masses, damping and external loads, seen as particles with forces.
+//!
+//! Forces, all per node: elastic −K u (linear tensors), plus the St Venant–Kirchhoff
+//! terms of the tetrahedra in the non-linear set, plus the volume penalty, minus damping
+//! α m v + β K v (Rayleigh, with the linear K), plus loads. Removing a tetrahedron (cut)
+//! updates every tensor it contributed to, and its lumped mass, in O(1).
+
+use crate::error::SimError;
+use crate::integrate::ParticleSystem;
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::TetMesh;
+
+use crate::model::fem::mass::lumped_masses;
+
+use super::elasticity::{Elasticity, TetRest};
+use super::element;
+use super::stvk::NonlinearTensors;
+use super::tensors::{LinearTensors, Topology, tet_blocks};
+
+/// How the non-linear set's forces are computed: Picinbono's tensors (on vertices, edges,
+/// triangles, tetrahedra) or per element from the deformation gradient (same forces to
+/// rounding, fewer operations).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NonlinearForm {
+    #[default]
+    Tensors,
+    Elements,
+}
+
+/// The element form's non-linear set.
+#[derive(Clone, Debug, Default)]
+pub struct ElementSet {
+    in_set: Vec<bool>,
+    list: Vec<u32>,
+    dirty: bool,
+}
+
+/// The tensors, masses and loads of a tensor-mass model.
+#[derive(Clone, Debug)]
+pub struct TensorSystem {
+    pub(super) tets: Vec<[u32; 4]>,
+    pub(super) rest_tets: Vec<TetRest>,
+    pub(super) elasticity: Vec<Elasticity>,
+    pub(super) alive: Vec<bool>,
+    pub(super) alive_count: usize,
+    pub(super) topo: Topology,
+    pub(super) linear: LinearTensors,
+    pub(super) nonlinear: Option<NonlinearTensors>,
+    /// The element form of the non-linear set: its tetrahedra leave the linear tensors and
+    /// get the per-element St Venant–Kirchhoff force instead.
+    pub(super) elements: Option<ElementSet>,
+    /// Tetrahedra left at each node (attachment; the linear tensors may count fewer).
+    node_tets: Vec<u32>,
+    pub(super) rest: Vec<Vec3>,
+    pub(super) masses: Vec<Real>,
+    /// Mass of each node as built (a node that loses all its tetrahedra keeps it, held).
+    pub(super) built_masses: Vec<Real>,
+    pub(super) density: Real,
+    pub(super) damping: Real,
+    pub(super) stiffness_damping: Real,
+    pub(super) volume_penalty: Real,
+    /// Gravity share and point loads per node, in N.
+    pub(super) external: Vec<Vec3>,
+    pub(super) gravity: Vec3,
+    u: Vec<Vec3>,
+    kv: Vec<Vec3>,
+    /// Elastic + penalty energy of the last force evaluation and where it was done.
+    energy: Option<Real>,
+    energy_at: Vec<Vec3>,
+    /// Displacements at which `prepare_jacobians` linearised.
+    jacobian_u: Vec<Vec3>,
+}
+
+impl TensorSystem {
+    /// Builds the tensors of every tetrahedron of a validated mesh whose tets have positive
+    /// volume; `nonlinear` adds the St Venant–Kirchhoff tensors of all of them.
+    pub fn new(
+        mesh: &TetMesh,
+        rest_tets: Vec<TetRest>,
+        elasticity: Vec<Elasticity>,
+        material: &Material,
+        volume_penalty: Real,
+        nonlinear: Option<NonlinearForm>,
+    ) -> Self {
+        let n = mesh.vertices.len();
+        let topo = Topology::new(&mesh.tets);
+        let mut linear = LinearTensors::empty(n, &topo);
+        let mut nl = (nonlinear == Some(NonlinearForm::Tensors))
+            .then(|| NonlinearTensors::empty(n, &mesh.tets, &topo));
+        let mut node_tets = vec![0u32; n];
+        for &v in mesh.tets.iter().flatten() {
+            node_tets[v as usize] += 1;
+        }
+        let masses = lumped_masses(mesh, material.density);
+        for (t, tet) in mesh.tets.iter().enumerate() {
+            linear.update_tet(
+                &topo,
+                t,
+                tet,
+                &tet_blocks(&rest_tets[t], &elasticity[t]),
+                true,
+            );
+            if let Some(nl) = nl.as_mut() {
+                nl.update_tet(&topo, t, tet, &rest_tets[t], &elasticity[t], true);
+            }
+        }
+        let mut system = Self {
+            alive: vec![true; mesh.tets.len()],
+            alive_count: mesh.tets.len(),
+            tets: mesh.tets.clone(),
+            rest_tets,
+            elasticity,
+            topo,
+            linear,
+            nonlinear: nl,
+            elements: None,
+            node_tets,
+            rest: mesh.vertices.clone(),
+            built_masses: masses.clone(),
+            masses,
+            density: material.density,
+            damping: material.damping,
+            stiffness_damping: material.stiffness_damping,
+            volume_penalty,
+            external: vec![Vec3::ZERO; n],
+            gravity: Vec3::ZERO,
+            u: vec![Vec3::ZERO; n],
+            kv: vec![Vec3::ZERO; n],
+            energy: None,
+            energy_at: vec![Vec3::ZERO; n],
+            jacobian_u: vec![Vec3::ZERO; n],
+        };
+        if nonlinear == Some(NonlinearForm::Elements) {
+            system.elements = Some(ElementSet {
+                in_set: vec![false; system.tets.len()],
+                list: Vec::new(),
+                dirty: true,
+            });
+            for t in 0..system.tets.len() {
+                system.set_membership(t, true);
+            }
+        }
+        system
+    }
+
+    /// Is tetrahedron `t` in the non-linear set (either form)?
+    pub fn in_nonlinear_set(&self, t: usize) -> bool {
+        self.nonlinear.as_ref().is_some_and(|nl| nl.contains(t))
+            || self
+                .elements
+                .as_ref()
+                .is_some_and(|e| e.in_set.get(t).copied().unwrap_or(false))
+    }
+
+    /// Moves tetrahedron `t` into (`want`) or out of the non-linear set: O(1).
+    fn set_membership(&mut self, t: usize, want: bool) {
+        let tet = self.tets[t];
+        let (r, el) = (self.rest_tets[t], self.elasticity[t]);
+        if let Some(nl) = self.nonlinear.as_mut() {
+            nl.update_tet(&self.topo, t, &tet, &r, &el, want);
+        } else if let Some(es) = self.elements.as_mut()
+            && es.in_set[t] != want
+        {
+            es.in_set[t] = want;
+            es.dirty = true;
+            self.linear
+                .update_tet(&self.topo, t, &tet, &tet_blocks(&r, &el), !want);
+        }
+        self.energy = None;
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Tetrahedra still in the mesh.
+    pub fn alive_count(&self) -> usize {
+        self.alive_count
+    }
+
+    pub fn is_alive(&self, t: usize) -> bool {
+        self.alive.get(t).copied().unwrap_or(false)
+    }
+
+    /// True when node `n` still belongs to a tetrahedron.
+    pub fn is_attached(&self, n: usize) -> bool {
+        self.node_tets.get(n).is_some_and(|&c| c > 0)
+    }
+
+    /// Tetrahedra in the non-linear set (0 for the linear kind).
+    pub fn nonlinear_count(&self) -> usize {
+        self.nonlinear.as_ref().map_or(0, |nl| nl.count())
+            + self
+                .elements
+                .as_ref()
+                .map_or(0, |e| e.in_set.iter().filter(|&&b| b).count())
+    }
+
+    fn corners<T: Copy>(&self, t: usize, x: &[T]) -> [T; 4] {
+        self.tets[t].map(|v| x[v as usize])
+    }
+
+    /// Elastic (and volume-penalty) forces at positions `x`, added to `f`; returns the
+    /// elastic + penalty energy, got on the way: ½uᵀKu = −½ u·f_linear, and the
+    /// non-linear terms sum their own.
+    pub fn add_elastic_forces(&mut self, x: &[Vec3], f: &mut [Vec3]) -> Real {
+        for ((u, x), r) in self.u.iter_mut().zip(x).zip(&self.rest) {
+            *u = *x - *r;
+        }
+        let dot = |u: &[Vec3], f: &[Vec3]| u.iter().zip(f).map(|(a, b)| a.dot(*b)).sum::<Real>();
+        let before = dot(&self.u, f);
+        self.linear.add_forces(&self.topo, &self.u, f);
+        let mut w = -0.5 * (dot(&self.u, f) - before);
+        if let Some(nl) = self.nonlinear.as_mut() {
+            w += nl.add_forces(&self.topo, &self.u, f);
+        }
+        if let Some(es) = self.elements.as_mut() {
+            if es.dirty {
+                es.list = (0..es.in_set.len() as u32)
+                    .filter(|&t| es.in_set[t as usize])
+                    .collect();
+                es.dirty = false;
+            }
+            for &t in &es.list {
+                let t = t as usize;
+                let tet = self.tets[t];
+                let u = tet.map(|v| self.u[v as usize]);
+                let (fe, we) =
+                    element::stvk_forces_energy(&self.rest_tets[t], &self.elasticity[t], &u);
+                w += we;
+                for (k, &v) in tet.iter().enumerate() {
+                    f[v as usize] += fe[k];
+                }
+            }
+        }
+        if self.volume_penalty > 0.0 {
+            for t in 0..self.tets.len() {
+                if !self.alive[t] {
+                    continue;
+                }
+                let xs = self.corners(t, x);
+                let v0 = self.rest_tets[t].volume;
+                w += element::volume_energy(&xs, v0, self.volume_penalty);
+                let fe = element::volume_forces(&xs, v0, self.volume_penalty);
+                for (k, &v) in self.tets[t].iter().enumerate() {
+                    f[v as usize] += fe[k];
+                }
+            }
+        }
+        w
+    }
+
+    /// All forces at (x, v): elastic, penalty, damping and loads, added to `f`.
+    pub fn add_forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+        let w = self.add_elastic_forces(x, f);
+        self.energy_at.clone_from_slice(x);
+        self.energy = Some(w);
+        for ((fi, vi), (m, e)) in f
+            .iter_mut()
+            .zip(v)
+            .zip(self.masses.iter().zip(&self.external))
+        {
+            *fi += *e - *vi * (self.damping * m);
+        }
+        if self.stiffness_damping > 0.0 {
+            self.kv.iter_mut().for_each(|k| *k = Vec3::ZERO);
+            self.linear.add_forces(&self.topo, v, &mut self.kv);
+            for (fi, k) in f.iter_mut().zip(&self.kv) {
+                *fi += *k * self.stiffness_damping;
+            }
+        }
+    }
+
+    /// Elastic + penalty energy at `x` minus the work of the loads: what the blow-up guard
+    /// watches. The value from the last force evaluation when `x` is where it was done (the
+    /// integrators ask right after evaluating), else per element.
+    pub fn potential_energy(&self, x: &[Vec3]) -> Real {
+        let load: Real = self
+            .external
+            .iter()
+            .zip(x)
+            .zip(&self.rest)
+            .map(|((e, x), r)| e.dot(*x - *r))
+            .sum();
+        match self.energy {
+            Some(w) if self.energy_at == x => w - load,
+            _ => self.element_energy(x) - load,
+        }
+    }
+
+    /// Elastic + penalty energy at `x`, element by element.
+    pub fn element_energy(&self, x: &[Vec3]) -> Real {
+        let mut w = 0.0;
+        for t in 0..self.tets.len() {
+            if !self.alive[t] {
+                continue;
+            }
+            let xs = self.corners(t, x);
+            let rs = self.corners(t, &self.rest);
+            let u = [xs[0] - rs[0], xs[1] - rs[1], xs[2] - rs[2], xs[3] - rs[3]];
+            let (r, el) = (&self.rest_tets[t], &self.elasticity[t]);
+            let in_nl = self.in_nonlinear_set(t);
+            w += if in_nl {
+                element::stvk_energy(r, el, &u)
+            } else {
+                element::linear_energy(r, el, &u)
+            };
+            if self.volume_penalty > 0.0 {
+                w += element::volume_energy(&xs, r.volume, self.volume_penalty);
+            }
+        }
+        w
+    }
+
+    /// The hybrid switch: tetrahedra whose Green strain norm exceeds `threshold` join the
+    /// non-linear set, those below half of it leave (the gap stops flickering). Returns how
+    /// many switched.
+    pub fn switch_hybrid(&mut self, x: &[Vec3], threshold: Real) -> usize {
+        if self.nonlinear.is_none() && self.elements.is_none() {
+            return 0;
+        }
+        let mut switched = 0;
+        for t in 0..self.tets.len() {
+            if !self.alive[t] {
+                continue;
+            }
+            let u = self.tets[t].map(|v| x[v as usize] - self.rest[v as usize]);
+            let s = element::strain_norm(&self.rest_tets[t], &u);
+            let inside = self.in_nonlinear_set(t);
+            let want = if inside {
+                s >= 0.5 * threshold
+            } else {
+                s > threshold
+            };
+            if want != inside {
+                self.set_membership(t, want);
+                switched += 1;
+            }
+        }
+        switched
+    }
+
+    /// Removes tetrahedron `t`: its tensors leave its vertices, edges and triangles, its
+    /// mass leaves its corners. O(1).
+    pub fn remove_tet(&mut self, t: usize) -> bool {
+        if !self.is_alive(t) {
+            return false;
+        }
+        // Out of the non-linear set first (the element form puts it back into the linear
+        // tensors), then out of the linear tensors.
+        self.set_membership(t, false);
+        let tet = self.tets[t];
+        let (r, el) = (self.rest_tets[t], self.elasticity[t]);
+        self.linear
+            .update_tet(&self.topo, t, &tet, &tet_blocks(&r, &el), false);
+        for &v in &tet {
+            self.node_tets[v as usize] = self.node_tets[v as usize].saturating_sub(1);
+        }
+        let quarter = 0.25 * self.density * r.volume;
+        for &v in &tet {
+            let v = v as usize;
+            if !self.is_attached(v) {
+                // Detached: it keeps a mass so that the integrator can hold it still.
+                self.masses[v] = self.built_masses[v];
+                self.external[v] = Vec3::ZERO;
+            } else {
+                let old = self.masses[v];
+                // Floored at half the built mass: a node left on a thin sliver would
+                // otherwise get a tiny mass and a stable time step far below the built one.
+                self.masses[v] = (old - quarter).max(0.5 * self.built_masses[v]);
+                self.external[v] -= self.gravity * (old - self.masses[v]);
+            }
+        }
+        self.alive[t] = false;
+        self.alive_count -= 1;
+        self.energy = None;
+        true
+    }
+
+    /// Estimated bytes one explicit step moves to and from memory: every tensor read once
+    /// (vertex and edge tensors; the non-linear set's tensors and scratch) plus about 36
+    /// passes over per-node 3-vectors (state copies, forces, displacements, the shared
+    /// integrator's bookkeeping) and 4 over per-node scalars. A model, not a measurement.
+    pub fn step_traffic_bytes(&self) -> usize {
+        let n = self.node_count();
+        let linear = n * 72 + self.topo.edges.len() * (72 + 8);
+        let nonlinear = self
+            .nonlinear
+            .as_ref()
+            .map_or(0, |nl| nl.step_traffic_bytes())
+            + self
+                .elements
+                .as_ref()
+                .map_or(0, |e| e.list.len() * (4 + 16 + 104 + 4 * 24 * 2));
+        linear + nonlinear + n * (36 * 24 + 4 * 8)
+    }
+
+    /// Sets the loads: gravity as the lumped share m g, plus point forces per node.
+    pub fn set_node_loads(&mut self, gravity: Vec3, forces: &[(usize, Vec3)]) {
+        self.gravity = gravity;
+        self.energy = None;
+        for (n, e) in self.external.iter_mut().enumerate() {
+            *e = if self.node_tets[n] > 0 {
+                gravity * self.masses[n]
+            } else {
+                Vec3::ZERO
+            };
+        }
+        for &(n, f) in forces {
+            if let Some(e) = self.external.get_mut(n) {
+                *e += f;
+            }
+        }
+    }
+}
+
+impl ParticleSystem for TensorSystem {
+    fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+
+    fn forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+        self.add_forces(x, v, f);
+    }
+
+    fn potential_energy(&self, x: &[Vec3]) -> Option<Real> {
+        Some(TensorSystem::potential_energy(self, x))
+    }
+
+    fn prepare_jacobians(&mut self, x: &[Vec3], _v: &[Vec3]) -> Result<(), SimError> {
+        for ((u, x), r) in self.jacobian_u.iter_mut().zip(x).zip(&self.rest) {
+            *u = *x - *r;
+        }
+        Ok(())
+    }
+
+    /// K dx: the linear tensors, corrected to the St Venant–Kirchhoff tangent on the
+    /// tetrahedra of the non-linear set, plus the Gauss–Newton part of the volume penalty.
+    fn stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
+        out.fill(Vec3::ZERO);
+        self.linear.add_forces(&self.topo, dx, out);
+        out.iter_mut().for_each(|o| *o = -*o);
+        for t in 0..self.tets.len() {
+            if !self.alive[t] {
+                continue;
+            }
+            let (r, el) = (&self.rest_tets[t], &self.elasticity[t]);
+            let d = self.corners(t, dx);
+            let mut add = [Vec3::ZERO; 4];
+            let mut any = false;
+            if self.in_nonlinear_set(t) {
+                let u = self.corners(t, &self.jacobian_u);
+                let k = element::stvk_tangent_product(r, el, &u, &d);
+                let k0 = element::stvk_tangent_product(r, el, &[Vec3::ZERO; 4], &d);
+                for a in 0..4 {
+                    add[a] += k[a] - k0[a];
+                }
+                any = true;
+            }
+            if self.volume_penalty > 0.0 {
+                let x = self.corners(t, &self.rest);
+                let u = self.corners(t, &self.jacobian_u);
+                let g =
+                    element::volume_gradient(&[x[0] + u[0], x[1] + u[1], x[2] + u[2], x[3] + u[3]]);
+                let s =
+                    self.volume_penalty / r.volume * (0..4).map(|a| g[a].dot(d[a])).sum::<Real>();
+                for a in 0..4 {
+                    add[a] += g[a] * s;
+                }
+                any = true;
+            }
+            if any {
+                for (a, &v) in self.tets[t].iter().enumerate() {
+                    out[v as usize] += add[a];
+                }
+            }
+        }
+    }
+
+    fn damping_product(&self, dv: &[Vec3], out: &mut [Vec3]) {
+        out.fill(Vec3::ZERO);
+        if self.stiffness_damping > 0.0 {
+            self.linear.add_forces(&self.topo, dv, out);
+            out.iter_mut().for_each(|o| *o *= -self.stiffness_damping);
+        }
+        for ((o, d), m) in out.iter_mut().zip(dv).zip(&self.masses) {
+            *o += *d * (self.damping * m);
+        }
+    }
+
+    fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
+        for (((s, d), k), m) in stiffness
+            .iter_mut()
+            .zip(damping.iter_mut())
+            .zip(self.linear.diagonal())
+            .zip(&self.masses)
+        {
+            *s = k;
+            *d = k * self.stiffness_damping + Vec3::splat(self.damping * m);
+        }
+    }
+}

@@ -1,0 +1,328 @@
+//! Tests of the tensor-mass family: the linear tensors against the assembled FEM stiffness,
+//! the St Venant–Kirchhoff tensor form against the per-element force, rigid rotations.
+
+use glam::DQuat;
+
+use super::element::{stvk_forces, stvk_tangent_product};
+use super::*;
+use crate::math::flatten;
+use crate::mesh::generate::{BoxSplit, box_tets};
+use crate::model::fem::Assembler;
+use crate::model::fem::element_linear;
+
+pub(super) const LIVER: &str =
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
+
+pub(super) fn liver() -> TetMesh {
+    let m = crate::io::read(LIVER)
+        .unwrap()
+        .tet_mesh("liver.msh")
+        .unwrap();
+    TetMesh::new(m.vertices.iter().map(|v| *v * 0.01).collect(), m.tets)
+}
+
+pub(super) fn material() -> Material {
+    Material::new(3000.0, 0.45).unwrap()
+}
+
+pub(super) fn random_field(n: usize, seed: u64, scale: Real) -> Vec<Vec3> {
+    let mut s = seed;
+    let mut r = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((s >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0
+    };
+    (0..n).map(|_| Vec3::new(r(), r(), r()) * scale).collect()
+}
+
+pub(super) fn max_norm(f: &[Vec3]) -> Real {
+    f.iter().fold(0.0, |m, v| m.max(v.length()))
+}
+
+pub(super) fn max_diff(a: &[Vec3], b: &[Vec3]) -> Real {
+    a.iter()
+        .zip(b)
+        .fold(0.0, |m, (x, y)| m.max((*x - *y).length()))
+}
+
+fn elastic(s: &mut TensorSystem, x: &[Vec3]) -> Vec<Vec3> {
+    let mut f = vec![Vec3::ZERO; x.len()];
+    s.add_elastic_forces(x, &mut f);
+    f
+}
+
+/// −K u with K assembled by the FEM `Assembler` from the 4-node element stiffness.
+fn fem_force(mesh: &TetMesh, m: &Material, u: &[Vec3]) -> Vec<Vec3> {
+    let flat: Vec<u32> = mesh.tets.iter().flatten().copied().collect();
+    let asm = Assembler::new(mesh.vertices.len(), flat, 4).unwrap();
+    let k = asm
+        .assemble(|e, ke| {
+            let Some(k) = element_linear::stiffness(&mesh.corners(e), m) else {
+                return false;
+            };
+            for (i, row) in k.iter().enumerate() {
+                ke[12 * i..12 * i + 12].copy_from_slice(row);
+            }
+            true
+        })
+        .unwrap();
+    let mut y = vec![0.0; 3 * u.len()];
+    asm.pattern.mul_vec(&k, flatten(u), &mut y);
+    y.chunks_exact(3)
+        .map(|c| -Vec3::new(c[0], c[1], c[2]))
+        .collect()
+}
+
+/// The per-element StVK force summed over the (alive) tetrahedra.
+fn element_force(s: &TensorSystem, x: &[Vec3]) -> Vec<Vec3> {
+    let mut f = vec![Vec3::ZERO; x.len()];
+    for (t, tet) in s.tets.iter().enumerate() {
+        if !s.is_alive(t) {
+            continue;
+        }
+        let u = tet.map(|v| x[v as usize] - s.rest[v as usize]);
+        let fe = stvk_forces(&s.rest_tets[t], &s.elasticity[t], &u);
+        for (k, &v) in tet.iter().enumerate() {
+            f[v as usize] += fe[k];
+        }
+    }
+    f
+}
+
+fn displaced(rest: &[Vec3], u: &[Vec3]) -> Vec<Vec3> {
+    rest.iter().zip(u).map(|(a, b)| *a + *b).collect()
+}
+
+#[test]
+fn linear_tensor_forces_equal_assembled_fem_k_u() {
+    for (name, mesh) in [
+        ("liver", liver()),
+        (
+            "box",
+            box_tets(
+                Vec3::ZERO,
+                Vec3::new(0.1, 0.05, 0.04),
+                [5, 3, 2],
+                BoxSplit::Five,
+            ),
+        ),
+    ] {
+        let (mesh, mut s) =
+            build_system(&mesh, material(), &TensorMassParams::default(), false).unwrap();
+        let u = random_field(mesh.vertices.len(), 3, 0.003);
+        let f = elastic(&mut s, &displaced(&mesh.vertices, &u));
+        let k = fem_force(&mesh, &material(), &u);
+        let rel = max_diff(&f, &k) / max_norm(&k);
+        eprintln!("{name}: linear tensor-mass vs FEM K u: relative {rel:.2e}");
+        assert!(rel < 1e-10, "{name}: {rel}");
+    }
+}
+
+#[test]
+fn stvk_tensor_form_equals_per_element_stvk() {
+    let fibre = TensorMassParams {
+        fibre: Some([0.3, 1.0, -0.2]),
+        fibre_lambda: 4000.0,
+        fibre_mu: 1500.0,
+        ..Default::default()
+    };
+    for (name, params) in [("isotropic", TensorMassParams::default()), ("fibre", fibre)] {
+        let (mesh, mut s) = build_system(&liver(), material(), &params, true).unwrap();
+        // Large displacements: ~30% of the liver's 7 cm scale.
+        for (seed, scale) in [(1, 1e-4), (2, 0.02)] {
+            let u = random_field(mesh.vertices.len(), seed, scale);
+            let x = displaced(&mesh.vertices, &u);
+            let f = elastic(&mut s, &x);
+            let e = element_force(&s, &x);
+            let rel = max_diff(&f, &e) / max_norm(&e);
+            eprintln!("{name}, |u| ~ {scale}: tensor StVK vs element StVK: relative {rel:.2e}");
+            assert!(rel < 1e-10, "{name} {scale}: {rel}");
+        }
+    }
+}
+
+#[test]
+fn rigid_rotation_non_linear_gives_no_force_linear_does() {
+    let params = TensorMassParams::default();
+    let (mesh, mut lin) = build_system(&liver(), material(), &params, false).unwrap();
+    let (_, mut nl) = build_system(&liver(), material(), &params, true).unwrap();
+    let rest = mesh.vertices.clone();
+    // Scale: the force of a 1 % stretch.
+    let stretch: Vec<Vec3> = rest.iter().map(|x| *x * 1.01).collect();
+    let reference = max_norm(&elastic(&mut lin, &stretch));
+    let q = DQuat::from_axis_angle(Vec3::Z, std::f64::consts::FRAC_PI_2);
+    let c = rest.iter().copied().sum::<Vec3>() / rest.len() as Real;
+    let x: Vec<Vec3> = rest.iter().map(|p| c + q * (*p - c)).collect();
+    let fl = max_norm(&elastic(&mut lin, &x)) / reference;
+    let fnl = max_norm(&elastic(&mut nl, &x)) / reference;
+    eprintln!("90 deg rotation: |f| / |f of a 1% stretch|: linear {fl:.3}, StVK {fnl:.2e}");
+    assert!(fnl < 1e-9, "{fnl}");
+    assert!(fl > 10.0, "{fl}");
+}
+
+#[test]
+fn tangent_product_matches_finite_differences() {
+    let (mesh, s) = build_system(&liver(), material(), &TensorMassParams::default(), true).unwrap();
+    let t = 17;
+    let tet = mesh.tets[t];
+    let u0 = random_field(4, 5, 0.01);
+    let u = [u0[0], u0[1], u0[2], u0[3]];
+    let d0 = random_field(4, 6, 1.0);
+    let d = [d0[0], d0[1], d0[2], d0[3]];
+    let (r, el) = (&s.rest_tets[t], &s.elasticity[t]);
+    let h = 1e-7;
+    let plus = stvk_forces(r, el, &[0, 1, 2, 3].map(|k| u[k] + d[k] * h));
+    let minus = stvk_forces(r, el, &[0, 1, 2, 3].map(|k| u[k] - d[k] * h));
+    let k = stvk_tangent_product(r, el, &u, &d);
+    let fd: Vec<Vec3> = (0..4).map(|a| -(plus[a] - minus[a]) / (2.0 * h)).collect();
+    let rel = max_diff(&k, &fd) / max_norm(&fd);
+    assert!(rel < 1e-6, "{rel} (tet {tet:?})");
+}
+
+/// −Σ_e K_e u over the alive tetrahedra, per element (the tangent at u = 0 is K_e).
+fn element_linear_force(s: &TensorSystem, x: &[Vec3]) -> Vec<Vec3> {
+    let mut f = vec![Vec3::ZERO; x.len()];
+    for (t, tet) in s.tets.iter().enumerate() {
+        if !s.is_alive(t) {
+            continue;
+        }
+        let u = tet.map(|v| x[v as usize] - s.rest[v as usize]);
+        let fe = stvk_tangent_product(&s.rest_tets[t], &s.elasticity[t], &[Vec3::ZERO; 4], &u);
+        for (k, &v) in tet.iter().enumerate() {
+            f[v as usize] -= fe[k];
+        }
+    }
+    f
+}
+
+#[test]
+fn local_removal_equals_the_forces_of_the_remaining_tetrahedra() {
+    let params = TensorMassParams {
+        fibre: Some([1.0, 0.0, 0.0]),
+        fibre_lambda: 2000.0,
+        ..Default::default()
+    };
+    for nonlinear in [false, true] {
+        let (mesh, mut s) = build_system(&liver(), material(), &params, nonlinear).unwrap();
+        // Every third tetrahedron, then some twice (a no-op).
+        for t in (0..mesh.tets.len()).step_by(3).chain([0, 3]) {
+            s.remove_tet(t);
+        }
+        assert_eq!(
+            s.alive_count(),
+            mesh.tets.len() - mesh.tets.len().div_ceil(3)
+        );
+        let u = random_field(mesh.vertices.len(), 9, 0.01);
+        let x = displaced(&mesh.vertices, &u);
+        let f = elastic(&mut s, &x);
+        let e = if nonlinear {
+            element_force(&s, &x)
+        } else {
+            element_linear_force(&s, &x)
+        };
+        let rel = max_diff(&f, &e) / max_norm(&e);
+        assert!(rel < 1e-10, "nonlinear {nonlinear}: {rel}");
+        // The lumped masses follow (a quarter of ρV per remaining corner), floored at half
+        // the built mass.
+        let built = crate::model::fem::mass::lumped_masses(&mesh, 1000.0);
+        let mut left = vec![0.0; built.len()];
+        for t in (0..mesh.tets.len()).filter(|&t| s.is_alive(t)) {
+            for &v in &mesh.tets[t] {
+                left[v as usize] += 0.25 * 1000.0 * s.rest_tets[t].volume;
+            }
+        }
+        for n in (0..built.len()).filter(|&n| s.is_attached(n)) {
+            let want = left[n].max(0.5 * built[n]);
+            assert!((s.masses[n] - want).abs() < 1e-12 * built[n], "node {n}");
+        }
+    }
+}
+
+#[test]
+fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
+    let (mesh, mut s) =
+        build_system(&liver(), material(), &TensorMassParams::default(), true).unwrap();
+    // A displacement that strains one end of the liver only.
+    let c = mesh.vertices.iter().copied().sum::<Vec3>() / mesh.vertices.len() as Real;
+    let x: Vec<Vec3> = mesh
+        .vertices
+        .iter()
+        .map(|p| {
+            let d = *p - c;
+            if d.x > 0.0 {
+                *p + Vec3::new(0.3 * d.x, 0.0, 0.3 * d.x * d.y / 0.05)
+            } else {
+                *p
+            }
+        })
+        .collect();
+    s.switch_hybrid(&mesh.vertices, Real::INFINITY);
+    assert_eq!(s.nonlinear_count(), 0);
+    s.switch_hybrid(&x, 0.05);
+    let n = s.nonlinear_count();
+    eprintln!("hybrid: {n} of {} tetrahedra non-linear", mesh.tets.len());
+    assert!(n > 0 && n < mesh.tets.len(), "{n}");
+    let f = elastic(&mut s, &x);
+    let mut e = vec![Vec3::ZERO; x.len()];
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        let u = tet.map(|v| x[v as usize] - mesh.vertices[v as usize]);
+        let (r, el) = (&s.rest_tets[t], &s.elasticity[t]);
+        let fe = if s.nonlinear.as_ref().unwrap().contains(t) {
+            stvk_forces(r, el, &u)
+        } else {
+            stvk_tangent_product(r, el, &[Vec3::ZERO; 4], &u).map(|v| -v)
+        };
+        for (k, &v) in tet.iter().enumerate() {
+            e[v as usize] += fe[k];
+        }
+    }
+    let rel = max_diff(&f, &e) / max_norm(&e);
+    assert!(rel < 1e-10, "{rel}");
+    // Energies: tensor-side (from the force pass) and element-side agree.
+    let mut g = vec![Vec3::ZERO; x.len()];
+    let w = s.add_elastic_forces(&x, &mut g);
+    let we = s.element_energy(&x);
+    assert!((w - we).abs() < 1e-10 * we.abs(), "{w} vs {we}");
+}
+
+#[test]
+fn element_form_equals_tensor_form_with_hybrid_and_removal() {
+    let base = TensorMassParams {
+        volume_penalty: 500.0,
+        ..Default::default()
+    };
+    let elements = TensorMassParams {
+        form: NonlinearForm::Elements,
+        ..base.clone()
+    };
+    let (mesh, mut a) = build_system(&liver(), material(), &base, true).unwrap();
+    let (_, mut b) = build_system(&liver(), material(), &elements, true).unwrap();
+    let c = mesh.vertices.iter().copied().sum::<Vec3>() / mesh.vertices.len() as Real;
+    let u = random_field(mesh.vertices.len(), 21, 1e-4);
+    let x: Vec<Vec3> = mesh
+        .vertices
+        .iter()
+        .zip(&u)
+        .map(|(p, r)| {
+            let d = *p - c;
+            *p + *r + Vec3::new(0.3 * d.x.max(0.0), 0.0, 0.3 * d.x.max(0.0) * d.y / 0.05)
+        })
+        .collect();
+    for s in [&mut a, &mut b] {
+        s.switch_hybrid(&x, 0.05);
+        for t in (0..mesh.tets.len()).step_by(7) {
+            s.remove_tet(t);
+        }
+    }
+    let n = a.nonlinear_count();
+    assert_eq!(n, b.nonlinear_count());
+    assert!(n > 0 && n < a.alive_count(), "{n}");
+    let (mut fa, mut fb) = (vec![Vec3::ZERO; x.len()], vec![Vec3::ZERO; x.len()]);
+    let wa = a.add_elastic_forces(&x, &mut fa);
+    let wb = b.add_elastic_forces(&x, &mut fb);
+    let rel = max_diff(&fa, &fb) / max_norm(&fa);
+    assert!(rel < 1e-10, "{rel}");
+    assert!((wa - wb).abs() < 1e-10 * wa.abs(), "{wa} {wb}");
+    assert!((wb - b.element_energy(&x)).abs() < 1e-10 * wb.abs());
+}
