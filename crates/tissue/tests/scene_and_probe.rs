@@ -609,3 +609,27 @@ fn wound_scene_takes_fixed_vertices_from_the_file() {
     assert_eq!(sim.fixed().len(), 79);
     sim.step(s.run.dt).unwrap();
 }
+
+/// Every scene shipped in `scenes/` parses, names a built-in kind and a mesh that exists:
+/// a renamed key or kind breaks this before it breaks a user.
+#[test]
+fn every_shipped_scene_loads_and_names_a_built_in_kind() {
+    let dir = repo("scenes");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+            continue;
+        }
+        let s = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert!(
+            tissue::model::KINDS.iter().any(|k| k.name == s.model_kind),
+            "{}: unknown kind {}",
+            path.display(),
+            s.model_kind
+        );
+        assert!(s.mesh_path().is_file(), "{}: no mesh", path.display());
+        checked += 1;
+    }
+    assert!(checked >= 19, "only {checked} scenes");
+}
