@@ -17,6 +17,31 @@ impl TetMesh {
         Self { vertices, tets }
     }
 
+    /// The mesh without the vertices no tetrahedron uses (a vertex without stiffness or mass
+    /// makes a model singular), the others kept in their order. Tet indices must be in range
+    /// (`validate_for_simulation` checks that).
+    pub fn compacted(&self) -> TetMesh {
+        let mut map = vec![u32::MAX; self.vertices.len()];
+        for &v in self.tets.iter().flatten() {
+            if let Some(m) = map.get_mut(v as usize) {
+                *m = 0;
+            }
+        }
+        let mut vertices = Vec::new();
+        for (v, slot) in map.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = vertices.len() as u32;
+                vertices.push(self.vertices[v]);
+            }
+        }
+        let tets = self
+            .tets
+            .iter()
+            .map(|t| t.map(|v| map.get(v as usize).copied().unwrap_or(u32::MAX)))
+            .collect();
+        TetMesh::new(vertices, tets)
+    }
+
     /// Checks indices, repeated corners and coordinates.
     pub fn validate_indices(&self) -> Result<(), MeshError> {
         validate_vertices(&self.vertices)?;
@@ -80,5 +105,27 @@ impl TetMesh {
 
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         bounds_of(&self.vertices)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compacting_drops_unused_vertices_and_keeps_the_geometry() {
+        let v = vec![
+            Vec3::ZERO,
+            Vec3::splat(9.0),
+            Vec3::X,
+            Vec3::Y,
+            Vec3::splat(-9.0),
+            Vec3::Z,
+        ];
+        let mesh = TetMesh::new(v, vec![[0, 2, 3, 5]]);
+        let c = mesh.compacted();
+        assert_eq!(c.vertices, vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z]);
+        assert_eq!(c.tets, vec![[0, 1, 2, 3]]);
+        assert!((c.volume() - 1.0 / 6.0).abs() < 1e-15);
     }
 }

@@ -131,7 +131,7 @@ impl FemStatic {
         let material = material.validated()?;
         mesh.validate_for_simulation()?;
         let start = Instant::now();
-        let mesh = compact(mesh);
+        let mesh = mesh.compacted();
         let quadratic = (order == Order::Quadratic).then(|| QuadraticMesh::from_linear(&mesh));
         let (rest, elements, m) = match &quadratic {
             None => (mesh.vertices.clone(), mesh.tets.concat(), 4),
@@ -341,30 +341,6 @@ impl FemStatic {
             .map(|&n| n as usize)
             .ok_or_else(|| self.bad_vertex(vertex))
     }
-}
-
-/// Keeps only the vertices that some tetrahedron uses (a vertex without stiffness would make
-/// K singular), in their original order.
-pub(super) fn compact(mesh: &TetMesh) -> TetMesh {
-    let mut map = vec![u32::MAX; mesh.vertices.len()];
-    for t in &mesh.tets {
-        for &v in t {
-            map[v as usize] = 0;
-        }
-    }
-    let mut vertices = Vec::new();
-    for (v, slot) in map.iter_mut().enumerate() {
-        if *slot == 0 {
-            *slot = vertices.len() as u32;
-            vertices.push(mesh.vertices[v]);
-        }
-    }
-    let tets = mesh
-        .tets
-        .iter()
-        .map(|t| t.map(|v| map[v as usize]))
-        .collect();
-    TetMesh::new(vertices, tets)
 }
 
 /// The mid-edge nodes of the boundary triangles' edges, each once.

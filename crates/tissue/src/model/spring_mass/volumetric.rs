@@ -32,7 +32,7 @@ pub(crate) fn build(
     params: SpringParams,
 ) -> Result<SpringModel, Error> {
     mesh.validate_for_simulation()?;
-    let mesh = compact(mesh);
+    let mesh = mesh.compacted();
     let (network, masses) = tet_parts(&mesh.vertices, &mesh.tets, &material, &params)?;
     let boundary = boundary_surface(&mesh);
     let triangles = boundary.surface.triangles.clone();
@@ -147,27 +147,4 @@ pub(crate) fn tet_parts(
         )));
     }
     Ok((network, masses))
-}
-
-/// Drops vertices no tetrahedron uses, keeping the order of the others.
-fn compact(mesh: &TetMesh) -> TetMesh {
-    let mut map = vec![u32::MAX; mesh.vertices.len()];
-    for t in &mesh.tets {
-        for &v in t {
-            map[v as usize] = 0;
-        }
-    }
-    let mut vertices = Vec::new();
-    for (v, slot) in map.iter_mut().enumerate() {
-        if *slot == 0 {
-            *slot = vertices.len() as u32;
-            vertices.push(mesh.vertices[v]);
-        }
-    }
-    let tets = mesh
-        .tets
-        .iter()
-        .map(|t| t.map(|v| map[v as usize]))
-        .collect();
-    TetMesh::new(vertices, tets)
 }

@@ -133,28 +133,6 @@ impl TensorMassParams {
     }
 }
 
-/// Drops vertices no tetrahedron uses (they would have no mass), keeping the order of the
-/// others, so that a mesh without unused vertices keeps its numbering.
-fn compact(mesh: &TetMesh) -> TetMesh {
-    let mut map = vec![u32::MAX; mesh.vertices.len()];
-    for &v in mesh.tets.iter().flatten() {
-        map[v as usize] = 0;
-    }
-    let mut vertices = Vec::new();
-    for (v, slot) in map.iter_mut().enumerate() {
-        if *slot == 0 {
-            *slot = vertices.len() as u32;
-            vertices.push(mesh.vertices[v]);
-        }
-    }
-    let tets = mesh
-        .tets
-        .iter()
-        .map(|t| t.map(|v| map[v as usize]))
-        .collect();
-    TetMesh::new(vertices, tets)
-}
-
 /// Validates the mesh, material and settings and builds the system (all tetrahedra in the
 /// non-linear set when `nonlinear`, before any hybrid switch).
 pub fn build_system(
@@ -166,7 +144,7 @@ pub fn build_system(
     let material = material.validated()?;
     let params = params.clone().validated()?;
     mesh.validate_for_simulation()?;
-    let mesh = compact(mesh);
+    let mesh = mesh.compacted();
     let mut rest = Vec::with_capacity(mesh.tets.len());
     for t in 0..mesh.tets.len() {
         rest.push(

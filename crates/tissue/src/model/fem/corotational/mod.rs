@@ -166,7 +166,7 @@ impl FemCorotational {
         }
         mesh.validate_for_simulation()?;
         let start = Instant::now();
-        let mesh = super::static_model::compact(mesh);
+        let mesh = mesh.compacted();
         let mut elements = Vec::with_capacity(mesh.tets.len());
         for (t, tet) in mesh.tets.iter().enumerate() {
             let e = ElementRest::new(*tet, &mesh.corners(t)).ok_or(

@@ -17,7 +17,6 @@ use crate::model::ConstraintReactions;
 use super::super::assembly::Assembler;
 use super::super::element_linear;
 use super::super::mass::lumped_masses;
-use super::super::static_model::compact;
 use super::super::system::DofProblem;
 pub(super) use super::forward::forward_deformable;
 
@@ -68,7 +67,7 @@ impl Core {
         let material = material.validated()?;
         mesh.validate_for_simulation()?;
         let start = Instant::now();
-        let mesh = compact(mesh);
+        let mesh = mesh.compacted();
         let rest = mesh.vertices.clone();
         let assembler = Assembler::new(rest.len(), mesh.tets.concat(), 4)?;
         let k = assembler.assemble(|e, ke| {
