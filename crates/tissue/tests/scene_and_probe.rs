@@ -633,3 +633,30 @@ fn every_shipped_scene_loads_and_names_a_built_in_kind() {
     }
     assert!(checked >= 19, "only {checked} scenes");
 }
+
+/// The demo scene with every built-in kind swapped in (the viewer's model menu does this):
+/// each builds on the liver, takes its fixed file vertices, and steps with the probe; only a
+/// kind that cannot represent a closed organ may refuse, naming why.
+#[test]
+fn every_kind_runs_the_liver_probe_scene_or_says_why_not() {
+    let base = Scene::load(repo("scenes/liver-probe.toml")).unwrap();
+    for kind in tissue::model::KINDS {
+        let mut s = base.clone();
+        s.model_kind = kind.name.to_string();
+        s.model_params = Default::default();
+        match s.build() {
+            Ok(mut sim) => {
+                assert_eq!(sim.fixed().len(), 3, "{}", kind.name);
+                for _ in 0..3 {
+                    sim.step(1e-4)
+                        .unwrap_or_else(|e| panic!("{}: {e}", kind.name));
+                }
+            }
+            Err(e) => assert!(
+                kind.name == "spline" && e.to_string().contains("genus 0"),
+                "{}: {e}",
+                kind.name
+            ),
+        }
+    }
+}

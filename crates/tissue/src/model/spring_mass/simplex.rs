@@ -282,7 +282,7 @@ pub(crate) fn build(
         );
     }
     let triangles = s.triangles.clone();
-    Ok(SpringModel::assemble(
+    let mut model = SpringModel::assemble(
         Kind::Simplex,
         material,
         params,
@@ -291,7 +291,11 @@ pub(crate) fn build(
         SurfaceLink::Dual(simplex),
         triangles,
         Vec::new(),
-    ))
+    );
+    // The rebuilt vertices equal the file's at rest only to rounding; scenes find file
+    // vertices on the surface by exact position, and displacements are measured from here.
+    model.surface_rest.clone_from(&s.vertices);
+    Ok(model)
 }
 
 #[cfg(test)]
