@@ -660,3 +660,30 @@ fn every_kind_runs_the_liver_probe_scene_or_says_why_not() {
         }
     }
 }
+
+/// A probe that has slipped between the coarse liver's vertices and then backs off a little
+/// must still be pushed away by the tissue, never held from behind (the force once flipped
+/// to −0.027 N here and stayed flipped).
+#[test]
+fn backing_off_after_a_deep_press_keeps_the_force_pushing_the_probe_out() {
+    let s = Scene::load(repo("scenes/liver-probe.toml")).unwrap();
+    let mut sim = s.build().unwrap();
+    let deep = Vec3::new(-0.005, 0.0485, 0.0067);
+    let above = deep + Vec3::new(0.0, 0.012, 0.0);
+    for k in 0..=24 {
+        let p = above + (deep - above) * (k as Real / 24.0);
+        sim.set_instrument_position(0, Some(p)).unwrap();
+        sim.step(0.01).unwrap();
+    }
+    for d in [
+        Vec3::new(0.0, 2e-4, 0.0),
+        Vec3::new(2e-4, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, 2e-4),
+        Vec3::ZERO,
+    ] {
+        sim.set_instrument_position(0, Some(deep + d)).unwrap();
+        let r = sim.step(0.01).unwrap();
+        assert!(r.forces[0].y > 0.0, "{d}: force {}", r.forces[0]);
+        assert_no_penetration_nor_adhesion(&sim);
+    }
+}

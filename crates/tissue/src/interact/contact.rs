@@ -63,19 +63,34 @@ pub fn vertices_in_ball(
         .into_iter()
         .map(|v| {
             let p = positions[v as usize];
-            // Only a vertex sitting on the center needs its normal; its triangles are all
-            // among the candidates because it lies inside the query box.
-            let normal = if p.distance(center) > 1e-300 {
-                Vec3::ZERO
-            } else {
-                vertex_normal(v, &candidates, positions, triangles)
-            };
+            // Its triangles are all among the candidates: the vertex lies inside the query box.
+            let normal = vertex_normal(v, &candidates, positions, triangles);
             Contact {
                 vertex: v,
-                target: project_to_sphere(p, center, radius, normal),
+                target: push_out(p, center, radius, normal),
             }
         })
         .collect()
+}
+
+/// Where a vertex inside the ball goes. Radially out while the tool is on the outer side of
+/// the surface; but when the centre has gone past the vertex (a coarse surface lets the ball
+/// slip between vertices, or a vertex springs back behind it), radial projection would put
+/// the vertex on the far side of the ball and the tissue would hold the tool from behind.
+/// Then the vertex is pushed inward along its normal to the ball's inner side instead.
+fn push_out(p: Vec3, center: Vec3, radius: Real, normal: Vec3) -> Vec3 {
+    let n = normal.normalize_or_zero();
+    let d = p - center;
+    let along = d.dot(n);
+    if n == Vec3::ZERO || along <= 0.0 {
+        return project_to_sphere(p, center, radius, normal);
+    }
+    // p − t·n on the sphere, the far root: t = d·n + sqrt((d·n)² − |d|² + r²).
+    let t = along
+        + (along * along - d.length_squared() + radius * radius)
+            .max(0.0)
+            .sqrt();
+    p - t * n
 }
 
 /// Area-weighted normal of vertex `v` from the listed triangles that use it.
@@ -102,6 +117,22 @@ pub fn is_adhesive(reaction: Vec3, target: Vec3, center: Vec3, scale: Real) -> b
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_vertex_behind_the_centre_goes_to_the_inner_side() {
+        // Surface normal +y; the ball's centre is 2 mm below the vertex (it went through).
+        let (c, r) = (Vec3::ZERO, 0.005);
+        let p = Vec3::new(0.001, 0.002, 0.0);
+        let q = push_out(p, c, r, Vec3::Y);
+        assert!((q.distance(c) - r).abs() < 1e-15);
+        assert!(q.y < 0.0 && (q.x - p.x).abs() < 1e-18, "{q}");
+        // In front of the centre: plain radial projection.
+        let p = Vec3::new(0.001, -0.002, 0.0);
+        assert_eq!(
+            push_out(p, c, r, Vec3::Y),
+            project_to_sphere(p, c, r, Vec3::Y)
+        );
+    }
 
     #[test]
     fn projection_lands_on_the_sphere() {
