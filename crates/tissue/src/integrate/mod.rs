@@ -184,6 +184,8 @@ struct EndOfStep {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Workspace {
     pub inv_mass: Vec<Real>,
+    /// Which particles a hold moves this step.
+    pub held: Vec<bool>,
     pub x0: Vec<Vec3>,
     pub v0: Vec<Vec3>,
     pub f0: Vec<Vec3>,
@@ -214,6 +216,8 @@ impl Workspace {
             buf.resize(n, Vec3::ZERO);
         }
         self.inv_mass.resize(n, 0.0);
+        self.held.clear();
+        self.held.resize(n, false);
     }
 }
 
@@ -357,14 +361,10 @@ impl Integrator {
                 });
             }
             w.inv_mass[h.particle] = 0.0;
+            w.held[h.particle] = true;
             w.v0[h.particle] = (h.target - w.x0[h.particle]) / dt;
         }
-        let held: Vec<bool> = {
-            let mut held = vec![false; n];
-            holds.iter().for_each(|h| held[h.particle] = true);
-            held
-        };
-        if let Some(i) = (0..n).find(|&i| !held[i] && w.inv_mass[i] == 0.0) {
+        if let Some(i) = (0..n).find(|&i| !w.held[i] && w.inv_mass[i] == 0.0) {
             return Err(SimError::BadParameter {
                 name: "mass",
                 value: format!("particle {i}: {}", masses[i]),
