@@ -126,12 +126,18 @@ fn bench(c: &mut Criterion<ThreadCpuTime>) {
         }
     }
     group.finish();
-    table();
+    // `--profile-time` (perf record on one benchmark): the table would pollute the profile.
+    if !std::env::args().any(|a| a == "--profile-time") {
+        table();
+    }
 }
 
 fn table() {
     let bw = copy_bandwidth();
-    println!("\nSTREAM-like copy: {:.2} GB/s (one core, CPU time)", bw / 1e9);
+    println!(
+        "\nSTREAM-like copy: {:.2} GB/s (one core, CPU time)",
+        bw / 1e9
+    );
     println!(
         "{:>8} {:>8} {:>12} {:>10} {:>10} {:>10} {:>10} {:>10}",
         "tets", "kind", "cpu µs/step", "steps/s", "kB/step", "GB/s", "of copy", "nl/lin"

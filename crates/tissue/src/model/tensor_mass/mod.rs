@@ -2,8 +2,11 @@
 //! `tensor-mass-nonlinear` (Picinbono et al. 2000/2003, St Venant–Kirchhoff), survey §2.4.
 //!
 //! Masses are lumped on the vertices of a tetrahedral mesh; the elastic forces come from
-//! stiffness tensors stored on the mesh's vertices and edges (and, for the non-linear kind,
-//! triangles and tetrahedra), each a sum over the tetrahedra that share it. The forces are
+//! stiffness tensors stored on the mesh's vertices and edges, each a sum over the
+//! tetrahedra that share it. The non-linear kind computes its St Venant–Kirchhoff terms per
+//! element by default (`form = "elements"`, a packed vectorised kernel), or from
+//! Picinbono's tensors on vertices, edges, triangles and tetrahedra (`form = "tensors"`;
+//! same forces to rounding, about 3× the cost). The forces are
 //! those of linear FEM (`tensor-mass`, checked against the assembled K·u) or of St
 //! Venant–Kirchhoff (checked against a per-element computation), so the non-linear kind is
 //! invariant under rigid rotations where the linear one inflates. Time integration is the
@@ -15,6 +18,8 @@
 //! - `tensors`: edges, the vertex and edge tensors, their local update (Cotin)
 //! - `stvk`: the non-linear tensors on vertices, edges, triangles, tetrahedra (Picinbono)
 //! - `element`: plain per-element StVK (cross-check, energy, tangent), volume penalty
+//! - `kernel`: the element form's StVK force + energy pass, packed 4 tetrahedra per block,
+//!   AVX2 when the CPU has it (scalar otherwise; both give the same bits)
 //! - `system`: tensors + masses + damping + loads → forces (the `ParticleSystem` the shared
 //!   integrators step); the hybrid switch; tetrahedron removal
 //! - `cut`: which tetrahedra a blade touches, the local surface patch, fragments
@@ -24,6 +29,7 @@ pub mod cut;
 mod deformable;
 pub mod elasticity;
 pub mod element;
+mod kernel;
 mod model;
 pub mod stvk;
 pub mod system;
@@ -63,8 +69,9 @@ pub struct TensorMassParams {
     /// force evaluation, so it is not done every step.
     #[serde(default = "default_interval")]
     pub hybrid_interval: u32,
-    /// Non-linear kind: `tensors` (default, Picinbono's tensor form) or `elements` (the
-    /// same forces per element from the deformation gradient, cheaper).
+    /// Non-linear kind: `elements` (default: the forces per element from the deformation
+    /// gradient, a packed vectorised kernel) or `tensors` (Picinbono's tensor form, the
+    /// same forces to rounding, about 3× the cost).
     #[serde(default)]
     pub form: NonlinearForm,
     /// Volume-conservation penalty κ, in Pa (default 0: off).
@@ -92,7 +99,7 @@ impl Default for TensorMassParams {
         Self {
             strain_threshold: 0.0,
             hybrid_interval: default_interval(),
-            form: NonlinearForm::Tensors,
+            form: NonlinearForm::Elements,
             volume_penalty: 0.0,
             fibre: None,
             fibre_lambda: 0.0,

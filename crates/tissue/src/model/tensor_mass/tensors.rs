@@ -92,6 +92,8 @@ pub struct LinearTensors {
     pub edge: Vec<Mat3>,
     vertex_tets: Vec<u32>,
     edge_tets: Vec<u32>,
+    /// Tetrahedra whose blocks are in (0: every tensor is exactly zero).
+    tets_in: usize,
 }
 
 impl LinearTensors {
@@ -102,6 +104,7 @@ impl LinearTensors {
             edge: vec![Mat3::ZERO; topo.edges.len()],
             vertex_tets: vec![0; nodes],
             edge_tets: vec![0; topo.edges.len()],
+            tets_in: 0,
         }
     }
 
@@ -115,6 +118,11 @@ impl LinearTensors {
         add: bool,
     ) {
         let sign = if add { 1.0 } else { -1.0 };
+        self.tets_in = if add {
+            self.tets_in + 1
+        } else {
+            self.tets_in.saturating_sub(1)
+        };
         for (a, &n) in tet.iter().enumerate() {
             let n = n as usize;
             update_count(
@@ -160,6 +168,11 @@ impl LinearTensors {
         self.vertex
             .iter()
             .map(|k| Vec3::new(k.x_axis.x, k.y_axis.y, k.z_axis.z))
+    }
+
+    /// Tetrahedra whose blocks the tensors hold.
+    pub fn tet_count(&self) -> usize {
+        self.tets_in
     }
 
     /// Tetrahedra that contribute to vertex `n`.

@@ -127,7 +127,20 @@ fn stvk_tensor_form_equals_per_element_stvk() {
         fibre_mu: 1500.0,
         ..Default::default()
     };
-    for (name, params) in [("isotropic", TensorMassParams::default()), ("fibre", fibre)] {
+    let tensors = TensorMassParams {
+        form: NonlinearForm::Tensors,
+        ..Default::default()
+    };
+    let fibre_tensors = TensorMassParams {
+        form: NonlinearForm::Tensors,
+        ..fibre.clone()
+    };
+    for (name, params) in [
+        ("isotropic tensors", tensors),
+        ("fibre tensors", fibre_tensors),
+        ("isotropic elements", TensorMassParams::default()),
+        ("fibre elements", fibre),
+    ] {
         let (mesh, mut s) = build_system(&liver(), material(), &params, true).unwrap();
         // Large displacements: ~30% of the liver's 7 cm scale.
         for (seed, scale) in [(1, 1e-4), (2, 0.02)] {
@@ -136,7 +149,7 @@ fn stvk_tensor_form_equals_per_element_stvk() {
             let f = elastic(&mut s, &x);
             let e = element_force(&s, &x);
             let rel = max_diff(&f, &e) / max_norm(&e);
-            eprintln!("{name}, |u| ~ {scale}: tensor StVK vs element StVK: relative {rel:.2e}");
+            eprintln!("{name}, |u| ~ {scale}: StVK vs plain element StVK: relative {rel:.2e}");
             assert!(rel < 1e-10, "{name} {scale}: {rel}");
         }
     }
@@ -203,7 +216,15 @@ fn local_removal_equals_the_forces_of_the_remaining_tetrahedra() {
         fibre_lambda: 2000.0,
         ..Default::default()
     };
-    for nonlinear in [false, true] {
+    for (nonlinear, form) in [
+        (false, NonlinearForm::Elements),
+        (true, NonlinearForm::Elements),
+        (true, NonlinearForm::Tensors),
+    ] {
+        let params = TensorMassParams {
+            form,
+            ..params.clone()
+        };
         let (mesh, mut s) = build_system(&liver(), material(), &params, nonlinear).unwrap();
         // Every third tetrahedron, then some twice (a no-op).
         for t in (0..mesh.tets.len()).step_by(3).chain([0, 3]) {
@@ -222,7 +243,7 @@ fn local_removal_equals_the_forces_of_the_remaining_tetrahedra() {
             element_linear_force(&s, &x)
         };
         let rel = max_diff(&f, &e) / max_norm(&e);
-        assert!(rel < 1e-10, "nonlinear {nonlinear}: {rel}");
+        assert!(rel < 1e-10, "nonlinear {nonlinear} {form:?}: {rel}");
         // The lumped masses follow (a quarter of ρV per remaining corner), floored at half
         // the built mass.
         let built = crate::model::fem::mass::lumped_masses(&mesh, 1000.0);
@@ -241,8 +262,17 @@ fn local_removal_equals_the_forces_of_the_remaining_tetrahedra() {
 
 #[test]
 fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
-    let (mesh, mut s) =
-        build_system(&liver(), material(), &TensorMassParams::default(), true).unwrap();
+    for form in [NonlinearForm::Elements, NonlinearForm::Tensors] {
+        hybrid_switch_mixes(form);
+    }
+}
+
+fn hybrid_switch_mixes(form: NonlinearForm) {
+    let params = TensorMassParams {
+        form,
+        ..Default::default()
+    };
+    let (mesh, mut s) = build_system(&liver(), material(), &params, true).unwrap();
     // A displacement that strains one end of the liver only.
     let c = mesh.vertices.iter().copied().sum::<Vec3>() / mesh.vertices.len() as Real;
     let x: Vec<Vec3> = mesh
@@ -268,7 +298,7 @@ fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
     for (t, tet) in mesh.tets.iter().enumerate() {
         let u = tet.map(|v| x[v as usize] - mesh.vertices[v as usize]);
         let (r, el) = (&s.rest_tets[t], &s.elasticity[t]);
-        let fe = if s.nonlinear.as_ref().unwrap().contains(t) {
+        let fe = if s.in_nonlinear_set(t) {
             stvk_forces(r, el, &u)
         } else {
             stvk_tangent_product(r, el, &[Vec3::ZERO; 4], &u).map(|v| -v)
@@ -290,6 +320,7 @@ fn hybrid_switch_mixes_linear_and_stvk_per_tetrahedron() {
 fn element_form_equals_tensor_form_with_hybrid_and_removal() {
     let base = TensorMassParams {
         volume_penalty: 500.0,
+        form: NonlinearForm::Tensors,
         ..Default::default()
     };
     let elements = TensorMassParams {
@@ -325,4 +356,142 @@ fn element_form_equals_tensor_form_with_hybrid_and_removal() {
     assert!(rel < 1e-10, "{rel}");
     assert!((wa - wb).abs() < 1e-10 * wa.abs(), "{wa} {wb}");
     assert!((wb - b.element_energy(&x)).abs() < 1e-10 * wb.abs());
+}
+
+/// The plain reference of `add_elastic_forces`: −K u from the linear tensors (always run),
+/// the per-element StVK force of every tetrahedron in the non-linear set, the per-element
+/// volume penalty; the energy element by element.
+fn reference_forces(s: &TensorSystem, x: &[Vec3]) -> (Vec<Vec3>, Real) {
+    let u: Vec<Vec3> = x.iter().zip(&s.rest).map(|(a, b)| *a - *b).collect();
+    let mut f = vec![Vec3::ZERO; x.len()];
+    s.linear.add_forces(&s.topo, &u, &mut f);
+    for (t, tet) in s.tets.iter().enumerate() {
+        if !s.is_alive(t) {
+            continue;
+        }
+        let (r, el) = (&s.rest_tets[t], &s.elasticity[t]);
+        let mut fe = [Vec3::ZERO; 4];
+        if s.in_nonlinear_set(t) {
+            fe = stvk_forces(r, el, &tet.map(|v| u[v as usize]));
+        }
+        if s.volume_penalty > 0.0 {
+            let xt = tet.map(|v| x[v as usize]);
+            let p = super::element::volume_forces(&xt, r.volume, s.volume_penalty);
+            for k in 0..4 {
+                fe[k] += p[k];
+            }
+        }
+        for (k, &v) in tet.iter().enumerate() {
+            f[v as usize] += fe[k];
+        }
+    }
+    (f, s.element_energy(x))
+}
+
+/// A system of the element form with every fifth tetrahedron fibre-reinforced (those take
+/// the plain per-element path, the others the packed kernel) and a volume penalty.
+fn mixed_system(mesh: &TetMesh) -> TensorSystem {
+    let mesh = mesh.compacted();
+    let m = material();
+    let rest: Vec<_> = (0..mesh.tets.len())
+        .map(|t| elasticity::TetRest::new(&mesh.corners(t)).unwrap())
+        .collect();
+    let iso = elasticity::Elasticity::isotropic(m.lambda(), m.mu());
+    let fibre = iso.with_fibre(Vec3::new(0.3, 1.0, -0.2), 4000.0, 1500.0);
+    let el = (0..mesh.tets.len())
+        .map(|t| if t % 5 == 2 { fibre } else { iso })
+        .collect();
+    TensorSystem::new(&mesh, rest, el, &m, 500.0, Some(NonlinearForm::Elements))
+}
+
+#[test]
+fn packed_kernel_equals_the_plain_per_element_forces() {
+    let boxed = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.06, 0.05),
+        [5, 3, 3],
+        BoxSplit::Five,
+    );
+    for (name, mesh) in [("liver", liver()), ("box", boxed)] {
+        let rest = mesh.vertices.clone();
+        let lo = rest.iter().fold(Vec3::INFINITY, |a, b| a.min(*b));
+        let size = rest.iter().fold(Vec3::NEG_INFINITY, |a, b| a.max(*b)) - lo;
+        // Stretched up to 30 % along x at the far end, sheared, plus a random field.
+        let noise = random_field(rest.len(), 31, 1e-3 * size.x);
+        let x: Vec<Vec3> = rest
+            .iter()
+            .zip(&noise)
+            .map(|(p, r)| {
+                let s = (*p - lo) / size;
+                *p + *r + Vec3::new(0.3 * s.x * s.x * size.x, 0.1 * s.x * s.z * size.y, 0.0)
+            })
+            .collect();
+        for hybrid in [false, true] {
+            let mut s = mixed_system(&mesh);
+            if hybrid {
+                s.switch_hybrid(&x, 0.3);
+            }
+            for t in (0..mesh.tets.len()).step_by(11) {
+                s.remove_tet(t);
+            }
+            let n = s.nonlinear_count();
+            if hybrid {
+                assert!(n > 0 && n < s.alive_count(), "{name}: {n}");
+            } else {
+                assert_eq!(n, s.alive_count());
+                // All non-linear: the linear tensors are empty and their pass is skipped.
+                assert_eq!(s.linear.tet_count(), 0);
+            }
+            let mut f = vec![Vec3::ZERO; x.len()];
+            let w = s.add_elastic_forces(&x, &mut f);
+            let (fr, wr) = reference_forces(&s, &x);
+            let rel = max_diff(&f, &fr) / max_norm(&fr);
+            let rel_w = (w - wr).abs() / wr.abs();
+            eprintln!(
+                "{name}, hybrid {hybrid} ({n} of {} non-linear): packed vs plain: forces \
+                 {rel:.1e}, energy {rel_w:.1e}",
+                s.alive_count()
+            );
+            assert!(rel < 1e-12, "{name} {hybrid}: {rel}");
+            assert!(rel_w < 1e-12, "{name} {hybrid}: {w} vs {wr}");
+        }
+    }
+}
+
+#[test]
+fn vector_and_scalar_kernel_paths_agree() {
+    let mesh = box_tets(Vec3::ZERO, Vec3::splat(0.05), [4, 4, 4], BoxSplit::Five);
+    let s = mixed_system(&mesh);
+    // A scrambled order and a length that is not a multiple of the block size.
+    let list: Vec<u32> = (0..mesh.tets.len() as u32)
+        .map(|t| (t * 37) % mesh.tets.len() as u32)
+        .take(mesh.tets.len() - 3)
+        .collect();
+    assert_eq!(list.len() % kernel::LANES, 1);
+    let iso = vec![elasticity::Elasticity::isotropic(1000.0, 300.0); mesh.tets.len()];
+    let k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, &iso, &list);
+    let u = random_field(mesh.vertices.len(), 41, 0.01);
+    let (mut fv, mut fs) = (vec![Vec3::ZERO; u.len()], vec![Vec3::ZERO; u.len()]);
+    let wv = k.add_forces(&u, &mut fv);
+    let ws = k.add_forces_scalar(&u, &mut fs);
+    // The same operations in the same order: the same bits.
+    assert_eq!(fv, fs);
+    assert_eq!(wv, ws);
+    // And the per-element reference, to rounding.
+    let mut fr = vec![Vec3::ZERO; u.len()];
+    let mut wr = 0.0;
+    for &t in &list {
+        let tet = s.tets[t as usize];
+        let (fe, we) = super::element::stvk_forces_energy(
+            &s.rest_tets[t as usize],
+            &iso[t as usize],
+            &tet.map(|v| u[v as usize]),
+        );
+        wr += we;
+        for (c, &v) in tet.iter().enumerate() {
+            fr[v as usize] += fe[c];
+        }
+    }
+    assert!(max_diff(&fv, &fr) < 1e-12 * max_norm(&fr));
+    assert!((wv - wr).abs() < 1e-12 * wr);
 }

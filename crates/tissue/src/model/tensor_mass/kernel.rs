@@ -1,0 +1,299 @@
+//! The element form's St Venant–Kirchhoff force kernel, packed for speed: the hot loop of
+//! `tensor-mass-nonlinear`.
+//!
+//! The plain per-element code (`element::stvk_forces_energy`) reads a 4-gradient `TetRest`
+//! and a 9-field `Elasticity` per tetrahedron and works through 3×3 matrix products in
+//! glam's general form. Here the isotropic tetrahedra of the non-linear set are packed four
+//! to a `Block`, one per lane (structure of arrays inside the block): corner ids, the
+//! gradients g_1..g_3 (g_0 = −Σ g_a is never stored: H = Σ_{a≥1} (u_a − u_0) g_aᵀ), and
+//! λV, 2μV (the volume folded into the constants). The kernel computes only the six
+//! distinct entries of the symmetric E and S, fuses the energy ½ V E:S into the same pass
+//! (the blow-up guard asks for it every step) and writes P = F S' straight into the
+//! corner forces −P g_a.
+//!
+//! One generic kernel serves both paths: lanes of `f64` (scalar, any CPU) and lanes of
+//! `W4` (four f64, vectorised by LLVM inside an `avx2`-compiled function chosen at run
+//! time). Both do the same operations in the same order, without fused multiply-adds, so
+//! they give bit-identical forces.
+
+// Matrix algebra on small fixed arrays reads clearest with explicit indices.
+#![allow(clippy::needless_range_loop)]
+
+use std::ops::{Add, Mul, Neg, Sub};
+
+use crate::math::{Real, Vec3};
+
+use super::elasticity::{Elasticity, TetRest};
+
+/// Tetrahedra per block.
+pub const LANES: usize = 4;
+
+/// Four tetrahedra, one per lane; unused lanes of the last block have zero constants.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(32))]
+struct Block {
+    nodes: [[u32; LANES]; 4],
+    /// g[3a + j][lane]: component j of g_{a+1}.
+    g: [[Real; LANES]; 9],
+    lambda_v: [Real; LANES],
+    mu2_v: [Real; LANES],
+}
+
+/// The packed isotropic tetrahedra of the element form's non-linear set.
+#[derive(Clone, Debug, Default)]
+pub struct ElementKernel {
+    blocks: Vec<Block>,
+    len: usize,
+    /// 1 + the largest corner id: the node arrays must be at least this long.
+    nodes_needed: usize,
+}
+
+impl ElementKernel {
+    /// Packs tetrahedra `list` (isotropic: `Elasticity::has_fibre` false) in the given order.
+    pub fn new(tets: &[[u32; 4]], rest: &[TetRest], el: &[Elasticity], list: &[u32]) -> Self {
+        let mut blocks = Vec::with_capacity(list.len().div_ceil(LANES));
+        let mut nodes_needed = 0;
+        for chunk in list.chunks(LANES) {
+            let mut b = Block::default();
+            for (k, &t) in chunk.iter().enumerate() {
+                let t = t as usize;
+                let (r, e) = (&rest[t], &el[t]);
+                for c in 0..4 {
+                    b.nodes[c][k] = tets[t][c];
+                    nodes_needed = nodes_needed.max(tets[t][c] as usize + 1);
+                }
+                for a in 0..3 {
+                    for j in 0..3 {
+                        b.g[3 * a + j][k] = r.gradients[a + 1][j];
+                    }
+                }
+                b.lambda_v[k] = e.lambda * r.volume;
+                b.mu2_v[k] = 2.0 * e.mu * r.volume;
+            }
+            // Unused lanes read the first tetrahedron's corners (valid ids) and, with zero
+            // constants, are never scattered.
+            for k in chunk.len()..LANES {
+                for c in 0..4 {
+                    b.nodes[c][k] = b.nodes[c][0];
+                }
+            }
+            blocks.push(b);
+        }
+        Self {
+            blocks,
+            len: list.len(),
+            nodes_needed,
+        }
+    }
+
+    /// Tetrahedra packed.
+    #[allow(clippy::len_without_is_empty)]
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Bytes of packed data the force pass reads.
+    pub fn bytes(&self) -> usize {
+        self.blocks.len() * std::mem::size_of::<Block>()
+    }
+
+    /// f += the St Venant–Kirchhoff forces at displacements `u`; returns their energy.
+    /// Vectorised when the CPU has AVX2 and FMA.
+    pub fn add_forces(&self, u: &[Vec3], f: &mut [Vec3]) -> Real {
+        if u.len() < self.nodes_needed || f.len() < self.nodes_needed {
+            return 0.0;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports the features `add_forces_avx2` is compiled for.
+            return unsafe { add_forces_avx2(&self.blocks, self.len, u, f) };
+        }
+        self.add_forces_scalar(u, f)
+    }
+
+    /// The scalar path, one tetrahedron at a time (same arithmetic as the vector one).
+    pub fn add_forces_scalar(&self, u: &[Vec3], f: &mut [Vec3]) -> Real {
+        let mut w = 0.0;
+        for (b, block) in self.blocks.iter().enumerate() {
+            for k in 0..lanes_used(b, self.len) {
+                let u0 = u[block.nodes[0][k] as usize];
+                let mut d = [[0.0; 3]; 3];
+                let mut g = [[0.0; 3]; 3];
+                for a in 0..3 {
+                    let ua = u[block.nodes[a + 1][k] as usize];
+                    d[a] = [ua.x - u0.x, ua.y - u0.y, ua.z - u0.z];
+                    for j in 0..3 {
+                        g[a][j] = block.g[3 * a + j][k];
+                    }
+                }
+                let (fc, e) = stvk(&d, &g, block.lambda_v[k], block.mu2_v[k]);
+                for c in 0..4 {
+                    f[block.nodes[c][k] as usize] += Vec3::from_array(fc[c]);
+                }
+                w += e;
+            }
+        }
+        w
+    }
+}
+
+fn lanes_used(block: usize, len: usize) -> usize {
+    (len - block * LANES).min(LANES)
+}
+
+/// The vector path: one block per iteration, four tetrahedra in the lanes of each `W4`.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn add_forces_avx2(blocks: &[Block], len: usize, u: &[Vec3], f: &mut [Vec3]) -> Real {
+    let mut w = 0.0;
+    for (b, block) in blocks.iter().enumerate() {
+        let mut uc = [[W4::ZERO; 3]; 4];
+        for c in 0..4 {
+            for k in 0..LANES {
+                let p = u[block.nodes[c][k] as usize];
+                uc[c][0].0[k] = p.x;
+                uc[c][1].0[k] = p.y;
+                uc[c][2].0[k] = p.z;
+            }
+        }
+        let mut d = [[W4::ZERO; 3]; 3];
+        let mut g = [[W4::ZERO; 3]; 3];
+        for a in 0..3 {
+            for i in 0..3 {
+                d[a][i] = uc[a + 1][i] - uc[0][i];
+                g[a][i] = W4(block.g[3 * a + i]);
+            }
+        }
+        let (fc, e) = stvk(&d, &g, W4(block.lambda_v), W4(block.mu2_v));
+        for k in 0..lanes_used(b, len) {
+            for c in 0..4 {
+                f[block.nodes[c][k] as usize] +=
+                    Vec3::new(fc[c][0].0[k], fc[c][1].0[k], fc[c][2].0[k]);
+            }
+            w += e.0[k];
+        }
+    }
+    w
+}
+
+/// What the kernel needs of a lane type: f64 or four of them.
+trait Lane:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self>
+{
+    fn splat(x: Real) -> Self;
+}
+
+impl Lane for Real {
+    #[inline(always)]
+    fn splat(x: Real) -> Self {
+        x
+    }
+}
+
+/// Four f64 lanes; element-wise operations that LLVM turns into one AVX instruction each.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+struct W4([Real; LANES]);
+
+impl W4 {
+    const ZERO: W4 = W4([0.0; LANES]);
+}
+
+macro_rules! lanewise {
+    ($tr:ident, $f:ident, $op:tt) => {
+        impl $tr for W4 {
+            type Output = W4;
+            #[inline(always)]
+            fn $f(self, o: W4) -> W4 {
+                W4([
+                    self.0[0] $op o.0[0],
+                    self.0[1] $op o.0[1],
+                    self.0[2] $op o.0[2],
+                    self.0[3] $op o.0[3],
+                ])
+            }
+        }
+    };
+}
+lanewise!(Add, add, +);
+lanewise!(Sub, sub, -);
+lanewise!(Mul, mul, *);
+
+impl Neg for W4 {
+    type Output = W4;
+    #[inline(always)]
+    fn neg(self) -> W4 {
+        W4([-self.0[0], -self.0[1], -self.0[2], -self.0[3]])
+    }
+}
+
+impl Lane for W4 {
+    #[inline(always)]
+    fn splat(x: Real) -> Self {
+        W4([x; LANES])
+    }
+}
+
+/// St Venant–Kirchhoff forces on the four corners and energy of one tetrahedron (per lane).
+/// `d[a]` = u_{a+1} − u_0, `g[a]` = g_{a+1}; `lv` = λV, `mv` = 2μV.
+///
+/// H = Σ_a d_a g_aᵀ, E = ½(H + Hᵀ + HᵀH), S' = V ℂ:E = 2μV E + λV tr(E) I,
+/// P' = (I + H) S', f_{a+1} = −P' g_a, f_0 = −Σ f_{a+1}, energy ½ E:S'.
+///
+/// Plain loops over fixed arrays, no closures or `array::map`: those are separate functions
+/// that LLVM may leave out of line, compiled without the caller's AVX2.
+#[inline(always)]
+fn stvk<L: Lane>(d: &[[L; 3]; 3], g: &[[L; 3]; 3], lv: L, mv: L) -> ([[L; 3]; 4], L) {
+    let zero = L::splat(0.0);
+    let half = L::splat(0.5);
+    let mut h = [[zero; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            h[i][j] = d[0][i] * g[0][j] + d[1][i] * g[1][j] + d[2][i] * g[2][j];
+        }
+    }
+    // The six distinct entries of E, in the order 00, 11, 22, 01, 02, 12.
+    const IJ: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+    let mut e = [zero; 6];
+    for (k, &(i, j)) in IJ.iter().enumerate() {
+        let q = h[0][i] * h[0][j] + h[1][i] * h[1][j] + h[2][i] * h[2][j];
+        e[k] = half * (h[i][j] + h[j][i] + q);
+    }
+    let lt = lv * (e[0] + e[1] + e[2]);
+    let mut sv = [zero; 6];
+    for k in 0..6 {
+        sv[k] = mv * e[k];
+    }
+    for k in 0..3 {
+        sv[k] = sv[k] + lt;
+    }
+    let energy = half
+        * (e[0] * sv[0]
+            + e[1] * sv[1]
+            + e[2] * sv[2]
+            + L::splat(2.0) * (e[3] * sv[3] + e[4] * sv[4] + e[5] * sv[5]));
+    let s = [
+        [sv[0], sv[3], sv[4]],
+        [sv[3], sv[1], sv[5]],
+        [sv[4], sv[5], sv[2]],
+    ];
+    let mut p = [[zero; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            p[i][j] = s[i][j] + (h[i][0] * s[0][j] + h[i][1] * s[1][j] + h[i][2] * s[2][j]);
+        }
+    }
+    // n_a = P' g_a: the force on corner a+1 is −n_a, on corner 0 Σ n_a.
+    let mut f = [[zero; 3]; 4];
+    for a in 0..3 {
+        for i in 0..3 {
+            let n = p[i][0] * g[a][0] + p[i][1] * g[a][1] + p[i][2] * g[a][2];
+            f[a + 1][i] = -n;
+            f[0][i] = f[0][i] + n;
+        }
+    }
+    (f, energy)
+}
