@@ -19,7 +19,7 @@
 //! - `stvk`: the non-linear tensors on vertices, edges, triangles, tetrahedra (Picinbono)
 //! - `element`: plain per-element StVK (cross-check, energy, tangent), volume penalty
 //! - `kernel`: the element form's StVK force + energy pass, packed 4 tetrahedra per block,
-//!   AVX2 when the CPU has it (scalar otherwise; both give the same bits)
+//!   AVX2 when the CPU has it (the baseline's SSE2 / NEON otherwise; the same bits)
 //! - `system`: tensors + masses + damping + loads → forces (the `ParticleSystem` the shared
 //!   integrators step); the hybrid switch; tetrahedron removal
 //! - `cut`: which tetrahedra a blade touches, the local surface patch, fragments

@@ -471,12 +471,16 @@ fn vector_and_scalar_kernel_paths_agree() {
     let iso = vec![elasticity::Elasticity::isotropic(1000.0, 300.0); mesh.tets.len()];
     let k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, &iso, &list);
     let u = random_field(mesh.vertices.len(), 41, 0.01);
-    let (mut fv, mut fs) = (vec![Vec3::ZERO; u.len()], vec![Vec3::ZERO; u.len()]);
+    let (mut fv, mut fb) = (vec![Vec3::ZERO; u.len()], vec![Vec3::ZERO; u.len()]);
+    let mut fs = fb.clone();
     let wv = k.add_forces(&u, &mut fv);
+    let wb = k.add_forces_baseline(&u, &mut fb);
     let ws = k.add_forces_scalar(&u, &mut fs);
-    // The same operations in the same order: the same bits.
+    // The same operations in the same order: the same bits (AVX2 if the CPU has it, the
+    // baseline's vectors, one tetrahedron at a time).
     assert_eq!(fv, fs);
-    assert_eq!(wv, ws);
+    assert_eq!(fb, fs);
+    assert_eq!((wv, wb), (ws, ws));
     // And the per-element reference, to rounding.
     let mut fr = vec![Vec3::ZERO; u.len()];
     let mut wr = 0.0;
