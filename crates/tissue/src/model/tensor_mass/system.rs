@@ -267,8 +267,8 @@ impl TensorSystem {
                 }
                 let xs = self.corners(t, x);
                 let v0 = self.rest_tets[t].volume;
-                w += element::volume_energy(&xs, v0, self.volume_penalty);
-                let fe = element::volume_forces(&xs, v0, self.volume_penalty);
+                let (fe, we) = element::volume_forces_energy(&xs, v0, self.volume_penalty);
+                w += we;
                 for (k, &v) in self.tets[t].iter().enumerate() {
                     f[v as usize] += fe[k];
                 }
