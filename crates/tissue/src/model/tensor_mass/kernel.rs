@@ -38,6 +38,8 @@ struct Block {
     g: [[Real; LANES]; 9],
     lambda_v: [Real; LANES],
     mu2_v: [Real; LANES],
+    /// κV of the volume penalty.
+    kappa_v: [Real; LANES],
 }
 
 /// The packed isotropic tetrahedra of the element form's non-linear set.
@@ -47,11 +49,20 @@ pub struct ElementKernel {
     len: usize,
     /// 1 + the largest corner id: the node arrays must be at least this long.
     nodes_needed: usize,
+    /// The volume penalty is on (κ > 0): its force and energy are fused into the pass.
+    penalty: bool,
 }
 
 impl ElementKernel {
-    /// Packs tetrahedra `list` (isotropic: `Elasticity::has_fibre` false) in the given order.
-    pub fn new(tets: &[[u32; 4]], rest: &[TetRest], el: &[Elasticity], list: &[u32]) -> Self {
+    /// Packs tetrahedra `list` (isotropic: `Elasticity::has_fibre` false) in the given order,
+    /// with the volume penalty `kappa` (0: off).
+    pub fn new(
+        tets: &[[u32; 4]],
+        rest: &[TetRest],
+        el: &[Elasticity],
+        list: &[u32],
+        kappa: Real,
+    ) -> Self {
         let mut blocks = Vec::with_capacity(list.len().div_ceil(LANES));
         let mut nodes_needed = 0;
         for chunk in list.chunks(LANES) {
@@ -70,6 +81,7 @@ impl ElementKernel {
                 }
                 b.lambda_v[k] = e.lambda * r.volume;
                 b.mu2_v[k] = 2.0 * e.mu * r.volume;
+                b.kappa_v[k] = kappa * r.volume;
             }
             // Unused lanes read the first tetrahedron's corners (valid ids) and, with zero
             // constants, are never scattered.
@@ -84,6 +96,7 @@ impl ElementKernel {
             blocks,
             len: list.len(),
             nodes_needed,
+            penalty: kappa > 0.0,
         }
     }
 
@@ -108,16 +121,30 @@ impl ElementKernel {
         }
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU supports the features `add_forces_avx2` is compiled for.
-            return unsafe { add_forces_avx2(&self.blocks, self.len, u, f) };
+            // SAFETY: the CPU supports the features these functions are compiled for.
+            return unsafe {
+                if self.penalty {
+                    add_forces_avx2::<true>(&self.blocks, self.len, u, f)
+                } else {
+                    add_forces_avx2::<false>(&self.blocks, self.len, u, f)
+                }
+            };
         }
-        add_forces_wide(&self.blocks, self.len, u, f)
+        if self.penalty {
+            add_forces_wide::<true>(&self.blocks, self.len, u, f)
+        } else {
+            add_forces_wide::<false>(&self.blocks, self.len, u, f)
+        }
     }
 
     /// The block path compiled for the baseline target only (the fallback of `add_forces`).
     #[cfg(test)]
     pub fn add_forces_baseline(&self, u: &[Vec3], f: &mut [Vec3]) -> Real {
-        add_forces_wide(&self.blocks, self.len, u, f)
+        if self.penalty {
+            add_forces_wide::<true>(&self.blocks, self.len, u, f)
+        } else {
+            add_forces_wide::<false>(&self.blocks, self.len, u, f)
+        }
     }
 
     /// One tetrahedron at a time in plain f64 (the same arithmetic as the block path).
@@ -136,7 +163,12 @@ impl ElementKernel {
                         g[a][j] = block.g[3 * a + j][k];
                     }
                 }
-                let (fc, e) = stvk(&d, &g, block.lambda_v[k], block.mu2_v[k]);
+                let c = [block.lambda_v[k], block.mu2_v[k], block.kappa_v[k]];
+                let (fc, e) = if self.penalty {
+                    stvk::<Real, true>(&d, &g, c)
+                } else {
+                    stvk::<Real, false>(&d, &g, c)
+                };
                 for c in 0..4 {
                     f[block.nodes[c][k] as usize] += Vec3::from_array(fc[c]);
                 }
@@ -157,14 +189,24 @@ fn lanes_used(block: usize, len: usize) -> usize {
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn add_forces_avx2(blocks: &[Block], len: usize, u: &[Vec3], f: &mut [Vec3]) -> Real {
-    add_forces_wide(blocks, len, u, f)
+unsafe fn add_forces_avx2<const PENALTY: bool>(
+    blocks: &[Block],
+    len: usize,
+    u: &[Vec3],
+    f: &mut [Vec3],
+) -> Real {
+    add_forces_wide::<PENALTY>(blocks, len, u, f)
 }
 
 /// The vector path: one block per iteration, four tetrahedra in the lanes of each `W4`.
 /// Inlined into its callers, so it is compiled for their target features.
 #[inline(always)]
-fn add_forces_wide(blocks: &[Block], len: usize, u: &[Vec3], f: &mut [Vec3]) -> Real {
+fn add_forces_wide<const PENALTY: bool>(
+    blocks: &[Block],
+    len: usize,
+    u: &[Vec3],
+    f: &mut [Vec3],
+) -> Real {
     let mut w = 0.0;
     for (b, block) in blocks.iter().enumerate() {
         let mut uc = [[W4::ZERO; 3]; 4];
@@ -184,7 +226,8 @@ fn add_forces_wide(blocks: &[Block], len: usize, u: &[Vec3], f: &mut [Vec3]) -> 
                 g[a][i] = W4(block.g[3 * a + i]);
             }
         }
-        let (fc, e) = stvk(&d, &g, W4(block.lambda_v), W4(block.mu2_v));
+        let c = [block.lambda_v, block.mu2_v, block.kappa_v].map(W4);
+        let (fc, e) = stvk::<W4, PENALTY>(&d, &g, c);
         for k in 0..lanes_used(b, len) {
             for c in 0..4 {
                 f[block.nodes[c][k] as usize] +=
@@ -255,15 +298,25 @@ impl Lane for W4 {
 }
 
 /// St Venant–Kirchhoff forces on the four corners and energy of one tetrahedron (per lane).
-/// `d[a]` = u_{a+1} − u_0, `g[a]` = g_{a+1}; `lv` = λV, `mv` = 2μV.
+/// `d[a]` = u_{a+1} − u_0, `g[a]` = g_{a+1}; `c` = [λV, 2μV, κV].
 ///
 /// H = Σ_a d_a g_aᵀ, E = ½(H + Hᵀ + HᵀH), S' = V ℂ:E = 2μV E + λV tr(E) I,
 /// P' = (I + H) S', f_{a+1} = −P' g_a, f_0 = −Σ f_{a+1}, energy ½ E:S'.
 ///
+/// With `PENALTY`, the volume penalty (κ/2)(v − V)²/V of `element`: F = I + H maps the
+/// rest tetrahedron onto the current one, so v = J V with J = det F and ∂v/∂x_a =
+/// V cof(F) g_a. Its force is −κV (J − 1) cof(F) g_a, added to P' as κV (J − 1) cof(F); its
+/// energy ½ κV (J − 1)². J − 1 = tr H + i₂(H) + det H, without the cancellation of det F − 1.
+///
 /// Plain loops over fixed arrays, no closures or `array::map`: those are separate functions
 /// that LLVM may leave out of line, compiled without the caller's AVX2.
 #[inline(always)]
-fn stvk<L: Lane>(d: &[[L; 3]; 3], g: &[[L; 3]; 3], lv: L, mv: L) -> ([[L; 3]; 4], L) {
+fn stvk<L: Lane, const PENALTY: bool>(
+    d: &[[L; 3]; 3],
+    g: &[[L; 3]; 3],
+    c: [L; 3],
+) -> ([[L; 3]; 4], L) {
+    let [lv, mv, kv] = c;
     let zero = L::splat(0.0);
     let half = L::splat(0.5);
     let mut h = [[zero; 3]; 3];
@@ -287,7 +340,7 @@ fn stvk<L: Lane>(d: &[[L; 3]; 3], g: &[[L; 3]; 3], lv: L, mv: L) -> ([[L; 3]; 4]
     for k in 0..3 {
         sv[k] = sv[k] + lt;
     }
-    let energy = half
+    let mut energy = half
         * (e[0] * sv[0]
             + e[1] * sv[1]
             + e[2] * sv[2]
@@ -303,6 +356,36 @@ fn stvk<L: Lane>(d: &[[L; 3]; 3], g: &[[L; 3]; 3], lv: L, mv: L) -> ([[L; 3]; 4]
             p[i][j] = s[i][j] + (h[i][0] * s[0][j] + h[i][1] * s[1][j] + h[i][2] * s[2][j]);
         }
     }
+    if PENALTY {
+        // Columns of F and their cross products: cof(F) = [f1 × f2, f2 × f0, f0 × f1].
+        let one = L::splat(1.0);
+        let mut fcol = [[zero; 3]; 3];
+        for j in 0..3 {
+            for i in 0..3 {
+                fcol[j][i] = if i == j { h[i][j] + one } else { h[i][j] };
+            }
+        }
+        let cof = [
+            cross(&fcol[1], &fcol[2]),
+            cross(&fcol[2], &fcol[0]),
+            cross(&fcol[0], &fcol[1]),
+        ];
+        let tr = h[0][0] + h[1][1] + h[2][2];
+        let i2 = (h[0][0] * h[1][1] - h[0][1] * h[1][0])
+            + (h[0][0] * h[2][2] - h[0][2] * h[2][0])
+            + (h[1][1] * h[2][2] - h[1][2] * h[2][1]);
+        let hc = [[h[0][1], h[1][1], h[2][1]], [h[0][2], h[1][2], h[2][2]]];
+        let hxh = cross(&hc[0], &hc[1]);
+        let det = h[0][0] * hxh[0] + h[1][0] * hxh[1] + h[2][0] * hxh[2];
+        let jm1 = tr + i2 + det;
+        let k = kv * jm1;
+        energy = energy + half * k * jm1;
+        for i in 0..3 {
+            for j in 0..3 {
+                p[i][j] = p[i][j] + k * cof[j][i];
+            }
+        }
+    }
     // n_a = P' g_a: the force on corner a+1 is −n_a, on corner 0 Σ n_a.
     let mut f = [[zero; 3]; 4];
     for a in 0..3 {
@@ -313,4 +396,13 @@ fn stvk<L: Lane>(d: &[[L; 3]; 3], g: &[[L; 3]; 3], lv: L, mv: L) -> ([[L; 3]; 4]
         }
     }
     (f, energy)
+}
+
+#[inline(always)]
+fn cross<L: Lane>(a: &[L; 3], b: &[L; 3]) -> [L; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }

@@ -36,6 +36,8 @@ pub enum NonlinearForm {
 #[derive(Clone, Debug, Default)]
 pub struct ElementSet {
     in_set: Vec<bool>,
+    /// In the packed kernel (which then also computes the volume penalty).
+    packed: Vec<bool>,
     kernel: ElementKernel,
     fibre: Vec<u32>,
     dirty: bool,
@@ -43,14 +45,19 @@ pub struct ElementSet {
 
 impl ElementSet {
     /// Repacks after the set changed (hybrid switch, removal): one pass over the set.
-    fn refresh(&mut self, tets: &[[u32; 4]], rest: &[TetRest], el: &[Elasticity]) {
+    fn refresh(&mut self, tets: &[[u32; 4]], rest: &[TetRest], el: &[Elasticity], kappa: Real) {
         if !self.dirty {
             return;
         }
         let (fibre, iso): (Vec<u32>, Vec<u32>) = (0..self.in_set.len() as u32)
             .filter(|&t| self.in_set[t as usize])
             .partition(|&t| el[t as usize].has_fibre());
-        self.kernel = ElementKernel::new(tets, rest, el, &iso);
+        self.packed.clear();
+        self.packed.resize(self.in_set.len(), false);
+        for &t in &iso {
+            self.packed[t as usize] = true;
+        }
+        self.kernel = ElementKernel::new(tets, rest, el, &iso, kappa);
         self.fibre = fibre;
         self.dirty = false;
     }
@@ -246,7 +253,12 @@ impl TensorSystem {
             w += nl.add_forces(&self.topo, &self.u, f);
         }
         if let Some(es) = self.elements.as_mut() {
-            es.refresh(&self.tets, &self.rest_tets, &self.elasticity);
+            es.refresh(
+                &self.tets,
+                &self.rest_tets,
+                &self.elasticity,
+                self.volume_penalty,
+            );
             w += es.kernel.add_forces(&self.u, f);
             for &t in &es.fibre {
                 let t = t as usize;
@@ -261,8 +273,10 @@ impl TensorSystem {
             }
         }
         if self.volume_penalty > 0.0 {
+            // The packed tetrahedra had theirs in the kernel's pass.
+            let packed = self.elements.as_ref().map(|e| &e.packed[..]);
             for t in 0..self.tets.len() {
-                if !self.alive[t] {
+                if !self.alive[t] || packed.is_some_and(|p| p.get(t).copied().unwrap_or(false)) {
                     continue;
                 }
                 let xs = self.corners(t, x);

@@ -469,8 +469,20 @@ fn vector_and_scalar_kernel_paths_agree() {
         .collect();
     assert_eq!(list.len() % kernel::LANES, 1);
     let iso = vec![elasticity::Elasticity::isotropic(1000.0, 300.0); mesh.tets.len()];
-    let k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, &iso, &list);
     let u = random_field(mesh.vertices.len(), 41, 0.01);
+    for kappa in [0.0, 700.0] {
+        kernel_paths_agree(&s, &iso, &list, &u, kappa);
+    }
+}
+
+fn kernel_paths_agree(
+    s: &TensorSystem,
+    iso: &[elasticity::Elasticity],
+    list: &[u32],
+    u: &[Vec3],
+    kappa: Real,
+) {
+    let k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, iso, list, kappa);
     let (mut fv, mut fb) = (vec![Vec3::ZERO; u.len()], vec![Vec3::ZERO; u.len()]);
     let mut fs = fb.clone();
     let wv = k.add_forces(&u, &mut fv);
@@ -484,13 +496,19 @@ fn vector_and_scalar_kernel_paths_agree() {
     // And the per-element reference, to rounding.
     let mut fr = vec![Vec3::ZERO; u.len()];
     let mut wr = 0.0;
-    for &t in &list {
+    for &t in list {
         let tet = s.tets[t as usize];
-        let (fe, we) = super::element::stvk_forces_energy(
-            &s.rest_tets[t as usize],
-            &iso[t as usize],
-            &tet.map(|v| u[v as usize]),
-        );
+        let r = &s.rest_tets[t as usize];
+        let (mut fe, mut we) =
+            super::element::stvk_forces_energy(r, &iso[t as usize], &tet.map(|v| u[v as usize]));
+        if kappa > 0.0 {
+            let x = tet.map(|v| s.rest[v as usize] + u[v as usize]);
+            let p = super::element::volume_forces(&x, r.volume, kappa);
+            for c in 0..4 {
+                fe[c] += p[c];
+            }
+            we += super::element::volume_energy(&x, r.volume, kappa);
+        }
         wr += we;
         for (c, &v) in tet.iter().enumerate() {
             fr[v as usize] += fe[c];
