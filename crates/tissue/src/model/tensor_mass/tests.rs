@@ -485,9 +485,9 @@ fn kernel_paths_agree(
     let k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, iso, list, kappa);
     let (mut fv, mut fb) = (vec![Vec3::ZERO; u.len()], vec![Vec3::ZERO; u.len()]);
     let mut fs = fb.clone();
-    let wv = k.add_forces(&u, &mut fv);
-    let wb = k.add_forces_baseline(&u, &mut fb);
-    let ws = k.add_forces_scalar(&u, &mut fs);
+    let wv = k.add_forces(u, &mut fv);
+    let wb = k.add_forces_baseline(u, &mut fb);
+    let ws = k.add_forces_scalar(u, &mut fs);
     // The same operations in the same order: the same bits (AVX2 if the CPU has it, the
     // baseline's vectors, one tetrahedron at a time).
     assert_eq!(fv, fs);
