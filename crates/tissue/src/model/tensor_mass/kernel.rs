@@ -6,10 +6,10 @@
 //! glam's general form. Here the isotropic tetrahedra of the non-linear set are packed four
 //! to a `Block`, one per lane (structure of arrays inside the block): corner ids, the
 //! gradients g_1..g_3 (g_0 = −Σ g_a is never stored: H = Σ_{a≥1} (u_a − u_0) g_aᵀ), and
-//! λV, 2μV (the volume folded into the constants). The kernel computes only the six
+//! λV, 2μV, κV (the volume folded into the constants). The kernel computes only the six
 //! distinct entries of the symmetric E and S, fuses the energy ½ V E:S into the same pass
-//! (the blow-up guard asks for it every step) and writes P = F S' straight into the
-//! corner forces −P g_a.
+//! (the blow-up guard asks for it every step), adds the volume penalty when it is on, and
+//! writes P' = F S' straight into the corner forces −P' g_a.
 //!
 //! One generic kernel, over lanes of `W4` (four f64, one block at a time) or of `f64` (one
 //! tetrahedron at a time, the tests' cross-check). The block path is compiled twice: inside
