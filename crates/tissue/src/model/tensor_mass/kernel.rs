@@ -49,6 +49,8 @@ pub struct ElementKernel {
     len: usize,
     /// 1 + the largest corner id: the node arrays must be at least this long.
     nodes_needed: usize,
+    /// The St Venant–Kirchhoff terms are on (off: a volume-penalty-only pass).
+    stvk: bool,
     /// The volume penalty is on (κ > 0): its force and energy are fused into the pass.
     penalty: bool,
 }
@@ -63,13 +65,28 @@ impl ElementKernel {
         list: &[u32],
         kappa: Real,
     ) -> Self {
+        Self::packed(tets, rest, Some(el), list, kappa)
+    }
+
+    /// The volume penalty alone (any material) of tetrahedra `list`.
+    pub fn penalty_only(tets: &[[u32; 4]], rest: &[TetRest], list: &[u32], kappa: Real) -> Self {
+        Self::packed(tets, rest, None, list, kappa)
+    }
+
+    fn packed(
+        tets: &[[u32; 4]],
+        rest: &[TetRest],
+        el: Option<&[Elasticity]>,
+        list: &[u32],
+        kappa: Real,
+    ) -> Self {
         let mut blocks = Vec::with_capacity(list.len().div_ceil(LANES));
         let mut nodes_needed = 0;
         for chunk in list.chunks(LANES) {
             let mut b = Block::default();
             for (k, &t) in chunk.iter().enumerate() {
                 let t = t as usize;
-                let (r, e) = (&rest[t], &el[t]);
+                let r = &rest[t];
                 for c in 0..4 {
                     b.nodes[c][k] = tets[t][c];
                     nodes_needed = nodes_needed.max(tets[t][c] as usize + 1);
@@ -79,8 +96,10 @@ impl ElementKernel {
                         b.g[3 * a + j][k] = r.gradients[a + 1][j];
                     }
                 }
-                b.lambda_v[k] = e.lambda * r.volume;
-                b.mu2_v[k] = 2.0 * e.mu * r.volume;
+                if let Some(e) = el.and_then(|el| el.get(t)) {
+                    b.lambda_v[k] = e.lambda * r.volume;
+                    b.mu2_v[k] = 2.0 * e.mu * r.volume;
+                }
                 b.kappa_v[k] = kappa * r.volume;
             }
             // Unused lanes read the first tetrahedron's corners (valid ids) and, with zero
@@ -96,6 +115,7 @@ impl ElementKernel {
             blocks,
             len: list.len(),
             nodes_needed,
+            stvk: el.is_some(),
             penalty: kappa > 0.0,
         }
     }
@@ -119,31 +139,31 @@ impl ElementKernel {
         if u.len() < self.nodes_needed || f.len() < self.nodes_needed {
             return 0.0;
         }
+        match (self.stvk, self.penalty) {
+            (true, true) => self.run::<true, true>(u, f),
+            (true, false) => self.run::<true, false>(u, f),
+            (false, true) => self.run::<false, true>(u, f),
+            (false, false) => 0.0,
+        }
+    }
+
+    fn run<const STVK: bool, const PENALTY: bool>(&self, u: &[Vec3], f: &mut [Vec3]) -> Real {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU supports the features these functions are compiled for.
-            return unsafe {
-                if self.penalty {
-                    add_forces_avx2::<true>(&self.blocks, self.len, u, f)
-                } else {
-                    add_forces_avx2::<false>(&self.blocks, self.len, u, f)
-                }
-            };
+            // SAFETY: the CPU supports the features this function is compiled for.
+            return unsafe { add_forces_avx2::<STVK, PENALTY>(&self.blocks, self.len, u, f) };
         }
-        if self.penalty {
-            add_forces_wide::<true>(&self.blocks, self.len, u, f)
-        } else {
-            add_forces_wide::<false>(&self.blocks, self.len, u, f)
-        }
+        add_forces_wide::<STVK, PENALTY>(&self.blocks, self.len, u, f)
     }
 
     /// The block path compiled for the baseline target only (the fallback of `add_forces`).
     #[cfg(test)]
     pub fn add_forces_baseline(&self, u: &[Vec3], f: &mut [Vec3]) -> Real {
-        if self.penalty {
-            add_forces_wide::<true>(&self.blocks, self.len, u, f)
-        } else {
-            add_forces_wide::<false>(&self.blocks, self.len, u, f)
+        match (self.stvk, self.penalty) {
+            (true, true) => add_forces_wide::<true, true>(&self.blocks, self.len, u, f),
+            (true, false) => add_forces_wide::<true, false>(&self.blocks, self.len, u, f),
+            (false, true) => add_forces_wide::<false, true>(&self.blocks, self.len, u, f),
+            (false, false) => 0.0,
         }
     }
 
@@ -164,10 +184,11 @@ impl ElementKernel {
                     }
                 }
                 let c = [block.lambda_v[k], block.mu2_v[k], block.kappa_v[k]];
-                let (fc, e) = if self.penalty {
-                    stvk::<Real, true>(&d, &g, c)
-                } else {
-                    stvk::<Real, false>(&d, &g, c)
+                let (fc, e) = match (self.stvk, self.penalty) {
+                    (true, true) => stvk::<Real, true, true>(&d, &g, c),
+                    (true, false) => stvk::<Real, true, false>(&d, &g, c),
+                    (false, true) => stvk::<Real, false, true>(&d, &g, c),
+                    (false, false) => ([[0.0; 3]; 4], 0.0),
                 };
                 for c in 0..4 {
                     f[block.nodes[c][k] as usize] += Vec3::from_array(fc[c]);
@@ -189,19 +210,19 @@ fn lanes_used(block: usize, len: usize) -> usize {
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn add_forces_avx2<const PENALTY: bool>(
+unsafe fn add_forces_avx2<const STVK: bool, const PENALTY: bool>(
     blocks: &[Block],
     len: usize,
     u: &[Vec3],
     f: &mut [Vec3],
 ) -> Real {
-    add_forces_wide::<PENALTY>(blocks, len, u, f)
+    add_forces_wide::<STVK, PENALTY>(blocks, len, u, f)
 }
 
 /// The vector path: one block per iteration, four tetrahedra in the lanes of each `W4`.
 /// Inlined into its callers, so it is compiled for their target features.
 #[inline(always)]
-fn add_forces_wide<const PENALTY: bool>(
+fn add_forces_wide<const STVK: bool, const PENALTY: bool>(
     blocks: &[Block],
     len: usize,
     u: &[Vec3],
@@ -227,7 +248,7 @@ fn add_forces_wide<const PENALTY: bool>(
             }
         }
         let c = [block.lambda_v, block.mu2_v, block.kappa_v].map(W4);
-        let (fc, e) = stvk::<W4, PENALTY>(&d, &g, c);
+        let (fc, e) = stvk::<W4, STVK, PENALTY>(&d, &g, c);
         for k in 0..lanes_used(b, len) {
             for c in 0..4 {
                 f[block.nodes[c][k] as usize] +=
@@ -311,7 +332,7 @@ impl Lane for W4 {
 /// Plain loops over fixed arrays, no closures or `array::map`: those are separate functions
 /// that LLVM may leave out of line, compiled without the caller's AVX2.
 #[inline(always)]
-fn stvk<L: Lane, const PENALTY: bool>(
+fn stvk<L: Lane, const STVK: bool, const PENALTY: bool>(
     d: &[[L; 3]; 3],
     g: &[[L; 3]; 3],
     c: [L; 3],
@@ -325,35 +346,38 @@ fn stvk<L: Lane, const PENALTY: bool>(
             h[i][j] = d[0][i] * g[0][j] + d[1][i] * g[1][j] + d[2][i] * g[2][j];
         }
     }
-    // The six distinct entries of E, in the order 00, 11, 22, 01, 02, 12.
-    const IJ: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
-    let mut e = [zero; 6];
-    for (k, &(i, j)) in IJ.iter().enumerate() {
-        let q = h[0][i] * h[0][j] + h[1][i] * h[1][j] + h[2][i] * h[2][j];
-        e[k] = half * (h[i][j] + h[j][i] + q);
-    }
-    let lt = lv * (e[0] + e[1] + e[2]);
-    let mut sv = [zero; 6];
-    for k in 0..6 {
-        sv[k] = mv * e[k];
-    }
-    for k in 0..3 {
-        sv[k] = sv[k] + lt;
-    }
-    let mut energy = half
-        * (e[0] * sv[0]
-            + e[1] * sv[1]
-            + e[2] * sv[2]
-            + L::splat(2.0) * (e[3] * sv[3] + e[4] * sv[4] + e[5] * sv[5]));
-    let s = [
-        [sv[0], sv[3], sv[4]],
-        [sv[3], sv[1], sv[5]],
-        [sv[4], sv[5], sv[2]],
-    ];
+    let mut energy = zero;
     let mut p = [[zero; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            p[i][j] = s[i][j] + (h[i][0] * s[0][j] + h[i][1] * s[1][j] + h[i][2] * s[2][j]);
+    if STVK {
+        // The six distinct entries of E, in the order 00, 11, 22, 01, 02, 12.
+        const IJ: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+        let mut e = [zero; 6];
+        for (k, &(i, j)) in IJ.iter().enumerate() {
+            let q = h[0][i] * h[0][j] + h[1][i] * h[1][j] + h[2][i] * h[2][j];
+            e[k] = half * (h[i][j] + h[j][i] + q);
+        }
+        let lt = lv * (e[0] + e[1] + e[2]);
+        let mut sv = [zero; 6];
+        for k in 0..6 {
+            sv[k] = mv * e[k];
+        }
+        for k in 0..3 {
+            sv[k] = sv[k] + lt;
+        }
+        energy = half
+            * (e[0] * sv[0]
+                + e[1] * sv[1]
+                + e[2] * sv[2]
+                + L::splat(2.0) * (e[3] * sv[3] + e[4] * sv[4] + e[5] * sv[5]));
+        let s = [
+            [sv[0], sv[3], sv[4]],
+            [sv[3], sv[1], sv[5]],
+            [sv[4], sv[5], sv[2]],
+        ];
+        for i in 0..3 {
+            for j in 0..3 {
+                p[i][j] = s[i][j] + (h[i][0] * s[0][j] + h[i][1] * s[1][j] + h[i][2] * s[2][j]);
+            }
         }
     }
     if PENALTY {

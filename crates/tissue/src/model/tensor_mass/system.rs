@@ -41,6 +41,16 @@ pub struct ElementSet {
     kernel: ElementKernel,
     fibre: Vec<u32>,
     dirty: bool,
+    /// Counts the repacks (the penalty pass follows them).
+    generation: u64,
+}
+
+/// The volume penalty of the tetrahedra the element kernel does not cover, packed the same
+/// way, and what it was packed for.
+#[derive(Clone, Debug, Default)]
+struct PenaltyPass {
+    kernel: ElementKernel,
+    built_for: Option<(usize, u64)>,
 }
 
 impl ElementSet {
@@ -60,6 +70,7 @@ impl ElementSet {
         self.kernel = ElementKernel::new(tets, rest, el, &iso, kappa);
         self.fibre = fibre;
         self.dirty = false;
+        self.generation += 1;
     }
 
     fn len(&self) -> usize {
@@ -101,6 +112,7 @@ pub struct TensorSystem {
     energy_at: Vec<Vec3>,
     /// Displacements at which `prepare_jacobians` linearised.
     jacobian_u: Vec<Vec3>,
+    penalty_pass: PenaltyPass,
 }
 
 impl TensorSystem {
@@ -161,6 +173,7 @@ impl TensorSystem {
             energy: None,
             energy_at: vec![Vec3::ZERO; n],
             jacobian_u: vec![Vec3::ZERO; n],
+            penalty_pass: PenaltyPass::default(),
         };
         if nonlinear == Some(NonlinearForm::Elements) {
             system.elements = Some(ElementSet {
@@ -273,20 +286,30 @@ impl TensorSystem {
             }
         }
         if self.volume_penalty > 0.0 {
-            // The packed tetrahedra had theirs in the kernel's pass.
-            let packed = self.elements.as_ref().map(|e| &e.packed[..]);
-            for t in 0..self.tets.len() {
-                if !self.alive[t] || packed.is_some_and(|p| p.get(t).copied().unwrap_or(false)) {
-                    continue;
-                }
-                let xs = self.corners(t, x);
-                let v0 = self.rest_tets[t].volume;
-                let (fe, we) = element::volume_forces_energy(&xs, v0, self.volume_penalty);
-                w += we;
-                for (k, &v) in self.tets[t].iter().enumerate() {
-                    f[v as usize] += fe[k];
-                }
+            // The tetrahedra the element kernel did not cover (linear, fibre; all of them for
+            // the linear kind and the tensor form), repacked when a removal or a hybrid switch
+            // changed which they are.
+            let key = (
+                self.alive_count,
+                self.elements.as_ref().map_or(0, |e| e.generation),
+            );
+            if self.penalty_pass.built_for != Some(key) {
+                let packed = self.elements.as_ref().map(|e| &e.packed[..]);
+                let list: Vec<u32> = (0..self.tets.len())
+                    .filter(|&t| {
+                        self.alive[t] && !packed.is_some_and(|p| p.get(t).copied().unwrap_or(false))
+                    })
+                    .map(|t| t as u32)
+                    .collect();
+                self.penalty_pass.kernel = ElementKernel::penalty_only(
+                    &self.tets,
+                    &self.rest_tets,
+                    &list,
+                    self.volume_penalty,
+                );
+                self.penalty_pass.built_for = Some(key);
             }
+            w += self.penalty_pass.kernel.add_forces(&self.u, f);
         }
         w
     }

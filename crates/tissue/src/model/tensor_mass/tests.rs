@@ -359,7 +359,8 @@ fn element_form_equals_tensor_form_with_hybrid_and_removal() {
 }
 
 /// The plain reference of `add_elastic_forces`: −K u from the linear tensors (always run),
-/// the per-element StVK force of every tetrahedron in the non-linear set, the per-element
+/// the per-element StVK force of every tetrahedron in the non-linear set (less its linear
+/// part in the tensor form, whose linear tensors keep every tetrahedron), the per-element
 /// volume penalty; the energy element by element.
 fn reference_forces(s: &TensorSystem, x: &[Vec3]) -> (Vec<Vec3>, Real) {
     let u: Vec<Vec3> = x.iter().zip(&s.rest).map(|(a, b)| *a - *b).collect();
@@ -372,7 +373,15 @@ fn reference_forces(s: &TensorSystem, x: &[Vec3]) -> (Vec<Vec3>, Real) {
         let (r, el) = (&s.rest_tets[t], &s.elasticity[t]);
         let mut fe = [Vec3::ZERO; 4];
         if s.in_nonlinear_set(t) {
-            fe = stvk_forces(r, el, &tet.map(|v| u[v as usize]));
+            let ut = tet.map(|v| u[v as usize]);
+            fe = stvk_forces(r, el, &ut);
+            if s.nonlinear.is_some() {
+                // The tensor form keeps these in the linear tensors too: take −K_e u back out.
+                let k = stvk_tangent_product(r, el, &[Vec3::ZERO; 4], &ut);
+                for c in 0..4 {
+                    fe[c] += k[c];
+                }
+            }
         }
         if s.volume_penalty > 0.0 {
             let xt = tet.map(|v| x[v as usize]);
@@ -388,9 +397,9 @@ fn reference_forces(s: &TensorSystem, x: &[Vec3]) -> (Vec<Vec3>, Real) {
     (f, s.element_energy(x))
 }
 
-/// A system of the element form with every fifth tetrahedron fibre-reinforced (those take
+/// A system with every fifth tetrahedron fibre-reinforced (in the element form those take
 /// the plain per-element path, the others the packed kernel) and a volume penalty.
-fn mixed_system(mesh: &TetMesh) -> TensorSystem {
+fn mixed_system(mesh: &TetMesh, form: Option<NonlinearForm>) -> TensorSystem {
     let mesh = mesh.compacted();
     let m = material();
     let rest: Vec<_> = (0..mesh.tets.len())
@@ -398,10 +407,10 @@ fn mixed_system(mesh: &TetMesh) -> TensorSystem {
         .collect();
     let iso = elasticity::Elasticity::isotropic(m.lambda(), m.mu());
     let fibre = iso.with_fibre(Vec3::new(0.3, 1.0, -0.2), 4000.0, 1500.0);
-    let el = (0..mesh.tets.len())
+    let el: Vec<_> = (0..mesh.tets.len())
         .map(|t| if t % 5 == 2 { fibre } else { iso })
         .collect();
-    TensorSystem::new(&mesh, rest, el, &m, 500.0, Some(NonlinearForm::Elements))
+    TensorSystem::new(&mesh, rest, el, &m, 500.0, form)
 }
 
 #[test]
@@ -426,34 +435,45 @@ fn packed_kernel_equals_the_plain_per_element_forces() {
                 *p + *r + Vec3::new(0.3 * s.x * s.x * size.x, 0.1 * s.x * s.z * size.y, 0.0)
             })
             .collect();
-        for hybrid in [false, true] {
-            let mut s = mixed_system(&mesh);
+        // The penalty of tetrahedra outside the element kernel (linear, fibre, the tensor
+        // form's, the linear kind's) goes through the penalty-only packed pass.
+        for (form, hybrid) in [
+            (Some(NonlinearForm::Elements), false),
+            (Some(NonlinearForm::Elements), true),
+            (Some(NonlinearForm::Tensors), true),
+            (Some(NonlinearForm::Tensors), false),
+            (None, false),
+        ] {
+            let mut s = mixed_system(&mesh, form);
             if hybrid {
                 s.switch_hybrid(&x, 0.3);
             }
+            let mut f = vec![Vec3::ZERO; x.len()];
+            // Once before the removals: the penalty pass must follow them.
+            s.add_elastic_forces(&x, &mut f);
             for t in (0..mesh.tets.len()).step_by(11) {
                 s.remove_tet(t);
             }
             let n = s.nonlinear_count();
             if hybrid {
                 assert!(n > 0 && n < s.alive_count(), "{name}: {n}");
-            } else {
+            } else if form == Some(NonlinearForm::Elements) {
                 assert_eq!(n, s.alive_count());
                 // All non-linear: the linear tensors are empty and their pass is skipped.
                 assert_eq!(s.linear.tet_count(), 0);
             }
-            let mut f = vec![Vec3::ZERO; x.len()];
+            f.fill(Vec3::ZERO);
             let w = s.add_elastic_forces(&x, &mut f);
             let (fr, wr) = reference_forces(&s, &x);
             let rel = max_diff(&f, &fr) / max_norm(&fr);
             let rel_w = (w - wr).abs() / wr.abs();
             eprintln!(
-                "{name}, hybrid {hybrid} ({n} of {} non-linear): packed vs plain: forces \
-                 {rel:.1e}, energy {rel_w:.1e}",
+                "{name}, {form:?}, hybrid {hybrid} ({n} of {} non-linear): packed vs plain: \
+                 forces {rel:.1e}, energy {rel_w:.1e}",
                 s.alive_count()
             );
-            assert!(rel < 1e-12, "{name} {hybrid}: {rel}");
-            assert!(rel_w < 1e-12, "{name} {hybrid}: {w} vs {wr}");
+            assert!(rel < 1e-12, "{name} {form:?} {hybrid}: {rel}");
+            assert!(rel_w < 1e-12, "{name} {form:?} {hybrid}: {w} vs {wr}");
         }
     }
 }
@@ -461,7 +481,7 @@ fn packed_kernel_equals_the_plain_per_element_forces() {
 #[test]
 fn vector_and_scalar_kernel_paths_agree() {
     let mesh = box_tets(Vec3::ZERO, Vec3::splat(0.05), [4, 4, 4], BoxSplit::Five);
-    let s = mixed_system(&mesh);
+    let s = mixed_system(&mesh, Some(NonlinearForm::Elements));
     // A scrambled order and a length that is not a multiple of the block size.
     let list: Vec<u32> = (0..mesh.tets.len() as u32)
         .map(|t| (t * 37) % mesh.tets.len() as u32)
