@@ -96,16 +96,6 @@ pub fn volume_forces(x: &[Vec3; 4], v0: Real, kappa: Real) -> [Vec3; 4] {
     volume_gradient(x).map(|g| g * s)
 }
 
-/// `volume_forces` and `volume_energy` in one pass (the volume computed once, from the
-/// gradient: V = (e1 × e2)/6 · e3).
-#[inline]
-pub fn volume_forces_energy(x: &[Vec3; 4], v0: Real, kappa: Real) -> ([Vec3; 4], Real) {
-    let g = volume_gradient(x);
-    let dv = g[3].dot(x[3] - x[0]) - v0;
-    let s = -kappa * dv / v0;
-    (g.map(|g| g * s), 0.5 * kappa * dv * dv / v0)
-}
-
 /// Volume-penalty energy of one tetrahedron.
 pub fn volume_energy(x: &[Vec3; 4], v0: Real, kappa: Real) -> Real {
     let v = tet_signed_volume(x[0], x[1], x[2], x[3]);
