@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::interact::{Constraints, Loads, Prescribed};
-use crate::mesh::generate::{BoxSplit, box_tets};
+use crate::mesh::generate::BoxSplit;
 use crate::model::Deformable;
 use crate::model::fem::FemCondensed;
 use crate::model::fem::condensed::tests::{
