@@ -96,9 +96,9 @@ impl Cutter {
         &self.guard
     }
 
-    /// Turns the sliver guard off (to measure what it does).
-    pub fn disable_guard(&mut self) {
-        self.guard.disable();
+    /// Changes the sliver guard's limit (infinity turns it off; to measure what it does).
+    pub fn set_guard_limit(&mut self, limit: Real) {
+        self.guard.set_limit(limit);
     }
 
     pub fn locator(&self) -> &TetLocator {
@@ -115,7 +115,6 @@ impl Cutter {
         blade: &CutPath,
         remove_fragments: bool,
     ) -> CutReport {
-        let vertices_before = surface.nodes.len();
         let mut report = CutReport {
             refiled_nodes: self.locator.refresh(&system.tets, &system.alive, x),
             ..CutReport::default()
@@ -142,8 +141,23 @@ impl Cutter {
             })
             .collect();
         touched.sort_unstable();
+        self.remove_tets(system, surface, x, &touched, remove_fragments, report)
+    }
+
+    /// Removes the tetrahedra `touched` as if a blade had touched them (then the slivers
+    /// and fragments, as `cut` does); `report` carries what the search found.
+    pub fn remove_tets(
+        &mut self,
+        system: &mut TensorSystem,
+        surface: &mut CutSurface,
+        x: &[Vec3],
+        touched: &[usize],
+        remove_fragments: bool,
+        mut report: CutReport,
+    ) -> CutReport {
+        let vertices_before = surface.nodes.len();
         let loc = &mut self.locator;
-        for &t in &touched {
+        for &t in touched {
             remove(t, system, surface, loc, x, &mut report);
         }
         report.cut_tets = report.removed.len();

@@ -60,9 +60,14 @@ impl StabilityGuard {
         guard
     }
 
-    /// No limit: the guard removes nothing.
-    pub fn disable(&mut self) {
-        self.limit = Real::INFINITY;
+    /// Replaces the limit (infinity: the guard removes nothing).
+    pub fn set_limit(&mut self, limit: Real) {
+        self.limit = limit;
+    }
+
+    /// The explicit step the limit guarantees: 2/√limit (symplectic Euler, undamped).
+    pub fn guaranteed_dt(&self) -> Real {
+        2.0 / self.limit.sqrt()
     }
 
     /// The limit: the largest frequency bound r of the uncut model, 1/s².
