@@ -28,6 +28,7 @@ mod deformable;
 pub mod elasticity;
 pub mod element;
 mod model;
+mod model_cut;
 pub mod pieces;
 pub mod spatial;
 pub mod stability;

@@ -12,12 +12,11 @@ use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
-use crate::model::{BuildInput, CutInfo, CutPath, StepInfo};
+use crate::model::{BuildInput, StepInfo};
 
 use super::cut::{CutReport, Cutter};
 use super::cut_surface::CutSurface;
-use super::system::NonlinearForm;
-use super::{Fragments, TensorMassParams, TensorSystem, build_system};
+use super::{TensorMassParams, TensorSystem, build_system};
 
 /// A tensor-mass model (see the module doc of `tensor_mass`).
 #[derive(Debug)]
@@ -35,7 +34,7 @@ pub struct TensorMass {
     /// The constraints' holds plus the detached nodes, held where they are.
     pub(super) step_holds: Vec<Hold>,
     /// Nodes in `step_holds`.
-    step_held: Vec<bool>,
+    pub(super) step_held: Vec<bool>,
     /// The grid, piece labels and sliver guard, built at the first cut.
     pub(super) cutter: Option<Cutter>,
     pub(super) constraints: Constraints,
@@ -47,8 +46,8 @@ pub struct TensorMass {
     pub(super) fragments_seen: usize,
     /// The surviving tetrahedra, for the volume view (swap-removed on cuts).
     pub(super) alive_tets: Vec<[u32; 4]>,
-    alive_slot: Vec<u32>,
-    alive_owner: Vec<u32>,
+    pub(super) alive_slot: Vec<u32>,
+    pub(super) alive_owner: Vec<u32>,
     pub(super) switched: usize,
     pub(super) precompute_seconds: Real,
 }
@@ -195,7 +194,7 @@ impl TensorMass {
     }
 
     /// Adds the nodes no tetrahedron holds any more, kept where they are.
-    fn refresh_step_holds(&mut self) {
+    pub(super) fn refresh_step_holds(&mut self) {
         let held = &mut self.step_held;
         held.iter_mut().for_each(|h| *h = false);
         self.step_holds.clear();
@@ -211,22 +210,6 @@ impl TensorMass {
                 self.step_holds.push(Hold {
                     particle: n,
                     target: *x,
-                });
-            }
-        }
-    }
-
-    /// Holds the nodes a cut detached, where they are (a constraint's hold on such a node
-    /// stays in the list; `advance` moves its target with the node). Local to the cut.
-    fn hold_detached(&mut self, detached: &[usize]) {
-        for &n in detached {
-            if let Some(h) = self.step_held.get_mut(n)
-                && !*h
-            {
-                *h = true;
-                self.step_holds.push(Hold {
-                    particle: n,
-                    target: self.state.x[n],
                 });
             }
         }
@@ -286,158 +269,5 @@ impl TensorMass {
         for (k, p) in self.constraints.prescribed.iter().enumerate().rev() {
             self.prescribed_reactions[k] = take(p.vertex);
         }
-    }
-
-    /// Builds the cutting state (the grid of tetrahedra, piece labels, sliver guard) now
-    /// rather than at the first cut.
-    pub fn prepare_cutting(&mut self) {
-        if self.cutter.is_none() {
-            self.cutter = Some(Cutter::new(&self.system, &self.state.x));
-        }
-    }
-
-    /// Rebuilds the system from the mesh and the per-tetrahedron rest data and elasticity
-    /// (so fibres set per tetrahedron survive), then re-applies loads and holds.
-    fn restore_uncut(&mut self) {
-        let form = if self.system.nonlinear.is_some() {
-            Some(NonlinearForm::Tensors)
-        } else if self.system.elements.is_some() {
-            Some(NonlinearForm::Elements)
-        } else {
-            None
-        };
-        self.system = TensorSystem::new(
-            &self.mesh,
-            self.system.rest_tets.clone(),
-            self.system.elasticity.clone(),
-            &self.material,
-            self.params.volume_penalty,
-            form,
-        );
-        if self.nonlinear && self.params.strain_threshold > 0.0 {
-            self.system
-                .switch_hybrid(&self.mesh.vertices, Real::INFINITY);
-        }
-        self.surface
-            .restore(&self.mesh.tets, &self.mesh.vertices, &self.mesh.vertices);
-        self.alive_tets = self.mesh.tets.clone();
-        self.alive_slot = (0..self.mesh.tets.len() as u32).collect();
-        self.alive_owner = self.alive_slot.clone();
-        self.cutter = None;
-        self.last_cut = CutReport::default();
-        self.fragments_seen = 0;
-        self.topology_version += 1;
-        let loads = self.loads.clone();
-        // The loads were accepted before and name surface vertices that still exist.
-        let _ = self.apply_loads(&loads);
-        self.refresh_step_holds();
-    }
-
-    /// Gravity as the lumped share m_i g; point loads on their vertex's node.
-    pub(super) fn apply_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        if !loads.gravity.is_finite() {
-            return Err(SimError::BadParameter {
-                name: "gravity",
-                value: loads.gravity.to_string(),
-                reason: "must be finite".into(),
-            });
-        }
-        let mut forces = Vec::with_capacity(loads.point_loads.len());
-        for &(v, f) in &loads.point_loads {
-            let node = self
-                .surface
-                .nodes
-                .get(v as usize)
-                .ok_or(SimError::BadConstraint {
-                    vertex: v as usize,
-                    count: self.surface.nodes.len(),
-                })?;
-            if !f.is_finite() {
-                return Err(SimError::BadParameter {
-                    name: "point_loads",
-                    value: format!("surface vertex {v} -> {f}"),
-                    reason: "the force must be finite".into(),
-                });
-            }
-            forces.push((*node as usize, f));
-        }
-        self.system.set_node_loads(loads.gravity, &forces);
-        self.integrator.invalidate();
-        self.loads = loads.clone();
-        Ok(())
-    }
-
-    /// Removes what the blade touches (see `cut`).
-    pub fn cut_along(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        let ok = |p: &[Vec3; 2]| p.iter().all(|v| v.is_finite());
-        if !(ok(&blade.start) && ok(&blade.end)) {
-            return Err(SimError::BadParameter {
-                name: "blade",
-                value: format!("{blade:?}"),
-                reason: "the blade positions must be finite".into(),
-            });
-        }
-        let remove = self.params.fragments == Fragments::Remove;
-        let cutter = self
-            .cutter
-            .get_or_insert_with(|| Cutter::new(&self.system, &self.state.x));
-        let report = cutter.cut(
-            &mut self.system,
-            &mut self.surface,
-            &self.state.x,
-            blade,
-            remove,
-        );
-        let removed = report.removed.len();
-        for &t in &report.removed {
-            let slot = self.alive_slot[t] as usize;
-            self.alive_tets.swap_remove(slot);
-            self.alive_owner.swap_remove(slot);
-            if let Some(&moved) = self.alive_owner.get(slot) {
-                self.alive_slot[moved as usize] = slot as u32;
-            }
-        }
-        if removed > 0 {
-            self.topology_version += 1;
-            self.fragments_seen += report.fragments.len();
-            self.integrator.invalidate();
-            self.hold_detached(&report.detached);
-            // Surface vertex count grew: constraint bookkeeping stays valid (stable ids).
-        }
-        let info = CutInfo {
-            removed_elements: removed,
-            added_vertices: report.added_vertices,
-            topology_version: self.topology_version,
-        };
-        self.last_cut = report;
-        Ok(info)
-    }
-
-    /// Back to the uncut model at rest with zero velocity: removed tetrahedra, tensors,
-    /// masses, surface triangles and the hybrid set as built (surface vertex numbers handed
-    /// out by cuts stay valid, unused); constraints and loads kept.
-    pub fn reset_state(&mut self) {
-        if self.system.alive_count() != self.system.tets.len() {
-            self.restore_uncut();
-        } else if self.nonlinear && self.params.strain_threshold > 0.0 {
-            self.system
-                .switch_hybrid(&self.mesh.vertices, Real::INFINITY);
-        }
-        self.switched = 0;
-        self.state.x.copy_from_slice(&self.mesh.vertices);
-        self.state.v.iter_mut().for_each(|v| *v = Vec3::ZERO);
-        self.integrator.invalidate();
-        self.surface.update_positions(&self.state.x);
-        for h in &mut self.step_holds {
-            if !self.system.is_attached(h.particle) {
-                h.target = self.state.x[h.particle];
-            }
-        }
-        self.fixed_reactions
-            .iter_mut()
-            .for_each(|r| *r = Vec3::ZERO);
-        self.prescribed_reactions
-            .iter_mut()
-            .for_each(|r| *r = Vec3::ZERO);
     }
 }
