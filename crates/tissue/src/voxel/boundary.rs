@@ -44,6 +44,16 @@ fn dir(axis: usize, positive: bool) -> usize {
 /// The boundary surface of the occupied voxels of `links` (face links decide what is
 /// joined), with `smoothing` Taubin passes on the rest positions (0: the cube corners).
 pub fn boundary_surface(links: &VoxelLinks, smoothing: usize) -> BoundarySurface {
+    boundary_surface_with(links, 0, smoothing)
+}
+
+/// As `boundary_surface`, with every triangle split in four `subdivisions` times before
+/// smoothing: finer vertices for the probe (contacts hold vertices) and a rounder shape.
+pub fn boundary_surface_with(
+    links: &VoxelLinks,
+    subdivisions: usize,
+    smoothing: usize,
+) -> BoundarySurface {
     let [nx, ny, _] = links.dims;
     let coords = |v: usize| [v % nx, (v / nx) % ny, v / (nx * ny)];
     let boundary = |v: usize, d: usize| links.is_occupied(v) && links.linked(v, d).is_none();
@@ -207,26 +217,35 @@ pub fn boundary_surface(links: &VoxelLinks, smoothing: usize) -> BoundarySurface
         }
     }
     // A lattice corner has eight cells around it, so a class has at most eight voxels.
-    let (nodes, weights): (Vec<[u32; 8]>, Vec<[Real; 8]>) = members
+    let mut follows: Vec<Vec<(u32, Real)>> = members
+        .iter()
+        .map(|m| {
+            let share = 1.0 / m.len().clamp(1, 8) as Real;
+            m.iter().take(8).map(|&v| (v, share)).collect()
+        })
+        .collect();
+    for _ in 0..subdivisions {
+        triangles = split_in_four(&mut rest, &mut follows, &triangles);
+    }
+    let (nodes, weights): (Vec<[u32; 8]>, Vec<[Real; 8]>) = follows
         .iter()
         .map(|m| {
             let mut ids = [0u32; 8];
             let mut w = [0.0; 8];
-            let share = 1.0 / m.len().clamp(1, 8) as Real;
-            for (k, &v) in m.iter().take(8).enumerate() {
+            for (k, &(v, x)) in m.iter().take(8).enumerate() {
                 ids[k] = v;
-                w[k] = share;
+                w[k] = x;
             }
             (ids, w)
         })
         .unzip();
-    let boxes: Vec<(Vec3, Vec3)> = members
+    let boxes: Vec<(Vec3, Vec3)> = follows
         .iter()
         .map(|m| {
             let half = 0.5 * links.spacing;
             m.iter().fold(
                 (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),
-                |(lo, hi), &v| {
+                |(lo, hi), &(v, _)| {
                     let c = links.centre_of(v as usize);
                     (lo.min(c - half), hi.max(c + half))
                 },
@@ -267,6 +286,49 @@ fn twin(
     None
 }
 
+/// Splits every triangle in four at its edge midpoints. A midpoint follows its edge's
+/// two ends half each (the coarse surface moves exactly as before; if the two ends follow
+/// more than eight voxels between them, the eight largest weights are kept). The surface
+/// stays closed and oriented: each edge gets one midpoint, shared by both its triangles.
+fn split_in_four(
+    rest: &mut Vec<Vec3>,
+    follows: &mut Vec<Vec<(u32, Real)>>,
+    triangles: &[[u32; 3]],
+) -> Vec<[u32; 3]> {
+    let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut out = Vec::with_capacity(4 * triangles.len());
+    for tri in triangles {
+        let m = [0, 1, 2].map(|e| {
+            let (a, b) = (tri[e], tri[(e + 1) % 3]);
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                rest.push(0.5 * (rest[a as usize] + rest[b as usize]));
+                let mut w: Vec<(u32, Real)> = Vec::with_capacity(8);
+                for &(v, x) in follows[a as usize].iter().chain(&follows[b as usize]) {
+                    match w.iter_mut().find(|(u, _)| *u == v) {
+                        Some((_, y)) => *y += 0.5 * x,
+                        None => w.push((v, 0.5 * x)),
+                    }
+                }
+                if w.len() > 8 {
+                    w.sort_by(|p, q| q.1.total_cmp(&p.1));
+                    w.truncate(8);
+                    let sum: Real = w.iter().map(|p| p.1).sum();
+                    w.iter_mut().for_each(|p| p.1 /= sum);
+                }
+                follows.push(w);
+                (rest.len() - 1) as u32
+            })
+        });
+        out.extend([
+            [tri[0], m[0], m[2]],
+            [tri[1], m[1], m[0]],
+            [tri[2], m[2], m[1]],
+            [m[0], m[1], m[2]],
+        ]);
+    }
+    out
+}
+
 /// Taubin λ|μ smoothing (λ = 0.5, μ = −0.53): rounds the cube corners with little
 /// shrinkage; the connectivity is untouched, so the surface stays closed. Each vertex is
 /// kept inside `boxes` (the box of the cubes of the voxels it follows), so the two lips of
@@ -293,6 +355,9 @@ fn taubin(x: &mut [Vec3], triangles: &[[u32; 3]], passes: usize, boxes: &[(Vec3,
     }
 }
 
+/// Triangle splits the models give the boundary surface (each one quarters the triangles).
+pub const SUBDIVISIONS: usize = 1;
+
 /// Taubin passes the models give the boundary surface.
 pub const SMOOTHING: usize = 8;
 
@@ -307,7 +372,7 @@ pub fn redraw(
     links: &VoxelLinks,
     element_of: Option<&[u32]>,
 ) -> Vec<[u32; 3]> {
-    let b = boundary_surface(links, SMOOTHING);
+    let b = boundary_surface_with(links, SUBDIVISIONS, SMOOTHING);
     let mut e = b.embedding;
     if let Some(map) = element_of {
         e.remap(map);
@@ -504,8 +569,8 @@ mod tests {
                     }
                 }
             }
-            for smoothing in [0, SMOOTHING] {
-                let b = boundary_surface(&links, smoothing);
+            for (split, smoothing) in [(0, 0), (0, SMOOTHING), (SUBDIVISIONS, SMOOTHING)] {
+                let b = boundary_surface_with(&links, split, smoothing);
                 closed_pieces(&b.triangles, &b.embedding.rest, 1e-6).unwrap();
             }
             let b = boundary_surface(&links, 0);
