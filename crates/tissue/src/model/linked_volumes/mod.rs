@@ -13,11 +13,16 @@
 //!
 //! - `springs`: spring lattice, stiffness from E, `ParticleSystem` forces and Jacobians
 //! - `deformable`: the `Deformable` interface
+//! - `topology`: cut, carve and join on the shared `voxel::VoxelLinks`, springs updated
+//!   locally, and the closed voxel-boundary surface drawn afterwards
 
 mod deformable;
 pub mod springs;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_topology;
+mod topology;
 
 use std::time::Instant;
 
@@ -31,7 +36,9 @@ use crate::math::{Real, Vec3};
 use crate::mesh::SurfaceMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
-use crate::voxel::{TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface, voxelize_to};
+use crate::voxel::{
+    TrilinearEmbedding, VoxelGrid, VoxelLinks, keep_largest, marching_surface, voxelize_to,
+};
 
 pub use springs::{Spring, SpringLattice, family_coefficients};
 
@@ -84,6 +91,16 @@ impl Default for LinkedVolumesParams {
 #[derive(Debug)]
 pub struct LinkedVolumes {
     params: LinkedVolumesParams,
+    /// Which voxels exist and which links hold (shared with `chainmail`).
+    topology: VoxelLinks,
+    /// Voxel index → element id (`u32::MAX` for empty voxels).
+    element_of: Vec<u32>,
+    /// Spring coefficients per family, in units of E (`family_coefficients`).
+    coef: [Real; 3],
+    /// Vertices of the given (or marching) surface; the voxel boundary drawn after a
+    /// topology edit is numbered after them.
+    original_vertices: usize,
+    topology_version: u32,
     material: Material,
     system: SpringLattice,
     rest: Vec<Vec3>,
@@ -151,55 +168,20 @@ impl LinkedVolumes {
         embedding.remap(&id);
         let s = grid.spacing;
         let volume = s.x * s.y * s.z;
-        let (nx, ny, nz) = (
-            grid.dims[0] as i64,
-            grid.dims[1] as i64,
-            grid.dims[2] as i64,
-        );
-        let mut springs = Vec::new();
-        for v in 0..grid.len() {
-            let a = id[v];
-            if a == u32::MAX {
-                continue;
-            }
-            let [i, j, k] = grid.coords(v).map(|c| c as i64);
-            // Each pair once: offsets that are lexicographically positive.
-            for dk in -1i64..=1 {
-                for dj in -1i64..=1 {
-                    for di in -1i64..=1 {
-                        if (dk, dj, di) <= (0, 0, 0) {
-                            continue;
-                        }
-                        let family =
-                            (di != 0) as usize + (dj != 0) as usize + (dk != 0) as usize - 1;
-                        if coef[family] == 0.0 {
-                            continue;
-                        }
-                        let (p, q, r) = (i + di, j + dj, k + dk);
-                        if p < 0 || q < 0 || r < 0 || p >= nx || q >= ny || r >= nz {
-                            continue;
-                        }
-                        let b = id[(p + nx * (q + ny * r)) as usize];
-                        if b == u32::MAX {
-                            continue;
-                        }
-                        let l = (Vec3::new(di as Real, dj as Real, dk as Real) * s).length();
-                        let kk = coef[family] * material.young_modulus * volume / (l * l);
-                        springs.push(Spring {
-                            a,
-                            b,
-                            k: kk,
-                            rest: l,
-                            c: material.stiffness_damping * kk,
-                        });
-                    }
-                }
-            }
-        }
+        let topology = VoxelLinks::new(&grid, params.neighbours);
+        let springs = topology
+            .each_link()
+            .map(|(a, b, d)| spring_for(&material, coef, s, [id[a], id[b]], d))
+            .collect();
         let masses = vec![material.density * volume; rest.len()];
         let system = SpringLattice::new(springs, masses, material.damping);
         let nv = surface.vertices.len();
         Ok(Self {
+            topology,
+            element_of: id,
+            coef,
+            original_vertices: nv,
+            topology_version: 0,
             params,
             material,
             system,
@@ -241,6 +223,27 @@ impl LinkedVolumes {
     fn refresh_surface(&mut self) {
         self.embedding
             .apply(&self.state.x, &self.rest, &mut self.surface);
+    }
+}
+
+/// The spring between elements `ids` (voxels a, b = a's neighbour in direction d).
+fn spring_for(material: &Material, coef: [Real; 3], s: Vec3, ids: [u32; 2], d: usize) -> Spring {
+    let family = if d < 6 {
+        0
+    } else if d < 18 {
+        1
+    } else {
+        2
+    };
+    let o = crate::voxel::topology::OFFSETS[d.min(25)];
+    let l = (Vec3::new(o[0] as Real, o[1] as Real, o[2] as Real) * s).length();
+    let k = coef[family] * material.young_modulus * s.x * s.y * s.z / (l * l);
+    Spring {
+        a: ids[0],
+        b: ids[1],
+        k,
+        rest: l,
+        c: material.stiffness_damping * k,
     }
 }
 

@@ -77,6 +77,13 @@ impl SpringLattice {
         }
     }
 
+    /// Topology edits: keeps the springs for which `keep` holds and appends `added`.
+    pub fn edit_springs(&mut self, keep: impl FnMut(&Spring) -> bool, added: &[Spring]) {
+        self.springs.retain(keep);
+        self.springs.extend_from_slice(added);
+        self.linear = vec![Linear::default(); self.springs.len()];
+    }
+
     /// Σ ½ k (l − L)².
     pub fn elastic_energy(&self, x: &[Vec3]) -> Real {
         self.springs
