@@ -5,7 +5,9 @@
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::model::{
+    CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
+};
 
 use super::model::Bem;
 use super::viscous::relax;
@@ -60,8 +62,13 @@ impl Bem {
             self.traction[v] += at(&self.p_contact, k);
         }
         // The tissue pushes on its support with the load on that vertex minus the traction
-        // the support applies over the vertex's area.
-        let reaction = |v: usize| self.point_forces[v] - self.traction[v] * self.areas[v];
+        // the support applies over the area it acts on (a fixed vertex's traction acts only
+        // on the fixed side of the rim: `BemSystem::support_area`).
+        let area = |v: usize| match fixed.get(v) {
+            Some(true) => self.system.support_area(v).unwrap_or(self.areas[v]),
+            _ => self.areas[v],
+        };
+        let reaction = |v: usize| self.point_forces[v] - self.traction[v] * area(v);
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
             self.fixed_reactions[k] = if self.fixed_owner[k] {
                 reaction(v as usize)
@@ -106,8 +113,12 @@ impl Deformable for Bem {
             fixed[v as usize] = true;
         }
         let contacts: Vec<usize> = (0..n).filter(|&v| !fixed[v] && disp[v].is_some()).collect();
+        self.assemble_pending();
         if fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
+            let stage = "bem: factorising A0 and W = A0^-1 G";
+            self.progress.report(stage, 0.0);
             self.system.factor(&fixed)?;
+            self.progress.report(stage, 1.0);
             self.refresh_load_response()?;
         }
         let changed = contacts.as_slice() != self.system.contacts();
@@ -205,6 +216,10 @@ impl Deformable for Bem {
             operation: "cutting",
             reason: "incisions are not implemented yet for the BEM".into(),
         })
+    }
+
+    fn set_progress(&mut self, progress: Progress) {
+        self.progress = progress;
     }
 
     fn reset(&mut self) {

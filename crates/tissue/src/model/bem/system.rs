@@ -27,7 +27,8 @@ use faer::{Conj, Mat, MatMut, MatRef, Par};
 use crate::error::SimError;
 use crate::math::{Real, Vec3};
 
-use super::assembly::Influence;
+use super::assembly::{Geometry, Influence};
+use super::quadrature::Rules;
 
 /// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
 const PIVOT_RATIO: Real = 1e-12;
@@ -45,6 +46,12 @@ pub struct BemSystem {
     pub factorizations: usize,
     pub woodbury_updates: usize,
     pub last_factor_seconds: Real,
+    /// The surface, to re-integrate the rim triangles of the fixed set (`base_matrix`);
+    /// without it the fixed vertices' tractions stay continuous across the rim.
+    geometry: Option<Geometry>,
+    /// Per vertex, the area its unknown traction acts on for the factorised fixed set (0 for
+    /// the others); empty without geometry.
+    support_area: Vec<Real>,
 }
 
 impl BemSystem {
@@ -58,7 +65,63 @@ impl BemSystem {
             factorizations: 0,
             woodbury_updates: 0,
             last_factor_seconds: 0.0,
+            geometry: None,
+            support_area: Vec::new(),
         }
+    }
+
+    /// Gives the system its surface so that fixed tractions become discontinuous at the rim
+    /// of the fixed set (see `base_matrix`). Takes effect at the next `factor`.
+    pub(crate) fn set_geometry(&mut self, geometry: Option<Geometry>) {
+        self.geometry = geometry;
+    }
+
+    pub(crate) fn geometry(&self) -> Option<&Geometry> {
+        self.geometry.as_ref()
+    }
+
+    /// Replaces H and G (a deferred assembly); the factorisation is dropped.
+    pub(crate) fn set_influence(&mut self, inf: Influence) {
+        self.inf = inf;
+        self.w = Mat::zeros(0, 0);
+        self.contacts.clear();
+        self.capacitance = None;
+    }
+
+    /// The area over which fixed vertex `v`'s traction acts (what turns it into a reaction),
+    /// if the system has its geometry; `None` otherwise (then: the tributary area).
+    pub fn support_area(&self, v: usize) -> Option<Real> {
+        self.support_area.get(v).copied()
+    }
+
+    /// The reordered matrix with the tractions of the `constrained` vertices unknown and
+    /// discontinuous at the rim of that set: a constrained vertex's column is −G restricted
+    /// to its triangles whose three vertices are all constrained (`Geometry::
+    /// traction_supports`), i.e. −G plus the G share of its rim triangles, re-integrated
+    /// here. Without geometry it is `reordered`. A₀ is this for the fixed set. Also returns
+    /// the support areas.
+    pub fn base_matrix(&self, constrained: &[bool]) -> (Mat<Real>, Vec<Real>) {
+        let mut a = self.reordered(constrained);
+        let Some(geo) = &self.geometry else {
+            return (a, Vec::new());
+        };
+        if geo.vertices.len() != self.inf.vertices {
+            return (a, Vec::new());
+        }
+        let (rim, area) = geo.traction_supports(constrained);
+        let rules = Rules::new();
+        let n = self.dofs();
+        for (v, list) in rim.iter().enumerate() {
+            for &(e, corner) in list {
+                let g = geo.element_g_columns(e, corner, &rules);
+                for r in 0..n {
+                    for k in 0..3 {
+                        a[(r, 3 * v + k)] += g[3 * r + k];
+                    }
+                }
+            }
+        }
+        (a, area)
     }
 
     pub fn dofs(&self) -> usize {
@@ -82,7 +145,8 @@ impl BemSystem {
     }
 
     /// The reordered matrix: columns of −G for vertices whose traction is unknown
-    /// (`unknown_traction[v]`), of H otherwise.
+    /// (`unknown_traction[v]`), of H otherwise (tractions continuous everywhere; A₀ is
+    /// `base_matrix`).
     pub fn reordered(&self, unknown_traction: &[bool]) -> Mat<Real> {
         let n = self.dofs();
         let (h, g) = (&self.inf.h, &self.inf.g);
@@ -109,7 +173,7 @@ impl BemSystem {
         if fixed.len() != self.inf.vertices || fixed.iter().filter(|&&f| f).count() < 3 {
             return Err(singular());
         }
-        let mut a = self.reordered(fixed);
+        let (mut a, support_area) = self.base_matrix(fixed);
         let mut perm = vec![0usize; n];
         let mut perm_inv = vec![0usize; n];
         let req = StackReq::any_of(&[
@@ -140,6 +204,7 @@ impl BemSystem {
         }
         self.w = w;
         self.fixed = fixed.to_vec();
+        self.support_area = support_area;
         self.contacts.clear();
         self.capacitance = None;
         self.factorizations += 1;
@@ -235,7 +300,7 @@ impl BemSystem {
         if !self.is_factored() {
             return Err(not_factored());
         }
-        let a0_inv = self.reordered(&self.fixed).partial_piv_lu().inverse();
+        let a0_inv = self.base_matrix(&self.fixed).0.partial_piv_lu().inverse();
         let Some(lu) = &self.capacitance else {
             return Ok(a0_inv);
         };

@@ -185,11 +185,18 @@ fn woodbury_equals_a_fresh_inversion() {
     for set in [&top[..3], &top[..10], &top[4..7]] {
         m.set_constraints(&press(set)).unwrap();
         let sys = m.system();
-        let mut mask = sys.fixed().to_vec();
+        // A₀ (fixed tractions discontinuous at the rim) with the contacts' columns −G.
+        let (mut a, _) = sys.base_matrix(sys.fixed());
+        let g = &sys.influence().g;
+        let n = sys.dofs();
         for &v in set {
-            mask[v as usize] = true;
+            for c in 3 * v as usize..3 * v as usize + 3 {
+                for r in 0..n {
+                    a[(r, c)] = -g[r * n + c];
+                }
+            }
         }
-        let fresh = sys.reordered(&mask).partial_piv_lu().inverse();
+        let fresh = a.partial_piv_lu().inverse();
         let updated = sys.explicit_inverse().unwrap();
         let rel = (&updated - &fresh).norm_l2() / fresh.norm_l2();
         eprintln!(
@@ -379,4 +386,84 @@ fn builds_by_kind_from_a_tet_mesh_boundary() {
     // 27 grid vertices, all but the centre on the boundary; 6 faces × 4 squares × 2 = 48.
     assert_eq!(m.info().surface_vertices, 26);
     assert_eq!(m.surface().triangles.len(), 48);
+}
+
+#[test]
+fn fixed_tractions_act_only_on_fully_fixed_triangles() {
+    // A0's column of a fixed vertex must be −G assembled over the fixed triangles alone
+    // (an independent assembly of that sub-surface), except for a point support, which
+    // keeps all its triangles; the support areas tile the floor.
+    use crate::mesh::generate::{BoxSplit, box_tets};
+    let tets = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.04, 0.04, 0.02),
+        [4, 4, 2],
+        BoxSplit::Six,
+    );
+    let s = crate::mesh::MeshData::from_tets(&tets)
+        .surface_mesh()
+        .unwrap();
+    let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let rest = m.rest_surface().to_vec();
+    let n = rest.len();
+    let mut fixed: Vec<bool> = rest.iter().map(|p| p.z < 1e-9).collect();
+    // A point support on the top face.
+    let point = (0..n)
+        .find(|&v| (rest[v] - Vec3::new(0.01, 0.02, 0.02)).length() < 1e-9)
+        .unwrap();
+    fixed[point] = true;
+    let c = Constraints::fixed((0..n as u32).filter(|&v| fixed[v as usize]).collect());
+    m.set_constraints(&c).unwrap();
+    let sys = m.system();
+    let (a, area) = sys.base_matrix(&fixed);
+    let elements: Vec<_> = s
+        .triangles
+        .iter()
+        .filter_map(|&t| assembly::Element::new(&s.vertices, t))
+        .collect();
+    let floor: Vec<_> = elements
+        .iter()
+        .copied()
+        .filter(|e| e.nodes.iter().all(|&v| fixed[v] && v != point))
+        .collect();
+    let kelvin = Kelvin::new(material().mu(), NU);
+    let sub = assembly::assemble(&s.vertices, &floor, &kelvin, &|_| {});
+    let inf = sys.influence();
+    let dofs = 3 * n;
+    let gmax = inf.g.iter().fold(0.0 as Real, |a, v| a.max(v.abs()));
+    let mut worst: Real = 0.0;
+    let mut rim_changed: Real = 0.0;
+    for v in 0..n {
+        for k in 0..3 {
+            let c = 3 * v + k;
+            for r in 0..dofs {
+                let expect = if v == point {
+                    -inf.g_at(r, c)
+                } else if fixed[v] {
+                    -sub.g_at(r, c)
+                } else {
+                    inf.h_at(r, c)
+                };
+                worst = worst.max((a[(r, c)] - expect).abs());
+                if fixed[v] && v != point {
+                    rim_changed = rim_changed.max((a[(r, c)] + inf.g_at(r, c)).abs());
+                }
+            }
+        }
+    }
+    eprintln!(
+        "fixed-set columns vs a sub-surface assembly: {:.2e}; rim share {:.2e} (of max |G| {gmax:.2e})",
+        worst / gmax,
+        rim_changed / gmax
+    );
+    assert!(worst < 1e-12 * gmax, "{worst:e}");
+    assert!(
+        rim_changed > 0.01 * gmax,
+        "the floor's rim triangles were dropped"
+    );
+    let floor_area: Real = (0..n).filter(|&v| v != point).map(|v| area[v]).sum();
+    assert!((floor_area - 0.04 * 0.04).abs() < 1e-15, "{floor_area}");
+    // The point support's traction acts on all its triangles: its tributary area.
+    assert!((area[point] - m.areas()[point]).abs() < 1e-18);
+    assert_eq!(m.system().support_area(point), Some(area[point]));
 }
