@@ -467,3 +467,52 @@ fn fixed_tractions_act_only_on_fully_fixed_triangles() {
     assert!((area[point] - m.areas()[point]).abs() < 1e-18);
     assert_eq!(m.system().support_area(point), Some(area[point]));
 }
+
+#[test]
+fn a_scene_built_model_assembles_on_first_constraints_and_reports_progress() {
+    use std::sync::{Arc, Mutex};
+    let s = sphere(1);
+    let mesh = crate::mesh::MeshData::from_surface(&s);
+    // The deprecated `progress` key is still accepted (and ignored).
+    let mut params = toml::Table::new();
+    params.insert("progress".into(), toml::Value::Boolean(true));
+    let input = crate::model::BuildInput {
+        mesh: &mesh,
+        source: "sphere",
+        material: material(),
+        params: &params,
+    };
+    let mut deferred = crate::model::build("bem", &input).unwrap();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let sink = seen.clone();
+    let counter = seen.clone();
+    deferred.set_progress(crate::model::Progress::new(move |stage, f| {
+        sink.lock().unwrap().push((stage.to_string(), f))
+    }));
+    assert!(seen.lock().unwrap().is_empty(), "nothing assembled yet");
+    let mut eager = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let c = pole_push(&eager);
+    deferred.set_constraints(&c).unwrap();
+    eager.set_constraints(&c).unwrap();
+    deferred.step(0.01).unwrap();
+    eager.step(0.01).unwrap();
+    assert_eq!(deferred.surface().positions, eager.surface().positions);
+    assert_eq!(
+        deferred.reactions().prescribed,
+        eager.reactions().prescribed
+    );
+    let seen = seen.lock().unwrap();
+    let last = |stage: &str| {
+        seen.iter()
+            .filter(|(s, _)| s.contains(stage))
+            .map(|&(_, f)| f)
+            .last()
+    };
+    assert_eq!(last("assembling"), Some(1.0), "{seen:?}");
+    assert_eq!(last("factorising"), Some(1.0), "{seen:?}");
+    // A second set of constraints with the same fixed set neither assembles nor factorises.
+    let before = seen.len();
+    drop(seen);
+    deferred.set_constraints(&c).unwrap();
+    assert_eq!(counter.lock().unwrap().len(), before);
+}
