@@ -161,7 +161,6 @@ type Block = [[[Real; 3]; 3]; 3];
 /// `e`, from source `i` at `x`. The rule depends only on the source's position, so
 /// re-integrating one element later reproduces its share of H and G exactly. `with_h =
 /// false` skips T*.
-
 fn element_integrals(
     i: usize,
     x: Vec3,

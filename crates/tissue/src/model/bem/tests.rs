@@ -433,19 +433,19 @@ fn fixed_tractions_act_only_on_fully_fixed_triangles() {
     let gmax = inf.g.iter().fold(0.0 as Real, |a, v| a.max(v.abs()));
     let mut worst: Real = 0.0;
     let mut rim_changed: Real = 0.0;
-    for v in 0..n {
+    for (v, &is_fixed) in fixed.iter().enumerate() {
         for k in 0..3 {
             let c = 3 * v + k;
             for r in 0..dofs {
                 let expect = if v == point {
                     -inf.g_at(r, c)
-                } else if fixed[v] {
+                } else if is_fixed {
                     -sub.g_at(r, c)
                 } else {
                     inf.h_at(r, c)
                 };
                 worst = worst.max((a[(r, c)] - expect).abs());
-                if fixed[v] && v != point {
+                if is_fixed && v != point {
                     rim_changed = rim_changed.max((a[(r, c)] + inf.g_at(r, c)).abs());
                 }
             }
@@ -506,7 +506,7 @@ fn a_scene_built_model_assembles_on_first_constraints_and_reports_progress() {
         seen.iter()
             .filter(|(s, _)| s.contains(stage))
             .map(|&(_, f)| f)
-            .last()
+            .next_back()
     };
     assert_eq!(last("assembling"), Some(1.0), "{seen:?}");
     assert_eq!(last("factorising"), Some(1.0), "{seen:?}");
