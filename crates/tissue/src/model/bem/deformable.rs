@@ -63,11 +63,8 @@ impl Bem {
         }
         // The tissue pushes on its support with the load on that vertex minus the traction
         // the support applies over the area it acts on (a fixed vertex's traction acts only
-        // on the fixed side of the rim: `BemSystem::support_area`).
-        let area = |v: usize| match fixed.get(v) {
-            Some(true) => self.system.support_area(v).unwrap_or(self.areas[v]),
-            _ => self.areas[v],
-        };
+        // on the fixed side of the rim, and so may a contact's: `BemSystem::support_area`).
+        let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
         let reaction = |v: usize| self.point_forces[v] - self.traction[v] * area(v);
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
             self.fixed_reactions[k] = if self.fixed_owner[k] {

@@ -29,6 +29,12 @@ pub struct BemParams {
     /// Quasi-viscosity α of eq. 13, in s/m (0: static, the target is reached at once).
     #[serde(default)]
     pub alpha: Real,
+    /// Contacts' tractions discontinuous at the contact rim, as the fixed vertices' are:
+    /// closer to quadratic FEM (block indentation: force gap 22% → 14% at 258 surface
+    /// vertices) but a static update costs O(n²) instead of O(n·contacts) and A₀⁻¹ is kept
+    /// (memory × 4/3). Off by default: the real-time path.
+    #[serde(default)]
+    pub discontinuous_contacts: bool,
     /// Deprecated and ignored (scenes that set it still load): models built from a scene
     /// report their assembly and factorisation through `Deformable::set_progress`.
     #[serde(default)]
@@ -163,6 +169,7 @@ impl Bem {
         let mut model = Self::from_parts(surface, material, params, inf, assembly_seconds);
         model.pending_assembly = progress.is_none();
         model.system.set_geometry(Some(geometry));
+        model.system.set_contact_rims(params.discontinuous_contacts);
         Ok(model)
     }
 

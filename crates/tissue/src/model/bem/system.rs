@@ -52,6 +52,20 @@ pub struct BemSystem {
     /// Per vertex, the area its unknown traction acts on for the factorised fixed set (0 for
     /// the others); empty without geometry.
     support_area: Vec<Real>,
+    /// Contacts' tractions discontinuous at their rim too (`set_contact_rims`).
+    contact_rims: bool,
+    /// A₀⁻¹, kept only with `contact_rims`.
+    z: Option<Mat<Real>>,
+    /// The rim shares of the current contacts' G columns, with `contact_rims`.
+    rims: Option<ContactRims>,
+}
+
+/// For a contact set C with rims: R (3n × 3|C|) holds, per contact dof, the G share of the
+/// contact's rim triangles (those with a vertex neither fixed nor in contact), which its
+/// traction no longer acts on; `area[k]` is the area contact k's traction does act on.
+struct ContactRims {
+    r: Mat<Real>,
+    area: Vec<Real>,
 }
 
 impl BemSystem {
@@ -67,7 +81,19 @@ impl BemSystem {
             last_factor_seconds: 0.0,
             geometry: None,
             support_area: Vec::new(),
+            contact_rims: false,
+            z: None,
+            rims: None,
         }
+    }
+
+    /// Makes the contacts' tractions discontinuous at the contact rim as the fixed ones are
+    /// (needs the geometry). The Woodbury structure survives, at a price: A₀⁻¹ is kept
+    /// (another (3n)² doubles), a contact change re-integrates the rim triangles, and a
+    /// static update costs one dense product with A₀⁻¹, O(n²) instead of O(n·|C|). Takes
+    /// effect at the next `factor`.
+    pub(crate) fn set_contact_rims(&mut self, on: bool) {
+        self.contact_rims = on;
     }
 
     /// Gives the system its surface so that fixed tractions become discontinuous at the rim
@@ -91,7 +117,15 @@ impl BemSystem {
     /// The area over which fixed vertex `v`'s traction acts (what turns it into a reaction),
     /// if the system has its geometry; `None` otherwise (then: the tributary area).
     pub fn support_area(&self, v: usize) -> Option<Real> {
-        self.support_area.get(v).copied()
+        if let Some(rims) = &self.rims
+            && let Some(k) = self.contacts.iter().position(|&c| c == v)
+        {
+            return rims.area.get(k).copied();
+        }
+        match self.fixed.get(v) {
+            Some(true) => self.support_area.get(v).copied(),
+            _ => None,
+        }
     }
 
     /// The reordered matrix with the tractions of the `constrained` vertices unknown and
@@ -202,7 +236,16 @@ impl BemSystem {
         if w.col_iter().any(|c| c.iter().any(|v| !v.is_finite())) {
             return Err(singular());
         }
+        let z = if self.contact_rims && self.geometry.is_some() {
+            let mut z = Mat::identity(n, n);
+            solve_columns(a.as_ref(), p, z.as_mut());
+            Some(z)
+        } else {
+            None
+        };
         self.w = w;
+        self.z = z;
+        self.rims = None;
         self.fixed = fixed.to_vec();
         self.support_area = support_area;
         self.contacts.clear();
@@ -223,7 +266,13 @@ impl BemSystem {
         }
         let m = 3 * contacts.len();
         let dof = |k: usize| 3 * contacts[k / 3] + k % 3;
-        let s = Mat::from_fn(m, m, |r, c| self.w[(dof(r), dof(c))]);
+        let rims = self.contact_rim_shares(contacts);
+        let mut s = Mat::from_fn(m, m, |r, c| self.w[(dof(r), dof(c))]);
+        if let (Some(rims), Some(z)) = (&rims, &self.z) {
+            // W̃_CC = W_CC − (A₀⁻¹ R)_C: only the contact rows of A₀⁻¹ are needed here.
+            let zc = Mat::from_fn(m, self.dofs(), |r, c| z[(dof(r), c)]);
+            s -= zc * &rims.r;
+        }
         let lu = (m > 0).then(|| s.partial_piv_lu());
         if let Some(lu) = &lu {
             let u = lu.U();
@@ -239,6 +288,7 @@ impl BemSystem {
         }
         self.contacts = contacts.to_vec();
         self.capacitance = lu;
+        self.rims = rims;
         self.woodbury_updates += 1;
         Ok(())
     }
@@ -291,6 +341,14 @@ impl BemSystem {
             let col = 3 * self.contacts[r / 3] + r % 3;
             axpy(x, *pr, self.w.col_as_slice(col));
         }
+        if let (Some(rims), Some(z)) = (&self.rims, &self.z) {
+            // x −= A₀⁻¹ (R P_C): the rims' share no longer loads the body.
+            let pc = Mat::from_fn(m, 1, |r, _| rhs[(r, 0)]);
+            let correction = z * (&rims.r * pc);
+            for (xr, c) in x.iter_mut().zip(correction.col(0).iter()) {
+                *xr -= c;
+            }
+        }
         Ok(())
     }
 
@@ -309,10 +367,48 @@ impl BemSystem {
         let dof = |k: usize| 3 * self.contacts[k / 3] + k % 3;
         let mut rows = Mat::from_fn(m, n, |r, c| a0_inv[(dof(r), c)]);
         lu.solve_in_place(rows.as_mut());
-        let left = Mat::from_fn(n, m, |r, c| {
+        let mut left = Mat::from_fn(n, m, |r, c| {
             self.w[(r, dof(c))] + if r == dof(c) { 1.0 } else { 0.0 }
         });
+        if let Some(rims) = &self.rims {
+            left -= &a0_inv * &rims.r;
+        }
         Ok(a0_inv - left * rows)
+    }
+}
+
+impl BemSystem {
+    /// R and the support areas for contact set `contacts` if contact rims are on (see
+    /// `ContactRims`): the rim triangles are found with the fixed and contact vertices
+    /// constrained, and re-integrated from every source.
+    fn contact_rim_shares(&self, contacts: &[usize]) -> Option<ContactRims> {
+        let geo = self.geometry.as_ref()?;
+        self.z.as_ref()?;
+        if contacts.is_empty() || geo.vertices.len() != self.inf.vertices {
+            return None;
+        }
+        let mut constrained = self.fixed.clone();
+        for &c in contacts {
+            constrained[c] = true;
+        }
+        let (rim, area) = geo.traction_supports(&constrained);
+        let rules = Rules::new();
+        let n = self.dofs();
+        let mut r = Mat::zeros(n, 3 * contacts.len());
+        for (k, &c) in contacts.iter().enumerate() {
+            for &(e, corner) in &rim[c] {
+                let g = geo.element_g_columns(e, corner, &rules);
+                for row in 0..n {
+                    for kk in 0..3 {
+                        r[(row, 3 * k + kk)] += g[3 * row + kk];
+                    }
+                }
+            }
+        }
+        Some(ContactRims {
+            r,
+            area: contacts.iter().map(|&c| area[c]).collect(),
+        })
     }
 }
 
