@@ -240,7 +240,8 @@ impl Deformable for Bem {
             dofs,
             elements: self.surface.triangles.len(),
             surface_vertices: self.surface.vertices.len(),
-            memory_bytes: 3 * dofs * dofs * 8,
+            // H, G, W, and A₀⁻¹ with discontinuous contacts.
+            memory_bytes: (3 + usize::from(self.params.discontinuous_contacts)) * dofs * dofs * 8,
             precompute_seconds: self.assembly_seconds + s.last_factor_seconds,
             is_static: self.params.alpha == 0.0,
             details: vec![
