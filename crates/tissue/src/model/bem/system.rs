@@ -16,6 +16,10 @@
 //! where u_L = W P_load. A contact change costs one small LU (3|C|)², a static update
 //! O(n·|C|); the n × n inverse of A is never formed (`explicit_inverse` builds it for
 //! checks).
+//!
+//! Tractions are discontinuous at the rim of the fixed set (`base_matrix`), and optionally
+//! at the rim of the contact set (`set_contact_rims`: R, the rims' share of G_C, enters as
+//! W̃_{:,C} = W_{:,C} − A₀⁻¹ R, so A₀⁻¹ is kept and a static update becomes O(n²)).
 
 use std::time::Instant;
 
