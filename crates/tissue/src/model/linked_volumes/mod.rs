@@ -8,14 +8,16 @@
 //! of their cell (moved by the vertex's missing displacement), fixed vertices hold theirs at
 //! rest, and the reaction of a held element is shared among the vertices holding it in
 //! proportion to their weights. Point loads reach the elements through the transpose of the
-//! embedding. Poisson's ratio is 1/4 whatever the material says (central springs; see
-//! `springs`); `info` reports it.
+//! embedding. Central springs alone fix Poisson's ratio at 1/4; with 18 or 26 neighbours a
+//! per-voxel volume term makes the lattice honour the material's ν ≥ 1/4 (`volume_term`).
 //!
 //! - `springs`: spring lattice, stiffness from E, `ParticleSystem` forces and Jacobians
+//! - `volume_term`: the volume energy supplying λ − μ, and the lattice moduli
 //! - `deformable`: the `Deformable` interface
 
 mod deformable;
 pub mod springs;
+pub mod volume_term;
 #[cfg(test)]
 mod tests;
 
@@ -34,6 +36,7 @@ use crate::model::registry::parse_params;
 use crate::voxel::{TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface, voxelize_to};
 
 pub use springs::{Spring, SpringLattice, family_coefficients};
+pub use volume_term::{LatticeModuli, VolumeTerm, lattice_moduli};
 
 /// The `[model]` settings of `linked-volumes`.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
@@ -131,6 +134,7 @@ impl LinkedVolumes {
         check_size(&params)?;
         let material = material.validated()?;
         let coef = family_coefficients(params.neighbours)?;
+        let moduli = lattice_moduli(&material, params.neighbours)?;
         if keep_largest(&mut grid) == 0 {
             return Err(MeshError::Empty {
                 what: "occupied voxels",
@@ -184,7 +188,7 @@ impl LinkedVolumes {
                             continue;
                         }
                         let l = (Vec3::new(di as Real, dj as Real, dk as Real) * s).length();
-                        let kk = coef[family] * material.young_modulus * volume / (l * l);
+                        let kk = coef[family] * moduli.spring_modulus * volume / (l * l);
                         springs.push(Spring {
                             a,
                             b,
@@ -197,7 +201,8 @@ impl LinkedVolumes {
             }
         }
         let masses = vec![material.density * volume; rest.len()];
-        let system = SpringLattice::new(springs, masses, material.damping);
+        let system = SpringLattice::new(springs, masses, material.damping)
+            .with_volume_term(&rest, moduli, volume);
         let nv = surface.vertices.len();
         Ok(Self {
             params,
