@@ -17,9 +17,9 @@
 
 mod deformable;
 pub mod springs;
-pub mod volume_term;
 #[cfg(test)]
 mod tests;
+pub mod volume_term;
 
 use std::time::Instant;
 
