@@ -270,7 +270,12 @@ impl Deformable for LinkedVolumes {
                 ("voxel_size".into(), format!("{:.4e}", self.spacing.x)),
                 ("integrator".into(), self.params.integrator.to_string()),
                 ("substeps".into(), self.params.substeps.to_string()),
-                ("effective_poisson_ratio".into(), "0.25".into()),
+                (
+                    "effective_poisson_ratio".into(),
+                    super::lattice_moduli(&self.material, self.params.neighbours)
+                        .map_or(0.25, |m| m.poisson_ratio)
+                        .to_string(),
+                ),
                 (
                     "material_poisson_ratio".into(),
                     self.material.poisson_ratio.to_string(),

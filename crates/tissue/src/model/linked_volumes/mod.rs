@@ -8,10 +8,11 @@
 //! of their cell (moved by the vertex's missing displacement), fixed vertices hold theirs at
 //! rest, and the reaction of a held element is shared among the vertices holding it in
 //! proportion to their weights. Point loads reach the elements through the transpose of the
-//! embedding. Poisson's ratio is 1/4 whatever the material says (central springs; see
-//! `springs`); `info` reports it.
+//! embedding. Central springs alone fix Poisson's ratio at 1/4; with 18 or 26 neighbours a
+//! per-voxel volume term makes the lattice honour the material's ν ≥ 1/4 (`volume_term`).
 //!
 //! - `springs`: spring lattice, stiffness from E, `ParticleSystem` forces and Jacobians
+//! - `volume_term`: the volume energy supplying λ − μ, and the lattice moduli
 //! - `deformable`: the `Deformable` interface
 //! - `topology`: cut, carve and join on the shared `voxel::VoxelLinks`, springs updated
 //!   locally, and the closed voxel-boundary surface drawn afterwards
@@ -23,6 +24,7 @@ mod tests;
 #[cfg(test)]
 mod tests_topology;
 mod topology;
+pub mod volume_term;
 
 use std::time::Instant;
 
@@ -41,6 +43,7 @@ use crate::voxel::{
 };
 
 pub use springs::{Spring, SpringLattice, family_coefficients};
+pub use volume_term::{LatticeModuli, VolumeTerm, lattice_moduli};
 
 /// The `[model]` settings of `linked-volumes`.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
@@ -95,8 +98,10 @@ pub struct LinkedVolumes {
     topology: VoxelLinks,
     /// Voxel index → element id (`u32::MAX` for empty voxels).
     element_of: Vec<u32>,
-    /// Spring coefficients per family, in units of E (`family_coefficients`).
+    /// Spring coefficients per family, in units of the spring modulus (`family_coefficients`).
     coef: [Real; 3],
+    /// The springs' modulus (Pa): E alone, or less with the volume term (`lattice_moduli`).
+    spring_modulus: Real,
     /// Vertices of the given (or marching) surface; the voxel boundary drawn after a
     /// topology edit is numbered after them.
     original_vertices: usize,
@@ -148,6 +153,7 @@ impl LinkedVolumes {
         check_size(&params)?;
         let material = material.validated()?;
         let coef = family_coefficients(params.neighbours)?;
+        let moduli = lattice_moduli(&material, params.neighbours)?;
         if keep_largest(&mut grid) == 0 {
             return Err(MeshError::Empty {
                 what: "occupied voxels",
@@ -169,17 +175,20 @@ impl LinkedVolumes {
         let s = grid.spacing;
         let volume = s.x * s.y * s.z;
         let topology = VoxelLinks::new(&grid, params.neighbours);
+        let spring_modulus = moduli.spring_modulus;
         let springs = topology
             .each_link()
-            .map(|(a, b, d)| spring_for(&material, coef, s, [id[a], id[b]], d))
+            .map(|(a, b, d)| spring_for(&material, spring_modulus, coef, s, [id[a], id[b]], d))
             .collect();
         let masses = vec![material.density * volume; rest.len()];
-        let system = SpringLattice::new(springs, masses, material.damping);
+        let system = SpringLattice::new(springs, masses, material.damping)
+            .with_volume_term(&rest, moduli, volume);
         let nv = surface.vertices.len();
         Ok(Self {
             topology,
             element_of: id,
             coef,
+            spring_modulus,
             original_vertices: nv,
             topology_version: 0,
             params,
@@ -227,7 +236,16 @@ impl LinkedVolumes {
 }
 
 /// The spring between elements `ids` (voxels a, b = a's neighbour in direction d).
-fn spring_for(material: &Material, coef: [Real; 3], s: Vec3, ids: [u32; 2], d: usize) -> Spring {
+/// The spring of link direction `d` between elements `ids`, from the lattice's spring modulus
+/// (E for springs alone, less when the volume term supplies part of λ).
+fn spring_for(
+    material: &Material,
+    spring_modulus: Real,
+    coef: [Real; 3],
+    s: Vec3,
+    ids: [u32; 2],
+    d: usize,
+) -> Spring {
     let family = if d < 6 {
         0
     } else if d < 18 {
@@ -237,7 +255,7 @@ fn spring_for(material: &Material, coef: [Real; 3], s: Vec3, ids: [u32; 2], d: u
     };
     let o = crate::voxel::topology::OFFSETS[d.min(25)];
     let l = (Vec3::new(o[0] as Real, o[1] as Real, o[2] as Real) * s).length();
-    let k = coef[family] * material.young_modulus * s.x * s.y * s.z / (l * l);
+    let k = coef[family] * spring_modulus * s.x * s.y * s.z / (l * l);
     Spring {
         a: ids[0],
         b: ids[1],

@@ -103,6 +103,7 @@ impl LinkedVolumes {
                 let ids = [self.element_of[a as usize], self.element_of[b]];
                 Some(spring_for(
                     &self.material,
+                    self.spring_modulus,
                     self.coef,
                     self.topology.spacing,
                     ids,
@@ -140,6 +141,8 @@ impl LinkedVolumes {
 
     fn topology_changed(&mut self) {
         self.topology_version += 1;
+        // The volume term's stencils follow the links: none across a cut.
+        self.system.rebuild_volume_term(&self.rest);
         self.integrator.invalidate();
         self.triangles = redraw(
             &mut self.embedding,
