@@ -4,7 +4,7 @@
 
 use std::hint::black_box;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::Criterion;
 
 #[path = "support/cpu_time.rs"]
 mod cpu_time;
@@ -91,9 +91,4 @@ fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     }
 }
 
-criterion_group! {
-    name = benches;
-    config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
-    targets = bench
-}
-criterion_main!(benches);
+cpu_time::cpu_time_main!(bench);

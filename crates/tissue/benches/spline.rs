@@ -10,7 +10,7 @@
 
 use std::hint::black_box;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::Criterion;
 use tissue::Material;
 use tissue::integrate::Scheme;
 use tissue::math::Vec3;
@@ -69,9 +69,4 @@ fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     group.finish();
 }
 
-criterion_group! {
-    name = benches;
-    config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
-    targets = bench
-}
-criterion_main!(benches);
+cpu_time::cpu_time_main!(bench);

@@ -4,9 +4,11 @@
 
 use std::time::Instant;
 
+use faer::linalg::solvers::Solve;
+
 use tissue::Material;
 use tissue::interact::{Constraints, Prescribed};
-use tissue::math::{Real, Vec3};
+use tissue::math::{Real, Vec3, tet_signed_volume};
 use tissue::mesh::generate::{BoxSplit, box_tets};
 use tissue::mesh::{MeshData, TetMesh};
 use tissue::model::Deformable;
@@ -40,19 +42,92 @@ fn run(model: &mut dyn Deformable, c: &Constraints) -> Indent {
     }
 }
 
+/// The BEM with the contacts' tractions discontinuous at their rim too, by a dense solve of
+/// the reordered system (`BemSystem::base_matrix` with fixed and contact vertices
+/// constrained): what the Woodbury update cannot give, computed to measure what it costs.
+/// `bem` must have been run with `c` (so it is assembled).
+fn dense_discontinuous(bem: &Bem, c: &Constraints) -> Indent {
+    let sys = bem.system();
+    let rest = bem.rest_surface();
+    let n = rest.len();
+    let dofs = 3 * n;
+    let mut constrained = vec![false; n];
+    let mut known = vec![Vec3::ZERO; n];
+    for &v in &c.fixed {
+        constrained[v as usize] = true;
+    }
+    for p in &c.prescribed {
+        constrained[p.vertex as usize] = true;
+        known[p.vertex as usize] = p.position - rest[p.vertex as usize];
+    }
+    let (a, area) = sys.base_matrix(&constrained);
+    let h = &sys.influence().h;
+    // H U = G P with U known on the constrained vertices: their H columns go right.
+    let b = faer::Mat::from_fn(dofs, 1, |r, _| {
+        -(0..n)
+            .filter(|&v| constrained[v])
+            .map(|v| {
+                (0..3)
+                    .map(|k| h[r * dofs + 3 * v + k] * known[v][k])
+                    .sum::<Real>()
+            })
+            .sum::<Real>()
+    });
+    let x = a.partial_piv_lu().solve(&b);
+    let at = |v: usize| Vec3::new(x[(3 * v, 0)], x[(3 * v + 1, 0)], x[(3 * v + 2, 0)]);
+    let force = c
+        .prescribed
+        .iter()
+        .map(|p| -at(p.vertex as usize) * area[p.vertex as usize])
+        .sum();
+    let displacements = (0..n)
+        .map(|v| if constrained[v] { known[v] } else { at(v) })
+        .collect();
+    Indent {
+        force,
+        displacements,
+    }
+}
+
+/// One body indented by both models: the BEM (Woodbury contacts), the BEM with the
+/// contacts' rims discontinuous too (dense, optional) and quadratic FEM.
+struct Row {
+    vertices: usize,
+    bem: Indent,
+    /// `discontinuous_contacts = true`.
+    rims: Indent,
+    dense: Option<Indent>,
+    fem: Indent,
+    bem_seconds: Real,
+}
+
 /// Both models on the same tetrahedral body; the BEM on its boundary (same numbering).
-/// Returns (BEM, FEM, surface vertices).
-fn compare(mesh: &TetMesh, c: &Constraints) -> (Indent, Indent, usize) {
+fn compare(mesh: &TetMesh, c: &Constraints, dense: bool) -> Row {
     let surface = MeshData::from_tets(mesh).surface_mesh().unwrap();
+    let start = Instant::now();
     let mut bem = Bem::new(&surface, material(), BemParams::default()).unwrap();
+    let b = run(&mut bem, c);
+    let bem_seconds = start.elapsed().as_secs_f64();
+    let params = BemParams {
+        discontinuous_contacts: true,
+        ..BemParams::default()
+    };
+    let mut with_rims = Bem::new(&surface, material(), params).unwrap();
+    let rims = run(&mut with_rims, c);
     let mut fem = FemStatic::new(mesh, material(), Order::Quadratic).unwrap();
     assert_eq!(
         bem.rest_surface(),
         fem.rest_surface(),
         "the same surface numbering"
     );
-    let n = bem.rest_surface().len();
-    (run(&mut bem, c), run(&mut fem, c), n)
+    Row {
+        vertices: bem.rest_surface().len(),
+        dense: dense.then(|| dense_discontinuous(&bem, c)),
+        bem: b,
+        rims,
+        fem: run(&mut fem, c),
+        bem_seconds,
+    }
 }
 
 /// Largest displacement difference over the surface relative to the largest FEM one.
@@ -70,117 +145,290 @@ fn displacement_gap(a: &Indent, b: &Indent) -> Real {
         .fold(0.0, Real::max)
 }
 
-/// A 4 × 4 × 2 cm block on a fixed floor, a 2 cm square punch in the middle of the top
-/// pushed 1 mm down (its edges lie on grid lines for every even `cells`).
-fn block(cells: usize) -> (TetMesh, Constraints) {
+/// Relative gap of the probe forces along the push `axis`.
+fn force_gap(a: &Indent, b: &Indent, axis: Vec3) -> Real {
+    (a.force.dot(axis) - b.force.dot(axis)) / b.force.dot(axis)
+}
+
+/// The instrument. A flat punch has a 1/√r traction singularity at its rim that no linear
+/// element resolves; a sphere (the simulator's instrument) pressed by d has Hertz's
+/// pressure, which vanishes at the contact radius a = √(R d).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Probe {
+    /// A 2 cm square pushed 1 mm.
+    Punch,
+    /// Radius 10 cm pushed 1 mm: a = 1 cm; u = d − r²/2R inside a.
+    Sphere,
+}
+
+const DEPTH: Real = 0.001;
+const SPHERE_RADIUS: Real = 0.1;
+
+/// A 4 × 4 × 2 cm block on a fixed floor, the probe centred on the top (the punch's edges
+/// and the contact circle's extreme points lie on grid lines for every even `cells`).
+fn block(cells: usize, probe: Probe) -> (TetMesh, Constraints) {
     let (lo, hi) = (Vec3::new(-0.02, -0.02, 0.0), Vec3::new(0.02, 0.02, 0.02));
     let mesh = box_tets(lo, hi, [2 * cells, 2 * cells, cells], BoxSplit::Six);
     let surface = MeshData::from_tets(&mesh).surface_mesh().unwrap();
+    let a = (SPHERE_RADIUS * DEPTH).sqrt();
     let mut c = Constraints::default();
     for (v, p) in surface.vertices.iter().enumerate() {
+        let top = p.z > 0.02 - 1e-9;
+        let r = (p.x * p.x + p.y * p.y).sqrt();
         if p.z < 1e-9 {
             c.fixed.push(v as u32);
-        } else if p.z > 0.02 - 1e-9 && p.x.abs() < 0.01 + 1e-9 && p.y.abs() < 0.01 + 1e-9 {
+        } else if top && probe == Probe::Punch && p.x.abs().max(p.y.abs()) < 0.01 + 1e-9 {
             c.prescribed.push(Prescribed {
                 vertex: v as u32,
-                position: *p - Vec3::Z * 0.001,
+                position: *p - Vec3::Z * DEPTH,
+            });
+        } else if top && probe == Probe::Sphere && r < a + 1e-9 {
+            c.prescribed.push(Prescribed {
+                vertex: v as u32,
+                position: *p - Vec3::Z * (DEPTH - r * r / (2.0 * SPHERE_RADIUS)),
             });
         }
     }
     (mesh, c)
 }
 
+fn print_header(first: &str) {
+    eprintln!(
+        "| {first} | surface vertices | BEM force N | FEM-P2 force N | force gap | displacement gap | discontinuous_contacts: force gap, displacement gap | BEM s |"
+    );
+    eprintln!("|---|---|---|---|---|---|---|---|");
+}
+
+fn print_row(label: &str, row: &Row, axis: Vec3) {
+    let dense = format!(
+        "{:+.2}%, {:.2}%",
+        100.0 * force_gap(&row.rims, &row.fem, axis),
+        100.0 * displacement_gap(&row.rims, &row.fem)
+    );
+    eprintln!(
+        "| {label} | {} | {:.5} | {:.5} | {:+.2}% | {:.2}% | {dense} | {:.1} |",
+        row.vertices,
+        row.bem.force.dot(axis),
+        row.fem.force.dot(axis),
+        100.0 * force_gap(&row.bem, &row.fem, axis),
+        100.0 * displacement_gap(&row.bem, &row.fem),
+        row.bem_seconds
+    );
+}
+
+/// F(0) from F(h1), F(h2) assuming F(h) = F(0) + C h.
+fn extrapolate(h1: Real, f1: Real, h2: Real, f2: Real) -> Real {
+    (f2 * h1 - f1 * h2) / (h1 - h2)
+}
+
 #[test]
 fn block_indentation_approaches_quadratic_fem_under_refinement() {
-    // Not within 5% on meshes this coarse (see `block_convergence_table`): the BEM is
-    // stiffer on a given mesh and the gap shrinks about like h.
+    // The 5% target is not reached on meshes this coarse (`block_convergence_table`): on a
+    // given mesh the BEM is stiffer and the gap shrinks about like h. Checked here: the
+    // measured gaps (2 and 4 cells, about 0.5 s), their halving, and that tractions
+    // discontinuous at the contact rim too (dense solve) bring the displacements within 5%.
+    let measured = [
+        // (probe, cells, force gap, displacement gap; the same with `discontinuous_contacts`),
+        // as measured on 2026-11-22.
+        (Probe::Punch, 2, 0.432, 0.350, 0.223, 0.091),
+        (Probe::Punch, 4, 0.208, 0.172, 0.096, 0.043),
+        (Probe::Sphere, 2, 0.559, 0.145, 0.388, 0.081),
+        (Probe::Sphere, 4, 0.225, 0.122, 0.139, 0.048),
+    ];
     let mut gaps = Vec::new();
-    for cells in [2, 4] {
-        let (mesh, c) = block(cells);
-        let (b, f, n) = compare(&mesh, &c);
-        let force_gap = (b.force.z - f.force.z) / f.force.z;
-        let disp_gap = displacement_gap(&b, &f);
+    for &(probe, cells, force, disp, rim_force, rim_disp) in &measured {
+        let (mesh, c) = block(cells, probe);
+        let row = compare(&mesh, &c, cells == 4);
+        let down = -Vec3::Z;
+        let (fg, dg) = (
+            force_gap(&row.bem, &row.fem, down),
+            displacement_gap(&row.bem, &row.fem),
+        );
         eprintln!(
-            "block, {n} surface vertices: force BEM {:.4e} N, FEM-P2 {:.4e} N ({:.1}%), displacement gap {:.1}%",
-            b.force.z,
-            f.force.z,
-            100.0 * force_gap,
-            100.0 * disp_gap
+            "{probe:?}, {cells} cells, {} surface vertices: force BEM {:.4e} N, FEM-P2 {:.4e} N ({:+.1}%), displacement gap {:.1}%",
+            row.vertices,
+            row.bem.force.z,
+            row.fem.force.z,
+            100.0 * fg,
+            100.0 * dg
         );
         assert!(
-            b.force.z > 0.0 && f.force.z > 0.0,
+            row.bem.force.z > 0.0 && row.fem.force.z > 0.0,
             "the tissue pushes the probe up"
         );
-        gaps.push((force_gap, disp_gap));
+        assert!(
+            (fg - force).abs() < 0.01,
+            "{probe:?} {cells}: force gap {fg}"
+        );
+        assert!(
+            (dg - disp).abs() < 0.01,
+            "{probe:?} {cells}: displacement gap {dg}"
+        );
+        let (rfg, rdg) = (
+            force_gap(&row.rims, &row.fem, down),
+            displacement_gap(&row.rims, &row.fem),
+        );
+        assert!((rfg - rim_force).abs() < 0.01, "{probe:?} {cells}: {rfg}");
+        assert!((rdg - rim_disp).abs() < 0.01, "{probe:?} {cells}: {rdg}");
+        assert!(rfg < 0.7 * fg, "{rfg} vs {fg}");
+        if let Some(d) = &row.dense {
+            // The model with `discontinuous_contacts` (Woodbury) equals the dense solve.
+            let r = &row.rims;
+            let df = (r.force - d.force).length() / d.force.length();
+            let du = displacement_gap(r, d);
+            assert!(df < 1e-9 && du < 1e-9, "{df:e} {du:e}");
+            eprintln!(
+                "  discontinuous_contacts (= the dense solve to {:.0e}): force gap {:+.1}%, displacement gap {:.1}%",
+                df.max(du),
+                100.0 * rfg,
+                100.0 * rdg
+            );
+            // The surface displacements within 5% of quadratic FEM at 258 vertices.
+            assert!(rdg < 0.05, "{rdg}");
+        }
+        gaps.push((fg, rfg));
     }
-    assert!(gaps[1].0 > 0.0 && gaps[1].0 < 0.6 * gaps[0].0, "{gaps:?}");
-    assert!(gaps[1].1 < 0.6 * gaps[0].1, "{gaps:?}");
-    assert!(gaps[1].0 < 0.25 && gaps[1].1 < 0.2, "{gaps:?}");
-}
-
-#[test]
-#[ignore = "slow: a refinement study, prints a table"]
-fn block_convergence_table() {
-    eprintln!(
-        "cells(z) | surface vertices | BEM force (N) | FEM-P2 force (N) | force gap | displacement gap | BEM s"
-    );
-    for cells in [2, 4, 6, 8] {
-        let (mesh, c) = block(cells);
-        let start = Instant::now();
-        let (b, f, n) = compare(&mesh, &c);
-        let gap = (b.force.z - f.force.z).abs() / f.force.z.abs();
-        eprintln!(
-            "{cells} | {n} | {:.5e} | {:.5e} | {:.2}% | {:.2}% | {:.1}",
-            b.force.z,
-            f.force.z,
-            100.0 * gap,
-            100.0 * displacement_gap(&b, &f),
-            start.elapsed().as_secs_f64()
+    for (coarse, fine) in [(gaps[0], gaps[1]), (gaps[2], gaps[3])] {
+        assert!(
+            fine.0 < 0.55 * coarse.0 && fine.1 < 0.55 * coarse.1,
+            "{gaps:?}"
         );
     }
 }
 
 #[test]
-#[ignore = "slow: the liver against quadratic FEM, prints numbers"]
-fn liver_indentation_against_quadratic_fem() {
+#[ignore = "slow: a refinement study, prints tables"]
+fn block_convergence_table() {
+    for probe in [Probe::Punch, Probe::Sphere] {
+        eprintln!("\nblock 4 × 4 × 2 cm, floor fixed, {probe:?}");
+        print_header("cells (z)");
+        let mut forces = Vec::new();
+        for cells in [2, 4, 6, 8] {
+            let (mesh, c) = block(cells, probe);
+            let row = compare(&mesh, &c, false);
+            print_row(&cells.to_string(), &row, -Vec3::Z);
+            let h = 0.02 / cells as Real;
+            forces.push((h, row.bem.force.z, row.rims.force.z, row.fem.force.z));
+        }
+        let (h1, b1, r1, f1) = forces[forces.len() - 2];
+        let (h2, b2, r2, f2) = forces[forces.len() - 1];
+        let [b0, r0, f0] =
+            [(b1, b2), (r1, r2), (f1, f2)].map(|(x1, x2)| extrapolate(h1, x1, h2, x2));
+        eprintln!(
+            "linear extrapolation of the last two: BEM {b0:.5} N ({:+.2}%), with discontinuous_contacts {r0:.5} N ({:+.2}%), FEM-P2 {f0:.5} N",
+            100.0 * (b0 - f0) / f0,
+            100.0 * (r0 - f0) / f0
+        );
+    }
+}
+
+/// Splits every tetrahedron into eight (edge midpoints; the inner octahedron cut along one
+/// diagonal): the same body, every edge halved.
+fn refine(mesh: &TetMesh) -> TetMesh {
+    let mut vertices = mesh.vertices.clone();
+    let mut mids = std::collections::HashMap::new();
+    let mut mid = |a: u32, b: u32, vertices: &mut Vec<Vec3>| {
+        *mids.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            vertices.push((vertices[a as usize] + vertices[b as usize]) * 0.5);
+            (vertices.len() - 1) as u32
+        })
+    };
+    let mut tets = Vec::with_capacity(8 * mesh.tets.len());
+    for &[a, b, c, d] in &mesh.tets {
+        let ab = mid(a, b, &mut vertices);
+        let ac = mid(a, c, &mut vertices);
+        let ad = mid(a, d, &mut vertices);
+        let bc = mid(b, c, &mut vertices);
+        let bd = mid(b, d, &mut vertices);
+        let cd = mid(c, d, &mut vertices);
+        for t in [
+            [a, ab, ac, ad],
+            [ab, b, bc, bd],
+            [ac, bc, c, cd],
+            [ad, bd, cd, d],
+            [ac, bd, ab, bc],
+            [ac, bd, bc, cd],
+            [ac, bd, cd, ad],
+            [ac, bd, ad, ab],
+        ] {
+            let [p, q, r, s] = t.map(|v| vertices[v as usize]);
+            tets.push(if tet_signed_volume(p, q, r, s) < 0.0 {
+                [t[0], t[1], t[3], t[2]]
+            } else {
+                t
+            });
+        }
+    }
+    TetMesh::new(vertices, tets)
+}
+
+/// liver.msh in metres, refined `level` times, and the indentation: three ligament patches
+/// fixed (every surface vertex within 1.2 cm of file nodes 3, 39 and 64: a single held
+/// vertex is a point support whose compliance depends on the mesh), the probe pushing 3 mm
+/// along −y near (−0.5, 5.55, 0.67) cm.
+fn liver(level: usize, probe: Probe) -> (TetMesh, Constraints) {
     let data = tissue::io::read(LIVER_MSH).unwrap();
     let mut tets = data.tet_mesh(LIVER_MSH).unwrap();
     tets.vertices.iter_mut().for_each(|p| *p *= 0.01);
+    let anchors = [3usize, 39, 64].map(|v| tets.vertices[v]);
+    for _ in 0..level {
+        tets = refine(&tets);
+    }
     let surface = MeshData::from_tets(&tets).surface_mesh().unwrap();
-    // Supports are patches (every surface vertex within 1.2 cm of ligament nodes 3, 39
-    // and 64): a single held vertex is a point support whose compliance depends on the mesh
-    // (infinite in the continuum), not on the model.
     let mut c = Constraints::default();
-    for file_vertex in [3usize, 39, 64] {
-        let centre = tets.vertices[file_vertex];
-        for (v, p) in surface.vertices.iter().enumerate() {
-            if (*p - centre).length() < 0.012 {
-                c.fixed.push(v as u32);
-            }
+    for (v, p) in surface.vertices.iter().enumerate() {
+        if anchors.iter().any(|a| (*p - *a).length() < 0.012) {
+            c.fixed.push(v as u32);
         }
     }
-    let probe = Vec3::new(-0.005, 0.0555, 0.0067);
-    let near: Vec<usize> = (0..surface.vertices.len())
-        .filter(|&v| (surface.vertices[v] - probe).length() < 0.012)
-        .collect();
-    for v in near {
-        let p = surface.vertices[v];
-        c.prescribed.push(Prescribed {
-            vertex: v as u32,
-            position: p - Vec3::Y * 0.003,
-        });
+    let centre = Vec3::new(-0.005, 0.0555, 0.0067);
+    let depth: Real = 0.003;
+    // The sphere touches the surface at the top-most (largest y) vertex near the probe.
+    let radius: Real = 0.03;
+    let a = (radius * depth).sqrt();
+    for (v, p) in surface.vertices.iter().enumerate() {
+        let d = *p - centre;
+        let lateral = (d.x * d.x + d.z * d.z).sqrt();
+        let push = match probe {
+            Probe::Punch => (d.length() < 0.012).then_some(depth),
+            Probe::Sphere => (d.length() < 0.012 && lateral < a)
+                .then(|| depth - lateral * lateral / (2.0 * radius)),
+        };
+        if let Some(push) = push {
+            c.prescribed.push(Prescribed {
+                vertex: v as u32,
+                position: *p - Vec3::Y * push,
+            });
+        }
     }
     assert!(!c.prescribed.is_empty());
-    let (b, f, n) = compare(&tets, &c);
-    eprintln!(
-        "liver.msh, {n} surface vertices, {} held, {} pushed 3 mm: force BEM {:.4e} N, FEM-P2 {:.4e} N ({:.1}%), displacement gap {:.1}%",
-        c.fixed.len(),
-        c.prescribed.len(),
-        b.force.y,
-        f.force.y,
-        100.0 * (b.force.y - f.force.y).abs() / f.force.y.abs(),
-        100.0 * displacement_gap(&b, &f)
-    );
+    (tets, c)
+}
+
+#[test]
+#[ignore = "slow: the liver against quadratic FEM under refinement, prints tables"]
+fn liver_indentation_against_quadratic_fem() {
+    let levels: usize = std::env::var("BEM_LIVER_LEVELS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2);
+    for probe in [Probe::Punch, Probe::Sphere] {
+        eprintln!("\nliver.msh, three ligament patches fixed, {probe:?} along -y");
+        print_header("refinement");
+        for level in 0..levels {
+            let (tets, c) = liver(level, probe);
+            let row = compare(&tets, &c, false);
+            print_row(
+                &format!(
+                    "{level} splits ({} held, {} pushed)",
+                    c.fixed.len(),
+                    c.prescribed.len()
+                ),
+                &row,
+                Vec3::Y,
+            );
+        }
+    }
 }
 
 #[test]
@@ -189,8 +437,13 @@ fn liver_smooth_speed() {
     let data = tissue::io::read(LIVER_SMOOTH).unwrap();
     let mut surface = data.surface_mesh().unwrap();
     surface.vertices.iter_mut().for_each(|p| *p *= 0.01);
+    // BEM_DISCONTINUOUS=1 measures `discontinuous_contacts = true`.
+    let params = BemParams {
+        discontinuous_contacts: std::env::var("BEM_DISCONTINUOUS").is_ok_and(|v| v == "1"),
+        ..BemParams::default()
+    };
     let start = Instant::now();
-    let mut bem = Bem::new(&surface, material(), BemParams::default()).unwrap();
+    let mut bem = Bem::new(&surface, material(), params).unwrap();
     let assembly = start.elapsed().as_secs_f64();
     let rest = bem.rest_surface().to_vec();
     let n = rest.len();
@@ -205,7 +458,11 @@ fn liver_smooth_speed() {
     bem.set_constraints(&Constraints::fixed(fixed.clone()))
         .unwrap();
     let factor = start.elapsed().as_secs_f64();
-    eprintln!("liver-smooth: {n} vertices, {} dofs", 3 * n);
+    eprintln!(
+        "liver-smooth: {n} vertices, {} dofs, discontinuous_contacts = {}",
+        3 * n,
+        params.discontinuous_contacts
+    );
     eprintln!(
         "assembly of H and G: {assembly:.2} s; LU of A0 and W = A0^-1 G: {factor:.2} s; total {:.2} s",
         assembly + factor

@@ -1,11 +1,10 @@
 //! What the viewer builds its simulations from: the scene without its scripted instruments,
-//! the scaled mesh, the material, and the sizes of the viewer's own instruments, derived from
-//! the organ's size. Rebuilding for another kind or material starts from here.
+//! the loaded body (the scaled mesh, or an image's voxel grid and its surface), the material,
+//! and the sizes of the viewer's own instruments, derived from the organ's size. Rebuilding
+//! for another kind or material starts from here.
 
 use tissue::interact::{Instrument, InstrumentKind, Trajectory};
-use tissue::mesh::MeshData;
-use tissue::model::{self, BuildInput};
-use tissue::scene::Scene;
+use tissue::scene::{Body, Scene};
 use tissue::sim::Simulation;
 use tissue::{Error, Material, Real, Vec3};
 
@@ -19,9 +18,8 @@ pub const PROBE: &str = "viewer-probe";
 pub struct Setup {
     /// The scene without its scripted instruments.
     pub scene: Scene,
-    /// The scene's mesh, scaled.
-    pub mesh: MeshData,
-    pub source: String,
+    /// The scene's mesh (scaled) or image grid.
+    pub body: Body,
     pub bounds: Bounds,
     pub park: Vec3,
     pub probe_radius: Real,
@@ -31,23 +29,12 @@ pub struct Setup {
 
 impl Setup {
     pub fn load(scene: &Scene) -> Result<(Setup, Material), Error> {
-        let path = scene.mesh_path();
-        let mut mesh = tissue::io::read(&path)?;
-        for v in &mut mesh.vertices {
-            *v *= scene.mesh.scale;
-        }
-        let material = match (scene.material, mesh.material) {
-            (Some(m), _) => m,
-            (None, Some(r)) => Material {
-                young_modulus: r.young_modulus,
-                poisson_ratio: r.poisson_ratio,
-                density: r.density,
-                damping: 0.0,
-                stiffness_damping: 0.0,
-            }
-            .validated()?,
+        let body = scene.load_body()?;
+        let material = match (scene.material, body.mesh.material) {
             (None, None) => Material::new(3000.0, 0.3)?,
+            _ => scene.material_for(&body)?,
         };
+        let mesh = &body.mesh;
         let (lo, hi) = mesh.vertices.iter().fold(
             (Vec3::splat(Real::INFINITY), Vec3::splat(-Real::INFINITY)),
             |(lo, hi), &p| (lo.min(p), hi.max(p)),
@@ -68,8 +55,7 @@ impl Setup {
         Ok((
             Setup {
                 scene: bare,
-                mesh,
-                source: path.display().to_string(),
+                body,
                 bounds: Bounds {
                     center,
                     radius: 3.0 * diag,
@@ -90,16 +76,10 @@ impl Setup {
         if kind != self.scene.model_kind {
             params.clear();
         }
-        let model = model::build(
-            kind,
-            &BuildInput {
-                mesh: &self.mesh,
-                source: &self.source,
-                material,
-                params: &params,
-            },
-        )?;
-        let mut sim = self.scene.build_with_model(model, &self.mesh)?;
+        let model = self
+            .scene
+            .build_model(kind, &self.body, material, &params)?;
+        let mut sim = self.scene.build_with_model(model, &self.body.mesh)?;
         let probe = Instrument::new(
             PROBE,
             InstrumentKind::Probe,
@@ -108,5 +88,41 @@ impl Setup {
         )?;
         sim.add_instrument(probe);
         Ok(sim)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scene whose body is an image: the viewer sizes its probe from the marching surface,
+    /// rebuilds the other voxel kind on the same grid, and refuses mesh kinds by name.
+    #[test]
+    fn an_image_scene_sets_up_and_rebuilds_voxel_kinds() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../scenes/brain-linked-volumes.toml"
+        );
+        let scene = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
+        let (setup, material) = Setup::load(&scene).unwrap_or_else(|e| panic!("{e}"));
+        assert!(setup.body.grid.is_some());
+        // The block spans 0.068 x 0.084 x 0.052 m around (0.064, 0, 0.008).
+        assert!(setup.bounds.center.distance(Vec3::new(0.064, 0.0, 0.008)) < 1e-9);
+        for kind in ["linked-volumes", "chainmail"] {
+            let sim = setup
+                .build(kind, material)
+                .unwrap_or_else(|e| panic!("{kind}: {e}"));
+            assert_eq!(sim.model().kind(), kind);
+            assert_eq!(sim.instrument_forces().len(), 1);
+        }
+        let e = setup
+            .build("fem-static", material)
+            .err()
+            .map(|e| e.to_string());
+        assert!(
+            e.as_deref()
+                .is_some_and(|e| e.contains("cannot be built from an [image]")),
+            "{e:?}"
+        );
     }
 }

@@ -91,3 +91,19 @@ impl ValueFormatter for CpuFormatter {
         "ns"
     }
 }
+
+/// `criterion_main!` for targets taking `&mut Criterion<ThreadCpuTime>`; the bench file
+/// declares this module as `cpu_time` at its root.
+#[allow(unused_macros)]
+macro_rules! cpu_time_main {
+    ($($target:path),+ $(,)?) => {
+        criterion::criterion_group! {
+            name = benches;
+            config = criterion::Criterion::default().with_measurement($crate::cpu_time::ThreadCpuTime);
+            targets = $($target),+
+        }
+        criterion::criterion_main!(benches);
+    };
+}
+#[allow(unused_imports)]
+pub(crate) use cpu_time_main;

@@ -9,6 +9,7 @@ pub mod inspect;
 pub mod mapping;
 pub mod quality;
 pub mod repair;
+pub mod spatial_grid;
 pub mod surface;
 pub mod tet;
 pub mod topology;

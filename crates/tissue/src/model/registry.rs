@@ -70,7 +70,7 @@ pub const KINDS: &[KindInfo] = &[
     },
     KindInfo {
         name: "linked-volumes",
-        summary: "voxel masses linked by springs and dampers (6/18/26 neighbours), stiffness from E",
+        summary: "voxel masses linked by springs and dampers (6/18/26 neighbours), stiffness from E, cut/carve/join",
     },
     KindInfo {
         name: "tensor-mass",

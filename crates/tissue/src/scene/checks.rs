@@ -47,7 +47,8 @@ pub(super) fn region_label(table: &str, k: usize, r: &RegionSpec) -> String {
     }
 }
 
-pub(super) fn check_region(r: &RegionSpec, is_load: bool) -> Result<(), String> {
+/// `image_body`: the body is an `[image]`, which has no file vertices to name.
+pub(super) fn check_region(r: &RegionSpec, is_load: bool, image_body: bool) -> Result<(), String> {
     let set = [
         ("box", r.aabb.is_some()),
         ("sphere", r.sphere.is_some()),
@@ -64,6 +65,17 @@ pub(super) fn check_region(r: &RegionSpec, is_load: bool) -> Result<(), String> 
                 "none".to_string()
             } else {
                 given.join(", ")
+            }
+        ));
+    }
+    if image_body && (r.file_vertices.is_some() || r.file.is_some()) {
+        return Err(format!(
+            "`{}` names vertices of a mesh file, and an [image] body has none; select by box, \
+             sphere, plane or surface indices",
+            if r.file.is_some() {
+                "file"
+            } else {
+                "file_vertices"
             }
         ));
     }

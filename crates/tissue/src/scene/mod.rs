@@ -1,11 +1,14 @@
-//! Scene files (TOML, DESIGN §8): a mesh, a material, a model kind with its settings, fixed
-//! regions, loads, instruments with scripted paths, and the run and output settings.
+//! Scene files (TOML, DESIGN §8): a body (a `[mesh]` file, or an `[image]` for the voxel
+//! models), a material, a model kind with its settings, fixed regions, loads, instruments
+//! with scripted paths, and the run and output settings.
 //!
 //! Every table rejects unknown keys, so a typo is an error naming the key and its line.
 //! Paths are relative to the scene file. `Scene::load` checks everything that can be checked
-//! without the mesh; `Scene::build` loads the mesh and turns the scene into a `Simulation`.
+//! without the mesh or image; `Scene::build` loads the body and turns the scene into a
+//! `Simulation`.
 
 mod checks;
+mod image;
 mod spec;
 
 use std::path::{Path, PathBuf};
@@ -20,17 +23,21 @@ use crate::math::{Real, Vec3};
 use crate::mesh::MeshData;
 use crate::model::{self, BuildInput, Deformable, KINDS, Progress};
 use crate::sim::Simulation;
+use crate::voxel::{VoxelGrid, marching_surface};
 
 use checks::{check_region, check_run, known_kinds, make_instrument, region_label, select};
+pub use image::IMAGE_KINDS;
+use image::{Failure, check_image, check_model, image_grid, voxel_model};
 pub use spec::{
-    BoxSpec, ContactSpec, GravitySpec, InstrumentSpec, MeshSpec, OutputSpec, PlaneSpec, RegionSpec,
-    RunSpec, SphereSpec,
+    BoxSpec, ContactSpec, GravitySpec, ImageSpec, InstrumentSpec, MeshSpec, OutputSpec, PlaneSpec,
+    RegionSpec, RunSpec, SphereSpec,
 };
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawScene {
-    mesh: MeshSpec,
+    mesh: Option<MeshSpec>,
+    image: Option<Spanned<ImageSpec>>,
     material: Option<Material>,
     model: Spanned<toml::Table>,
     #[serde(default)]
@@ -54,6 +61,24 @@ pub struct Located<T> {
     pub value: T,
 }
 
+/// What the body is made from: exactly one of `[mesh]` and `[image]`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BodySpec {
+    Mesh(MeshSpec),
+    /// A volume image, for the voxel kinds (`IMAGE_KINDS`).
+    Image(Located<ImageSpec>),
+}
+
+/// A scene's body, loaded: the scaled mesh, or for an `[image]` the voxel grid of the part
+/// kept and its marching surface (as a surface-only mesh, for sizes and drawing).
+#[derive(Clone, Debug)]
+pub struct Body {
+    pub mesh: MeshData,
+    pub grid: Option<VoxelGrid>,
+    /// The file it came from, for messages.
+    pub source: String,
+}
+
 /// A checked scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
@@ -61,7 +86,7 @@ pub struct Scene {
     pub path: PathBuf,
     /// The directory relative paths start from.
     pub base_dir: PathBuf,
-    pub mesh: MeshSpec,
+    pub body: BodySpec,
     /// `None`: take the material the mesh file carries (PLY `material`).
     pub material: Option<Material>,
     pub model_kind: String,
@@ -122,12 +147,45 @@ impl Scene {
             )));
         }
 
-        let s = raw.mesh.scale;
-        if !(s.is_finite() && s > 0.0) {
-            return Err(invalid(format!(
-                "[mesh] scale = {s}: must be finite and > 0"
-            )));
-        }
+        let body = match (raw.mesh, raw.image) {
+            (Some(mesh), None) => {
+                let s = mesh.scale;
+                if !(s.is_finite() && s > 0.0) {
+                    return Err(invalid(format!(
+                        "[mesh] scale = {s}: must be finite and > 0"
+                    )));
+                }
+                BodySpec::Mesh(mesh)
+            }
+            (None, Some(image)) => {
+                let l = line(image.span());
+                let image = image.into_inner();
+                check_image(&image).map_err(|m| invalid(format!("line {l}: [image] {m}")))?;
+                check_model(&model_kind, &params)
+                    .map_err(|m| invalid(format!("line {model_line}: [model] {m}")))?;
+                if raw.material.is_none() {
+                    return Err(invalid(format!(
+                        "line {l}: an [image] body needs a [material] table (an image carries none)"
+                    )));
+                }
+                BodySpec::Image(Located {
+                    line: l,
+                    value: image,
+                })
+            }
+            (Some(_), Some(_)) => {
+                return Err(invalid(
+                    "has both [mesh] and [image]; the body comes from exactly one".into(),
+                ));
+            }
+            (None, None) => {
+                return Err(invalid(format!(
+                    "needs [mesh] (a mesh file) or [image] (a volume image, for {})",
+                    IMAGE_KINDS.join(" and ")
+                )));
+            }
+        };
+        let is_image = matches!(body, BodySpec::Image(_));
         let run_line = line(raw.run.span());
         let run = raw.run.into_inner();
         check_run(&run).map_err(|m| invalid(format!("line {run_line}: [run] {m}")))?;
@@ -144,7 +202,7 @@ impl Scene {
         for (k, r) in raw.fixed.into_iter().enumerate() {
             let l = line(r.span());
             let r = r.into_inner();
-            check_region(&r, false)
+            check_region(&r, false, is_image)
                 .map_err(|m| invalid(format!("line {l}: {}: {m}", region_label("fixed", k, &r))))?;
             fixed.push(Located { line: l, value: r });
         }
@@ -152,7 +210,7 @@ impl Scene {
         for (k, r) in raw.load.into_iter().enumerate() {
             let l = line(r.span());
             let r = r.into_inner();
-            check_region(&r, true)
+            check_region(&r, true, is_image)
                 .map_err(|m| invalid(format!("line {l}: {}: {m}", region_label("load", k, &r))))?;
             loads.push(Located { line: l, value: r });
         }
@@ -168,7 +226,7 @@ impl Scene {
         Ok(Scene {
             path: name.to_path_buf(),
             base_dir: base_dir.to_path_buf(),
-            mesh: raw.mesh,
+            body,
             material: raw.material,
             model_kind,
             model_params: params,
@@ -182,9 +240,25 @@ impl Scene {
         })
     }
 
-    /// The mesh file as the scene names it, resolved against the scene's directory.
+    /// The body's file (`[mesh]` or `[image]` `file`), resolved against the scene's directory.
     pub fn mesh_path(&self) -> PathBuf {
-        self.base_dir.join(&self.mesh.file)
+        self.base_dir.join(self.body_file())
+    }
+
+    /// The body's file as the scene names it.
+    fn body_file(&self) -> &Path {
+        match &self.body {
+            BodySpec::Mesh(m) => &m.file,
+            BodySpec::Image(i) => &i.value.file,
+        }
+    }
+
+    /// The `[mesh]` table, if the body is a mesh.
+    pub fn mesh_spec(&self) -> Option<&MeshSpec> {
+        match &self.body {
+            BodySpec::Mesh(m) => Some(m),
+            BodySpec::Image(_) => None,
+        }
     }
 
     fn invalid(&self, message: String) -> Error {
@@ -202,59 +276,114 @@ impl Scene {
 
     /// Like `build`; models that pre-compute report how far they have gone to `progress`.
     pub fn build_with_progress(&self, progress: Progress) -> Result<Simulation, Error> {
+        let body = self.load_body()?;
+        let material = self.material_for(&body)?;
+        let mut model = self.build_model(&self.model_kind, &body, material, &self.model_params)?;
+        model.set_progress(progress);
+        self.build_with_model(model, &body.mesh)
+    }
+
+    /// Reads the body: the mesh file (scaled), or the image made into a voxel grid.
+    pub fn load_body(&self) -> Result<Body, Error> {
         let resolved = self.mesh_path();
+        let table = match self.body {
+            BodySpec::Mesh(_) => "[mesh]".to_string(),
+            BodySpec::Image(ref i) => format!("line {}: [image]", i.line),
+        };
         if !resolved.is_file() {
             return Err(self.invalid(format!(
-                "[mesh] file = \"{}\": no such file (looked for {})",
-                self.mesh.file.display(),
+                "{table} file = \"{}\": no such file (looked for {})",
+                self.body_file().display(),
                 resolved.display()
             )));
         }
-        let mesh = crate::io::read(&resolved)?;
-        self.build_from(mesh, &resolved.display().to_string(), progress)
-    }
-
-    /// Builds the simulation from a mesh already loaded (unscaled); `source` names it.
-    pub fn build_with_mesh(&self, mesh: MeshData, source: &str) -> Result<Simulation, Error> {
-        self.build_from(mesh, source, Progress::silent())
-    }
-
-    fn build_from(
-        &self,
-        mut mesh: MeshData,
-        source: &str,
-        progress: Progress,
-    ) -> Result<Simulation, Error> {
-        for v in &mut mesh.vertices {
-            *v *= self.mesh.scale;
+        let source = resolved.display().to_string();
+        match &self.body {
+            BodySpec::Mesh(m) => {
+                let mut mesh = crate::io::read(&resolved)?;
+                for v in &mut mesh.vertices {
+                    *v *= m.scale;
+                }
+                Ok(Body {
+                    mesh,
+                    grid: None,
+                    source,
+                })
+            }
+            BodySpec::Image(i) => {
+                let grid = image_grid(&i.value, &resolved).map_err(|f| match f {
+                    Failure::Key(m) => self.invalid(format!("{table} {m} (image {source})")),
+                    Failure::File(e) => e,
+                })?;
+                Ok(Body {
+                    mesh: MeshData::from_surface(&marching_surface(&grid)),
+                    grid: Some(grid),
+                    source,
+                })
+            }
         }
-        let material = match (self.material, mesh.material) {
-            (Some(m), _) => m,
-            (None, Some(r)) => Material {
+    }
+
+    /// The scene's `[material]`, else the one the mesh file carries.
+    pub fn material_for(&self, body: &Body) -> Result<Material, Error> {
+        match (self.material, body.mesh.material) {
+            (Some(m), _) => Ok(m),
+            (None, Some(r)) => Ok(Material {
                 young_modulus: r.young_modulus,
                 poisson_ratio: r.poisson_ratio,
                 density: r.density,
                 damping: 0.0,
                 stiffness_damping: 0.0,
             }
-            .validated()?,
-            (None, None) => {
-                return Err(self.invalid(format!(
-                    "no [material] table, and {source} carries no material"
-                )));
+            .validated()?),
+            (None, None) => Err(self.invalid(format!(
+                "no [material] table, and {} carries no material",
+                body.source
+            ))),
+        }
+    }
+
+    /// A model of `kind` on the loaded body (any kind on a mesh; the voxel kinds on an
+    /// image, whose grid becomes the lattice).
+    pub fn build_model(
+        &self,
+        kind: &str,
+        body: &Body,
+        material: Material,
+        params: &toml::Table,
+    ) -> Result<Box<dyn Deformable>, Error> {
+        match &body.grid {
+            Some(grid) => {
+                check_model(kind, params).map_err(|m| self.invalid(format!("[model] {m}")))?;
+                voxel_model(kind, grid.clone(), material, params)
             }
+            None => model::build(
+                kind,
+                &BuildInput {
+                    mesh: &body.mesh,
+                    source: &body.source,
+                    material,
+                    params,
+                },
+            ),
+        }
+    }
+
+    /// Builds the simulation from a mesh already loaded (unscaled, scaled here by `[mesh]`
+    /// `scale`); `source` names it. The scene's kind is built on it as on a `[mesh]` body.
+    pub fn build_with_mesh(&self, mut mesh: MeshData, source: &str) -> Result<Simulation, Error> {
+        let scale = self.mesh_spec().map_or(1.0, |m| m.scale);
+        for v in &mut mesh.vertices {
+            *v *= scale;
+        }
+        let body = Body {
+            mesh,
+            grid: None,
+            source: source.to_string(),
         };
-        let mut model = model::build(
-            &self.model_kind,
-            &BuildInput {
-                mesh: &mesh,
-                source,
-                material,
-                params: &self.model_params,
-            },
-        )?;
-        model.set_progress(progress);
-        self.build_with_model(model, &mesh)
+        let material = self.material_for(&body)?;
+        let model = self.build_model(&self.model_kind, &body, material, &self.model_params)?;
+        self.build_with_model(model, &body.mesh)
     }
 
     /// Builds the simulation around a model already built from `mesh` (scaled): regions,

@@ -21,6 +21,36 @@ fn one() -> Real {
     1.0
 }
 
+/// `[image]`: a volume image (NIfTI-1, MetaImage) turned into the voxel lattice of
+/// `chainmail` or `linked-volumes`: a threshold window or label values select the voxels,
+/// every `stride`-th voxel is sampled, and one face-connected part is kept (the one holding
+/// `seed`, else the largest). The surface drawn is the marching surface of the voxels.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageSpec {
+    pub file: PathBuf,
+    /// Occupied where `lo <= value <= hi` (the image's own intensity units).
+    pub threshold: Option<[f32; 2]>,
+    /// Occupied where the value is one of these (segmentation label images).
+    pub labels: Option<Vec<f32>>,
+    /// Sample every `stride`-th voxel along each axis (coarsens the lattice), default 1.
+    #[serde(default = "one_step")]
+    pub stride: usize,
+    /// A point (m) inside the part to keep; default: the largest part.
+    pub seed: Option<[Real; 3]>,
+    /// Metres per header length unit, for MetaImage headers, which state no unit (default
+    /// 0.001: millimetres, ITK's convention). NIfTI headers state theirs; `scale` is refused.
+    pub scale: Option<Real>,
+    /// Voxel spacing (m) replacing the header's (before `stride`).
+    pub spacing: Option<[Real; 3]>,
+    /// Centre of voxel (0, 0, 0) (m), replacing the header's origin.
+    pub origin: Option<[Real; 3]>,
+}
+
+fn one_step() -> usize {
+    1
+}
+
 /// `[[fixed]]` or `[[load]]`: exactly one selector, plus `force` (N, total) for a load.
 #[derive(Clone, Debug, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]

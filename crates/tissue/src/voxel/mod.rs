@@ -9,23 +9,29 @@
 //! - `distance`: the signed distance map at rest (chamfer), for penetration depths
 //! - `embed`: a given surface moved by trilinear interpolation of voxel displacements
 //! - `marching`: a surface from the voxels when none was given (marching tetrahedra)
+//! - `topology`: which voxels and links exist; cut, carve and join (both models)
+//! - `boundary`: the closed surface of the linked voxels, drawn after a topology edit
 //!
 //! Voxel (i, j, k) has its centre at `origin + (i·sx, j·sy, k·sz)`, as in `VoxelImage`.
 
+pub mod boundary;
 pub mod components;
 pub mod distance;
 pub mod embed;
 pub mod marching;
 pub mod select;
+pub mod topology;
 pub mod voxelize;
 
 use crate::math::{Real, Vec3};
 
+pub use boundary::{BoundarySurface, boundary_surface};
 pub use components::{Components, components, keep_component_at, keep_largest};
 pub use distance::DistanceMap;
 pub use embed::TrilinearEmbedding;
 pub use marching::marching_surface;
 pub use select::{from_image_labels, from_image_threshold};
+pub use topology::VoxelLinks;
 pub use voxelize::{voxelize_surface, voxelize_to};
 
 /// A label per voxel on an axis-aligned lattice.

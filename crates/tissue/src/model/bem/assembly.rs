@@ -128,28 +128,7 @@ pub(crate) fn assemble_rows(
     h.fill(0.0);
     g.fill(0.0);
     for e in elements {
-        let rule = match e.nodes.iter().position(|&v| v == i) {
-            Some(corner) => &rules.singular[corner],
-            None => &rules.regular[side_for((e.centroid - x).length(), e.size)],
-        };
-        let mut he = [[[0.0; 3]; 3]; 3];
-        let mut ge = [[[0.0; 3]; 3]; 3];
-        for q in rule {
-            let y = e.corners[0] * q.n[0] + e.corners[1] * q.n[1] + e.corners[2] * q.n[2];
-            let r = y - x;
-            let u = kelvin.u(r);
-            let t = kelvin.t(r, e.normal);
-            let w = q.w * e.jac;
-            for a in 0..3 {
-                let wa = w * q.n[a];
-                for l in 0..3 {
-                    for k in 0..3 {
-                        ge[a][l][k] += wa * u[l][k];
-                        he[a][l][k] += wa * t[l][k];
-                    }
-                }
-            }
-        }
+        let (he, ge) = element_integrals(i, x, e, kelvin, rules, true);
         for (a, &j) in e.nodes.iter().enumerate() {
             for l in 0..3 {
                 let row = l * dofs + 3 * j;
@@ -172,5 +151,122 @@ pub(crate) fn assemble_rows(
         for k in 0..3 {
             r[3 * i + k] = -sum[k];
         }
+    }
+}
+
+/// Indexed [corner][load direction][component].
+type Block = [[[Real; 3]; 3]; 3];
+
+/// The integrals of T* (`he`) and U* (`ge`) times each corner's shape function over element
+/// `e`, from source `i` at `x`. The rule depends only on the source's position, so
+/// re-integrating one element later reproduces its share of H and G exactly. `with_h =
+/// false` skips T*.
+fn element_integrals(
+    i: usize,
+    x: Vec3,
+    e: &Element,
+    kelvin: &Kelvin,
+    rules: &Rules,
+    with_h: bool,
+) -> (Block, Block) {
+    let rule = match e.nodes.iter().position(|&v| v == i) {
+        Some(corner) => &rules.singular[corner],
+        None => &rules.regular[side_for((e.centroid - x).length(), e.size)],
+    };
+    let mut he = [[[0.0; 3]; 3]; 3];
+    let mut ge = [[[0.0; 3]; 3]; 3];
+    for q in rule {
+        let y = e.corners[0] * q.n[0] + e.corners[1] * q.n[1] + e.corners[2] * q.n[2];
+        let r = y - x;
+        let u = kelvin.u(r);
+        let t = if with_h {
+            kelvin.t(r, e.normal)
+        } else {
+            [[0.0; 3]; 3]
+        };
+        let w = q.w * e.jac;
+        for a in 0..3 {
+            let wa = w * q.n[a];
+            for l in 0..3 {
+                for k in 0..3 {
+                    ge[a][l][k] += wa * u[l][k];
+                    he[a][l][k] += wa * t[l][k];
+                }
+            }
+        }
+    }
+    (he, ge)
+}
+
+/// What re-integrating single elements needs: the surface, its elements and the kernels.
+/// Kept by the system so that the fixed-set columns of A₀ can drop individual triangles.
+#[derive(Clone, Debug)]
+pub(crate) struct Geometry {
+    pub vertices: Vec<Vec3>,
+    pub elements: Vec<Element>,
+    pub kelvin: Kelvin,
+}
+
+impl Geometry {
+    /// Corner `corner` of element `e`'s share of G's three columns of that vertex, for every
+    /// source: `out[3 * (3 i + l) + k]` (source i, load direction l, component k).
+    pub fn element_g_columns(&self, e: usize, corner: usize, rules: &Rules) -> Vec<Real> {
+        let n = self.vertices.len();
+        let mut out = vec![0.0; 9 * n];
+        let Some(el) = self.elements.get(e) else {
+            return out;
+        };
+        for (i, &x) in self.vertices.iter().enumerate() {
+            let (_, ge) = element_integrals(i, x, el, &self.kelvin, rules, false);
+            for l in 0..3 {
+                for k in 0..3 {
+                    out[3 * (3 * i + l) + k] = ge[corner][l][k];
+                }
+            }
+        }
+        out
+    }
+
+    /// Where the unknown traction of each constrained vertex acts. The traction jumps where
+    /// a constrained region meets a free one (the support pushes on the constrained side, the
+    /// free side carries the known zero), which one value per vertex cannot represent if it
+    /// is spread over both sides. So a constrained vertex's traction acts only on its
+    /// triangles whose three vertices are all constrained; the others (the rim triangles,
+    /// listed per vertex as (element, corner)) see the free side's known traction. A
+    /// constrained vertex without any such triangle (a point or line support) keeps all its
+    /// triangles: it has no constrained side to carry its traction.
+    /// Returns the rim triangles per vertex and the area each constrained vertex's traction
+    /// acts on (a third of each remaining triangle; 0 for unconstrained vertices).
+    pub fn traction_supports(&self, constrained: &[bool]) -> (Vec<Vec<(usize, usize)>>, Vec<Real>) {
+        let n = self.vertices.len();
+        let is = |v: usize| constrained.get(v).copied().unwrap_or(false);
+        let mut rim = vec![Vec::new(); n];
+        let mut inner_area = vec![0.0; n];
+        let mut all_area = vec![0.0; n];
+        for (e, el) in self.elements.iter().enumerate() {
+            let inner = el.nodes.iter().all(|&v| is(v));
+            let third = el.jac / 6.0;
+            for (corner, &v) in el.nodes.iter().enumerate() {
+                if !is(v) {
+                    continue;
+                }
+                all_area[v] += third;
+                if inner {
+                    inner_area[v] += third;
+                } else {
+                    rim[v].push((e, corner));
+                }
+            }
+        }
+        let mut area = vec![0.0; n];
+        for v in 0..n {
+            if inner_area[v] > 0.0 {
+                area[v] = inner_area[v];
+            } else {
+                area[v] = all_area[v];
+                rim[v].clear();
+            }
+        }
+        (rim, area)
     }
 }

@@ -5,7 +5,9 @@
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::model::{
+    CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
+};
 
 use super::model::Bem;
 use super::viscous::relax;
@@ -60,8 +62,10 @@ impl Bem {
             self.traction[v] += at(&self.p_contact, k);
         }
         // The tissue pushes on its support with the load on that vertex minus the traction
-        // the support applies over the vertex's area.
-        let reaction = |v: usize| self.point_forces[v] - self.traction[v] * self.areas[v];
+        // the support applies over the area it acts on (a fixed vertex's traction acts only
+        // on the fixed side of the rim, and so may a contact's: `BemSystem::support_area`).
+        let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
+        let reaction = |v: usize| self.point_forces[v] - self.traction[v] * area(v);
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
             self.fixed_reactions[k] = if self.fixed_owner[k] {
                 reaction(v as usize)
@@ -106,8 +110,12 @@ impl Deformable for Bem {
             fixed[v as usize] = true;
         }
         let contacts: Vec<usize> = (0..n).filter(|&v| !fixed[v] && disp[v].is_some()).collect();
+        self.assemble_pending();
         if fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
+            let stage = "bem: factorising A0 and W = A0^-1 G";
+            self.progress.report(stage, 0.0);
             self.system.factor(&fixed)?;
+            self.progress.report(stage, 1.0);
             self.refresh_load_response()?;
         }
         let changed = contacts.as_slice() != self.system.contacts();
@@ -207,6 +215,10 @@ impl Deformable for Bem {
         })
     }
 
+    fn set_progress(&mut self, progress: Progress) {
+        self.progress = progress;
+    }
+
     fn reset(&mut self) {
         self.positions.copy_from_slice(&self.surface.vertices);
         self.target.copy_from_slice(&self.surface.vertices);
@@ -228,7 +240,8 @@ impl Deformable for Bem {
             dofs,
             elements: self.surface.triangles.len(),
             surface_vertices: self.surface.vertices.len(),
-            memory_bytes: 3 * dofs * dofs * 8,
+            // H, G, W, and A₀⁻¹ with discontinuous contacts.
+            memory_bytes: (3 + usize::from(self.params.discontinuous_contacts)) * dofs * dofs * 8,
             precompute_seconds: self.assembly_seconds + s.last_factor_seconds,
             is_static: self.params.alpha == 0.0,
             details: vec![

@@ -16,6 +16,10 @@
 //! where u_L = W P_load. A contact change costs one small LU (3|C|)², a static update
 //! O(n·|C|); the n × n inverse of A is never formed (`explicit_inverse` builds it for
 //! checks).
+//!
+//! Tractions are discontinuous at the rim of the fixed set (`base_matrix`), and optionally
+//! at the rim of the contact set (`set_contact_rims`: R, the rims' share of G_C, enters as
+//! W̃_{:,C} = W_{:,C} − A₀⁻¹ R, so A₀⁻¹ is kept and a static update becomes O(n²)).
 
 use std::time::Instant;
 
@@ -27,7 +31,8 @@ use faer::{Conj, Mat, MatMut, MatRef, Par};
 use crate::error::SimError;
 use crate::math::{Real, Vec3};
 
-use super::assembly::Influence;
+use super::assembly::{Geometry, Influence};
+use super::quadrature::Rules;
 
 /// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
 const PIVOT_RATIO: Real = 1e-12;
@@ -45,6 +50,26 @@ pub struct BemSystem {
     pub factorizations: usize,
     pub woodbury_updates: usize,
     pub last_factor_seconds: Real,
+    /// The surface, to re-integrate the rim triangles of the fixed set (`base_matrix`);
+    /// without it the fixed vertices' tractions stay continuous across the rim.
+    geometry: Option<Geometry>,
+    /// Per vertex, the area its unknown traction acts on for the factorised fixed set (0 for
+    /// the others); empty without geometry.
+    support_area: Vec<Real>,
+    /// Contacts' tractions discontinuous at their rim too (`set_contact_rims`).
+    contact_rims: bool,
+    /// A₀⁻¹, kept only with `contact_rims`.
+    z: Option<Mat<Real>>,
+    /// The rim shares of the current contacts' G columns, with `contact_rims`.
+    rims: Option<ContactRims>,
+}
+
+/// For a contact set C with rims: R (3n × 3|C|) holds, per contact dof, the G share of the
+/// contact's rim triangles (those with a vertex neither fixed nor in contact), which its
+/// traction no longer acts on; `area[k]` is the area contact k's traction does act on.
+struct ContactRims {
+    r: Mat<Real>,
+    area: Vec<Real>,
 }
 
 impl BemSystem {
@@ -58,7 +83,83 @@ impl BemSystem {
             factorizations: 0,
             woodbury_updates: 0,
             last_factor_seconds: 0.0,
+            geometry: None,
+            support_area: Vec::new(),
+            contact_rims: false,
+            z: None,
+            rims: None,
         }
+    }
+
+    /// Makes the contacts' tractions discontinuous at the contact rim as the fixed ones are
+    /// (needs the geometry). The Woodbury structure survives, at a price: A₀⁻¹ is kept
+    /// (another (3n)² doubles), a contact change re-integrates the rim triangles, and a
+    /// static update costs one dense product with A₀⁻¹, O(n²) instead of O(n·|C|). Takes
+    /// effect at the next `factor`.
+    pub(crate) fn set_contact_rims(&mut self, on: bool) {
+        self.contact_rims = on;
+    }
+
+    /// Gives the system its surface so that fixed tractions become discontinuous at the rim
+    /// of the fixed set (see `base_matrix`). Takes effect at the next `factor`.
+    pub(crate) fn set_geometry(&mut self, geometry: Option<Geometry>) {
+        self.geometry = geometry;
+    }
+
+    pub(crate) fn geometry(&self) -> Option<&Geometry> {
+        self.geometry.as_ref()
+    }
+
+    /// Replaces H and G (a deferred assembly); the factorisation is dropped.
+    pub(crate) fn set_influence(&mut self, inf: Influence) {
+        self.inf = inf;
+        self.w = Mat::zeros(0, 0);
+        self.contacts.clear();
+        self.capacitance = None;
+    }
+
+    /// The area over which fixed vertex `v`'s traction acts (what turns it into a reaction),
+    /// if the system has its geometry; `None` otherwise (then: the tributary area).
+    pub fn support_area(&self, v: usize) -> Option<Real> {
+        if let Some(rims) = &self.rims
+            && let Some(k) = self.contacts.iter().position(|&c| c == v)
+        {
+            return rims.area.get(k).copied();
+        }
+        match self.fixed.get(v) {
+            Some(true) => self.support_area.get(v).copied(),
+            _ => None,
+        }
+    }
+
+    /// The reordered matrix with the tractions of the `constrained` vertices unknown and
+    /// discontinuous at the rim of that set: a constrained vertex's column is −G restricted
+    /// to its triangles whose three vertices are all constrained (`Geometry::
+    /// traction_supports`), i.e. −G plus the G share of its rim triangles, re-integrated
+    /// here. Without geometry it is `reordered`. A₀ is this for the fixed set. Also returns
+    /// the support areas.
+    pub fn base_matrix(&self, constrained: &[bool]) -> (Mat<Real>, Vec<Real>) {
+        let mut a = self.reordered(constrained);
+        let Some(geo) = &self.geometry else {
+            return (a, Vec::new());
+        };
+        if geo.vertices.len() != self.inf.vertices {
+            return (a, Vec::new());
+        }
+        let (rim, area) = geo.traction_supports(constrained);
+        let rules = Rules::new();
+        let n = self.dofs();
+        for (v, list) in rim.iter().enumerate() {
+            for &(e, corner) in list {
+                let g = geo.element_g_columns(e, corner, &rules);
+                for r in 0..n {
+                    for k in 0..3 {
+                        a[(r, 3 * v + k)] += g[3 * r + k];
+                    }
+                }
+            }
+        }
+        (a, area)
     }
 
     pub fn dofs(&self) -> usize {
@@ -82,7 +183,8 @@ impl BemSystem {
     }
 
     /// The reordered matrix: columns of −G for vertices whose traction is unknown
-    /// (`unknown_traction[v]`), of H otherwise.
+    /// (`unknown_traction[v]`), of H otherwise (tractions continuous everywhere; A₀ is
+    /// `base_matrix`).
     pub fn reordered(&self, unknown_traction: &[bool]) -> Mat<Real> {
         let n = self.dofs();
         let (h, g) = (&self.inf.h, &self.inf.g);
@@ -109,7 +211,7 @@ impl BemSystem {
         if fixed.len() != self.inf.vertices || fixed.iter().filter(|&&f| f).count() < 3 {
             return Err(singular());
         }
-        let mut a = self.reordered(fixed);
+        let (mut a, support_area) = self.base_matrix(fixed);
         let mut perm = vec![0usize; n];
         let mut perm_inv = vec![0usize; n];
         let req = StackReq::any_of(&[
@@ -138,8 +240,18 @@ impl BemSystem {
         if w.col_iter().any(|c| c.iter().any(|v| !v.is_finite())) {
             return Err(singular());
         }
+        let z = if self.contact_rims && self.geometry.is_some() {
+            let mut z = Mat::identity(n, n);
+            solve_columns(a.as_ref(), p, z.as_mut());
+            Some(z)
+        } else {
+            None
+        };
         self.w = w;
+        self.z = z;
+        self.rims = None;
         self.fixed = fixed.to_vec();
+        self.support_area = support_area;
         self.contacts.clear();
         self.capacitance = None;
         self.factorizations += 1;
@@ -158,7 +270,13 @@ impl BemSystem {
         }
         let m = 3 * contacts.len();
         let dof = |k: usize| 3 * contacts[k / 3] + k % 3;
-        let s = Mat::from_fn(m, m, |r, c| self.w[(dof(r), dof(c))]);
+        let rims = self.contact_rim_shares(contacts);
+        let mut s = Mat::from_fn(m, m, |r, c| self.w[(dof(r), dof(c))]);
+        if let (Some(rims), Some(z)) = (&rims, &self.z) {
+            // W̃_CC = W_CC − (A₀⁻¹ R)_C: only the contact rows of A₀⁻¹ are needed here.
+            let zc = Mat::from_fn(m, self.dofs(), |r, c| z[(dof(r), c)]);
+            s -= zc * &rims.r;
+        }
         let lu = (m > 0).then(|| s.partial_piv_lu());
         if let Some(lu) = &lu {
             let u = lu.U();
@@ -174,6 +292,7 @@ impl BemSystem {
         }
         self.contacts = contacts.to_vec();
         self.capacitance = lu;
+        self.rims = rims;
         self.woodbury_updates += 1;
         Ok(())
     }
@@ -226,6 +345,14 @@ impl BemSystem {
             let col = 3 * self.contacts[r / 3] + r % 3;
             axpy(x, *pr, self.w.col_as_slice(col));
         }
+        if let (Some(rims), Some(z)) = (&self.rims, &self.z) {
+            // x −= A₀⁻¹ (R P_C): the rims' share no longer loads the body.
+            let pc = Mat::from_fn(m, 1, |r, _| rhs[(r, 0)]);
+            let correction = z * (&rims.r * pc);
+            for (xr, c) in x.iter_mut().zip(correction.col(0).iter()) {
+                *xr -= c;
+            }
+        }
         Ok(())
     }
 
@@ -235,7 +362,7 @@ impl BemSystem {
         if !self.is_factored() {
             return Err(not_factored());
         }
-        let a0_inv = self.reordered(&self.fixed).partial_piv_lu().inverse();
+        let a0_inv = self.base_matrix(&self.fixed).0.partial_piv_lu().inverse();
         let Some(lu) = &self.capacitance else {
             return Ok(a0_inv);
         };
@@ -244,10 +371,48 @@ impl BemSystem {
         let dof = |k: usize| 3 * self.contacts[k / 3] + k % 3;
         let mut rows = Mat::from_fn(m, n, |r, c| a0_inv[(dof(r), c)]);
         lu.solve_in_place(rows.as_mut());
-        let left = Mat::from_fn(n, m, |r, c| {
+        let mut left = Mat::from_fn(n, m, |r, c| {
             self.w[(r, dof(c))] + if r == dof(c) { 1.0 } else { 0.0 }
         });
+        if let Some(rims) = &self.rims {
+            left -= &a0_inv * &rims.r;
+        }
         Ok(a0_inv - left * rows)
+    }
+}
+
+impl BemSystem {
+    /// R and the support areas for contact set `contacts` if contact rims are on (see
+    /// `ContactRims`): the rim triangles are found with the fixed and contact vertices
+    /// constrained, and re-integrated from every source.
+    fn contact_rim_shares(&self, contacts: &[usize]) -> Option<ContactRims> {
+        let geo = self.geometry.as_ref()?;
+        self.z.as_ref()?;
+        if contacts.is_empty() || geo.vertices.len() != self.inf.vertices {
+            return None;
+        }
+        let mut constrained = self.fixed.clone();
+        for &c in contacts {
+            constrained[c] = true;
+        }
+        let (rim, area) = geo.traction_supports(&constrained);
+        let rules = Rules::new();
+        let n = self.dofs();
+        let mut r = Mat::zeros(n, 3 * contacts.len());
+        for (k, &c) in contacts.iter().enumerate() {
+            for &(e, corner) in &rim[c] {
+                let g = geo.element_g_columns(e, corner, &rules);
+                for row in 0..n {
+                    for kk in 0..3 {
+                        r[(row, 3 * k + kk)] += g[3 * row + kk];
+                    }
+                }
+            }
+        }
+        Some(ContactRims {
+            r,
+            area: contacts.iter().map(|&c| area[c]).collect(),
+        })
     }
 }
 

@@ -185,11 +185,18 @@ fn woodbury_equals_a_fresh_inversion() {
     for set in [&top[..3], &top[..10], &top[4..7]] {
         m.set_constraints(&press(set)).unwrap();
         let sys = m.system();
-        let mut mask = sys.fixed().to_vec();
+        // A₀ (fixed tractions discontinuous at the rim) with the contacts' columns −G.
+        let (mut a, _) = sys.base_matrix(sys.fixed());
+        let g = &sys.influence().g;
+        let n = sys.dofs();
         for &v in set {
-            mask[v as usize] = true;
+            for c in 3 * v as usize..3 * v as usize + 3 {
+                for r in 0..n {
+                    a[(r, c)] = -g[r * n + c];
+                }
+            }
         }
-        let fresh = sys.reordered(&mask).partial_piv_lu().inverse();
+        let fresh = a.partial_piv_lu().inverse();
         let updated = sys.explicit_inverse().unwrap();
         let rel = (&updated - &fresh).norm_l2() / fresh.norm_l2();
         eprintln!(
@@ -229,7 +236,7 @@ fn quasi_viscous_steps_follow_eq_13_and_reach_the_static_state() {
     let target = stat.surface().positions.to_vec();
     let params = BemParams {
         alpha: 0.05,
-        progress: false,
+        ..BemParams::default()
     };
     let mut visc = Bem::new(&s, material(), params).unwrap();
     assert!(!visc.info().is_static && stat.info().is_static);
@@ -379,4 +386,190 @@ fn builds_by_kind_from_a_tet_mesh_boundary() {
     // 27 grid vertices, all but the centre on the boundary; 6 faces × 4 squares × 2 = 48.
     assert_eq!(m.info().surface_vertices, 26);
     assert_eq!(m.surface().triangles.len(), 48);
+}
+
+#[test]
+fn fixed_tractions_act_only_on_fully_fixed_triangles() {
+    // A0's column of a fixed vertex must be −G assembled over the fixed triangles alone
+    // (an independent assembly of that sub-surface), except for a point support, which
+    // keeps all its triangles; the support areas tile the floor.
+    use crate::mesh::generate::{BoxSplit, box_tets};
+    let tets = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.04, 0.04, 0.02),
+        [4, 4, 2],
+        BoxSplit::Six,
+    );
+    let s = crate::mesh::MeshData::from_tets(&tets)
+        .surface_mesh()
+        .unwrap();
+    let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let rest = m.rest_surface().to_vec();
+    let n = rest.len();
+    let mut fixed: Vec<bool> = rest.iter().map(|p| p.z < 1e-9).collect();
+    // A point support on the top face.
+    let point = (0..n)
+        .find(|&v| (rest[v] - Vec3::new(0.01, 0.02, 0.02)).length() < 1e-9)
+        .unwrap();
+    fixed[point] = true;
+    let c = Constraints::fixed((0..n as u32).filter(|&v| fixed[v as usize]).collect());
+    m.set_constraints(&c).unwrap();
+    let sys = m.system();
+    let (a, area) = sys.base_matrix(&fixed);
+    let elements: Vec<_> = s
+        .triangles
+        .iter()
+        .filter_map(|&t| assembly::Element::new(&s.vertices, t))
+        .collect();
+    let floor: Vec<_> = elements
+        .iter()
+        .copied()
+        .filter(|e| e.nodes.iter().all(|&v| fixed[v] && v != point))
+        .collect();
+    let kelvin = Kelvin::new(material().mu(), NU);
+    let sub = assembly::assemble(&s.vertices, &floor, &kelvin, &|_| {});
+    let inf = sys.influence();
+    let dofs = 3 * n;
+    let gmax = inf.g.iter().fold(0.0 as Real, |a, v| a.max(v.abs()));
+    let mut worst: Real = 0.0;
+    let mut rim_changed: Real = 0.0;
+    for (v, &is_fixed) in fixed.iter().enumerate() {
+        for k in 0..3 {
+            let c = 3 * v + k;
+            for r in 0..dofs {
+                let expect = if v == point {
+                    -inf.g_at(r, c)
+                } else if is_fixed {
+                    -sub.g_at(r, c)
+                } else {
+                    inf.h_at(r, c)
+                };
+                worst = worst.max((a[(r, c)] - expect).abs());
+                if is_fixed && v != point {
+                    rim_changed = rim_changed.max((a[(r, c)] + inf.g_at(r, c)).abs());
+                }
+            }
+        }
+    }
+    eprintln!(
+        "fixed-set columns vs a sub-surface assembly: {:.2e}; rim share {:.2e} (of max |G| {gmax:.2e})",
+        worst / gmax,
+        rim_changed / gmax
+    );
+    assert!(worst < 1e-12 * gmax, "{worst:e}");
+    assert!(
+        rim_changed > 0.01 * gmax,
+        "the floor's rim triangles were dropped"
+    );
+    let floor_area: Real = (0..n).filter(|&v| v != point).map(|v| area[v]).sum();
+    assert!((floor_area - 0.04 * 0.04).abs() < 1e-15, "{floor_area}");
+    // The point support's traction acts on all its triangles: its tributary area.
+    assert!((area[point] - m.areas()[point]).abs() < 1e-18);
+    assert_eq!(m.system().support_area(point), Some(area[point]));
+}
+
+#[test]
+fn a_scene_built_model_assembles_on_first_constraints_and_reports_progress() {
+    use std::sync::{Arc, Mutex};
+    let s = sphere(1);
+    let mesh = crate::mesh::MeshData::from_surface(&s);
+    // The deprecated `progress` key is still accepted (and ignored).
+    let mut params = toml::Table::new();
+    params.insert("progress".into(), toml::Value::Boolean(true));
+    let input = crate::model::BuildInput {
+        mesh: &mesh,
+        source: "sphere",
+        material: material(),
+        params: &params,
+    };
+    let mut deferred = crate::model::build("bem", &input).unwrap();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let sink = seen.clone();
+    let counter = seen.clone();
+    deferred.set_progress(crate::model::Progress::new(move |stage, f| {
+        sink.lock().unwrap().push((stage.to_string(), f))
+    }));
+    assert!(seen.lock().unwrap().is_empty(), "nothing assembled yet");
+    let mut eager = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let c = pole_push(&eager);
+    deferred.set_constraints(&c).unwrap();
+    eager.set_constraints(&c).unwrap();
+    deferred.step(0.01).unwrap();
+    eager.step(0.01).unwrap();
+    assert_eq!(deferred.surface().positions, eager.surface().positions);
+    assert_eq!(
+        deferred.reactions().prescribed,
+        eager.reactions().prescribed
+    );
+    let seen = seen.lock().unwrap();
+    let last = |stage: &str| {
+        seen.iter()
+            .filter(|(s, _)| s.contains(stage))
+            .map(|&(_, f)| f)
+            .next_back()
+    };
+    assert_eq!(last("assembling"), Some(1.0), "{seen:?}");
+    assert_eq!(last("factorising"), Some(1.0), "{seen:?}");
+    // A second set of constraints with the same fixed set neither assembles nor factorises.
+    let before = seen.len();
+    drop(seen);
+    deferred.set_constraints(&c).unwrap();
+    assert_eq!(counter.lock().unwrap().len(), before);
+}
+
+#[test]
+fn discontinuous_contacts_keep_woodbury_exact() {
+    // With the contacts' tractions discontinuous at their rim, the Woodbury inverse must
+    // equal a fresh inversion of the reordered matrix whose constrained columns (fixed and
+    // contacts) are −G restricted to fully constrained triangles.
+    let s = sphere(1);
+    let params = BemParams {
+        discontinuous_contacts: true,
+        ..BemParams::default()
+    };
+    let mut m = Bem::new(&s, material(), params).unwrap();
+    let rest = m.rest_surface().to_vec();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z < -0.03)
+        .collect();
+    let top: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.02)
+        .collect();
+    let press = |vs: &[u32]| Constraints {
+        fixed: fixed.clone(),
+        prescribed: vs
+            .iter()
+            .map(|&v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] * 0.99,
+            })
+            .collect(),
+    };
+    for set in [&top[..10], &top[..], &top[4..7]] {
+        m.set_constraints(&press(set)).unwrap();
+        let sys = m.system();
+        let mut mask = sys.fixed().to_vec();
+        for &v in set {
+            mask[v as usize] = true;
+        }
+        let (a, area) = sys.base_matrix(&mask);
+        let fresh = a.partial_piv_lu().inverse();
+        let updated = sys.explicit_inverse().unwrap();
+        let rel = (&updated - &fresh).norm_l2() / fresh.norm_l2();
+        // The contacts' areas: what turns their tractions into the probe force.
+        for &v in set {
+            assert_eq!(sys.support_area(v as usize), Some(area[v as usize]));
+        }
+        let full: Real = set.iter().map(|&v| m.areas()[v as usize]).sum();
+        let inner: Real = set.iter().map(|&v| area[v as usize]).sum();
+        eprintln!(
+            "discontinuous contacts, {} contacts: relative difference {rel:.2e}, traction area {inner:.3e} of {full:.3e} m²",
+            set.len()
+        );
+        assert!(rel < 1e-8, "{rel}");
+        if set.len() == top.len() {
+            assert!(inner < 0.9 * full, "the rim triangles were dropped");
+        }
+    }
+    assert_eq!(m.system().factorizations, 1);
 }

@@ -1,8 +1,9 @@
 //! `Deformable` for `ChainMail`, and its topology edits: `cut` (links crossed by a scalpel
 //! sweep), `carve` (elements under a ball) and `join` (links between touching elements).
-//! After an edit the rendered surface follows: vertices drop the corner elements now on the
-//! other side of a cut or carved away, and triangles crossed by the blade or left without
-//! elements are no longer drawn (vertex indices stay, so constraints stay valid).
+//! The links live in the shared `voxel::VoxelLinks`. After an edit the drawn surface is the
+//! closed boundary of the linked voxels (`voxel::boundary::redraw`), numbered after the
+//! given surface's vertices, which stay (undrawn, still following their elements) so that
+//! constraints naming them keep their meaning.
 
 use std::collections::HashMap;
 
@@ -10,6 +11,8 @@ use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::voxel::boundary::redraw;
+use crate::voxel::topology::{blade_is_finite, blade_triangles, crosses_blade};
 
 use super::ChainMail;
 
@@ -25,18 +28,14 @@ impl ChainMail {
             });
         }
         let l = &mut self.lattice;
-        let gone: Vec<usize> = (0..l.len())
-            .filter(|&v| l.class[v] != 0 && l.x[v].distance(centre) <= radius)
-            .collect();
-        for &v in &gone {
-            l.remove(v);
-        }
+        let x = &l.x;
+        let (gone, _) = l.topology.carve(|v| x[v], centre, radius);
+        l.unpin(&gone.iter().map(|&v| v as u32).collect::<Vec<_>>());
         if !gone.is_empty() {
-            let class = &self.lattice.class;
-            let orphans = self.embedding.rebind(|_, n| class[n as usize] != 0);
-            self.drop_triangles_of(&orphans);
-            self.topology_version += 1;
-            self.refresh_surface();
+            let topology = &self.lattice.topology;
+            self.embedding
+                .rebind(|_, n| topology.is_occupied(n as usize));
+            self.topology_changed();
         }
         Ok(gone.len())
     }
@@ -46,51 +45,34 @@ impl ChainMail {
     pub fn join(&mut self, tol: Real) -> usize {
         let added = self.lattice.join(tol.max(0.0));
         if added > 0 {
-            self.topology_version += 1;
+            self.topology_changed();
         }
         added
     }
 
-    fn drop_triangles_of(&mut self, vertices: &[usize]) {
-        if vertices.is_empty() {
-            return;
+    /// After an edit: the drawn surface becomes the boundary of the linked voxels (closed
+    /// whatever was cut); the given surface's vertices keep their numbers, undrawn.
+    fn topology_changed(&mut self) {
+        self.topology_version += 1;
+        self.triangles = redraw(
+            &mut self.embedding,
+            self.original_vertices,
+            &self.lattice.topology,
+            None,
+        );
+        let n = self.embedding.len();
+        self.surface.resize(n, Vec3::ZERO);
+        self.fixed_vertex.resize(n, false);
+        self.vertex_area = vec![0.0; n];
+        self.refresh_surface();
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|v| self.surface[v as usize]);
+            let share = 0.5 * (b - a).cross(c - a).length() / 3.0;
+            for &v in t {
+                self.vertex_area[v as usize] += share;
+            }
         }
-        let mut gone = vec![false; self.surface.len()];
-        for &v in vertices {
-            gone[v] = true;
-        }
-        self.triangles
-            .retain(|t| t.iter().all(|&v| !gone[v as usize]));
     }
-}
-
-/// Where segment p→q crosses triangle (a, b, c), if it does (parameter in [0, 1]).
-fn segment_hits(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> bool {
-    let d = q - p;
-    let (e1, e2) = (b - a, c - a);
-    let h = d.cross(e2);
-    let det = e1.dot(h);
-    if det.abs() < 1e-300 {
-        return false;
-    }
-    let s = p - a;
-    let u = s.dot(h) / det;
-    if !(0.0..=1.0).contains(&u) {
-        return false;
-    }
-    let qv = s.cross(e1);
-    let v = d.dot(qv) / det;
-    if v < 0.0 || u + v > 1.0 {
-        return false;
-    }
-    let t = e2.dot(qv) / det;
-    (0.0..=1.0).contains(&t)
-}
-
-fn blade_triangles(blade: &CutPath) -> [[Vec3; 3]; 2] {
-    let [s0, s1] = blade.start;
-    let [e0, e1] = blade.end;
-    [[s0, s1, e1], [s0, e1, e0]]
 }
 
 impl Deformable for ChainMail {
@@ -230,64 +212,22 @@ impl Deformable for ChainMail {
 
     /// Removes every link whose segment (current positions) crosses the blade's swept quad.
     fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        if !blade
-            .start
-            .iter()
-            .chain(&blade.end)
-            .all(|p| is_finite_vec(*p))
-        {
+        if !blade_is_finite(blade) {
             return Err(SimError::BadParameter {
                 name: "cut",
                 value: format!("{blade:?}"),
                 reason: "the blade must be finite".into(),
             });
         }
-        let tris = blade_triangles(blade);
-        let reach = self.lattice.spacing.max_element() * 2.0;
-        let (mut lo, mut hi) = (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY));
-        for p in blade.start.iter().chain(&blade.end) {
-            lo = lo.min(*p - Vec3::splat(reach));
-            hi = hi.max(*p + Vec3::splat(reach));
-        }
-        let crosses = |p: Vec3, q: Vec3| tris.iter().any(|t| segment_hits(p, q, *t));
-        let l = &mut self.lattice;
-        let mut removed = 0;
-        for a in 0..l.len() {
-            let xa = l.x[a];
-            if l.class[a] == 0 || xa.cmplt(lo).any() || xa.cmpgt(hi).any() {
-                continue;
-            }
-            for d in [1, 3, 5] {
-                if l.neighbour(a, d).is_some_and(|b| crosses(xa, l.x[b])) {
-                    l.unlink(a, d);
-                    removed += 1;
-                }
-            }
-        }
+        let x = &self.lattice.x;
+        let removed = self.lattice.topology.cut(|v| x[v], blade).len();
         if removed > 0 {
+            // The given surface's vertices drop the elements now across the blade.
+            let tris = blade_triangles(blade);
             let (surface, x) = (&self.surface, &self.lattice.x);
-            let orphans = self
-                .embedding
-                .rebind(|v, n| !crosses(surface[v], x[n as usize]));
-            let cut_triangles: Vec<usize> = self
-                .triangles
-                .iter()
-                .enumerate()
-                .filter(|(_, t)| {
-                    (0..3)
-                        .any(|k| crosses(surface[t[k] as usize], surface[t[(k + 1) % 3] as usize]))
-                })
-                .map(|(i, _)| i)
-                .collect();
-            let mut keep = vec![true; self.triangles.len()];
-            for i in cut_triangles {
-                keep[i] = false;
-            }
-            let mut it = keep.iter();
-            self.triangles.retain(|_| *it.next().unwrap_or(&true));
-            self.drop_triangles_of(&orphans);
-            self.topology_version += 1;
-            self.refresh_surface();
+            self.embedding
+                .rebind(|v, n| !crosses_blade(&tris, surface[v], x[n as usize]));
+            self.topology_changed();
         }
         Ok(CutInfo {
             removed_elements: removed,
@@ -303,7 +243,7 @@ impl Deformable for ChainMail {
 
     fn info(&self) -> ModelInfo {
         let l = &self.lattice;
-        let elements = l.class.iter().filter(|&&c| c != 0).count();
+        let elements = l.topology.labels.iter().filter(|&&c| c != 0).count();
         ModelInfo {
             kind: self.kind(),
             nodes: elements,

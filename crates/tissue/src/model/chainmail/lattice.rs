@@ -24,7 +24,7 @@
 //! rest drop out of the active list, so an undisturbed object costs nothing.
 
 use crate::math::{Real, Vec3};
-use crate::voxel::VoxelGrid;
+use crate::voxel::{VoxelGrid, VoxelLinks};
 
 /// Per-voxel link limits, as fractions of the lattice spacing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,10 +55,9 @@ const DIRS: usize = 6;
 pub struct Lattice {
     pub dims: [usize; 3],
     pub spacing: Vec3,
-    /// Material class per voxel (0: empty, no element).
-    pub class: Vec<u8>,
-    /// Link bits per voxel: bit d set when linked in direction d.
-    pub links: Vec<u8>,
+    /// Elements (voxel labels: material class, 0 for none) and their face links, shared
+    /// with `linked-volumes` (`voxel::topology`).
+    pub topology: VoxelLinks,
     pub rest: Vec<Vec3>,
     pub x: Vec<Vec3>,
     pub pinned: Vec<bool>,
@@ -78,29 +77,14 @@ impl Lattice {
     /// A lattice over the occupied voxels of `grid`; `limits[c]` for voxels of label c
     /// (label 0 unused; labels beyond the table use the last entry).
     pub fn new(grid: &VoxelGrid, limits: &[Limits]) -> Self {
-        let [nx, ny, nz] = grid.dims;
+        let [nx, ny, _] = grid.dims;
         let n = grid.len();
         let rest: Vec<Vec3> = (0..n).map(|i| grid.centre_of(i)).collect();
         let (sx, sy) = (nx as isize, (nx * ny) as isize);
-        let mut links = vec![0u8; n];
-        for (v, l) in links.iter_mut().enumerate() {
-            if !grid.is_occupied(v) {
-                continue;
-            }
-            let [i, j, k] = grid.coords(v);
-            let has = [i > 0, i + 1 < nx, j > 0, j + 1 < ny, k > 0, k + 1 < nz];
-            let strides = [-1, 1, -sx, sx, -sy, sy];
-            for d in 0..DIRS {
-                if has[d] && grid.is_occupied((v as isize + strides[d]) as usize) {
-                    *l |= 1 << d;
-                }
-            }
-        }
         let mut lattice = Self {
             dims: grid.dims,
             spacing: grid.spacing,
-            class: grid.labels.clone(),
-            links,
+            topology: VoxelLinks::new(grid, DIRS),
             x: rest.clone(),
             rest,
             pinned: vec![false; n],
@@ -120,7 +104,7 @@ impl Lattice {
 
     /// Replaces the per-class limits (`limits[c]` for label c; index 0 is ignored).
     pub fn set_limits(&mut self, limits: &[Limits]) {
-        let max_label = self.class.iter().copied().max().unwrap_or(0) as usize;
+        let max_label = self.topology.labels.iter().copied().max().unwrap_or(0) as usize;
         let n = max_label + 1;
         let get = |c: usize| {
             limits.get(c).or(limits.last()).copied().unwrap_or(Limits {
@@ -156,22 +140,20 @@ impl Lattice {
 
     /// Number of links (each counted once).
     pub fn link_count(&self) -> usize {
-        self.links
-            .iter()
-            .map(|l| (l & 0b101010).count_ones() as usize)
-            .sum()
+        self.topology.link_count()
     }
 
     /// The neighbour of v in direction d, if linked.
     #[inline]
     pub fn neighbour(&self, v: usize, d: usize) -> Option<usize> {
-        (self.links[v] & (1 << d) != 0).then(|| (v as isize + self.strides[d]) as usize)
+        (self.topology.bits[v] & (1 << d) != 0).then(|| (v as isize + self.strides[d]) as usize)
     }
 
     /// The (lo, hi, shear) of the link from a in direction d.
     #[inline]
     fn limits_of(&self, a: usize, b: usize, axis: usize) -> [Real; 3] {
-        let (ca, cb) = (self.class[a] as usize, self.class[b] as usize);
+        let class = &self.topology.labels;
+        let (ca, cb) = (class[a] as usize, class[b] as usize);
         self.table[ca.min(self.classes - 1) * self.classes + cb.min(self.classes - 1)][axis]
     }
 
@@ -218,7 +200,7 @@ impl Lattice {
         self.queue.clear();
         for &(v, p) in moves {
             let v = v as usize;
-            if v >= self.len() || self.class[v] == 0 {
+            if !self.topology.is_occupied(v) {
                 continue;
             }
             self.x[v] = p;
@@ -264,7 +246,7 @@ impl Lattice {
             pops += 1;
             self.queued[a] = false;
             let xa = self.x[a];
-            let bits = self.links[a];
+            let bits = self.topology.bits[a];
             for d in 0..DIRS {
                 if bits & (1 << d) == 0 {
                     continue;
@@ -401,51 +383,22 @@ impl Lattice {
         self.active.clear();
     }
 
-    /// Removes the link from a in direction d (and its twin).
-    pub fn unlink(&mut self, a: usize, d: usize) {
-        if let Some(b) = self.neighbour(a, d) {
-            self.links[a] &= !(1 << d);
-            self.links[b] &= !(1 << (d ^ 1));
-        }
+    /// True if element v exists (not carved away, not an empty voxel).
+    pub fn exists(&self, v: usize) -> bool {
+        self.topology.is_occupied(v)
     }
 
-    /// Removes element a and its links.
-    pub fn remove(&mut self, a: usize) {
-        for d in 0..DIRS {
-            self.unlink(a, d);
-        }
-        self.class[a] = 0;
-        self.pinned[a] = false;
-    }
-
-    /// Links lattice neighbours that are both elements, not linked, and whose current
-    /// offset satisfies the link's limits (they touch as at rest); returns links added.
+    /// Links elements that are lattice neighbours, unlinked, and whose current offset
+    /// satisfies the link's limits to `tol` m (they touch as at rest); returns links added.
     pub fn join(&mut self, tol: Real) -> usize {
-        let [nx, ny, nz] = self.dims;
-        let mut added = 0;
-        for a in 0..self.len() {
-            if self.class[a] == 0 {
-                continue;
-            }
-            let (i, j, k) = (a % nx, (a / nx) % ny, a / (nx * ny));
-            let has = [i + 1 < nx, j + 1 < ny, k + 1 < nz];
-            for (axis, &inside) in has.iter().enumerate() {
-                let d = 2 * axis + 1;
-                if !inside || self.links[a] & (1 << d) != 0 {
-                    continue;
-                }
-                let b = (a as isize + self.strides[d]) as usize;
-                if self.class[b] == 0 {
-                    continue;
-                }
-                let c = self.clamp_into(a, b, d, self.x[a], self.x[b]);
-                if c.distance(self.x[b]) <= tol {
-                    self.links[a] |= 1 << d;
-                    self.links[b] |= 1 << (d ^ 1);
-                    added += 1;
-                }
-            }
-        }
-        added
+        // The limits need the labels while the links change: edit a copy (join is rare).
+        let mut topology = self.topology.clone();
+        let added = topology.join(|a, b, d| {
+            self.clamp_into(a, b, d, self.x[a], self.x[b])
+                .distance(self.x[b])
+                <= tol
+        });
+        self.topology = topology;
+        added.len()
     }
 }

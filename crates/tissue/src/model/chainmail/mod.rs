@@ -12,7 +12,8 @@
 //!
 //! The rendered surface is the given triangle surface embedded trilinearly in the lattice
 //! (`voxel::TrilinearEmbedding`), or marching tetrahedra over the voxels when the model is
-//! built from a grid alone. A prescribed surface vertex moves the elements of its cell by
+//! built from a grid alone; after a cut, carve or join, the closed boundary of the linked
+//! voxels (`voxel::boundary`). A prescribed surface vertex moves the elements of its cell by
 //! the vertex's missing displacement (weighted when cells are shared); fixed vertices pin
 //! their cell's elements at rest.
 //!
@@ -164,6 +165,9 @@ pub struct ChainMail {
     embedding: TrilinearEmbedding,
     triangles: Vec<[u32; 3]>,
     surface: Vec<Vec3>,
+    /// Vertices of the given (or marching) surface; the voxel boundary drawn after a
+    /// topology edit is numbered after them.
+    original_vertices: usize,
     distance: DistanceMap,
     vertex_area: Vec<Real>,
     force_stiffness: Real,
@@ -232,6 +236,7 @@ impl ChainMail {
             lattice,
             embedding,
             triangles: surface.triangles,
+            original_vertices: surface.vertices.len(),
             surface: surface.vertices,
             distance,
             force_stiffness,

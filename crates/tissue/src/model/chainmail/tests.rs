@@ -5,6 +5,7 @@ use super::*;
 use crate::interact::{Constraints, Prescribed};
 use crate::mesh::MeshData;
 use crate::model::{CutPath, Deformable};
+use crate::voxel::boundary::closed_pieces;
 
 const H: Real = 0.01;
 
@@ -195,7 +196,13 @@ fn cut_carve_and_join_edit_the_links_and_the_surface_follows() {
     let info = m.cut(&blade).unwrap();
     assert_eq!(info.removed_elements, 36);
     assert_eq!(m.lattice().link_count(), links - 36);
-    assert!(m.surface().triangles.len() < tris);
+    // The drawn surface: two closed boxes (χ = 2 each), lips included.
+    let s = m.surface();
+    assert_ne!(s.triangles.len(), tris);
+    assert_eq!(
+        closed_pieces(s.triangles, s.positions, 1e-8 * H * H).unwrap(),
+        vec![2, 2]
+    );
     // The two halves are free of each other: pulling one leaves the other at rest.
     let near: Vec<u32> = (0..m.lattice().len() as u32)
         .filter(|&v| v % 6 < 3)
@@ -211,14 +218,57 @@ fn cut_carve_and_join_edit_the_links_and_the_surface_follows() {
             .filter(|v| v % 6 >= 3)
             .all(|v| l.x[v] == l.rest[v])
     );
+    // Moving the near half rigidly by −h: its piece of surface (lip included) follows
+    // exactly, the far piece stays; the surface stays closed.
+    let rigid: Vec<(u32, Vec3)> = near
+        .iter()
+        .map(|&v| (v, l.rest[v as usize] - Vec3::X * H))
+        .collect();
+    m.lattice.move_elements(&rigid);
+    m.refresh_surface();
+    let s = m.surface();
+    for &v in s.triangles.iter().flatten() {
+        let (p, r) = (s.positions[v as usize], m.embedding.rest[v as usize]);
+        let (ids, w) = (
+            m.embedding.nodes[v as usize],
+            m.embedding.weights[v as usize],
+        );
+        let sides: Vec<bool> = (0..8)
+            .filter(|&k| w[k] != 0.0)
+            .map(|k| ids[k] % 6 < 3)
+            .collect();
+        // Every vertex follows one side only (the lips are apart at the cut).
+        assert!(sides.iter().all(|&x| x == sides[0]), "{v}");
+        if sides[0] {
+            assert!((p - r + Vec3::X * H).length() < 1e-15, "{v}");
+        } else {
+            assert_eq!(p, r);
+        }
+    }
+    assert_eq!(
+        closed_pieces(s.triangles, s.positions, 1e-8 * H * H).unwrap(),
+        vec![2, 2]
+    );
+    m.lattice.unpin_all();
+    Deformable::reset(&mut m);
     // Joining touching elements restores exactly the cut links.
     assert_eq!(m.join(1e-12), 36);
     assert_eq!(m.lattice().link_count(), links);
+    let s = m.surface();
+    assert_eq!(
+        closed_pieces(s.triangles, s.positions, 1e-8 * H * H).unwrap(),
+        vec![2]
+    );
     // Carving a ball of radius 1.1 h around a corner voxel removes it and its 3 neighbours.
     let removed = m.carve(Vec3::ZERO, 1.1 * H).unwrap();
     assert_eq!(removed, 4);
     // Its 3 links and 3 more of each neighbour.
     assert_eq!(m.lattice().link_count(), links - 12);
+    let s = m.surface();
+    assert_eq!(
+        closed_pieces(s.triangles, s.positions, 1e-8 * H * H).unwrap(),
+        vec![2]
+    );
     assert!(m.carve(Vec3::NAN, 1.0).is_err());
 }
 

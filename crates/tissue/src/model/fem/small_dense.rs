@@ -14,6 +14,8 @@ use crate::math::Real;
 /// A small dense system solved in place, in memory kept across steps (grows only).
 pub(crate) struct SmallDense {
     pub a: Mat<Real>,
+    /// The right-hand side, solved in place by `solve_spd_rhs` / `solve_general_rhs`.
+    rhs: Vec<Real>,
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
     mem: MemBuffer,
@@ -23,6 +25,7 @@ impl SmallDense {
     pub fn new(cap: usize) -> Self {
         let mut s = Self {
             a: Mat::zeros(0, 0),
+            rhs: Vec::new(),
             perm: Vec::new(),
             perm_inv: Vec::new(),
             mem: MemBuffer::new(StackReq::EMPTY),
@@ -38,6 +41,7 @@ impl SmallDense {
         }
         let cap = m.max(2 * self.a.nrows()).max(3);
         self.a = Mat::zeros(cap, cap);
+        self.rhs = vec![0.0; cap];
         self.perm = vec![0; cap];
         self.perm_inv = vec![0; cap];
         let req = StackReq::any_of(&[
@@ -61,10 +65,29 @@ impl SmallDense {
         self.mem = MemBuffer::new(req);
     }
 
-    /// The top-left m × m block, to fill.
-    pub fn block(&mut self, m: usize) -> MatMut<'_, Real> {
+    /// The top-left m × m block and the first m entries of the right-hand side, to fill.
+    pub fn block_and_rhs(&mut self, m: usize) -> (MatMut<'_, Real>, &mut [Real]) {
         self.reserve(m);
-        self.a.as_mut().submatrix_mut(0, 0, m, m)
+        (
+            self.a.as_mut().submatrix_mut(0, 0, m, m),
+            &mut self.rhs[..m],
+        )
+    }
+
+    /// `solve_spd` on the first m entries of `rhs`.
+    pub fn solve_spd_rhs(&mut self, m: usize) -> Result<&[Real], SimError> {
+        let mut b = std::mem::take(&mut self.rhs);
+        let solved = self.solve_spd(&mut b[..m]);
+        self.rhs = b;
+        solved.map(|()| &self.rhs[..m])
+    }
+
+    /// `solve_general` on the first m entries of `rhs`.
+    pub fn solve_general_rhs(&mut self, m: usize) -> Result<&[Real], SimError> {
+        let mut b = std::mem::take(&mut self.rhs);
+        let solved = self.solve_general(&mut b[..m]);
+        self.rhs = b;
+        solved.map(|()| &self.rhs[..m])
     }
 
     /// Solves the SPD block (lower triangle read) for `b` in place.

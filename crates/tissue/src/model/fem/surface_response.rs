@@ -459,6 +459,20 @@ pub(crate) trait SurfaceResponse: Send {
     fn own_memory_bytes(&self) -> usize;
     /// Model-specific facts for `info()`.
     fn details(&self) -> Vec<(String, String)>;
+
+    /// At construction: condenses for `fixed` (nothing to do when it is empty; the first
+    /// `set_constraints` condenses then).
+    fn install_fixed(&mut self, fixed: &[u32], progress: &dyn Fn(f64)) -> Result<(), SimError> {
+        if fixed.is_empty() {
+            return Ok(());
+        }
+        let c = Constraints::fixed(fixed.to_vec());
+        self.core_mut().check(&c)?;
+        self.rebuild(progress)?;
+        self.core_mut().record(&c);
+        self.core_mut().reset();
+        Ok(())
+    }
 }
 
 impl<T: SurfaceResponse> Deformable for T {

@@ -7,7 +7,7 @@ use crate::error::SimError;
 use crate::integrate::Hold;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
-use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
 
 use super::LinkedVolumes;
 
@@ -243,6 +243,11 @@ impl Deformable for LinkedVolumes {
         }
     }
 
+    /// Removes the springs crossing the blade (see `topology`).
+    fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
+        self.cut_links(blade)
+    }
+
     fn reset(&mut self) {
         self.state = crate::integrate::ParticleState::at_rest(self.rest.clone());
         self.integrator.invalidate();
@@ -265,11 +270,18 @@ impl Deformable for LinkedVolumes {
                 ("voxel_size".into(), format!("{:.4e}", self.spacing.x)),
                 ("integrator".into(), self.params.integrator.to_string()),
                 ("substeps".into(), self.params.substeps.to_string()),
-                ("effective_poisson_ratio".into(), "0.25".into()),
+                (
+                    "effective_poisson_ratio".into(),
+                    super::lattice_moduli(&self.material, self.params.neighbours)
+                        .map_or(0.25, |m| m.poisson_ratio)
+                        .to_string(),
+                ),
                 (
                     "material_poisson_ratio".into(),
                     self.material.poisson_ratio.to_string(),
                 ),
+                ("links".into(), self.topology.link_count().to_string()),
+                ("topology_version".into(), self.topology_version.to_string()),
                 ("steps".into(), self.steps.to_string()),
             ],
         }

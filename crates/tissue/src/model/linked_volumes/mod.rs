@@ -8,16 +8,23 @@
 //! of their cell (moved by the vertex's missing displacement), fixed vertices hold theirs at
 //! rest, and the reaction of a held element is shared among the vertices holding it in
 //! proportion to their weights. Point loads reach the elements through the transpose of the
-//! embedding. Poisson's ratio is 1/4 whatever the material says (central springs; see
-//! `springs`); `info` reports it.
+//! embedding. Central springs alone fix Poisson's ratio at 1/4; with 18 or 26 neighbours a
+//! per-voxel volume term makes the lattice honour the material's ν ≥ 1/4 (`volume_term`).
 //!
 //! - `springs`: spring lattice, stiffness from E, `ParticleSystem` forces and Jacobians
+//! - `volume_term`: the volume energy supplying λ − μ, and the lattice moduli
 //! - `deformable`: the `Deformable` interface
+//! - `topology`: cut, carve and join on the shared `voxel::VoxelLinks`, springs updated
+//!   locally, and the closed voxel-boundary surface drawn afterwards
 
 mod deformable;
 pub mod springs;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_topology;
+mod topology;
+pub mod volume_term;
 
 use std::time::Instant;
 
@@ -31,9 +38,12 @@ use crate::math::{Real, Vec3};
 use crate::mesh::SurfaceMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
-use crate::voxel::{TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface, voxelize_to};
+use crate::voxel::{
+    TrilinearEmbedding, VoxelGrid, VoxelLinks, keep_largest, marching_surface, voxelize_to,
+};
 
 pub use springs::{Spring, SpringLattice, family_coefficients};
+pub use volume_term::{LatticeModuli, VolumeTerm, lattice_moduli};
 
 /// The `[model]` settings of `linked-volumes`.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
@@ -84,6 +94,18 @@ impl Default for LinkedVolumesParams {
 #[derive(Debug)]
 pub struct LinkedVolumes {
     params: LinkedVolumesParams,
+    /// Which voxels exist and which links hold (shared with `chainmail`).
+    topology: VoxelLinks,
+    /// Voxel index → element id (`u32::MAX` for empty voxels).
+    element_of: Vec<u32>,
+    /// Spring coefficients per family, in units of the spring modulus (`family_coefficients`).
+    coef: [Real; 3],
+    /// The springs' modulus (Pa): E alone, or less with the volume term (`lattice_moduli`).
+    spring_modulus: Real,
+    /// Vertices of the given (or marching) surface; the voxel boundary drawn after a
+    /// topology edit is numbered after them.
+    original_vertices: usize,
+    topology_version: u32,
     material: Material,
     system: SpringLattice,
     rest: Vec<Vec3>,
@@ -131,6 +153,7 @@ impl LinkedVolumes {
         check_size(&params)?;
         let material = material.validated()?;
         let coef = family_coefficients(params.neighbours)?;
+        let moduli = lattice_moduli(&material, params.neighbours)?;
         if keep_largest(&mut grid) == 0 {
             return Err(MeshError::Empty {
                 what: "occupied voxels",
@@ -151,55 +174,23 @@ impl LinkedVolumes {
         embedding.remap(&id);
         let s = grid.spacing;
         let volume = s.x * s.y * s.z;
-        let (nx, ny, nz) = (
-            grid.dims[0] as i64,
-            grid.dims[1] as i64,
-            grid.dims[2] as i64,
-        );
-        let mut springs = Vec::new();
-        for v in 0..grid.len() {
-            let a = id[v];
-            if a == u32::MAX {
-                continue;
-            }
-            let [i, j, k] = grid.coords(v).map(|c| c as i64);
-            // Each pair once: offsets that are lexicographically positive.
-            for dk in -1i64..=1 {
-                for dj in -1i64..=1 {
-                    for di in -1i64..=1 {
-                        if (dk, dj, di) <= (0, 0, 0) {
-                            continue;
-                        }
-                        let family =
-                            (di != 0) as usize + (dj != 0) as usize + (dk != 0) as usize - 1;
-                        if coef[family] == 0.0 {
-                            continue;
-                        }
-                        let (p, q, r) = (i + di, j + dj, k + dk);
-                        if p < 0 || q < 0 || r < 0 || p >= nx || q >= ny || r >= nz {
-                            continue;
-                        }
-                        let b = id[(p + nx * (q + ny * r)) as usize];
-                        if b == u32::MAX {
-                            continue;
-                        }
-                        let l = (Vec3::new(di as Real, dj as Real, dk as Real) * s).length();
-                        let kk = coef[family] * material.young_modulus * volume / (l * l);
-                        springs.push(Spring {
-                            a,
-                            b,
-                            k: kk,
-                            rest: l,
-                            c: material.stiffness_damping * kk,
-                        });
-                    }
-                }
-            }
-        }
+        let topology = VoxelLinks::new(&grid, params.neighbours);
+        let spring_modulus = moduli.spring_modulus;
+        let springs = topology
+            .each_link()
+            .map(|(a, b, d)| spring_for(&material, spring_modulus, coef, s, [id[a], id[b]], d))
+            .collect();
         let masses = vec![material.density * volume; rest.len()];
-        let system = SpringLattice::new(springs, masses, material.damping);
+        let system = SpringLattice::new(springs, masses, material.damping)
+            .with_volume_term(&rest, moduli, volume);
         let nv = surface.vertices.len();
         Ok(Self {
+            topology,
+            element_of: id,
+            coef,
+            spring_modulus,
+            original_vertices: nv,
+            topology_version: 0,
             params,
             material,
             system,
@@ -241,6 +232,36 @@ impl LinkedVolumes {
     fn refresh_surface(&mut self) {
         self.embedding
             .apply(&self.state.x, &self.rest, &mut self.surface);
+    }
+}
+
+/// The spring between elements `ids` (voxels a, b = a's neighbour in direction d).
+/// The spring of link direction `d` between elements `ids`, from the lattice's spring modulus
+/// (E for springs alone, less when the volume term supplies part of λ).
+fn spring_for(
+    material: &Material,
+    spring_modulus: Real,
+    coef: [Real; 3],
+    s: Vec3,
+    ids: [u32; 2],
+    d: usize,
+) -> Spring {
+    let family = if d < 6 {
+        0
+    } else if d < 18 {
+        1
+    } else {
+        2
+    };
+    let o = crate::voxel::topology::OFFSETS[d.min(25)];
+    let l = (Vec3::new(o[0] as Real, o[1] as Real, o[2] as Real) * s).length();
+    let k = coef[family] * spring_modulus * s.x * s.y * s.z / (l * l);
+    Spring {
+        a: ids[0],
+        b: ids[1],
+        k,
+        rest: l,
+        c: material.stiffness_damping * k,
     }
 }
 

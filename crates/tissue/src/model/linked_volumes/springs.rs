@@ -10,6 +10,10 @@
 //! - 6 neighbours: k₁ = Ea gives E under uniaxial stress, but the lattice has no shear
 //!   stiffness at all (it folds freely), as the survey warns for plain linked volumes.
 //!
+//! To honour the material's ν ≥ 1/4 the "E" in these formulas is 5μ/2 with the material's μ,
+//! and the volume term (`volume_term`, κ = λ − μ) supplies the rest of λ
+//! (`volume_term::lattice_moduli`).
+//!
 //! For unequal spacings each spring keeps k·L²/V of its cubic family (V the voxel volume).
 //! Dampers act along the springs, c = β·k (β the material's stiffness damping), plus the
 //! mass-proportional α·m drag; relative-velocity dampers leave rigid motion undamped.
@@ -19,6 +23,8 @@
 use crate::error::SimError;
 use crate::integrate::ParticleSystem;
 use crate::math::{Real, Vec3};
+
+use super::volume_term::{LatticeModuli, VolumeTerm};
 
 /// One spring between elements a and b.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,6 +53,10 @@ pub struct SpringLattice {
     pub alpha: Real,
     /// Constant external force per element (gravity and point loads), N.
     pub external: Vec<Vec3>,
+    /// The volume energy that supplies λ − μ (empty at ν = 1/4).
+    pub volume: VolumeTerm,
+    /// The moduli and the voxel volume (m³) the volume term was built with.
+    volume_moduli: Option<(LatticeModuli, Real)>,
     linear: Vec<Linear>,
 }
 
@@ -74,18 +84,51 @@ impl SpringLattice {
             masses,
             alpha,
             external: vec![Vec3::ZERO; n],
+            volume: VolumeTerm::default(),
+            volume_moduli: None,
         }
     }
 
-    /// Σ ½ k (l − L)².
+    /// Topology edits: keeps the springs for which `keep` holds and appends `added` (call
+    /// `rebuild_volume_term` afterwards).
+    pub fn edit_springs(&mut self, keep: impl FnMut(&Spring) -> bool, added: &[Spring]) {
+        self.springs.retain(keep);
+        self.springs.extend_from_slice(added);
+        self.linear = vec![Linear::default(); self.springs.len()];
+    }
+
+    /// Adds the volume term of `moduli` on voxels of `voxel_volume` (m³), its stencils and
+    /// weights taken from the springs between the `rest` positions.
+    pub fn with_volume_term(
+        mut self,
+        rest: &[Vec3],
+        moduli: LatticeModuli,
+        voxel_volume: Real,
+    ) -> Self {
+        self.volume_moduli = Some((moduli, voxel_volume));
+        self.rebuild_volume_term(rest);
+        self
+    }
+
+    /// Rebuilds the volume term's stencils and weights from the springs left (after links
+    /// were cut), so no volume couples voxels across a cut.
+    pub fn rebuild_volume_term(&mut self, rest: &[Vec3]) {
+        if let Some((moduli, volume)) = self.volume_moduli {
+            self.volume = VolumeTerm::from_springs(&self.springs, rest, &moduli, volume);
+        }
+    }
+
+    /// Σ ½ k (l − L)² plus the volume energy.
     pub fn elastic_energy(&self, x: &[Vec3]) -> Real {
-        self.springs
+        let springs: Real = self
+            .springs
             .iter()
             .map(|s| {
                 let l = (x[s.b as usize] - x[s.a as usize]).length();
                 0.5 * s.k * (l - s.rest) * (l - s.rest)
             })
-            .sum()
+            .sum();
+        springs + self.volume.energy(x)
     }
 }
 
@@ -107,6 +150,7 @@ impl ParticleSystem for SpringLattice {
             f[a] += t * n;
             f[b] -= t * n;
         }
+        self.volume.add_forces(x, f);
         for (((fi, m), vi), e) in f.iter_mut().zip(&self.masses).zip(v).zip(&self.external) {
             *fi += *e - self.alpha * m * *vi;
         }
@@ -131,6 +175,7 @@ impl ParticleSystem for SpringLattice {
                 Linear::default()
             };
         }
+        self.volume.prepare(x);
         Ok(())
     }
 
@@ -143,6 +188,7 @@ impl ParticleSystem for SpringLattice {
             out[a] += y;
             out[b] -= y;
         }
+        self.volume.add_stiffness_product(dx, out);
     }
 
     fn damping_product(&self, dv: &[Vec3], out: &mut [Vec3]) {
@@ -172,5 +218,6 @@ impl ParticleSystem for SpringLattice {
                 damping[e] += cd;
             }
         }
+        self.volume.add_diagonal(stiffness);
     }
 }

@@ -1,236 +1,213 @@
 //! Cutting by removing tetrahedra (electrocautery style, survey §2.4): the tetrahedra the
 //! blade's swept surface touches leave the mesh, their tensors leave the vertices, edges
 //! and triangles they shared (`TensorSystem::remove_tet`, O(1) each), and the boundary
-//! surface is patched locally: a removed tetrahedron's boundary faces go, its faces shared
-//! with surviving neighbours appear, oriented outward from those neighbours.
+//! surface is patched locally (`cut_surface`).
 //!
-//! Surface vertex numbers are stable: a node that becomes exposed is appended, a node that
-//! stops being on the surface keeps its number (no triangle uses it). Constraints that name
-//! surface vertices therefore stay valid across cuts.
+//! A cut costs about the size of the region it touches, not of the mesh: the candidates
+//! come from a grid of the tetrahedra (`spatial`), the sliver guard (`stability`) looks at
+//! the corners of what was removed, and the pieces the cut separated are found by searches
+//! from the removed tetrahedra's neighbours (`pieces`). The only pass over the whole mesh
+//! is the grid's check of which nodes moved, a few flops per node.
 //!
-//! After a cut the surviving tetrahedra are grouped into pieces joined through shared
-//! faces; every piece but the largest is a fragment, reported and then removed or kept as
-//! the model's `fragments` setting says. Finding the touched tetrahedra and the pieces looks
-//! at every tetrahedron (a bounding-box test first); only the updates are local.
-
-use std::collections::HashMap;
+//! Order within one cut: the blade's tetrahedra, then the slivers the guard removes, then
+//! the fragments: every piece split off from its piece but the largest (the main body stays
+//! the main body), reported once, then removed or kept as the `fragments` setting says.
 
 use crate::math::{Real, Vec3};
 use crate::mesh::TET_FACES;
-use crate::mesh::topology::tet_neighbours;
 use crate::model::CutPath;
 
+use super::cut_surface::CutSurface;
+use super::pieces::Pieces;
+use super::spatial::TetLocator;
+use super::stability::StabilityGuard;
 use super::system::TensorSystem;
-
-fn face_key(tet: &[u32; 4], k: usize) -> [u32; 3] {
-    let f = TET_FACES[k];
-    let mut key = [tet[f[0]], tet[f[1]], tet[f[2]]];
-    key.sort_unstable();
-    key
-}
-
-/// The boundary surface of the surviving tetrahedra, kept up to date as they are removed.
-#[derive(Clone, Debug, Default)]
-pub struct CutSurface {
-    /// Mechanical node of each surface vertex.
-    pub nodes: Vec<u32>,
-    node_to_surface: Vec<u32>,
-    pub rest_positions: Vec<Vec3>,
-    pub positions: Vec<Vec3>,
-    /// Triangles over surface vertices, outward.
-    pub triangles: Vec<[u32; 3]>,
-    /// Sorted node ids of each triangle → its index in `triangles`.
-    index: HashMap<[u32; 3], usize>,
-    keys: Vec<[u32; 3]>,
-    neighbours: Vec<[Option<u32>; 4]>,
-}
-
-impl CutSurface {
-    /// The boundary of all tetrahedra (outward for positive ones).
-    pub fn new(tets: &[[u32; 4]], rest: &[Vec3]) -> Self {
-        let neighbours = tet_neighbours(tets);
-        let mut s = Self {
-            node_to_surface: vec![u32::MAX; rest.len()],
-            neighbours,
-            ..Self::default()
-        };
-        for (t, tet) in tets.iter().enumerate() {
-            for k in 0..4 {
-                if s.neighbours[t][k].is_none() {
-                    s.add_face(tet, k, rest, rest);
-                }
-            }
-        }
-        s
-    }
-
-    /// Surface vertex of node `n`, appended (at `x`) if it is new.
-    fn vertex(&mut self, n: u32, rest: &[Vec3], x: &[Vec3]) -> u32 {
-        let slot = &mut self.node_to_surface[n as usize];
-        if *slot == u32::MAX {
-            *slot = self.nodes.len() as u32;
-            self.nodes.push(n);
-            self.rest_positions.push(rest[n as usize]);
-            self.positions.push(x[n as usize]);
-        }
-        *slot
-    }
-
-    fn add_face(&mut self, tet: &[u32; 4], k: usize, rest: &[Vec3], x: &[Vec3]) {
-        let key = face_key(tet, k);
-        if self.index.contains_key(&key) {
-            return;
-        }
-        let f = TET_FACES[k];
-        let tri = [tet[f[0]], tet[f[1]], tet[f[2]]].map(|n| self.vertex(n, rest, x));
-        self.index.insert(key, self.triangles.len());
-        self.triangles.push(tri);
-        self.keys.push(key);
-    }
-
-    fn remove_face(&mut self, key: &[u32; 3]) {
-        let Some(i) = self.index.remove(key) else {
-            return;
-        };
-        self.triangles.swap_remove(i);
-        self.keys.swap_remove(i);
-        if let Some(moved) = self.keys.get(i) {
-            self.index.insert(*moved, i);
-        }
-    }
-
-    /// Patches the surface for tetrahedron `t`, just removed from `system`.
-    fn on_removed(&mut self, t: usize, system: &TensorSystem, x: &[Vec3]) {
-        let tet = system.tets[t];
-        for k in 0..4 {
-            let key = face_key(&tet, k);
-            match self.neighbours[t][k] {
-                Some(n) if system.is_alive(n as usize) => {
-                    let other = system.tets[n as usize];
-                    if let Some(j) = (0..4).find(|&j| face_key(&other, j) == key) {
-                        self.add_face(&other, j, &system.rest, x);
-                    }
-                }
-                _ => self.remove_face(&key),
-            }
-        }
-    }
-
-    /// Copies the current node positions onto the surface vertices.
-    pub fn update_positions(&mut self, x: &[Vec3]) {
-        for (p, &n) in self.positions.iter_mut().zip(&self.nodes) {
-            *p = x[n as usize];
-        }
-    }
-
-    pub fn surface_vertex(&self, node: usize) -> Option<u32> {
-        self.node_to_surface
-            .get(node)
-            .copied()
-            .filter(|&s| s != u32::MAX)
-    }
-}
 
 /// What one cut removed.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CutReport {
     /// Tetrahedra the blade touched.
     pub cut_tets: usize,
-    /// Pieces separated from the largest one, with their tetrahedron counts.
+    /// Tetrahedra the sliver guard removed (see `stability`).
+    pub sliver_tets: usize,
+    /// Pieces separated by this cut, with their tetrahedron counts.
     pub fragments: Vec<usize>,
     /// Tetrahedra removed as fragments (0 when fragments are kept).
     pub fragment_tets: usize,
     pub added_vertices: usize,
     /// Every tetrahedron removed, in order.
     pub removed: Vec<usize>,
+    /// Nodes this cut left without any tetrahedron.
+    pub detached: Vec<usize>,
+    /// Tetrahedra tested against the blade (the grid's candidates).
+    pub examined: usize,
+    /// Tetrahedra the piece search visited.
+    pub searched: usize,
+    /// Nodes the grid re-filed because they had moved.
+    pub refiled_nodes: usize,
 }
 
-/// Removes the tetrahedra touched by the blade's sweep and patches the surface; fragments
-/// are removed when `remove_fragments`.
-pub fn cut(
+impl CutReport {
+    /// All tetrahedra this cut removed.
+    pub fn removed_tets(&self) -> usize {
+        self.removed.len()
+    }
+}
+
+/// What cutting keeps between cuts: the grid of tetrahedra, the piece labels, the guard.
+#[derive(Clone, Debug)]
+pub struct Cutter {
+    locator: TetLocator,
+    pieces: Pieces,
+    guard: StabilityGuard,
+}
+
+/// Removes tetrahedron `t` from everything that knows it.
+fn remove(
+    t: usize,
     system: &mut TensorSystem,
     surface: &mut CutSurface,
+    locator: &mut TetLocator,
     x: &[Vec3],
-    blade: &CutPath,
-    remove_fragments: bool,
-) -> CutReport {
-    let vertices_before = surface.nodes.len();
-    let [a, b] = blade.start;
-    let [c, d] = blade.end;
-    let quads = [[a, b, d], [a, d, c]];
-    let lo = a.min(b).min(c).min(d);
-    let hi = a.max(b).max(c).max(d);
-    let touched: Vec<usize> = (0..system.tets.len())
-        .filter(|&t| system.is_alive(t))
-        .filter(|&t| {
-            let p = system.tets[t].map(|v| x[v as usize]);
-            let (pl, ph) = (
-                p[0].min(p[1]).min(p[2]).min(p[3]),
-                p[0].max(p[1]).max(p[2]).max(p[3]),
-            );
-            pl.cmple(hi).all()
-                && ph.cmpge(lo).all()
-                && quads.iter().any(|q| tet_meets_triangle(&p, q))
-        })
-        .collect();
-    let mut report = CutReport::default();
-    for &t in &touched {
-        if system.remove_tet(t) {
-            surface.on_removed(t, system, x);
-            report.removed.push(t);
-        }
+    report: &mut CutReport,
+) -> bool {
+    if !system.remove_tet(t) {
+        return false;
     }
-    report.cut_tets = report.removed.len();
-    if !touched.is_empty() {
-        let pieces = pieces(system, &surface.neighbours);
-        let largest = pieces.iter().map(Vec::len).max().unwrap_or(0);
-        let main = pieces.iter().position(|p| p.len() == largest);
-        for (i, piece) in pieces.iter().enumerate() {
-            if Some(i) == main {
-                continue;
-            }
-            report.fragments.push(piece.len());
-            if remove_fragments {
-                for &t in piece {
-                    if system.remove_tet(t) {
-                        surface.on_removed(t, system, x);
-                        report.removed.push(t);
-                    }
-                }
-                report.fragment_tets += piece.len();
-            }
-        }
-    }
-    report.added_vertices = surface.nodes.len() - vertices_before;
-    report
+    surface.on_removed(t, system, x);
+    locator.remove(t);
+    report.removed.push(t);
+    true
 }
 
-/// The surviving tetrahedra grouped into pieces joined through faces.
-fn pieces(system: &TensorSystem, neighbours: &[[Option<u32>; 4]]) -> Vec<Vec<usize>> {
-    let n = system.tets.len();
-    let mut seen = vec![false; n];
-    let mut out = Vec::new();
-    let mut stack = Vec::new();
-    for start in 0..n {
-        if seen[start] || !system.is_alive(start) {
-            continue;
+impl Cutter {
+    /// Files the tetrahedra of `system` at positions `x` (all alive: before any cut).
+    pub fn new(system: &TensorSystem, x: &[Vec3]) -> Self {
+        let locator = TetLocator::new(&system.tets, x);
+        let guard = StabilityGuard::new(system, &locator);
+        Self {
+            pieces: Pieces::new(system.tets.len()),
+            locator,
+            guard,
         }
-        seen[start] = true;
-        stack.push(start);
-        let mut piece = Vec::new();
-        while let Some(t) = stack.pop() {
-            piece.push(t);
-            for m in neighbours[t].iter().flatten() {
-                let m = *m as usize;
-                if !seen[m] && system.is_alive(m) {
-                    seen[m] = true;
-                    stack.push(m);
+    }
+
+    pub fn guard(&self) -> &StabilityGuard {
+        &self.guard
+    }
+
+    /// Changes the sliver guard's limit (infinity turns it off; to measure what it does).
+    pub fn set_guard_limit(&mut self, limit: Real) {
+        self.guard.set_limit(limit);
+    }
+
+    pub fn locator(&self) -> &TetLocator {
+        &self.locator
+    }
+
+    /// Removes the tetrahedra touched by the blade's sweep, the slivers it leaves and
+    /// (when `remove_fragments`) the fragments, and patches the surface.
+    pub fn cut(
+        &mut self,
+        system: &mut TensorSystem,
+        surface: &mut CutSurface,
+        x: &[Vec3],
+        blade: &CutPath,
+        remove_fragments: bool,
+    ) -> CutReport {
+        let mut report = CutReport {
+            refiled_nodes: self.locator.refresh(&system.tets, &system.alive, x),
+            ..CutReport::default()
+        };
+        let [a, b] = blade.start;
+        let [c, d] = blade.end;
+        let quads = [[a, b, d], [a, d, c]];
+        let (lo, hi) = (a.min(b).min(c).min(d), a.max(b).max(c).max(d));
+        let candidates = self.locator.candidates(&quads);
+        report.examined = candidates.len();
+        let mut touched: Vec<usize> = candidates
+            .iter()
+            .map(|&t| t as usize)
+            .filter(|&t| {
+                let p = system.tets[t].map(|v| x[v as usize]);
+                let (pl, ph) = (
+                    p[0].min(p[1]).min(p[2]).min(p[3]),
+                    p[0].max(p[1]).max(p[2]).max(p[3]),
+                );
+                system.is_alive(t)
+                    && pl.cmple(hi).all()
+                    && ph.cmpge(lo).all()
+                    && quads.iter().any(|q| tet_meets_triangle(&p, q))
+            })
+            .collect();
+        touched.sort_unstable();
+        self.remove_tets(system, surface, x, &touched, remove_fragments, report)
+    }
+
+    /// Removes the tetrahedra `touched` as if a blade had touched them (then the slivers
+    /// and fragments, as `cut` does); `report` carries what the search found.
+    pub fn remove_tets(
+        &mut self,
+        system: &mut TensorSystem,
+        surface: &mut CutSurface,
+        x: &[Vec3],
+        touched: &[usize],
+        remove_fragments: bool,
+        mut report: CutReport,
+    ) -> CutReport {
+        let vertices_before = surface.nodes.len();
+        let loc = &mut self.locator;
+        for &t in touched {
+            remove(t, system, surface, loc, x, &mut report);
+        }
+        report.cut_tets = report.removed.len();
+        // The guard: corners of what left, until none is above the limit.
+        let mut work: Vec<usize> = report
+            .removed
+            .iter()
+            .flat_map(|&t| system.tets[t].map(|v| v as usize))
+            .collect();
+        while let Some(n) = work.pop() {
+            if let Some(t) = self.guard.offender(system, loc, n)
+                && remove(t, system, surface, loc, x, &mut report)
+            {
+                report.sliver_tets += 1;
+                work.push(n);
+                work.extend(system.tets[t].map(|v| v as usize));
+            }
+        }
+        if !report.removed.is_empty() {
+            let nb = &surface.neighbours;
+            let seeds: Vec<usize> = report
+                .removed
+                .iter()
+                .flat_map(|&t| nb[t].iter().flatten().map(|&m| m as usize))
+                .filter(|&m| system.is_alive(m))
+                .collect();
+            let split = self.pieces.split(&seeds, &system.alive, nb);
+            report.searched = split.visited;
+            for piece in &split.fragments {
+                report.fragments.push(piece.len());
+                if remove_fragments {
+                    for &t in piece {
+                        remove(t, system, surface, loc, x, &mut report);
+                    }
+                    report.fragment_tets += piece.len();
                 }
             }
         }
-        out.push(piece);
+        let mut detached: Vec<usize> = report
+            .removed
+            .iter()
+            .flat_map(|&t| system.tets[t].map(|v| v as usize))
+            .filter(|&n| !system.is_attached(n))
+            .collect();
+        detached.sort_unstable();
+        detached.dedup();
+        report.detached = detached;
+        report.added_vertices = surface.nodes.len() - vertices_before;
+        report
     }
-    out
 }
 
 /// Where segment p→q crosses triangle (a, b, c), if it does (Möller–Trumbore).

@@ -45,36 +45,7 @@ impl Deformable for TensorMass {
 
     /// Gravity acts as the lumped share m_i g; point loads on their vertex's node.
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        if !loads.gravity.is_finite() {
-            return Err(SimError::BadParameter {
-                name: "gravity",
-                value: loads.gravity.to_string(),
-                reason: "must be finite".into(),
-            });
-        }
-        let mut forces = Vec::with_capacity(loads.point_loads.len());
-        for &(v, f) in &loads.point_loads {
-            let node = self
-                .surface
-                .nodes
-                .get(v as usize)
-                .ok_or(SimError::BadConstraint {
-                    vertex: v as usize,
-                    count: self.surface.nodes.len(),
-                })?;
-            if !f.is_finite() {
-                return Err(SimError::BadParameter {
-                    name: "point_loads",
-                    value: format!("surface vertex {v} -> {f}"),
-                    reason: "the force must be finite".into(),
-                });
-            }
-            forces.push((*node as usize, f));
-        }
-        self.system.set_node_loads(loads.gravity, &forces);
-        self.integrator.invalidate();
-        self.loads = loads.clone();
-        Ok(())
+        self.apply_loads(loads)
     }
 
     fn step(&mut self, dt: Real) -> Result<StepInfo, SimError> {

@@ -22,15 +22,22 @@
 //!   AVX2 when the CPU has it (the baseline's SSE2 / NEON otherwise; the same bits)
 //! - `system`: tensors + masses + damping + loads → forces (the `ParticleSystem` the shared
 //!   integrators step); the hybrid switch; tetrahedron removal
-//! - `cut`: which tetrahedra a blade touches, the local surface patch, fragments
+//! - `cut`: which tetrahedra a blade touches and what else a cut removes; `cut_surface`: the
+//!   locally patched boundary; `spatial`: the grid of tetrahedra; `pieces`: fragments found
+//!   by local searches; `stability`: the sliver guard that keeps the explicit time step
 //! - `model`: `TensorMass`, state + integrator + constraints; `deformable`: the interface
 
 pub mod cut;
+pub mod cut_surface;
 mod deformable;
 pub mod elasticity;
 pub mod element;
 mod kernel;
 mod model;
+mod model_cut;
+pub mod pieces;
+pub mod spatial;
+pub mod stability;
 pub mod stvk;
 pub mod system;
 pub mod tensors;
@@ -180,5 +187,7 @@ pub fn build_system(
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_cut;
 #[cfg(test)]
 mod tests_dynamics;

@@ -12,10 +12,11 @@ use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
-use crate::model::{BuildInput, CutInfo, CutPath, StepInfo};
+use crate::model::{BuildInput, StepInfo};
 
-use super::cut::{CutReport, CutSurface, cut};
-use super::{Fragments, TensorMassParams, TensorSystem, build_system};
+use super::cut::{CutReport, Cutter};
+use super::cut_surface::CutSurface;
+use super::{TensorMassParams, TensorSystem, build_system};
 
 /// A tensor-mass model (see the module doc of `tensor_mass`).
 #[derive(Debug)]
@@ -32,6 +33,10 @@ pub struct TensorMass {
     pub(super) holds: Vec<Hold>,
     /// The constraints' holds plus the detached nodes, held where they are.
     pub(super) step_holds: Vec<Hold>,
+    /// Nodes in `step_holds`.
+    pub(super) step_held: Vec<bool>,
+    /// The grid, piece labels and sliver guard, built at the first cut.
+    pub(super) cutter: Option<Cutter>,
     pub(super) constraints: Constraints,
     pub(super) loads: Loads,
     pub(super) fixed_reactions: Vec<Vec3>,
@@ -41,8 +46,8 @@ pub struct TensorMass {
     pub(super) fragments_seen: usize,
     /// The surviving tetrahedra, for the volume view (swap-removed on cuts).
     pub(super) alive_tets: Vec<[u32; 4]>,
-    alive_slot: Vec<u32>,
-    alive_owner: Vec<u32>,
+    pub(super) alive_slot: Vec<u32>,
+    pub(super) alive_owner: Vec<u32>,
     pub(super) switched: usize,
     pub(super) precompute_seconds: Real,
 }
@@ -88,6 +93,8 @@ impl TensorMass {
             surface,
             holds: Vec::new(),
             step_holds: Vec::new(),
+            step_held: vec![false; mesh.vertices.len()],
+            cutter: None,
             constraints: Constraints::default(),
             loads: Loads::default(),
             fixed_reactions: Vec::new(),
@@ -187,8 +194,9 @@ impl TensorMass {
     }
 
     /// Adds the nodes no tetrahedron holds any more, kept where they are.
-    fn refresh_step_holds(&mut self) {
-        let mut held = vec![false; self.state.x.len()];
+    pub(super) fn refresh_step_holds(&mut self) {
+        let held = &mut self.step_held;
+        held.iter_mut().for_each(|h| *h = false);
         self.step_holds.clear();
         for h in &self.holds {
             if self.system.is_attached(h.particle) && !held[h.particle] {
@@ -198,6 +206,7 @@ impl TensorMass {
         }
         for (n, x) in self.state.x.iter().enumerate() {
             if !held[n] && !self.system.is_attached(n) {
+                held[n] = true;
                 self.step_holds.push(Hold {
                     particle: n,
                     target: *x,
@@ -260,67 +269,5 @@ impl TensorMass {
         for (k, p) in self.constraints.prescribed.iter().enumerate().rev() {
             self.prescribed_reactions[k] = take(p.vertex);
         }
-    }
-
-    /// Removes what the blade touches (see `cut`).
-    pub fn cut_along(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        let ok = |p: &[Vec3; 2]| p.iter().all(|v| v.is_finite());
-        if !(ok(&blade.start) && ok(&blade.end)) {
-            return Err(SimError::BadParameter {
-                name: "blade",
-                value: format!("{blade:?}"),
-                reason: "the blade positions must be finite".into(),
-            });
-        }
-        let remove = self.params.fragments == Fragments::Remove;
-        let report = cut(
-            &mut self.system,
-            &mut self.surface,
-            &self.state.x,
-            blade,
-            remove,
-        );
-        let removed = report.cut_tets + report.fragment_tets;
-        for &t in &report.removed {
-            let slot = self.alive_slot[t] as usize;
-            self.alive_tets.swap_remove(slot);
-            self.alive_owner.swap_remove(slot);
-            if let Some(&moved) = self.alive_owner.get(slot) {
-                self.alive_slot[moved as usize] = slot as u32;
-            }
-        }
-        if removed > 0 {
-            self.topology_version += 1;
-            self.fragments_seen += report.fragments.len();
-            self.integrator.invalidate();
-            self.refresh_step_holds();
-            // Surface vertex count grew: constraint bookkeeping stays valid (stable ids).
-        }
-        let info = CutInfo {
-            removed_elements: removed,
-            added_vertices: report.added_vertices,
-            topology_version: self.topology_version,
-        };
-        self.last_cut = report;
-        Ok(info)
-    }
-
-    /// Back to rest with zero velocity (cuts stay; constraints and loads kept).
-    pub fn reset_state(&mut self) {
-        self.state.x.copy_from_slice(&self.mesh.vertices);
-        self.state.v.iter_mut().for_each(|v| *v = Vec3::ZERO);
-        self.integrator.invalidate();
-        self.surface.update_positions(&self.state.x);
-        for h in &mut self.step_holds {
-            if !self.system.is_attached(h.particle) {
-                h.target = self.state.x[h.particle];
-            }
-        }
-        self.fixed_reactions
-            .iter_mut()
-            .for_each(|r| *r = Vec3::ZERO);
-        self.prescribed_reactions
-            .iter_mut()
-            .for_each(|r| *r = Vec3::ZERO);
     }
 }

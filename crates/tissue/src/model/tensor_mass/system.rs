@@ -96,8 +96,6 @@ pub struct TensorSystem {
     node_tets: Vec<u32>,
     pub(super) rest: Vec<Vec3>,
     pub(super) masses: Vec<Real>,
-    /// Mass of each node as built (a node that loses all its tetrahedra keeps it, held).
-    pub(super) built_masses: Vec<Real>,
     pub(super) density: Real,
     pub(super) damping: Real,
     pub(super) stiffness_damping: Real,
@@ -160,7 +158,6 @@ impl TensorSystem {
             elements: None,
             node_tets,
             rest: mesh.vertices.clone(),
-            built_masses: masses.clone(),
             masses,
             density: material.density,
             damping: material.damping,
@@ -405,7 +402,7 @@ impl TensorSystem {
     }
 
     /// Removes tetrahedron `t`: its tensors leave its vertices, edges and triangles, its
-    /// mass leaves its corners. O(1).
+    /// mass (ρV/4 per corner) leaves its corners. O(1).
     pub fn remove_tet(&mut self, t: usize) -> bool {
         if !self.is_alive(t) {
             return false;
@@ -420,19 +417,21 @@ impl TensorSystem {
         for &v in &tet {
             self.node_tets[v as usize] = self.node_tets[v as usize].saturating_sub(1);
         }
+        // Mass is conserved: each node keeps exactly its surviving tetrahedra's quarters. A
+        // node left with none gets no mass and no gravity share (the model holds it); the
+        // time step a light node on slivers would need is the sliver guard's business.
         let quarter = 0.25 * self.density * r.volume;
         for &v in &tet {
             let v = v as usize;
-            if !self.is_attached(v) {
-                // Detached: it keeps a mass so that the integrator can hold it still.
-                self.masses[v] = self.built_masses[v];
-                self.external[v] = Vec3::ZERO;
+            let old = self.masses[v];
+            self.masses[v] = if self.is_attached(v) {
+                (old - quarter).max(0.0)
             } else {
-                let old = self.masses[v];
-                // Floored at half the built mass: a node left on a thin sliver would
-                // otherwise get a tiny mass and a stable time step far below the built one.
-                self.masses[v] = (old - quarter).max(0.5 * self.built_masses[v]);
-                self.external[v] -= self.gravity * (old - self.masses[v]);
+                0.0
+            };
+            self.external[v] -= self.gravity * (old - self.masses[v]);
+            if !self.is_attached(v) {
+                self.external[v] = Vec3::ZERO;
             }
         }
         self.alive[t] = false;

@@ -15,7 +15,6 @@ use faer::Mat;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
-use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
@@ -46,7 +45,6 @@ pub struct FemCondensed {
     /// W f̃: the surface displacements under the loads alone.
     u0: Vec<Real>,
     small: SmallDense,
-    rhs: Vec<Real>,
 }
 
 impl std::fmt::Debug for FemCondensed {
@@ -83,15 +81,8 @@ impl FemCondensed {
             w: Mat::zeros(0, 0),
             u0: Vec::new(),
             small: SmallDense::new(3 * INITIAL_CONTACTS),
-            rhs: vec![0.0; 3 * INITIAL_CONTACTS],
         };
-        if !fixed.is_empty() {
-            let c = Constraints::fixed(fixed.to_vec());
-            model.core.check(&c)?;
-            model.rebuild(progress)?;
-            model.core.record(&c);
-            model.core.reset();
-        }
+        model.install_fixed(fixed, progress)?;
         Ok(model)
     }
 
@@ -114,9 +105,6 @@ impl FemCondensed {
     /// Sizes the step buffers for `contacts` contact vertices (they also grow on demand).
     pub fn reserve_contacts(&mut self, contacts: usize) {
         self.small.reserve(3 * contacts);
-        if self.rhs.len() < 3 * contacts {
-            self.rhs.resize(3 * contacts, 0.0);
-        }
     }
 
     /// Condenses for the fixed mask in `core.mask` and pre-inverts; nothing changes on error.
@@ -171,20 +159,18 @@ impl SurfaceResponse for FemCondensed {
     /// W_pp λ = u_p − (W f̃)_p, then u_s = W f̃ + W_{:,p} λ.
     fn solve_contacts(&mut self) -> Result<(), SimError> {
         let m = self.core.targets.len();
-        self.reserve_contacts(m / 3);
         let contacts = &self.core.contacts;
         let dof = |r: usize| 3 * contacts[r / 3] as usize + r % 3;
-        let mut block = self.small.block(m);
+        let (mut block, rhs) = self.small.block_and_rhs(m);
         for c in 0..m {
             for r in c..m {
                 block[(r, c)] = self.w[(dof(r), dof(c))];
             }
         }
-        let rhs = &mut self.rhs[..m];
         for (r, x) in rhs.iter_mut().enumerate() {
             *x = self.core.targets[r] - self.u0[dof(r)];
         }
-        self.small.solve_spd(rhs)?;
+        let rhs = self.small.solve_spd_rhs(m)?;
         let us = &mut self.core.us_trial;
         us.copy_from_slice(&self.u0);
         for (r, &l) in rhs.iter().enumerate() {

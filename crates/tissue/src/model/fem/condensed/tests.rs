@@ -4,7 +4,7 @@
 use std::cell::RefCell;
 
 use super::*;
-use crate::interact::{Loads, Prescribed};
+use crate::interact::{Constraints, Loads, Prescribed};
 use crate::mesh::generate::{BoxSplit, box_tets};
 use crate::model::{Deformable, Reactions};
 
@@ -199,14 +199,16 @@ fn liver_matches_fem_static_for_random_contact_sets() {
     assert!(du < 1e-8 && dr < 1e-8, "after rebuild: {du:e} {dr:e}");
 }
 
-#[test]
-fn box_matches_fem_static() {
-    let mesh = box_tets(
-        Vec3::ZERO,
-        Vec3::new(0.1, 0.02, 0.02),
-        [10, 2, 2],
-        BoxSplit::Six,
-    );
+/// A 10 × 2 × 2-cell beam clamped at x = 0 under random contacts and loads: `build` (a
+/// surface-response model, given the mesh, material and fixed set) against `fem-static`.
+pub(crate) fn box_matches_fem_static_with<M: Deformable>(
+    split: BoxSplit,
+    seed: u64,
+    load_vertex: u32,
+    counts: [usize; 2],
+    build: impl Fn(&TetMesh, Material, &[u32]) -> M,
+) {
+    let mesh = box_tets(Vec3::ZERO, Vec3::new(0.1, 0.02, 0.02), [10, 2, 2], split);
     let material = Material::new(5000.0, 0.4).unwrap();
     let mut reference = FemStatic::new(&mesh, material, Order::Linear).unwrap();
     let rest = reference.rest_surface().to_vec();
@@ -214,16 +216,23 @@ fn box_matches_fem_static() {
         .filter(|&v| rest[v as usize].x < 1e-9)
         .collect();
     assert_eq!(fixed.len(), 9);
-    let mut model = FemCondensed::new(&mesh, material, &fixed).unwrap();
-    let mut rng = Rng::new(11);
-    let l = loads(20);
-    for count in [2, 8] {
+    let mut model = build(&mesh, material, &fixed);
+    let mut rng = Rng::new(seed);
+    let l = loads(load_vertex);
+    for count in counts {
         let c = random_constraints(&rest, &fixed, count, 1e-3, &mut rng);
         apply(&mut [&mut reference, &mut model], &c, &l);
         let (du, dr) = compare(&model, &reference);
         assert!(du < 1e-8 && dr < 1e-8, "{count}: {du:e} {dr:e}");
         check_balance(&model, applied_load(&reference, &l));
     }
+}
+
+#[test]
+fn box_matches_fem_static() {
+    box_matches_fem_static_with(BoxSplit::Six, 11, 20, [2, 8], |mesh, material, fixed| {
+        FemCondensed::new(mesh, material, fixed).unwrap()
+    });
 }
 
 #[test]

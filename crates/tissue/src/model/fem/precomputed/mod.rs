@@ -18,7 +18,6 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
-use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
@@ -53,7 +52,6 @@ pub struct FemPrecomputedTensors {
     w_diag: Vec<Mat3>,
     u0: Vec<Vec3>,
     small: SmallDense,
-    rhs: Vec<Real>,
 }
 
 impl std::fmt::Debug for FemPrecomputedTensors {
@@ -97,15 +95,8 @@ impl FemPrecomputedTensors {
             w_diag: Vec::new(),
             u0: Vec::new(),
             small: SmallDense::new(3 * INITIAL_CONTACTS),
-            rhs: vec![0.0; 3 * INITIAL_CONTACTS],
         };
-        if !fixed.is_empty() {
-            let c = Constraints::fixed(fixed.to_vec());
-            model.core.check(&c)?;
-            model.rebuild(progress)?;
-            model.core.record(&c);
-            model.core.reset();
-        }
+        model.install_fixed(fixed, progress)?;
         Ok(model)
     }
 
@@ -129,11 +120,9 @@ impl FemPrecomputedTensors {
         self.core.node_displacements()
     }
 
+    /// Sizes the step buffers for `contacts` contact vertices (they also grow on demand).
     pub fn reserve_contacts(&mut self, contacts: usize) {
         self.small.reserve(3 * contacts);
-        if self.rhs.len() < 3 * contacts {
-            self.rhs.resize(3 * contacts, 0.0);
-        }
     }
 
     /// Bytes held by the tensors (n²·9 + 2n·9 doubles).
@@ -213,9 +202,8 @@ impl SurfaceResponse for FemPrecomputedTensors {
     /// Σ_k T^U_jk a_k = target_j − u0_j for the virtual displacements a, then superposition.
     fn solve_contacts(&mut self) -> Result<(), SimError> {
         let m = self.core.targets.len();
-        self.reserve_contacts(m / 3);
         let (n, contacts) = (self.n, &self.core.contacts);
-        let mut a = self.small.block(m);
+        let (mut a, rhs) = self.small.block_and_rhs(m);
         for (kb, &k) in contacts.iter().enumerate() {
             for (jb, &j) in contacts.iter().enumerate() {
                 let t = self.t_u[k as usize * n + j as usize];
@@ -226,13 +214,12 @@ impl SurfaceResponse for FemPrecomputedTensors {
                 }
             }
         }
-        let rhs = &mut self.rhs[..m];
         for (jb, &j) in contacts.iter().enumerate() {
             for r in 0..3 {
                 rhs[3 * jb + r] = self.core.targets[3 * jb + r] - self.u0[j as usize][r];
             }
         }
-        self.small.solve_general(rhs)?;
+        let rhs = self.small.solve_general_rhs(m)?;
         let us = &mut self.core.us_trial;
         for (i, u) in self.u0.iter().enumerate() {
             us[3 * i..3 * i + 3].copy_from_slice(&u.to_array());

@@ -1,13 +1,13 @@
 //! The tensors against fem-static and fem-condensed, and the single-contact closed form.
 
 use super::*;
-use crate::interact::{Loads, Prescribed};
-use crate::mesh::generate::{BoxSplit, box_tets};
+use crate::interact::{Constraints, Loads, Prescribed};
+use crate::mesh::generate::BoxSplit;
 use crate::model::Deformable;
 use crate::model::fem::FemCondensed;
 use crate::model::fem::condensed::tests::{
-    Rng, applied_load, apply, check_balance, compare, liver, liver_fixed, liver_material, loads,
-    random_constraints,
+    Rng, applied_load, apply, box_matches_fem_static_with, check_balance, compare, liver,
+    liver_fixed, liver_material, loads, random_constraints,
 };
 
 #[test]
@@ -37,28 +37,9 @@ fn liver_matches_fem_static_and_fem_condensed() {
 
 #[test]
 fn box_matches_fem_static() {
-    let mesh = box_tets(
-        Vec3::ZERO,
-        Vec3::new(0.1, 0.02, 0.02),
-        [10, 2, 2],
-        BoxSplit::Five,
-    );
-    let material = Material::new(5000.0, 0.4).unwrap();
-    let mut reference = FemStatic::new(&mesh, material, Order::Linear).unwrap();
-    let rest = reference.rest_surface().to_vec();
-    let fixed: Vec<u32> = (0..rest.len() as u32)
-        .filter(|&v| rest[v as usize].x < 1e-9)
-        .collect();
-    let mut model = FemPrecomputedTensors::new(&mesh, material, &fixed).unwrap();
-    let mut rng = Rng::new(23);
-    let l = loads(30);
-    for count in [3, 9] {
-        let c = random_constraints(&rest, &fixed, count, 1e-3, &mut rng);
-        apply(&mut [&mut reference, &mut model], &c, &l);
-        let (du, dr) = compare(&model, &reference);
-        assert!(du < 1e-8 && dr < 1e-8, "{count}: {du:e} {dr:e}");
-        check_balance(&model, applied_load(&reference, &l));
-    }
+    box_matches_fem_static_with(BoxSplit::Five, 23, 30, [3, 9], |mesh, material, fixed| {
+        FemPrecomputedTensors::new(mesh, material, fixed).unwrap()
+    });
 }
 
 /// One contact, no load: u_i = T^U_{i,k} ū, P_k = T^F_k ū, T^U_{k,k} = I, T^F symmetric.

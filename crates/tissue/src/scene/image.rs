@@ -1,0 +1,206 @@
+//! Scenes whose body is a volume image (`[image]`): the checks made when the scene is read,
+//! the voxel grid made from the image when it is built, and the voxel models built on that
+//! grid. Messages are completed with the scene file and the table's line by the caller.
+
+use std::path::Path;
+
+use crate::error::{Error, MeshError, SimError};
+use crate::image::{ImageFormat, VoxelImage, read_image};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::model::Deformable;
+use crate::model::chainmail::{ChainMail, ChainMailParams};
+use crate::model::linked_volumes::{LinkedVolumes, LinkedVolumesParams};
+use crate::model::registry::parse_params;
+use crate::voxel::{
+    VoxelGrid, from_image_labels, from_image_threshold, keep_component_at, keep_largest,
+};
+
+use super::spec::ImageSpec;
+
+/// The kinds an `[image]` body builds: the voxel models.
+pub const IMAGE_KINDS: [&str; 2] = ["chainmail", "linked-volumes"];
+
+/// MetaImage headers state no unit: millimetres unless `scale` says otherwise.
+const DEFAULT_SCALE: Real = 0.001;
+
+/// `[model]` keys that size a voxelisation, meaningless when the image gives the voxels.
+const VOXELISATION_KEYS: [&str; 2] = ["voxel_size", "resolution"];
+
+/// Checks an `[image]` table without reading the image.
+pub(super) fn check_image(spec: &ImageSpec) -> Result<(), String> {
+    let format = ImageFormat::from_path(&spec.file).ok_or_else(|| {
+        format!(
+            "file = \"{}\": not an image format tissue reads (.nii, .hdr/.img, .mhd, .mha)",
+            spec.file.display()
+        )
+    })?;
+    match (&spec.threshold, &spec.labels) {
+        (Some(_), Some(_)) | (None, None) => {
+            return Err("needs exactly one of `threshold = [lo, hi]` or `labels = [...]`".into());
+        }
+        (Some([lo, hi]), None) => {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(format!("threshold = [{lo}, {hi}]: needs finite lo <= hi"));
+            }
+        }
+        (None, Some(labels)) => {
+            if labels.is_empty() || labels.iter().any(|l| !l.is_finite()) {
+                return Err("labels: needs at least one finite value".into());
+            }
+        }
+    }
+    if spec.stride == 0 || spec.stride > 1000 {
+        return Err(format!("stride = {}: must be in 1..=1000", spec.stride));
+    }
+    let finite = |v: &[Real]| v.iter().all(|x| x.is_finite());
+    if let Some(s) = spec.seed
+        && !finite(&s)
+    {
+        return Err("seed must be finite".into());
+    }
+    if let Some(o) = spec.origin
+        && !finite(&o)
+    {
+        return Err("origin must be finite".into());
+    }
+    if let Some(s) = spec.spacing
+        && !s.iter().all(|x| x.is_finite() && *x > 0.0)
+    {
+        return Err(format!(
+            "spacing = {s:?}: every entry must be finite and > 0 m"
+        ));
+    }
+    match (format, spec.scale) {
+        (ImageFormat::Nifti, Some(_)) => Err(
+            "scale applies to MetaImage files (their header has no unit); a NIfTI header \
+             states its own (use `spacing` to override it)"
+                .into(),
+        ),
+        (_, Some(s)) if !(s.is_finite() && s > 0.0) => {
+            Err(format!("scale = {s}: must be finite and > 0"))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Why an `[image]` scene cannot take a `[model]`: the kind or a voxelisation key.
+pub(super) fn check_model(kind: &str, params: &toml::Table) -> Result<(), String> {
+    if !IMAGE_KINDS.contains(&kind) {
+        return Err(format!(
+            "kind `{kind}` cannot be built from an [image]; image bodies build {} (use a \
+             [mesh] for other kinds)",
+            IMAGE_KINDS.join(" or ")
+        ));
+    }
+    if let Some(key) = VOXELISATION_KEYS.iter().find(|k| params.contains_key(**k)) {
+        return Err(format!(
+            "`{key}` does not apply to an [image] body: the image's voxels (every `stride`-th) \
+             are the lattice"
+        ));
+    }
+    Ok(())
+}
+
+/// Reads the image at `path` and selects the voxels of the part to keep.
+pub(super) fn image_grid(spec: &ImageSpec, path: &Path) -> Result<VoxelGrid, Failure> {
+    let mut image = read_image(path, spec.scale.unwrap_or(DEFAULT_SCALE))
+        .map_err(|e| Failure::File(e.into()))?;
+    if let Some(s) = spec.spacing {
+        image.spacing = Vec3::from(s);
+    }
+    if let Some(o) = spec.origin {
+        image.origin = Vec3::from(o);
+    }
+    let range = value_range(&image);
+    let why = |e: MeshError| match e {
+        MeshError::Empty { .. } => format!("selects no voxel; the image's values span {range}"),
+        other => format!("{other}; the image's values span {range}"),
+    };
+    let mut grid = match (&spec.threshold, &spec.labels) {
+        (Some([lo, hi]), _) => from_image_threshold(&image, *lo, *hi, spec.stride)
+            .map_err(|e| key_error("threshold", why(e)))?,
+        (None, Some(labels)) => from_image_labels(&image, labels, spec.stride)
+            .map_err(|e| key_error("labels", why(e)))?,
+        (None, None) => return Err(key_error("threshold", "needs threshold or labels".into())),
+    };
+    match spec.seed {
+        None => {
+            keep_largest(&mut grid);
+        }
+        Some(seed) => {
+            let p = Vec3::from(seed);
+            let voxel = grid.voxel_at(p).ok_or_else(|| {
+                let hi = grid.centre(
+                    grid.dims[0].saturating_sub(1),
+                    grid.dims[1].saturating_sub(1),
+                    grid.dims[2].saturating_sub(1),
+                );
+                key_error(
+                    "seed",
+                    format!(
+                        "{seed:?} is outside the image, whose voxel centres span {} to {hi} m",
+                        grid.origin
+                    ),
+                )
+            })?;
+            if keep_component_at(&mut grid, voxel).is_none() {
+                let [i, j, k] = grid.coords(voxel);
+                let s = spec.stride;
+                let value = image
+                    .value(i * s, j * s, k * s)
+                    .map_or("none".to_string(), |v| v.to_string());
+                return Err(key_error(
+                    "seed",
+                    format!(
+                        "{seed:?} lies in voxel ({i}, {j}, {k}) of the sampled grid, value \
+                         {value}, which is not selected"
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(grid)
+}
+
+/// Why an image gave no grid: a key of `[image]` (the caller names the scene file and line)
+/// or the image file itself (the error names it).
+#[derive(Debug)]
+pub(super) enum Failure {
+    Key(String),
+    File(Error),
+}
+
+fn key_error(key: &str, message: String) -> Failure {
+    Failure::Key(format!("{key}: {message}"))
+}
+
+fn value_range(image: &VoxelImage) -> String {
+    image
+        .min_max()
+        .map_or("nothing".into(), |(lo, hi)| format!("{lo} to {hi}"))
+}
+
+/// A voxel model of `kind` on `grid`, its surface the marching surface of the voxels.
+pub(super) fn voxel_model(
+    kind: &str,
+    grid: VoxelGrid,
+    material: Material,
+    params: &toml::Table,
+) -> Result<Box<dyn Deformable>, Error> {
+    match kind {
+        "chainmail" => {
+            let p: ChainMailParams = parse_params("chainmail", params)?;
+            Ok(Box::new(ChainMail::new(grid, None, material, p)?))
+        }
+        "linked-volumes" => {
+            let p: LinkedVolumesParams = parse_params("linked-volumes", params)?;
+            Ok(Box::new(LinkedVolumes::new(grid, None, material, p)?))
+        }
+        other => Err(SimError::UnknownModel {
+            kind: other.to_string(),
+            known: IMAGE_KINDS.join(", "),
+        }
+        .into()),
+    }
+}

@@ -1,0 +1,242 @@
+//! Scenes whose body is a medical image (`[image]`): the shipped brain (NIfTI, linked
+//! volumes) and hip-muscle (MetaImage, ChainMail) scenes build the lattice the image selects,
+//! regions select marching-surface vertices, the probe feels the tissue push back, and
+//! every mistake in an `[image]` scene is an error naming the scene file and the key.
+
+use std::path::{Path, PathBuf};
+
+use tissue::image::read_image;
+use tissue::interact::Region;
+use tissue::math::Vec3;
+use tissue::scene::Scene;
+use tissue::voxel::{from_image_threshold, keep_largest};
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(rel)
+}
+
+fn scene(name: &str) -> Scene {
+    Scene::load(repo(&format!("scenes/{name}"))).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A scene read from text, as if it were `scenes/test.toml`.
+fn from_text(text: &str) -> Result<Scene, String> {
+    Scene::from_toml(text, &repo("scenes"), Path::new("scenes/test.toml"))
+        .map_err(|e| e.to_string())
+}
+
+const BRAIN: &str = r#"
+[image]
+file = "../assets/images/anatomical.nii"
+threshold = [6000.0, 40000.0]
+stride = 2
+[material]
+young_modulus = 3000.0
+poisson_ratio = 0.3
+[model]
+kind = "linked-volumes"
+[[fixed]]
+box = { min = [0.0, -0.1, -0.1], max = [0.2, 0.1, -0.0135] }
+[run]
+duration = 0.1
+dt = 0.01
+"#;
+
+#[test]
+fn the_brain_scene_builds_the_lattice_the_image_selects_and_pushes_the_probe_up() {
+    let s = scene("brain-linked-volumes.toml");
+    // The same selection made by hand: threshold, every 2nd voxel, largest part.
+    let image = read_image(repo("assets/images/anatomical.nii"), 1.0).unwrap();
+    let mut grid = from_image_threshold(&image, 6000.0, 40000.0, 2).unwrap();
+    let kept = keep_largest(&mut grid);
+    assert_eq!(grid.dims, [17, 21, 13]);
+    assert_eq!(grid.spacing, Vec3::splat(0.004));
+    let body = s.load_body().unwrap();
+    assert_eq!(body.grid.as_ref().unwrap().labels, grid.labels);
+
+    let mut sim = s.build().unwrap();
+    assert_eq!(sim.model().kind(), "linked-volumes");
+    assert_eq!(sim.model().info().nodes, kept);
+    // The fixed box selects exactly the marching-surface vertices inside it (the surface
+    // drawn is the model's, identical to the one the body carries).
+    let rest = sim.model().rest_surface().to_vec();
+    assert_eq!(rest, body.mesh.vertices);
+    let in_box = Region::Box {
+        min: [0.0, -0.1, -0.1],
+        max: [0.2, 0.1, -0.0135],
+    }
+    .select(&rest);
+    assert!(!in_box.is_empty());
+    assert_eq!(sim.fixed(), in_box.as_slice());
+
+    let mut force = Vec3::ZERO;
+    for _ in 0..20 {
+        let r = sim.step(s.run.dt).unwrap();
+        force = r.forces[0];
+        assert!(
+            sim.model()
+                .surface()
+                .positions
+                .iter()
+                .all(|p| p.is_finite())
+        );
+    }
+    // After 20 steps the probe is 1.6 mm into the top: the tissue pushes it up.
+    assert!(force.z > 1e-4, "{force}");
+    assert!(sim.fixed_reaction_total().z < 0.0);
+}
+
+#[test]
+fn the_hip_muscle_scene_pushes_the_probe_back_out() {
+    let s = scene("pelvis-chainmail.toml");
+    let mut sim = s.build().unwrap();
+    assert_eq!(sim.model().kind(), "chainmail");
+    let grid = s.load_body().unwrap().grid.unwrap();
+    // Every 6th of 221 x 271 x 69 voxels, spacing (0.78125, 0.78125, 2.46876) mm x 6.
+    assert_eq!(grid.dims, [37, 46, 12]);
+    assert!((grid.spacing.x - 0.0046875).abs() < 1e-12);
+    assert!((grid.spacing.z - 0.01481256).abs() < 1e-9);
+    assert_eq!(sim.model().info().nodes, grid.occupied());
+    let mut deepest = Vec3::ZERO;
+    for _ in 0..s.run.step_count() {
+        let r = sim.step(s.run.dt).unwrap();
+        if (r.time - 0.5).abs() < 1e-9 {
+            deepest = r.forces[0];
+        }
+    }
+    // Pressed along -y into the back of the muscle, the probe is pushed back along +y.
+    assert!(deepest.y > 1e-2, "{deepest}");
+}
+
+#[test]
+fn a_missing_image_names_the_scene_and_the_image() {
+    let text = BRAIN.replace("anatomical.nii", "no-such-brain.nii");
+    let s = from_text(&text).unwrap();
+    let e = s.build().err().unwrap().to_string();
+    assert!(e.contains("scenes/test.toml"), "{e}");
+    assert!(
+        e.contains("no-such-brain.nii") && e.contains("no such file"),
+        "{e}"
+    );
+    assert!(e.contains("[image]") && e.contains("line 2"), "{e}");
+}
+
+#[test]
+fn bad_image_keys_are_named() {
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "threshold = [6000.0, 40000.0]",
+            "threshold = [40000.0, 6000.0]",
+            &["line 2", "[image] threshold", "lo <= hi"],
+        ),
+        (
+            "threshold = [6000.0, 40000.0]",
+            "threshold = [6000.0]",
+            &["threshold"],
+        ),
+        (
+            "threshold = [6000.0, 40000.0]",
+            "labels = [1.0]\nthreshold = [6000.0, 40000.0]",
+            &["exactly one of `threshold"],
+        ),
+        ("stride = 2", "stride = 0", &["stride = 0"]),
+        (
+            "stride = 2",
+            "stride = 2\nscale = 0.001",
+            &["scale applies to MetaImage"],
+        ),
+        (
+            "stride = 2",
+            "stride = 2\nspacing = [0.002, 0.0, 0.002]",
+            &["spacing"],
+        ),
+        ("stride = 2", "stride = 2\nthreshhold = 1", &["threshhold"]),
+        ("anatomical.nii", "anatomical.png", &["not an image format"]),
+        (
+            "kind = \"linked-volumes\"",
+            "kind = \"fem-static\"",
+            &["[model]", "fem-static", "cannot be built from an [image]"],
+        ),
+        (
+            "kind = \"linked-volumes\"",
+            "kind = \"linked-volumes\"\nresolution = 12",
+            &["[model]", "`resolution` does not apply"],
+        ),
+        (
+            "box = { min = [0.0, -0.1, -0.1], max = [0.2, 0.1, -0.0135] }",
+            "file_vertices = [1, 2]",
+            &["[[fixed]] 1", "file_vertices", "an [image] body has none"],
+        ),
+        (
+            "[material]\nyoung_modulus = 3000.0\npoisson_ratio = 0.3\n",
+            "",
+            &["needs a [material]"],
+        ),
+        (
+            "[image]",
+            "[mesh]\nfile = \"../assets/meshes/liver.obj\"\n[image]",
+            &["both [mesh] and [image]"],
+        ),
+    ];
+    for (from, to, wanted) in cases {
+        assert!(BRAIN.contains(from), "{from}");
+        let text = BRAIN.replacen(from, to, 1);
+        let e = from_text(&text)
+            .err()
+            .unwrap_or_else(|| panic!("{to}: accepted"));
+        assert!(e.contains("scenes/test.toml"), "{e}");
+        for w in *wanted {
+            assert!(e.contains(w), "{to}: `{w}` not in: {e}");
+        }
+    }
+    let none = BRAIN.replace("[image]", "[imagery]");
+    assert!(from_text(&none).is_err());
+    let neither = BRAIN.split("[material]").nth(1).unwrap();
+    let e = from_text(&format!("[material]{neither}")).err().unwrap();
+    assert!(
+        e.contains("needs [mesh]") && e.contains("or [image]"),
+        "{e}"
+    );
+}
+
+#[test]
+fn selections_that_find_nothing_name_their_key_when_the_image_is_read() {
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "threshold = [6000.0, 40000.0]",
+            "threshold = [50000.0, 60000.0]",
+            &["threshold", "-610 to 30393"],
+        ),
+        (
+            "stride = 2",
+            "stride = 2\nseed = [1.0, 0.0, 0.0]",
+            &["seed", "outside the image"],
+        ),
+        // The centre of voxel (8, 16, 12) of the 4 mm grid: the midline fissure, CSF.
+        (
+            "stride = 2",
+            "stride = 2\nseed = [0.064, 0.024, 0.032]",
+            &["seed", "voxel (8, 16, 12)", "not selected"],
+        ),
+    ];
+    for (from, to, wanted) in cases {
+        let s = from_text(&BRAIN.replacen(from, to, 1)).unwrap();
+        let e = s.build().err().unwrap().to_string();
+        assert!(
+            e.contains("scenes/test.toml") && e.contains("anatomical.nii"),
+            "{e}"
+        );
+        for w in *wanted {
+            assert!(e.contains(w), "{to}: `{w}` not in: {e}");
+        }
+    }
+    // A seed in tissue keeps the part holding it: here the largest.
+    let s =
+        from_text(&BRAIN.replacen("stride = 2", "stride = 2\nseed = [0.048, -0.016, 0.032]", 1))
+            .unwrap();
+    let seeded = s.load_body().unwrap().grid.unwrap();
+    let largest = from_text(BRAIN).unwrap().load_body().unwrap().grid.unwrap();
+    assert_eq!(seeded.labels, largest.labels);
+}
