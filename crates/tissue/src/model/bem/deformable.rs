@@ -7,6 +7,7 @@ use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
 
+use super::cut::CutUpdate;
 use super::model::Bem;
 use super::viscous::relax;
 
@@ -198,13 +199,10 @@ impl Deformable for Bem {
         }
     }
 
+    /// Opens the incision as a narrow groove (`cut`) and extends the pre-inverted system by
+    /// bordering (`border`): no re-factorisation.
     fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        let _ = blade;
-        Err(SimError::Unsupported {
-            model: "bem",
-            operation: "cutting",
-            reason: "incisions are not implemented yet for the BEM".into(),
-        })
+        self.incise(blade, CutUpdate::Bordering)
     }
 
     fn reset(&mut self) {

@@ -63,6 +63,8 @@ pub struct Bem {
     pub(super) fixed_reactions: Vec<Vec3>,
     pub(super) prescribed_reactions: Vec<Vec3>,
     pub(super) assembly_seconds: Real,
+    /// Incisions made (`CutInfo::topology_version`).
+    pub(super) cuts: u32,
 }
 
 impl std::fmt::Debug for Bem {
@@ -182,6 +184,7 @@ impl Bem {
             fixed_reactions: Vec::new(),
             prescribed_reactions: Vec::new(),
             assembly_seconds,
+            cuts: 0,
             surface,
         }
     }
@@ -215,7 +218,7 @@ impl Bem {
 }
 
 /// The surface without unused vertices, or the reason it cannot bound a body.
-fn checked_surface(s: &SurfaceMesh) -> Result<SurfaceMesh, MeshError> {
+pub(super) fn checked_surface(s: &SurfaceMesh) -> Result<SurfaceMesh, MeshError> {
     s.validate_indices()?;
     if s.triangles.is_empty() {
         return Err(MeshError::Empty { what: "triangles" });

@@ -28,6 +28,7 @@ use crate::error::SimError;
 use crate::math::{Real, Vec3};
 
 use super::assembly::Influence;
+use super::border::BaseInverse;
 
 /// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
 const PIVOT_RATIO: Real = 1e-12;
@@ -36,15 +37,19 @@ const PIVOT_RATIO: Real = 1e-12;
 pub struct BemSystem {
     pub(crate) inf: Influence,
     /// The fixed set A₀ was factorised for.
-    fixed: Vec<bool>,
+    pub(super) fixed: Vec<bool>,
     /// W = A₀⁻¹ G (column-major, 3n × 3n); empty before the first factorisation.
-    w: Mat<Real>,
-    contacts: Vec<usize>,
+    pub(super) w: Mat<Real>,
+    pub(super) contacts: Vec<usize>,
     /// LU of the capacitance matrix W_CC.
-    capacitance: Option<PartialPivLu<Real>>,
+    pub(super) capacitance: Option<PartialPivLu<Real>>,
+    /// A₀⁻¹ as its LU and the bordering updates of later incisions (`border`).
+    pub(super) inverse: Option<BaseInverse>,
     pub factorizations: usize,
     pub woodbury_updates: usize,
     pub last_factor_seconds: Real,
+    /// Wall time of the last incision's update (bordering or re-assembly), in s.
+    pub last_cut_seconds: Real,
 }
 
 impl BemSystem {
@@ -55,9 +60,11 @@ impl BemSystem {
             w: Mat::zeros(0, 0),
             contacts: Vec::new(),
             capacitance: None,
+            inverse: None,
             factorizations: 0,
             woodbury_updates: 0,
             last_factor_seconds: 0.0,
+            last_cut_seconds: 0.0,
         }
     }
 
@@ -85,14 +92,7 @@ impl BemSystem {
     /// (`unknown_traction[v]`), of H otherwise.
     pub fn reordered(&self, unknown_traction: &[bool]) -> Mat<Real> {
         let n = self.dofs();
-        let (h, g) = (&self.inf.h, &self.inf.g);
-        Mat::from_fn(n, n, |r, c| {
-            if unknown_traction.get(c / 3).copied().unwrap_or(false) {
-                -g[r * n + c]
-            } else {
-                h[r * n + c]
-            }
-        })
+        Mat::from_fn(n, n, |r, c| base_entry(&self.inf, unknown_traction, r, c))
     }
 
     /// Factorises A₀ for `fixed` and computes W = A₀⁻¹ G (the expensive pre-computation,
@@ -139,6 +139,7 @@ impl BemSystem {
             return Err(singular());
         }
         self.w = w;
+        self.inverse = Some(BaseInverse::new(a, perm, perm_inv));
         self.fixed = fixed.to_vec();
         self.contacts.clear();
         self.capacitance = None;
@@ -251,7 +252,18 @@ impl BemSystem {
     }
 }
 
-fn not_factored() -> SimError {
+/// Entry (r, c) of the reordered matrix: −G for vertices whose traction is unknown, H
+/// otherwise. The one definition `reordered`, `factor` and the bordering share.
+pub(super) fn base_entry(inf: &Influence, unknown_traction: &[bool], r: usize, c: usize) -> Real {
+    let n = inf.dofs();
+    if unknown_traction.get(c / 3).copied().unwrap_or(false) {
+        -inf.g[r * n + c]
+    } else {
+        inf.h[r * n + c]
+    }
+}
+
+pub(super) fn not_factored() -> SimError {
     SimError::Unsupported {
         model: "bem",
         operation: "solving before the fixed vertices are known",
@@ -267,7 +279,7 @@ fn axpy(y: &mut [Real], a: Real, x: &[Real]) {
 
 /// Solves L U X = P B in place, column blocks in parallel (faer itself runs sequentially
 /// here).
-fn solve_columns(
+pub(super) fn solve_columns(
     lu: MatRef<'_, Real>,
     perm: faer::perm::PermRef<'_, usize>,
     rhs: MatMut<'_, Real>,
