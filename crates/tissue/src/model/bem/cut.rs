@@ -25,7 +25,7 @@ use crate::mesh::SurfaceMesh;
 use crate::model::{CutInfo, CutPath, Deformable};
 
 use super::assembly::{Element, Influence};
-use super::border::influence_after_cut;
+use super::border::{influence_after_cut, keep_far_diagonals};
 use super::kelvin::Kelvin;
 use super::model::{Bem, checked_surface};
 use super::system::BemSystem;
@@ -446,6 +446,15 @@ impl Bem {
                 let fresh = Bem::new(&surface, self.material, self.params)
                     .map_err(|e| bad(format!("re-assembly failed: {e}")))?;
                 let mut system = fresh.system;
+                let mut in_k = vec![false; surface.vertices.len()];
+                for &v in cut
+                    .changed
+                    .iter()
+                    .chain(&(n0..surface.vertices.len()).collect::<Vec<_>>())
+                {
+                    in_k[v] = true;
+                }
+                keep_far_diagonals(&self.system.inf, &mut system.inf, &in_k);
                 if self.system.is_factored() {
                     let mut fixed = self.system.fixed().to_vec();
                     fixed.resize(surface.vertices.len(), false);

@@ -138,6 +138,7 @@ fn gaps(a: &Bem, b: &Bem) -> (Real, Real) {
 fn bordering_equals_a_fresh_assembly_over_three_cuts() {
     let s = sphere(2);
     let mut bordered = build(&s, &s.vertices);
+    let mut reassembled = build(&s, &s.vertices);
     let blades = [
         blade(0.001, -0.03, 0.02),
         blade(-0.012, -0.025, 0.02),
@@ -147,33 +148,87 @@ fn bordering_equals_a_fresh_assembly_over_three_cuts() {
         let info = bordered.cut(b).unwrap();
         assert!(info.added_vertices > 0, "cut {i}: {info:?}");
         assert_eq!(info.topology_version, i as u32 + 1);
+        assert_eq!(reassembled.incise(b, CutUpdate::Reassembly).unwrap(), info);
         let cut_surface = SurfaceMesh::new(
             bordered.rest_surface().to_vec(),
             bordered.surface().triangles.to_vec(),
         );
         assert_closed_oriented(&cut_surface);
         bordered.step(0.01).unwrap();
+        reassembled.step(0.01).unwrap();
+        // The bordered H and G are the re-assembled ones, entry for entry.
+        let (ib, ir) = (
+            bordered.system().influence(),
+            reassembled.system().influence(),
+        );
+        assert!(ib == ir, "cut {i}: H or G differ");
+        let (du, dr) = gaps(&bordered, &reassembled);
+        // Against a model built afresh, whose far rows re-sum their diagonals too.
         let fresh = build(&cut_surface, &s.vertices);
-        // The bordered H and G are the fresh ones, entry for entry.
-        let (hb, hf) = (
-            &bordered.system().influence().h,
-            &fresh.system().influence().h,
+        let (fu, fr) = gaps(&bordered, &fresh);
+        let rank = bordered.system().last_border_rank();
+        eprintln!(
+            "cut {i}: {} unknowns, rank {rank:?}; vs re-assembly: displacements {du:e}, \
+             reactions {dr:e}; vs Bem::new: {fu:e}, {fr:e}",
+            bordered.system().dofs()
         );
-        let hmax = hf.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
-        let hgap = hb
-            .iter()
-            .zip(hf)
-            .fold(0.0, |m: Real, (a, b)| m.max((a - b).abs()));
-        assert!(hgap <= 1e-13 * hmax, "cut {i}: H differs by {hgap:e}");
-        assert_eq!(
-            bordered.system().influence().g,
-            fresh.system().influence().g
-        );
-        let (du, dr) = gaps(&bordered, &fresh);
-        eprintln!("cut {i}: displacements {du:e}, reactions {dr:e}");
         assert!(du < 1e-6 && dr < 1e-6, "cut {i}: {du:e} {dr:e}");
+        assert!(fu < 1e-3 && fr < 1e-4, "cut {i}: {fu:e} {fr:e}");
         // One factorisation (when the constraints were first set), then only bordering.
         assert_eq!(bordered.system().factorizations, 1);
         assert_eq!(bordered.system().borderings(), i + 1);
     }
+}
+
+#[test]
+fn a_pulled_incision_opens() {
+    let s = sphere(2);
+    let mut model = build(&s, &s.vertices);
+    let n0 = s.vertices.len();
+    let info = model.cut(&blade(0.001, -0.03, 0.02)).unwrap();
+    model.step(0.01).unwrap();
+    let rest = model.rest_surface().to_vec();
+    let now = model.surface().positions.to_vec();
+    // New vertices: an end, then (lip, lip, floor) per interior crossing, then an end.
+    let interior = (info.added_vertices - 2) / 3;
+    let scale = model
+        .static_displacements()
+        .iter()
+        .fold(0.0, |m: Real, u| m.max(u.length()));
+    let mut widening = Vec::new();
+    for j in 0..interior {
+        let (a, b) = (n0 + 1 + 3 * j, n0 + 2 + 3 * j);
+        widening.push((now[a] - now[b]).length() - (rest[a] - rest[b]).length());
+    }
+    let mean = widening.iter().sum::<Real>() / interior as Real;
+    eprintln!("lip widening {widening:?}, largest displacement {scale:e}");
+    assert!(widening.iter().all(|&w| w > 0.0), "{widening:?}");
+    assert!(mean > 0.05 * scale, "{mean:e} vs {scale:e}");
+}
+
+/// Wall time of one incision, bordered and by re-assembly, on the 642-vertex sphere:
+/// `cargo test --release --offline -p tissue cut_speed -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn cut_speed() {
+    let s = sphere(3);
+    let t = std::time::Instant::now();
+    let mut a = build(&s, &s.vertices);
+    let precompute = t.elapsed().as_secs_f64();
+    let mut b = build(&s, &s.vertices);
+    let cut = blade(0.001, -0.03, 0.02);
+    a.incise(&cut, CutUpdate::Bordering).unwrap();
+    b.incise(&cut, CutUpdate::Reassembly).unwrap();
+    a.step(0.01).unwrap();
+    b.step(0.01).unwrap();
+    let (du, dr) = gaps(&a, &b);
+    eprintln!(
+        "642-vertex sphere: precompute {precompute:.2} s; cut by bordering {:.3} s (rank {:?}, \
+         {} unknowns), by re-assembly {:.3} s; gaps {du:e} {dr:e}",
+        a.system().last_cut_seconds,
+        a.system().last_border_rank(),
+        a.system().dofs(),
+        b.system().last_cut_seconds,
+    );
+    assert!(du < 1e-6 && dr < 1e-6);
 }
