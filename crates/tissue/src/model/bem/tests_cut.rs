@@ -232,3 +232,46 @@ fn cut_speed() {
     );
     assert!(du < 1e-6 && dr < 1e-6);
 }
+
+/// One bordered incision on the 2194-vertex liver against its pre-computation:
+/// `cargo test --release --offline -p tissue cut_speed_liver -- --ignored --nocapture`.
+#[test]
+#[ignore = "slow: pre-computation on the 2194-vertex liver (a minute or more)"]
+fn cut_speed_liver() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/meshes/liver-smooth.obj"
+    );
+    let data = crate::io::read(path).unwrap();
+    let mut surface = data.surface_mesh().unwrap();
+    surface.vertices.iter_mut().for_each(|p| *p *= 0.01);
+    let t = std::time::Instant::now();
+    let mut bem = Bem::new(&surface, material(), BemParams::default()).unwrap();
+    let rest = bem.rest_surface().to_vec();
+    let n = rest.len();
+    let by = |f: &dyn Fn(&Vec3) -> Real| {
+        (0..n)
+            .min_by(|&a, &b| f(&rest[a]).total_cmp(&f(&rest[b])))
+            .unwrap() as u32
+    };
+    let fixed = vec![by(&|p| p.x), by(&|p| -p.x), by(&|p| p.z)];
+    bem.set_constraints(&Constraints::fixed(fixed)).unwrap();
+    let precompute = t.elapsed().as_secs_f64();
+    let down = Vec3::new(0.0, -0.04, 0.0);
+    let (p0, p1) = (Vec3::new(0.025, 0.06, 0.005), Vec3::new(0.0, 0.06, 0.005));
+    let info = bem
+        .cut(&CutPath {
+            start: [p0, p0 + down],
+            end: [p1, p1 + down],
+        })
+        .unwrap();
+    bem.step(0.01).unwrap();
+    eprintln!(
+        "liver-smooth: {n} vertices, precompute {precompute:.1} s; one cut ({info:?}) by \
+         bordering {:.2} s, rank {:?}, {} unknowns after",
+        bem.system().last_cut_seconds,
+        bem.system().last_border_rank(),
+        bem.system().dofs()
+    );
+    assert_eq!(bem.system().factorizations, 1);
+}
