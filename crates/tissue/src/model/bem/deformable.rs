@@ -9,6 +9,7 @@ use crate::model::{
     CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
 };
 
+use super::cut::CutUpdate;
 use super::model::Bem;
 use super::viscous::relax;
 
@@ -206,13 +207,10 @@ impl Deformable for Bem {
         }
     }
 
+    /// Opens the incision as a narrow groove (`cut`) and extends the pre-inverted system by
+    /// bordering (`border`): no re-factorisation.
     fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        let _ = blade;
-        Err(SimError::Unsupported {
-            model: "bem",
-            operation: "cutting",
-            reason: "incisions are not implemented yet for the BEM".into(),
-        })
+        self.incise(blade, CutUpdate::Bordering)
     }
 
     fn set_progress(&mut self, progress: Progress) {
@@ -249,6 +247,9 @@ impl Deformable for Bem {
                 ("factor_s".into(), format!("{:.3}", s.last_factor_seconds)),
                 ("factorizations".into(), s.factorizations.to_string()),
                 ("woodbury_updates".into(), s.woodbury_updates.to_string()),
+                ("cuts".into(), self.cuts.to_string()),
+                ("borderings".into(), s.borderings().to_string()),
+                ("last_cut_s".into(), format!("{:.3}", s.last_cut_seconds)),
                 ("contacts".into(), s.contacts().len().to_string()),
                 ("alpha".into(), self.params.alpha.to_string()),
             ],

@@ -9,6 +9,8 @@
 //! eq. 13 (`viscous`). Body forces (gravity) would need a volume integral and are refused.
 
 mod assembly;
+mod border;
+mod cut;
 mod deformable;
 mod kelvin;
 mod model;
@@ -18,8 +20,11 @@ mod viscous;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_cut;
 
 pub use assembly::Influence;
+pub use cut::CutUpdate;
 pub use kelvin::Kelvin;
 pub use model::{Bem, BemParams};
 pub use system::BemSystem;

@@ -75,6 +75,8 @@ pub struct Bem {
     /// H and G not assembled yet (`from_input` defers the assembly to the first
     /// `set_constraints`, so that it reports to the handle set after construction).
     pub(super) pending_assembly: bool,
+    /// Incisions made (`CutInfo::topology_version`).
+    pub(super) cuts: u32,
 }
 
 impl std::fmt::Debug for Bem {
@@ -230,6 +232,7 @@ impl Bem {
             assembly_seconds,
             progress: Progress::silent(),
             pending_assembly: false,
+            cuts: 0,
             surface,
         }
     }
@@ -263,7 +266,7 @@ impl Bem {
 }
 
 /// The surface without unused vertices, or the reason it cannot bound a body.
-fn checked_surface(s: &SurfaceMesh) -> Result<SurfaceMesh, MeshError> {
+pub(super) fn checked_surface(s: &SurfaceMesh) -> Result<SurfaceMesh, MeshError> {
     s.validate_indices()?;
     if s.triangles.is_empty() {
         return Err(MeshError::Empty { what: "triangles" });

@@ -32,6 +32,7 @@ use crate::error::SimError;
 use crate::math::{Real, Vec3};
 
 use super::assembly::{Geometry, Influence};
+use super::border::BaseInverse;
 use super::quadrature::Rules;
 
 /// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
@@ -41,27 +42,33 @@ const PIVOT_RATIO: Real = 1e-12;
 pub struct BemSystem {
     pub(crate) inf: Influence,
     /// The fixed set A₀ was factorised for.
-    fixed: Vec<bool>,
+    pub(super) fixed: Vec<bool>,
     /// W = A₀⁻¹ G (column-major, 3n × 3n); empty before the first factorisation.
-    w: Mat<Real>,
-    contacts: Vec<usize>,
+    pub(super) w: Mat<Real>,
+    pub(super) contacts: Vec<usize>,
     /// LU of the capacitance matrix W_CC.
-    capacitance: Option<PartialPivLu<Real>>,
+    pub(super) capacitance: Option<PartialPivLu<Real>>,
+    /// A₀⁻¹ as its LU and the bordering updates of later incisions (`border`).
+    pub(super) inverse: Option<BaseInverse>,
     pub factorizations: usize,
     pub woodbury_updates: usize,
     pub last_factor_seconds: Real,
     /// The surface, to re-integrate the rim triangles of the fixed set (`base_matrix`);
     /// without it the fixed vertices' tractions stay continuous across the rim.
-    geometry: Option<Geometry>,
+    pub(super) geometry: Option<Geometry>,
     /// Per vertex, the area its unknown traction acts on for the factorised fixed set (0 for
     /// the others); empty without geometry.
-    support_area: Vec<Real>,
+    pub(super) support_area: Vec<Real>,
+    /// The rim columns of the factorised A₀ (see `base_matrix`).
+    pub(super) rim: RimColumns,
     /// Contacts' tractions discontinuous at their rim too (`set_contact_rims`).
-    contact_rims: bool,
+    pub(super) contact_rims: bool,
     /// A₀⁻¹, kept only with `contact_rims`.
     z: Option<Mat<Real>>,
     /// The rim shares of the current contacts' G columns, with `contact_rims`.
     rims: Option<ContactRims>,
+    /// Wall time of the last incision's update (bordering or re-assembly), in s.
+    pub last_cut_seconds: Real,
 }
 
 /// For a contact set C with rims: R (3n × 3|C|) holds, per contact dof, the G share of the
@@ -80,14 +87,17 @@ impl BemSystem {
             w: Mat::zeros(0, 0),
             contacts: Vec::new(),
             capacitance: None,
+            inverse: None,
             factorizations: 0,
             woodbury_updates: 0,
             last_factor_seconds: 0.0,
             geometry: None,
+            rim: RimColumns::default(),
             support_area: Vec::new(),
             contact_rims: false,
             z: None,
             rims: None,
+            last_cut_seconds: 0.0,
         }
     }
 
@@ -135,31 +145,32 @@ impl BemSystem {
     /// The reordered matrix with the tractions of the `constrained` vertices unknown and
     /// discontinuous at the rim of that set: a constrained vertex's column is −G restricted
     /// to its triangles whose three vertices are all constrained (`Geometry::
-    /// traction_supports`), i.e. −G plus the G share of its rim triangles, re-integrated
-    /// here. Without geometry it is `reordered`. A₀ is this for the fixed set. Also returns
-    /// the support areas.
-    pub fn base_matrix(&self, constrained: &[bool]) -> (Mat<Real>, Vec<Real>) {
+    /// traction_supports`), i.e. −G plus the G share of its rim triangles (`RimColumns`).
+    /// Without geometry it is `reordered`. A₀ is this for the fixed set. Also returns the
+    /// rim columns and the support areas.
+    pub(super) fn base_matrix_parts(
+        &self,
+        constrained: &[bool],
+    ) -> (Mat<Real>, RimColumns, Vec<Real>) {
         let mut a = self.reordered(constrained);
-        let Some(geo) = &self.geometry else {
-            return (a, Vec::new());
+        let (rim, area) = match &self.geometry {
+            Some(geo) => RimColumns::compute(geo, constrained, self.inf.vertices),
+            None => (RimColumns::default(), Vec::new()),
         };
-        if geo.vertices.len() != self.inf.vertices {
-            return (a, Vec::new());
-        }
-        let (rim, area) = geo.traction_supports(constrained);
-        let rules = Rules::new();
-        let n = self.dofs();
-        for (v, list) in rim.iter().enumerate() {
-            for &(e, corner) in list {
-                let g = geo.element_g_columns(e, corner, &rules);
-                for r in 0..n {
-                    for k in 0..3 {
-                        a[(r, 3 * v + k)] += g[3 * r + k];
-                    }
-                }
-            }
-        }
+        rim.add_to(&mut a);
+        (a, rim, area)
+    }
+
+    /// `base_matrix_parts` without the rim columns.
+    pub fn base_matrix(&self, constrained: &[bool]) -> (Mat<Real>, Vec<Real>) {
+        let (a, _, area) = self.base_matrix_parts(constrained);
         (a, area)
+    }
+
+    /// Drops the contact-rim option's A₀⁻¹ (stale after a bordering; `factor` renews it).
+    pub(super) fn drop_explicit_base_inverse(&mut self) {
+        self.z = None;
+        self.rims = None;
     }
 
     pub fn dofs(&self) -> usize {
@@ -187,14 +198,7 @@ impl BemSystem {
     /// `base_matrix`).
     pub fn reordered(&self, unknown_traction: &[bool]) -> Mat<Real> {
         let n = self.dofs();
-        let (h, g) = (&self.inf.h, &self.inf.g);
-        Mat::from_fn(n, n, |r, c| {
-            if unknown_traction.get(c / 3).copied().unwrap_or(false) {
-                -g[r * n + c]
-            } else {
-                h[r * n + c]
-            }
-        })
+        Mat::from_fn(n, n, |r, c| base_entry(&self.inf, unknown_traction, r, c))
     }
 
     /// Factorises A₀ for `fixed` and computes W = A₀⁻¹ G (the expensive pre-computation,
@@ -211,7 +215,7 @@ impl BemSystem {
         if fixed.len() != self.inf.vertices || fixed.iter().filter(|&&f| f).count() < 3 {
             return Err(singular());
         }
-        let (mut a, support_area) = self.base_matrix(fixed);
+        let (mut a, rim, support_area) = self.base_matrix_parts(fixed);
         let mut perm = vec![0usize; n];
         let mut perm_inv = vec![0usize; n];
         let req = StackReq::any_of(&[
@@ -250,7 +254,9 @@ impl BemSystem {
         self.w = w;
         self.z = z;
         self.rims = None;
+        self.inverse = Some(BaseInverse::new(a, perm, perm_inv));
         self.fixed = fixed.to_vec();
+        self.rim = rim;
         self.support_area = support_area;
         self.contacts.clear();
         self.capacitance = None;
@@ -416,7 +422,18 @@ impl BemSystem {
     }
 }
 
-fn not_factored() -> SimError {
+/// Entry (r, c) of the reordered matrix: −G for vertices whose traction is unknown, H
+/// otherwise. The one definition `reordered`, `factor` and the bordering share.
+pub(super) fn base_entry(inf: &Influence, unknown_traction: &[bool], r: usize, c: usize) -> Real {
+    let n = inf.dofs();
+    if unknown_traction.get(c / 3).copied().unwrap_or(false) {
+        -inf.g[r * n + c]
+    } else {
+        inf.h[r * n + c]
+    }
+}
+
+pub(super) fn not_factored() -> SimError {
     SimError::Unsupported {
         model: "bem",
         operation: "solving before the fixed vertices are known",
@@ -432,7 +449,7 @@ fn axpy(y: &mut [Real], a: Real, x: &[Real]) {
 
 /// Solves L U X = P B in place, column blocks in parallel (faer itself runs sequentially
 /// here).
-fn solve_columns(
+pub(super) fn solve_columns(
     lu: MatRef<'_, Real>,
     perm: faer::perm::PermRef<'_, usize>,
     rhs: MatMut<'_, Real>,
@@ -478,5 +495,77 @@ fn split_solve(
     {
         split_solve(lu, perm, left, chunk);
         split_solve(lu, perm, right, chunk);
+    }
+}
+
+/// For the constrained vertices with rim triangles (a triangle with a vertex outside the
+/// set), the G share of those triangles, which the vertex's traction no longer acts on:
+/// three dense columns (every row) per such vertex, added to A₀'s −G columns.
+#[derive(Clone, Debug)]
+pub(super) struct RimColumns {
+    /// Per vertex, its block of columns in `values`, or `u32::MAX`.
+    slot: Vec<u32>,
+    values: Mat<Real>,
+}
+
+impl Default for RimColumns {
+    fn default() -> Self {
+        Self {
+            slot: Vec::new(),
+            values: Mat::zeros(0, 0),
+        }
+    }
+}
+
+impl RimColumns {
+    /// The rim columns of `constrained` on `geo`, and the support areas (empty, with no
+    /// columns, when the geometry is not the one of the system's `vertices`).
+    pub(super) fn compute(
+        geo: &Geometry,
+        constrained: &[bool],
+        vertices: usize,
+    ) -> (Self, Vec<Real>) {
+        if geo.vertices.len() != vertices {
+            return (Self::default(), Vec::new());
+        }
+        let (rim, area) = geo.traction_supports(constrained);
+        let with_rim: Vec<usize> = (0..vertices).filter(|&v| !rim[v].is_empty()).collect();
+        let mut slot = vec![u32::MAX; vertices];
+        let n = 3 * vertices;
+        let mut values = Mat::zeros(n, 3 * with_rim.len());
+        let rules = Rules::new();
+        for (s, &v) in with_rim.iter().enumerate() {
+            slot[v] = s as u32;
+            for &(e, corner) in &rim[v] {
+                let g = geo.element_g_columns(e, corner, &rules);
+                for r in 0..n {
+                    for k in 0..3 {
+                        values[(r, 3 * s + k)] += g[3 * r + k];
+                    }
+                }
+            }
+        }
+        (Self { slot, values }, area)
+    }
+
+    /// Entry (r, c) (zero outside the rim columns).
+    pub(super) fn at(&self, r: usize, c: usize) -> Real {
+        match self.slot.get(c / 3) {
+            Some(&s) if s != u32::MAX => self.values[(r, 3 * s as usize + c % 3)],
+            _ => 0.0,
+        }
+    }
+
+    fn add_to(&self, a: &mut Mat<Real>) {
+        for (v, &s) in self.slot.iter().enumerate() {
+            if s == u32::MAX {
+                continue;
+            }
+            for k in 0..3 {
+                for r in 0..a.nrows() {
+                    a[(r, 3 * v + k)] += self.values[(r, 3 * s as usize + k)];
+                }
+            }
+        }
     }
 }
