@@ -48,6 +48,10 @@ pub struct Simulation {
     time: Real,
     steps: u64,
     bvh: Bvh,
+    /// The model's `CutInfo::topology_version` after the last cut: the triangles may be
+    /// re-connected at an unchanged count, so the BVH is rebuilt, not refitted.
+    topology_version: u32,
+    bvh_topology: u32,
     is_static: bool,
     max_contact_iterations: usize,
     /// The constraints the model holds now (restored when a step fails).
@@ -75,6 +79,8 @@ impl Simulation {
             time: 0.0,
             steps: 0,
             bvh,
+            topology_version: 0,
+            bvh_topology: 0,
             is_static,
             max_contact_iterations: DEFAULT_CONTACT_ITERATIONS,
             constraints,
@@ -110,6 +116,12 @@ impl Simulation {
 
     pub fn time(&self) -> Real {
         self.time
+    }
+
+    /// Bumped by cuts that changed the model's topology (the model's own count): anything
+    /// drawn from the surface's connectivity is rebuilt when it changes.
+    pub fn topology_version(&self) -> u32 {
+        self.topology_version
     }
 
     pub fn steps(&self) -> u64 {
@@ -199,7 +211,8 @@ impl Simulation {
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             inst.position = inst.position_at(t1);
             if let Some(cut) = inst.sweep(old.position) {
-                self.model.cut(&cut)?;
+                let info = self.model.cut(&cut)?;
+                self.topology_version = self.topology_version.max(info.topology_version);
             }
         }
         self.refresh_bvh();
@@ -252,10 +265,13 @@ impl Simulation {
 
     fn refresh_bvh(&mut self) {
         let s = self.model.surface();
-        if s.triangles.len() == self.bvh.triangle_count() {
+        if s.triangles.len() == self.bvh.triangle_count()
+            && self.bvh_topology == self.topology_version
+        {
             self.bvh.refit(s.positions, s.triangles);
         } else {
             self.bvh = Bvh::build(s.positions, s.triangles);
+            self.bvh_topology = self.topology_version;
         }
     }
 

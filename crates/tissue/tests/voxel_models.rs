@@ -85,6 +85,8 @@ fn linked_volumes_cut_scene_cuts_springs_and_draws_a_closed_surface() {
     }
     let after = sim.model().info().elements;
     assert!(after + 100 < springs, "{after} of {springs}");
+    // The cuts re-connected the surface: the simulation saw the topology change.
+    assert!(sim.topology_version() > 0);
     assert_closed(sim.model().surface().triangles);
     // Pressed down next to the cut, the tissue still pushes the probe up.
     assert!(pressed.y > 1e-3, "{pressed}");

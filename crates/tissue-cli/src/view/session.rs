@@ -325,14 +325,21 @@ impl Session {
         if let (Some(p), Some(i)) = (self.grasp, self.index_of(GRASPER)) {
             let _ = self.sim.set_instrument_position(i, Some(p));
         }
-        let triangles = self.sim.model().surface().triangles.len();
+        let before = (
+            self.sim.model().surface().triangles.len(),
+            self.sim.topology_version(),
+        );
         match step_coupled(&mut self.sim, 0, &self.handle, self.dt) {
             Ok(_) => {
                 self.steps_in_window += 1;
                 if self.cut.as_ref().is_some_and(|j| j.remaining.is_empty()) {
                     self.finish_cut("the cut is done");
                 }
-                if self.sim.model().surface().triangles.len() != triangles {
+                let after = (
+                    self.sim.model().surface().triangles.len(),
+                    self.sim.topology_version(),
+                );
+                if after != before {
                     self.publish_init();
                 }
             }
