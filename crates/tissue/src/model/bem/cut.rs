@@ -490,6 +490,7 @@ impl Bem {
         next.system = system;
         next.assembly_seconds = self.assembly_seconds;
         next.cuts = self.cuts + 1;
+        next.progress = self.progress.clone();
         next.positions[..n0].copy_from_slice(&self.positions);
         let loads = Loads {
             gravity: Vec3::ZERO,
@@ -498,9 +499,14 @@ impl Bem {
                 .map(|v| (v as u32, self.point_forces[v]))
                 .collect(),
         };
-        next.set_constraints(&self.constraints)?;
-        next.set_loads(&loads)?;
+        // The system is already bordered in place, so the uncut model cannot come back: if
+        // the constraints or loads no longer fit the cut body, the cut model (consistent, with
+        // what it accepted) is kept and the error says why.
+        let applied = next
+            .set_constraints(&self.constraints)
+            .and_then(|()| next.set_loads(&loads));
         *self = next;
+        applied?;
         Ok(CutInfo {
             removed_elements: cut.removed_triangles,
             added_vertices: cut.added_vertices,
