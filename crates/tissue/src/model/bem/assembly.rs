@@ -10,7 +10,10 @@
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use crate::error::MeshError;
+use crate::material::Material;
 use crate::math::{Real, Vec3};
+use crate::mesh::SurfaceMesh;
 
 use super::kelvin::Kelvin;
 use super::quadrature::{Rules, side_for};
@@ -208,6 +211,27 @@ pub(crate) struct Geometry {
 }
 
 impl Geometry {
+    /// The elements of `surface` (checked: a degenerate triangle is an error naming it) and
+    /// the Kelvin kernels of `material`.
+    pub fn new(surface: &SurfaceMesh, material: &Material) -> Result<Self, MeshError> {
+        let elements = surface
+            .triangles
+            .iter()
+            .enumerate()
+            .map(|(t, &tri)| {
+                Element::new(&surface.vertices, tri).ok_or(MeshError::DegenerateTriangle {
+                    triangle: t,
+                    area: 0.0,
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            vertices: surface.vertices.clone(),
+            elements,
+            kelvin: Kelvin::new(material.mu(), material.poisson_ratio),
+        })
+    }
+
     /// Corner `corner` of element `e`'s share of G's three columns of that vertex, for every
     /// source: `out[3 * (3 i + l) + k]` (source i, load direction l, component k).
     pub fn element_g_columns(&self, e: usize, corner: usize, rules: &Rules) -> Vec<Real> {

@@ -18,15 +18,14 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use crate::error::{MeshError, SimError};
+use crate::error::SimError;
 use crate::interact::Loads;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::mesh::SurfaceMesh;
 use crate::model::{CutInfo, CutPath, Deformable};
 
-use super::assembly::{Element, Geometry, Influence};
+use super::assembly::{Geometry, Influence};
 use super::border::{influence_after_cut, keep_far_diagonals};
-use super::kelvin::Kelvin;
 use super::model::{Bem, checked_surface};
 use super::system::BemSystem;
 
@@ -410,32 +409,16 @@ impl Bem {
         let start = Instant::now();
         let mut system = match update {
             CutUpdate::Bordering => {
-                let elements = surface
-                    .triangles
-                    .iter()
-                    .enumerate()
-                    .map(|(t, &tri)| {
-                        Element::new(&surface.vertices, tri).ok_or(MeshError::DegenerateTriangle {
-                            triangle: t,
-                            area: 0.0,
-                        })
-                    })
-                    .collect::<Result<Vec<_>, _>>()?;
-                let kelvin = Kelvin::new(self.material.mu(), self.material.poisson_ratio);
+                let geometry = Geometry::new(&surface, &self.material)?;
                 let mut k = cut.changed.clone();
                 k.extend(n0..surface.vertices.len());
                 let (inf, far_rows) = influence_after_cut(
                     &self.system.inf,
                     &surface.vertices,
-                    &elements,
-                    &kelvin,
+                    &geometry.elements,
+                    &geometry.kelvin,
                     &k,
                 );
-                let geometry = Geometry {
-                    vertices: surface.vertices.clone(),
-                    elements,
-                    kelvin,
-                };
                 let mut system = std::mem::replace(&mut self.system, BemSystem::new(empty()));
                 let result = if system.is_factored() {
                     let fixed = system.fixed().to_vec();

@@ -17,8 +17,7 @@ use crate::mesh::SurfaceMesh;
 use crate::model::registry::parse_params;
 use crate::model::{BuildInput, Progress};
 
-use super::assembly::{Element, Geometry, Influence, assemble};
-use super::kelvin::Kelvin;
+use super::assembly::{Geometry, Influence, assemble};
 use super::system::BemSystem;
 use super::viscous::SurfaceGraph;
 
@@ -134,23 +133,8 @@ impl Bem {
             .into());
         }
         let surface = checked_surface(surface)?;
-        let elements = surface
-            .triangles
-            .iter()
-            .enumerate()
-            .map(|(t, &tri)| {
-                Element::new(&surface.vertices, tri).ok_or(MeshError::DegenerateTriangle {
-                    triangle: t,
-                    area: 0.0,
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let kelvin = Kelvin::new(material.mu(), material.poisson_ratio);
-        let geometry = Geometry {
-            vertices: surface.vertices.clone(),
-            elements,
-            kelvin,
-        };
+        let geometry = Geometry::new(&surface, &material)?;
+        let kelvin = geometry.kelvin;
         let n = surface.vertices.len();
         let (inf, assembly_seconds) = match progress {
             Some(report) => {
