@@ -19,6 +19,26 @@ pub fn triangle_area_vector(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     0.5 * (b - a).cross(c - a)
 }
 
+/// Where the segment p→q crosses the triangle (a, b, c), as a fraction of p→q
+/// (Möller–Trumbore; the triangle's edges and the segment's ends count as crossing, within
+/// 1e-12 in barycentric terms; a segment parallel to the plane does not cross).
+pub fn segment_triangle(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> Option<Real> {
+    const EPS: Real = 1e-12;
+    let d = q - p;
+    let (e1, e2) = (b - a, c - a);
+    let h = d.cross(e2);
+    let det = e1.dot(h);
+    if det.abs() <= EPS * e1.length() * e2.length() * d.length() {
+        return None;
+    }
+    let s = p - a;
+    let u = s.dot(h) / det;
+    let k = s.cross(e1);
+    let v = d.dot(k) / det;
+    let t = e2.dot(k) / det;
+    (u >= -EPS && v >= -EPS && u + v <= 1.0 + EPS && (0.0..=1.0).contains(&t)).then_some(t)
+}
+
 /// True when every component is finite (no NaN, no infinity).
 #[inline]
 pub fn is_finite_vec(v: Vec3) -> bool {
@@ -57,6 +77,31 @@ pub fn unflatten_mut(v: &mut [Real]) -> &mut [Vec3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn segment_triangle_gives_the_crossing_fraction_and_counts_edges() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let through =
+            |x: Real, y: Real| segment_triangle(Vec3::new(x, y, -1.0), Vec3::new(x, y, 3.0), tri);
+        assert_eq!(through(0.25, 0.25), Some(0.25));
+        assert_eq!(through(0.5, 0.5), Some(0.25)); // on the hypotenuse
+        assert_eq!(through(0.0, 0.0), Some(0.25)); // a corner
+        assert_eq!(through(0.6, 0.6), None);
+        assert_eq!(through(-0.01, 0.5), None);
+        // Ends: touching counts, stopping short does not; parallel never crosses.
+        assert_eq!(
+            segment_triangle(Vec3::new(0.2, 0.2, 0.0), Vec3::new(0.2, 0.2, 1.0), tri),
+            Some(0.0)
+        );
+        assert_eq!(
+            segment_triangle(Vec3::new(0.2, 0.2, 0.5), Vec3::new(0.2, 0.2, 1.0), tri),
+            None
+        );
+        assert_eq!(
+            segment_triangle(Vec3::new(-1.0, 0.2, 0.0), Vec3::new(2.0, 0.2, 0.0), tri),
+            None
+        );
+    }
 
     #[test]
     fn unit_tet_volume_is_one_sixth() {

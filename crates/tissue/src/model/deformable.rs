@@ -2,7 +2,7 @@
 
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
-use crate::math::{Real, Vec3};
+use crate::math::{Real, Vec3, is_finite_vec, segment_triangle};
 
 use super::Progress;
 
@@ -68,6 +68,30 @@ pub struct ModelInfo {
 pub struct CutPath {
     pub start: [Vec3; 2],
     pub end: [Vec3; 2],
+}
+
+impl CutPath {
+    /// The swept quad as two triangles.
+    pub fn triangles(&self) -> [[Vec3; 3]; 2] {
+        let [s0, s1] = self.start;
+        let [e0, e1] = self.end;
+        [[s0, s1, e1], [s0, e1, e0]]
+    }
+
+    /// True if every blade position is finite.
+    pub fn is_finite(&self) -> bool {
+        self.start
+            .iter()
+            .chain(&self.end)
+            .all(|p| is_finite_vec(*p))
+    }
+
+    /// Where the segment p→q crosses the swept quad, as a fraction of p→q.
+    pub fn crossing(&self, p: Vec3, q: Vec3) -> Option<Real> {
+        self.triangles()
+            .into_iter()
+            .find_map(|t| segment_triangle(p, q, t))
+    }
 }
 
 /// What a cut changed.

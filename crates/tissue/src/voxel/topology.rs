@@ -9,7 +9,7 @@
 //! diagonals; a model with n neighbours uses directions 0..n. A link is stored on both of
 //! its voxels (bit d on a, bit d ^ 1 on b) and reported once, as (a, d) with d odd.
 
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Real, Vec3};
 use crate::model::CutPath;
 
 use super::VoxelGrid;
@@ -216,7 +216,6 @@ impl VoxelLinks {
     /// Removes every link whose segment between the current positions `x(voxel)` crosses
     /// the blade's swept quad; returns the links removed.
     pub fn cut(&mut self, x: impl Fn(usize) -> Vec3, blade: &CutPath) -> Vec<Link> {
-        let tris = blade_triangles(blade);
         let reach = self.spacing.max_element() * 2.0;
         let (mut lo, mut hi) = (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY));
         for p in blade.start.iter().chain(&blade.end) {
@@ -234,7 +233,7 @@ impl VoxelLinks {
             }
             for d in (1..self.directions).step_by(2) {
                 if let Some(b) = self.linked(a, d)
-                    && crosses_blade(&tris, xa, x(b))
+                    && blade.crossing(xa, x(b)).is_some()
                 {
                     self.unlink(a, d);
                     removed.push((a as u32, d as u8));
@@ -296,50 +295,6 @@ fn canonical(a: usize, b: usize, d: usize) -> Link {
     } else {
         (b as u32, (d ^ 1) as u8)
     }
-}
-
-/// The blade's swept quad as two triangles.
-pub fn blade_triangles(blade: &CutPath) -> [[Vec3; 3]; 2] {
-    let [s0, s1] = blade.start;
-    let [e0, e1] = blade.end;
-    [[s0, s1, e1], [s0, e1, e0]]
-}
-
-/// True if a blade is finite everywhere.
-pub fn blade_is_finite(blade: &CutPath) -> bool {
-    blade
-        .start
-        .iter()
-        .chain(&blade.end)
-        .all(|p| is_finite_vec(*p))
-}
-
-/// True if segment p→q crosses either blade triangle.
-pub fn crosses_blade(tris: &[[Vec3; 3]; 2], p: Vec3, q: Vec3) -> bool {
-    tris.iter().any(|t| segment_hits(p, q, *t))
-}
-
-/// True if segment p→q crosses triangle (a, b, c) (Möller-Trumbore, ends included).
-fn segment_hits(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> bool {
-    let d = q - p;
-    let (e1, e2) = (b - a, c - a);
-    let h = d.cross(e2);
-    let det = e1.dot(h);
-    if det.abs() < 1e-300 {
-        return false;
-    }
-    let s = p - a;
-    let u = s.dot(h) / det;
-    if !(0.0..=1.0).contains(&u) {
-        return false;
-    }
-    let qv = s.cross(e1);
-    let v = d.dot(qv) / det;
-    if v < 0.0 || u + v > 1.0 {
-        return false;
-    }
-    let t = e2.dot(qv) / det;
-    (0.0..=1.0).contains(&t)
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use crate::error::SimError;
 use crate::interact::Loads;
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Real, Vec3, segment_triangle};
 use crate::mesh::SurfaceMesh;
 use crate::model::{CutInfo, CutPath, Deformable};
 
@@ -54,23 +54,6 @@ fn bad(reason: String) -> SimError {
     }
 }
 
-/// Where segment p→q crosses the triangle (a, b, c), as a fraction of p→q.
-fn segment_hits(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> Option<Real> {
-    let d = q - p;
-    let (e1, e2) = (b - a, c - a);
-    let h = d.cross(e2);
-    let det = e1.dot(h);
-    if det.abs() <= 1e-12 * e1.length() * e2.length() * d.length() {
-        return None;
-    }
-    let s = p - a;
-    let u = s.dot(h) / det;
-    let k = s.cross(e1);
-    let v = d.dot(k) / det;
-    let t = e2.dot(k) / det;
-    (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && (0.0..=1.0).contains(&t)).then_some(t)
-}
-
 /// Distance along the ray x + t d to the nearest triangle other than `skip`, if any.
 fn ray_distance(s: &SurfaceMesh, x: Vec3, d: Vec3, skip: [usize; 2]) -> Option<Real> {
     let far = x + d;
@@ -80,7 +63,7 @@ fn ray_distance(s: &SurfaceMesh, x: Vec3, d: Vec3, skip: [usize; 2]) -> Option<R
             let [a, b, c] = s.corners(t);
             // The infinite ray: intersect with a long segment.
             let span = 1e3 * ((a - x).length() + 1.0);
-            segment_hits(x, x + (far - x) * span, [a, b, c]).map(|f| f * span)
+            segment_triangle(x, x + (far - x) * span, [a, b, c]).map(|f| f * span)
         })
         .min_by(Real::total_cmp)
 }
@@ -153,14 +136,9 @@ pub(crate) fn incise(
     blade: &CutPath,
     opening: Real,
 ) -> Result<Option<Incision>, SimError> {
-    let corners = [blade.start[0], blade.start[1], blade.end[1], blade.end[0]];
-    if !corners.iter().all(|p| is_finite_vec(*p)) {
+    if !blade.is_finite() {
         return Err(bad("the blade positions are not finite".into()));
     }
-    let quad = [
-        [corners[0], corners[1], corners[2]],
-        [corners[0], corners[2], corners[3]],
-    ];
     let (x, tris) = (&surface.vertices, &surface.triangles);
     let mut edge_tris: HashMap<[u32; 2], Vec<usize>> = HashMap::new();
     for (t, tri) in tris.iter().enumerate() {
@@ -175,7 +153,7 @@ pub(crate) fn incise(
     let mut crossed = HashMap::new();
     for e in edge_tris.keys() {
         let (p, q) = (vx(e[0]), vx(e[1]));
-        if let Some(s) = quad.iter().find_map(|t| segment_hits(p, q, *t)) {
+        if let Some(s) = blade.crossing(p, q) {
             crossed.insert(*e, s.clamp(MARGIN, 1.0 - MARGIN));
         }
     }

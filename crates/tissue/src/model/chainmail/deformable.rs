@@ -12,7 +12,6 @@ use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
 use crate::voxel::boundary::redraw;
-use crate::voxel::topology::{blade_is_finite, blade_triangles, crosses_blade};
 
 use super::ChainMail;
 
@@ -212,7 +211,7 @@ impl Deformable for ChainMail {
 
     /// Removes every link whose segment (current positions) crosses the blade's swept quad.
     fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        if !blade_is_finite(blade) {
+        if !blade.is_finite() {
             return Err(SimError::BadParameter {
                 name: "cut",
                 value: format!("{blade:?}"),
@@ -223,10 +222,9 @@ impl Deformable for ChainMail {
         let removed = self.lattice.topology.cut(|v| x[v], blade).len();
         if removed > 0 {
             // The given surface's vertices drop the elements now across the blade.
-            let tris = blade_triangles(blade);
             let (surface, x) = (&self.surface, &self.lattice.x);
             self.embedding
-                .rebind(|v, n| !crosses_blade(&tris, surface[v], x[n as usize]));
+                .rebind(|v, n| blade.crossing(surface[v], x[n as usize]).is_none());
             self.topology_changed();
         }
         Ok(CutInfo {

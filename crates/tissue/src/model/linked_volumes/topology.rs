@@ -17,7 +17,7 @@ use crate::error::SimError;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{CutInfo, CutPath};
 use crate::voxel::boundary::redraw;
-use crate::voxel::topology::{Link, blade_is_finite, blade_triangles, crosses_blade};
+use crate::voxel::topology::Link;
 
 use super::{LinkedVolumes, spring_for};
 
@@ -25,7 +25,7 @@ impl LinkedVolumes {
     /// Removes every spring crossing the blade's swept quad (current positions); the
     /// `Deformable::cut` of this model.
     pub fn cut_links(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        if !blade_is_finite(blade) {
+        if !blade.is_finite() {
             return Err(SimError::BadParameter {
                 name: "cut",
                 value: format!("{blade:?}"),
@@ -37,10 +37,9 @@ impl LinkedVolumes {
         let removed = self.topology.cut(at, blade);
         if !removed.is_empty() {
             self.remove_springs(&removed);
-            let tris = blade_triangles(blade);
             let (surface, x) = (&self.surface, &self.state.x);
             self.embedding
-                .rebind(|v, n| !crosses_blade(&tris, surface[v], x[n as usize]));
+                .rebind(|v, n| blade.crossing(surface[v], x[n as usize]).is_none());
             self.topology_changed();
         }
         Ok(CutInfo {

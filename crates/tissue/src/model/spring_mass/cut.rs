@@ -26,7 +26,7 @@
 use std::collections::{HashMap, HashSet};
 
 use crate::error::SimError;
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Real, Vec3};
 use crate::mesh::SurfaceMesh;
 use crate::mesh::topology::{edge_faces, triangle_edges};
 use crate::model::{CutInfo, CutPath, Deformable};
@@ -47,50 +47,26 @@ pub(crate) struct Cutter {
     tips: HashSet<u32>,
 }
 
-/// Where segment p→q crosses the triangle (a, b, c), as a fraction of p→q.
-fn segment_hits_triangle(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> Option<Real> {
-    let d = q - p;
-    let (e1, e2) = (b - a, c - a);
-    let h = d.cross(e2);
-    let det = e1.dot(h);
-    let scale = e1.length() * e2.length() * d.length();
-    if det.abs() <= 1e-12 * scale {
-        return None;
-    }
-    let s = p - a;
-    let u = s.dot(h) / det;
-    let k = s.cross(e1);
-    let v = d.dot(k) / det;
-    let t = e2.dot(k) / det;
-    let eps = 1e-12;
-    (u >= -eps && v >= -eps && u + v <= 1.0 + eps && (0.0..=1.0).contains(&t)).then_some(t)
-}
-
 #[inline]
 fn key(a: u32, b: u32) -> [u32; 2] {
     if a < b { [a, b] } else { [b, a] }
 }
 
 pub(crate) fn cut_model(model: &mut SpringModel, blade: &CutPath) -> Result<CutInfo, SimError> {
-    let corners = [blade.start[0], blade.start[1], blade.end[1], blade.end[0]];
-    if !corners.iter().all(|p| is_finite_vec(*p)) {
+    if !blade.is_finite() {
         return Err(SimError::BadParameter {
             name: "cut",
             value: format!("{blade:?}"),
             reason: "the blade positions are not finite".into(),
         });
     }
-    let quad = [
-        [corners[0], corners[1], corners[2]],
-        [corners[0], corners[2], corners[3]],
-    ];
     let x = &model.state.x;
     let old_edges = triangle_edges(&model.triangles);
     // 1. Crossings: this sweep's, then the pending ones of edges that still exist.
     let mut crossed: HashMap<[u32; 2], Real> = HashMap::new();
     for &[a, b] in &old_edges {
         let (p, q) = (x[a as usize], x[b as usize]);
-        if let Some(s) = quad.iter().find_map(|t| segment_hits_triangle(p, q, *t)) {
+        if let Some(s) = blade.crossing(p, q) {
             crossed.insert([a, b], s.clamp(MARGIN, 1.0 - MARGIN));
         }
     }

@@ -13,7 +13,7 @@
 //! the fragments: every piece split off from its piece but the largest (the main body stays
 //! the main body), reported once, then removed or kept as the `fragments` setting says.
 
-use crate::math::{Real, Vec3};
+use crate::math::{Real, Vec3, segment_triangle};
 use crate::mesh::TET_FACES;
 use crate::model::CutPath;
 
@@ -121,7 +121,7 @@ impl Cutter {
         };
         let [a, b] = blade.start;
         let [c, d] = blade.end;
-        let quads = [[a, b, d], [a, d, c]];
+        let quads = blade.triangles();
         let (lo, hi) = (a.min(b).min(c).min(d), a.max(b).max(c).max(d));
         let candidates = self.locator.candidates(&quads);
         report.examined = candidates.len();
@@ -210,30 +210,6 @@ impl Cutter {
     }
 }
 
-/// Where segment p→q crosses triangle (a, b, c), if it does (Möller–Trumbore).
-fn segment_hits_triangle(p: Vec3, q: Vec3, tri: &[Vec3; 3]) -> bool {
-    let dir = q - p;
-    let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
-    let h = dir.cross(e2);
-    let det = e1.dot(h);
-    if det.abs() <= 1e-300 {
-        return false;
-    }
-    let inv = 1.0 / det;
-    let s = p - tri[0];
-    let u = s.dot(h) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return false;
-    }
-    let qv = s.cross(e1);
-    let v = dir.dot(qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return false;
-    }
-    let t = e2.dot(qv) * inv;
-    (0.0..=1.0).contains(&t)
-}
-
 fn inside_tet(p: Vec3, x: &[Vec3; 4]) -> bool {
     let vol = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| (b - a).dot((c - a).cross(d - a));
     let total = vol(x[0], x[1], x[2], x[3]);
@@ -252,13 +228,13 @@ pub fn tet_meets_triangle(x: &[Vec3; 4], tri: &[Vec3; 3]) -> bool {
     const EDGES: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
     if EDGES
         .iter()
-        .any(|[i, j]| segment_hits_triangle(x[*i], x[*j], tri))
+        .any(|[i, j]| segment_triangle(x[*i], x[*j], *tri).is_some())
     {
         return true;
     }
     for f in TET_FACES {
         let face = [x[f[0]], x[f[1]], x[f[2]]];
-        if (0..3).any(|k| segment_hits_triangle(tri[k], tri[(k + 1) % 3], &face)) {
+        if (0..3).any(|k| segment_triangle(tri[k], tri[(k + 1) % 3], face).is_some()) {
             return true;
         }
     }
