@@ -294,3 +294,35 @@ impl Geometry {
         (rim, area)
     }
 }
+
+impl Geometry {
+    /// G times a traction given per triangle corner (`t[e][a]` at corner a of element e, so
+    /// it may jump across edges and at rims): Σ_e Σ_a ∫ U* φ_a t[e][a] dΓ for every source,
+    /// as 3n values (source i, load direction l at 3i + l). The same rules as `assemble`,
+    /// so a traction that is continuous gives exactly G times its vertex values.
+    pub fn g_times_corner_tractions(&self, t: &[[Vec3; 3]]) -> Vec<Real> {
+        let n = self.vertices.len();
+        let rules = Rules::new();
+        let mut out = vec![0.0; 3 * n];
+        let row = |(i, r): (usize, &mut [Real])| {
+            for (e, el) in self.elements.iter().enumerate() {
+                let Some(te) = t.get(e) else { continue };
+                let (_, ge) =
+                    element_integrals(i, self.vertices[i], el, &self.kelvin, &rules, false);
+                for (a, ta) in te.iter().enumerate() {
+                    for (l, rl) in r.iter_mut().enumerate() {
+                        *rl += ge[a][l][0] * ta.x + ge[a][l][1] * ta.y + ge[a][l][2] * ta.z;
+                    }
+                }
+            }
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            out.par_chunks_mut(3).enumerate().for_each(row);
+        }
+        #[cfg(not(feature = "parallel"))]
+        out.chunks_mut(3).enumerate().for_each(row);
+        out
+    }
+}

@@ -454,7 +454,7 @@ impl Bem {
         next.progress = self.progress.clone();
         next.positions[..n0].copy_from_slice(&self.positions);
         let loads = Loads {
-            gravity: Vec3::ZERO,
+            gravity: self.gravity,
             point_loads: (0..n0)
                 .filter(|&v| self.point_forces[v] != Vec3::ZERO)
                 .map(|v| (v as u32, self.point_forces[v]))

@@ -19,6 +19,12 @@ impl Bem {
         if self.system.is_factored() {
             self.system
                 .load_response(&self.load_traction, &mut self.u_load)?;
+            self.gravity_response()?;
+            if let Some(body) = &self.body {
+                for (u, g) in self.u_load.iter_mut().zip(&body.x) {
+                    *u += g;
+                }
+            }
         }
         Ok(())
     }
@@ -40,21 +46,33 @@ impl Bem {
     fn solve_static(&mut self) -> Result<(), SimError> {
         let m = 3 * self.contact_targets.len();
         self.p_contact.resize(m, 0.0);
+        // Gravity: the homogeneous problem holds the contacts at u* − u_p.
+        let body = self.body.as_ref();
+        let particular = |x: Vec3| body.map_or(Vec3::ZERO, |b| b.force.displacement(x));
+        self.homogeneous_targets.clear();
+        for (k, &v) in self.system.contacts().iter().enumerate() {
+            let shift = particular(self.surface.vertices[v]);
+            self.homogeneous_targets
+                .push(self.contact_targets.get(k).copied().unwrap_or(Vec3::ZERO) - shift);
+        }
         self.system.solve(
-            &self.contact_targets,
+            &self.homogeneous_targets,
             &self.u_load,
             &mut self.x,
             &mut self.p_contact,
         )?;
         let fixed = self.system.fixed();
         let at = |x: &[Real], v: usize| Vec3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
+        let support_area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
         for (v, &is_fixed) in fixed.iter().enumerate() {
             let rest = self.surface.vertices[v];
             if is_fixed {
                 self.target[v] = rest;
-                self.traction[v] = at(&self.x, v);
+                // The particular field's traction over the support, as a mean traction.
+                let extra = body.map_or(Vec3::ZERO, |b| b.support[v] / support_area(v));
+                self.traction[v] = at(&self.x, v) + extra;
             } else {
-                self.target[v] = rest + at(&self.x, v);
+                self.target[v] = rest + at(&self.x, v) + particular(rest);
                 self.traction[v] = at(&self.load_traction, v);
             }
         }
@@ -145,15 +163,15 @@ impl Deformable for Bem {
         Ok(())
     }
 
-    /// Point loads become tractions over their vertex's tributary area. Gravity is refused:
-    /// a body force needs a volume integral that a surface-only model does not have.
+    /// Point loads become tractions over their vertex's tributary area; gravity (times the
+    /// density) acts through a particular solution (`body_force`), computed once per gravity
+    /// and fixed set, O(n²).
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        if loads.gravity != Vec3::ZERO {
-            return Err(SimError::Unsupported {
-                model: "bem",
-                operation: "gravity",
-                reason: "body forces need a volume integral; the BEM discretises only the surface"
-                    .into(),
+        if !is_finite_vec(loads.gravity) {
+            return Err(SimError::BadParameter {
+                name: "gravity",
+                value: loads.gravity.to_string(),
+                reason: "must be finite".into(),
             });
         }
         let n = self.surface.vertices.len();
@@ -172,12 +190,28 @@ impl Deformable for Bem {
             }
             *slot += f;
         }
-        for (v, f) in forces.iter().enumerate() {
+        // Nothing changes on error (a non-finite gravity response).
+        let before = (
+            self.load_traction.clone(),
+            std::mem::replace(&mut self.point_forces, forces),
+            std::mem::replace(&mut self.gravity, loads.gravity),
+            self.u_load.clone(),
+        );
+        for (v, f) in self.point_forces.iter().enumerate() {
             let p = *f / self.areas[v];
             self.load_traction[3 * v..3 * v + 3].copy_from_slice(&[p.x, p.y, p.z]);
         }
-        self.point_forces = forces;
-        self.refresh_load_response()
+        let refreshed = self.refresh_load_response();
+        if refreshed.is_err() {
+            (
+                self.load_traction,
+                self.point_forces,
+                self.gravity,
+                self.u_load,
+            ) = before;
+            self.body = None;
+        }
+        refreshed
     }
 
     /// The static solution; with `alpha > 0`, one step of eq. 13 toward it.

@@ -6,9 +6,11 @@
 //! `quadrature`). The system is reordered by column exchange and pre-inverted for the fixed
 //! vertices; contacts enter by the Woodbury formula (`system`). Reactions are tractions times
 //! tributary areas. With `alpha > 0` the static solution becomes a target approached with
-//! eq. 13 (`viscous`). Body forces (gravity) would need a volume integral and are refused.
+//! eq. 13 (`viscous`). Gravity enters through a particular solution (`body_force`), so no
+//! volume integral is needed.
 
 mod assembly;
+mod body_force;
 mod border;
 mod cut;
 mod deformable;

@@ -18,6 +18,7 @@ use crate::model::registry::parse_params;
 use crate::model::{BuildInput, Progress};
 
 use super::assembly::{Geometry, Influence, assemble};
+use super::body_force::GravityResponse;
 use super::system::BemSystem;
 use super::viscous::SurfaceGraph;
 
@@ -76,6 +77,11 @@ pub struct Bem {
     pub(super) pending_assembly: bool,
     /// Incisions made (`CutInfo::topology_version`).
     pub(super) cuts: u32,
+    /// Gravity (m/s²) and its particular solution and response (`body_force`).
+    pub(super) gravity: Vec3,
+    pub(super) body: Option<GravityResponse>,
+    /// The contacts' targets for the homogeneous problem (u* − u_p), reused per step.
+    pub(super) homogeneous_targets: Vec<Vec3>,
 }
 
 impl std::fmt::Debug for Bem {
@@ -217,6 +223,9 @@ impl Bem {
             progress: Progress::silent(),
             pending_assembly: false,
             cuts: 0,
+            gravity: Vec3::ZERO,
+            body: None,
+            homogeneous_targets: Vec::new(),
             surface,
         }
     }

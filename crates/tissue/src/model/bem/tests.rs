@@ -333,7 +333,7 @@ fn bad_input_is_refused_with_its_reason() {
             .is_err()
     );
     let loads = Loads {
-        gravity: Vec3::new(0.0, 0.0, -9.81),
+        gravity: Vec3::new(0.0, Real::NAN, -9.81),
         point_loads: vec![],
     };
     let e = m.set_loads(&loads).unwrap_err().to_string();
