@@ -375,3 +375,60 @@ fn tets_volume(m: &TetMesh) -> Real {
         })
         .sum()
 }
+
+/// What gravity costs on the 2194-vertex liver-smooth.obj: one sweep of G over the surface
+/// and one solve with the kept LU, once per gravity and fixed set; the static update keeps
+/// its cost. Prints the timings.
+#[test]
+#[ignore = "slow: pre-computes the 6582-unknown BEM of liver-smooth.obj, prints timings"]
+fn liver_smooth_gravity_speed() {
+    use std::time::Instant;
+    const LIVER_SMOOTH: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/meshes/liver-smooth.obj"
+    );
+    let mut surface = tissue::io::read(LIVER_SMOOTH)
+        .unwrap()
+        .surface_mesh()
+        .unwrap();
+    surface.vertices.iter_mut().for_each(|p| *p *= 0.01);
+    let material = Material::new(3000.0, 0.3).unwrap();
+    let mut bem = Bem::new(&surface, material, BemParams::default()).unwrap();
+    // Held at the three ligament patches of scenes/liver-bem.toml.
+    let c = Constraints {
+        fixed: [
+            Vec3::new(-0.0064, 0.0235, 0.0257),
+            Vec3::new(-0.0405, 0.0059, 0.0204),
+            Vec3::new(-0.0296, 0.0194, -0.0165),
+        ]
+        .into_iter()
+        .flat_map(|a| {
+            let rest = &surface.vertices;
+            (0..rest.len() as u32).filter(move |&v| (rest[v as usize] - a).length() < 0.004)
+        })
+        .collect(),
+        prescribed: Vec::new(),
+    };
+    let start = Instant::now();
+    bem.set_constraints(&c).unwrap();
+    let factor = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    bem.set_loads(&gravity()).unwrap();
+    let response = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let steps = 100;
+    for _ in 0..steps {
+        bem.step(0.01).unwrap();
+    }
+    let step = start.elapsed().as_secs_f64() / steps as Real;
+    let sag = displacements(&bem)
+        .iter()
+        .map(|d| d.length())
+        .fold(0.0, Real::max);
+    eprintln!(
+        "liver-smooth ({} vertices, {} held): factorisation {factor:.2} s, gravity response {response:.3} s, static step {:.3} ms, sag {sag:.4e} m",
+        surface.vertices.len(),
+        c.fixed.len(),
+        1e3 * step
+    );
+}
