@@ -362,7 +362,8 @@ fn liver_hanging_from_its_ligaments_matches_quadratic_fem() {
         );
         rows.push(gap);
     }
-    // Measured: 15.28% at 140 surface vertices, 8.86% at 554.
+    // Measured: 15.28% at 140 surface vertices, 8.86% at 554, 3.95% at 2210
+    // (BEM_LIVER_LEVELS=3; the supports then carry the weight to 0.23%).
     assert!(rows[0] < 0.17 && rows[1] < 0.10, "{rows:?}");
     assert!(rows[1] < 0.65 * rows[0], "converges: {rows:?}");
 }
