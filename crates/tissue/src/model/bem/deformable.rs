@@ -9,7 +9,6 @@ use crate::model::{
     CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
 };
 
-use super::cut::CutUpdate;
 use super::model::Bem;
 use super::viscous::relax;
 
@@ -242,9 +241,10 @@ impl Deformable for Bem {
     }
 
     /// Opens the incision as a narrow groove (`cut`) and extends the pre-inverted system by
-    /// bordering (`border`): no re-factorisation.
+    /// bordering (`border`): no re-factorisation. Consecutive sweeps form one stroke whose
+    /// groove opens when the blade leaves the tissue (`stroke`).
     fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        self.incise(blade, CutUpdate::Bordering)
+        self.cut_stroke(blade)
     }
 
     fn set_progress(&mut self, progress: Progress) {
@@ -252,6 +252,7 @@ impl Deformable for Bem {
     }
 
     fn reset(&mut self) {
+        self.pending_cut = None;
         self.positions.copy_from_slice(&self.surface.vertices);
         self.target.copy_from_slice(&self.surface.vertices);
         self.traction.iter_mut().for_each(|t| *t = Vec3::ZERO);

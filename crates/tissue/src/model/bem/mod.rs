@@ -17,6 +17,7 @@ mod deformable;
 mod kelvin;
 mod model;
 mod quadrature;
+mod stroke;
 mod system;
 mod viscous;
 

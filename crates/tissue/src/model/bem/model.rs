@@ -82,6 +82,8 @@ pub struct Bem {
     pub(super) body: Option<GravityResponse>,
     /// The contacts' targets for the homogeneous problem (u* − u_p), reused per step.
     pub(super) homogeneous_targets: Vec<Vec3>,
+    /// A scalpel sweep too short to open a groove yet: its first and last blade positions.
+    pub(super) pending_cut: Option<([Vec3; 2], [Vec3; 2])>,
 }
 
 impl std::fmt::Debug for Bem {
@@ -226,6 +228,7 @@ impl Bem {
             gravity: Vec3::ZERO,
             body: None,
             homogeneous_targets: Vec::new(),
+            pending_cut: None,
             surface,
         }
     }
