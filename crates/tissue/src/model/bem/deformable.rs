@@ -238,8 +238,8 @@ impl Deformable for Bem {
             dofs,
             elements: self.surface.triangles.len(),
             surface_vertices: self.surface.vertices.len(),
-            // H, G, W, and A₀⁻¹ with discontinuous contacts.
-            memory_bytes: (3 + usize::from(self.params.discontinuous_contacts)) * dofs * dofs * 8,
+            // H, G, W, and the contact-rim cache.
+            memory_bytes: 3 * dofs * dofs * 8 + s.rim_cache_usage().0,
             precompute_seconds: self.assembly_seconds + s.last_factor_seconds,
             is_static: self.params.alpha == 0.0,
             details: vec![
@@ -251,6 +251,11 @@ impl Deformable for Bem {
                 ("borderings".into(), s.borderings().to_string()),
                 ("last_cut_s".into(), format!("{:.3}", s.last_cut_seconds)),
                 ("contacts".into(), s.contacts().len().to_string()),
+                ("rim_cache_pairs".into(), s.rim_cache_usage().1.to_string()),
+                (
+                    "rim_pairs_solved".into(),
+                    s.rim_cache_counts().0.to_string(),
+                ),
                 ("alpha".into(), self.params.alpha.to_string()),
             ],
         }

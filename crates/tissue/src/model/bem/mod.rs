@@ -10,6 +10,7 @@
 
 mod assembly;
 mod border;
+mod contact_rims;
 mod cut;
 mod deformable;
 mod kelvin;
@@ -24,6 +25,7 @@ mod tests;
 mod tests_cut;
 
 pub use assembly::Influence;
+pub use contact_rims::DEFAULT_RIM_CACHE_BYTES;
 pub use cut::CutUpdate;
 pub use kelvin::Kelvin;
 pub use model::{Bem, BemParams};

@@ -30,8 +30,10 @@ pub struct BemParams {
     pub alpha: Real,
     /// Contacts' tractions discontinuous at the contact rim, as the fixed vertices' are:
     /// closer to quadratic FEM (block indentation: force gap 22% → 14% at 258 surface
-    /// vertices) but a static update costs O(n²) instead of O(n·contacts) and A₀⁻¹ is kept
-    /// (memory × 4/3). Off by default: the real-time path.
+    /// vertices). A static update costs O(n·contacts) as without it; a contact change
+    /// solves A₀ for the contact-rim triangles not seen before (3 columns each, cached up
+    /// to `DEFAULT_RIM_CACHE_BYTES`), so a probe moving onto new triangles pays O(n²) per
+    /// new triangle once. Off by default.
     #[serde(default)]
     pub discontinuous_contacts: bool,
     /// Deprecated and ignored (scenes that set it still load): models built from a scene
@@ -219,6 +221,29 @@ impl Bem {
             cuts: 0,
             surface,
         }
+    }
+
+    /// Switches `discontinuous_contacts` on a built model (no re-factorisation: the contact
+    /// set is re-applied with the new rule).
+    pub fn set_discontinuous_contacts(&mut self, on: bool) -> Result<(), SimError> {
+        self.params.discontinuous_contacts = on;
+        let contacts = self.system.contacts().to_vec();
+        self.system.set_contact_rims(on);
+        if self.system.is_factored() {
+            self.system.set_contacts(&contacts)?;
+        }
+        Ok(())
+    }
+
+    /// Solves ahead for the contact-rim triangles of `vertices` (see
+    /// `BemSystem::warm_rim_cache`); returns the (triangle, corner) pairs solved.
+    pub fn warm_contact_rims(&mut self, vertices: &[usize]) -> usize {
+        self.system.warm_rim_cache(vertices)
+    }
+
+    /// The byte budget of the contact-rim cache (`BemSystem::set_rim_cache_budget`).
+    pub fn set_rim_cache_budget(&mut self, bytes: usize) {
+        self.system.set_rim_cache_budget(bytes);
     }
 
     pub fn params(&self) -> &BemParams {
