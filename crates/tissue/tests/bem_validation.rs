@@ -520,7 +520,11 @@ fn liver_smooth_speed() {
             .collect(),
     };
     let first = set(&order[..20]);
-    let second = set(&order[..10].iter().chain(&order[20..30]).copied().collect::<Vec<_>>());
+    let second = set(&order[..10]
+        .iter()
+        .chain(&order[20..30])
+        .copied()
+        .collect::<Vec<_>>());
     let reps = 200;
     let mut force = Vec::new();
     for rule in ["default", "discontinuous_contacts"] {

@@ -36,6 +36,51 @@ impl Bem {
         }
     }
 
+    /// Checks `c` (as `Constraints::surface_displacements` does: a vertex that does not
+    /// exist or a non-finite target is an error naming it) into the reused masks: the fixed
+    /// set, each vertex's held displacement (fixed wins, the last prescribed entry counts)
+    /// and the contacts (held, not fixed), ascending. Nothing of the model changes.
+    fn stage_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let rest = &self.surface.vertices;
+        let n = rest.len();
+        let bad = |v: u32| SimError::BadConstraint {
+            vertex: v as usize,
+            count: n,
+        };
+        if let Some(&v) = c.fixed.iter().find(|&&v| v as usize >= n) {
+            return Err(bad(v));
+        }
+        for p in &c.prescribed {
+            if p.vertex as usize >= n {
+                return Err(bad(p.vertex));
+            }
+            if !is_finite_vec(p.position) {
+                return Err(SimError::BadParameter {
+                    name: "prescribed",
+                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
+                    reason: "the target position is not finite".into(),
+                });
+            }
+        }
+        let s = &mut self.scratch;
+        s.fixed.clear();
+        s.fixed.resize(n, false);
+        for &v in &c.fixed {
+            s.fixed[v as usize] = true;
+        }
+        s.held.clear();
+        s.held.resize(n, None);
+        for p in &c.prescribed {
+            let v = p.vertex as usize;
+            if !s.fixed[v] {
+                s.held[v] = Some(p.position - rest[v]);
+            }
+        }
+        s.contacts.clear();
+        s.contacts.extend((0..n).filter(|&v| s.held[v].is_some()));
+        Ok(())
+    }
+
     /// Static solution from the current constraints and loads: targets, tractions, reactions.
     fn solve_static(&mut self) -> Result<(), SimError> {
         let m = 3 * self.contact_targets.len();
@@ -103,45 +148,56 @@ impl Deformable for Bem {
 
     /// A new fixed set re-factorises (O(n³)); a new contact set costs a Woodbury update.
     /// Reactions go to the first fixed entry of a vertex, else its last prescribed entry.
+    /// With the same vertices as the last call (targets may move) nothing is allocated.
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = c.surface_displacements(&self.surface.vertices)?;
-        let n = self.surface.vertices.len();
-        let mut fixed = vec![false; n];
-        for &v in &c.fixed {
-            fixed[v as usize] = true;
-        }
-        let contacts: Vec<usize> = (0..n).filter(|&v| !fixed[v] && disp[v].is_some()).collect();
+        self.stage_constraints(c)?;
         self.assemble_pending();
-        if fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
+        if self.scratch.fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
             let stage = "bem: factorising A0 and W = A0^-1 G";
             self.progress.report(stage, 0.0);
-            self.system.factor(&fixed)?;
+            self.system.factor(&self.scratch.fixed)?;
             self.progress.report(stage, 1.0);
             self.refresh_load_response()?;
         }
-        let changed = contacts.as_slice() != self.system.contacts();
-        self.system.set_contacts(&contacts)?;
+        let changed = self.scratch.contacts.as_slice() != self.system.contacts();
+        self.system.set_contacts(&self.scratch.contacts)?;
         if changed {
             self.update_distances();
         }
-        self.contact_targets = contacts
-            .iter()
-            .map(|&v| disp[v].unwrap_or(Vec3::ZERO))
-            .collect();
-        let mut taken = vec![false; n];
-        self.fixed_owner = c
-            .fixed
-            .iter()
-            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-            .collect();
-        let mut owner = vec![false; c.prescribed.len()];
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+        self.contact_targets.clear();
+        let held = &self.scratch.held;
+        self.contact_targets.extend(
+            self.scratch
+                .contacts
+                .iter()
+                .map(|&v| held[v].unwrap_or(Vec3::ZERO)),
+        );
+        let same_vertices = c.fixed == self.constraints.fixed
+            && c.prescribed.len() == self.constraints.prescribed.len()
+            && c.prescribed
+                .iter()
+                .zip(&self.constraints.prescribed)
+                .all(|(a, b)| a.vertex == b.vertex);
+        if !same_vertices || self.fixed_owner.len() != c.fixed.len() {
+            let mut taken = vec![false; self.surface.vertices.len()];
+            self.fixed_owner = c
+                .fixed
+                .iter()
+                .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
+                .collect();
+            let mut owner = vec![false; c.prescribed.len()];
+            for (k, p) in c.prescribed.iter().enumerate().rev() {
+                owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+            }
+            self.prescribed_owner = owner;
         }
-        self.prescribed_owner = owner;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
+        self.fixed_reactions.clear();
+        self.fixed_reactions.resize(c.fixed.len(), Vec3::ZERO);
+        self.prescribed_reactions.clear();
+        self.prescribed_reactions
+            .resize(c.prescribed.len(), Vec3::ZERO);
+        self.constraints.fixed.clone_from(&c.fixed);
+        self.constraints.prescribed.clone_from(&c.prescribed);
         Ok(())
     }
 

@@ -78,6 +78,19 @@ pub struct Bem {
     pub(super) pending_assembly: bool,
     /// Incisions made (`CutInfo::topology_version`).
     pub(super) cuts: u32,
+    /// Masks `set_constraints` reuses, so that moving targets allocate nothing.
+    pub(super) scratch: ConstraintScratch,
+}
+
+/// The constraints of the last `set_constraints` call, per vertex (see
+/// `Bem::stage_constraints`).
+#[derive(Debug, Default)]
+pub(super) struct ConstraintScratch {
+    pub fixed: Vec<bool>,
+    /// Held displacement of each non-fixed vertex with a prescribed target.
+    pub held: Vec<Option<Vec3>>,
+    /// The vertices with `held`, ascending.
+    pub contacts: Vec<usize>,
 }
 
 impl std::fmt::Debug for Bem {
@@ -219,6 +232,7 @@ impl Bem {
             progress: Progress::silent(),
             pending_assembly: false,
             cuts: 0,
+            scratch: ConstraintScratch::default(),
             surface,
         }
     }
