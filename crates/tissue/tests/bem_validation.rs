@@ -545,6 +545,20 @@ fn liver_smooth_speed() {
                 "[{rule}] contact change of 10 vertices, cold ({solved} new rim pairs): {}",
                 ms(cold, 1)
             );
+            // The same change after warming the ring around the patch (in idle time).
+            bem.set_rim_cache_budget(0);
+            bem.set_rim_cache_budget(tissue::model::bem::DEFAULT_RIM_CACHE_BYTES);
+            bem.set_constraints(&first).unwrap();
+            let (ring, warm) = timed(|| bem.warm_contact_rims_near(1));
+            let before = bem.system().rim_cache_counts().0;
+            let ((), after_warm) = timed(|| bem.set_constraints(&second).unwrap());
+            let solved = bem.system().rim_cache_counts().0 - before;
+            eprintln!(
+                "[{rule}] warming the 1-ring around 20 contacts ({ring} pairs): {}; then the \
+                 change of 10 vertices ({solved} new rim pairs): {}",
+                ms(warm, 1),
+                ms(after_warm, 1)
+            );
             bem.set_constraints(&first).unwrap();
         }
         bem.step(0.01).unwrap();

@@ -255,6 +255,13 @@ impl Bem {
         self.system.warm_rim_cache(vertices)
     }
 
+    /// `warm_contact_rims` for the vertices within `rings` edges of the current contacts:
+    /// where a moving probe goes next. Meant for idle time between contact changes.
+    pub fn warm_contact_rims_near(&mut self, rings: usize) -> usize {
+        let around = self.graph.within_rings(self.system.contacts(), rings);
+        self.system.warm_rim_cache(&around)
+    }
+
     /// The byte budget of the contact-rim cache (`BemSystem::set_rim_cache_budget`).
     pub fn set_rim_cache_budget(&mut self, bytes: usize) {
         self.system.set_rim_cache_budget(bytes);

@@ -651,6 +651,17 @@ fn rim_cache_hits_equal_cold_computations() {
         before,
         "{warmed} warmed"
     );
+    // Warming the rings around the current patch covers the next, shifted patch.
+    let mut near = Bem::new(&s, material(), params).unwrap();
+    press_step(&mut near, first);
+    let around = near.warm_contact_rims_near(2);
+    let before = near.system().rim_cache_counts().0;
+    assert!(press_step(&mut near, second) == partly);
+    assert_eq!(
+        near.system().rim_cache_counts().0,
+        before,
+        "{around} warmed"
+    );
     let (bytes, pairs) = ahead.system().rim_cache_usage();
     assert_eq!(bytes, pairs * 3 * 3 * rest.len() * 8);
     // The option switched on a built model: the same contact model, no re-factorisation.
