@@ -7,7 +7,9 @@
 //! A₀⁻¹ of that column change is −W̃_{:,c} − E_c with
 //!   W̃_{:,c} = W_{:,c} − Σ_τ q_{τ,c},   q_{τ,c} = A₀⁻¹ g_{τ,c}   (3n × 3),
 //! so the update is the default one with W̃ in place of W: capacitance W̃_CC, static update
-//! x = u_L + W̃_{:,C} P_C, O(n·|C|).
+//! x = u_L + W̃_{:,C} P_C, O(n·|C|). Since Σ over all triangles of c of q_{τ,c} is W_{:,c},
+//! also W̃_{:,c} = Σ_{inner τ} q_{τ,c} over its fully constrained triangles: each contact
+//! uses whichever list is shorter (fewer pairs to solve).
 //!
 //! q depends on the surface and A₀ only, not on the contact set, so it is cached per
 //! (triangle, corner) pair up to a byte budget (the least recently used pairs go first) and
@@ -189,9 +191,28 @@ impl BemSystem {
             *constrained.get_mut(c)? = true;
         }
         let (rim, area) = geo.traction_supports(&constrained);
-        let needed: Vec<(usize, usize)> = contacts
+        // The inner triangles of the contacts with a rim.
+        let mut inner = vec![Vec::new(); rim.len()];
+        for (e, el) in geo.elements.iter().enumerate() {
+            if el.nodes.iter().all(|&v| constrained[v]) {
+                for (corner, &v) in el.nodes.iter().enumerate() {
+                    if !rim[v].is_empty() {
+                        inner[v].push((e, corner));
+                    }
+                }
+            }
+        }
+        // Per contact: true when W̃ is summed from its inner triangles' q.
+        let from_inner: Vec<bool> = contacts
             .iter()
-            .flat_map(|&c| rim[c].iter().copied())
+            .map(|&c| !rim[c].is_empty() && inner[c].len() < rim[c].len())
+            .collect();
+        let pairs = |k: usize| {
+            let c = contacts[k];
+            if from_inner[k] { &inner[c] } else { &rim[c] }
+        };
+        let needed: Vec<(usize, usize)> = (0..contacts.len())
+            .flat_map(|k| pairs(k).iter().copied())
             .collect();
         let missing: Vec<(usize, usize)> = needed
             .iter()
@@ -201,12 +222,17 @@ impl BemSystem {
         let fresh = solve_pairs(geo, inverse, &missing);
         let dofs = self.dofs();
         let mut wt = Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
-            self.w[(r, 3 * contacts[c / 3] + c % 3)]
+            if from_inner[c / 3] {
+                0.0
+            } else {
+                self.w[(r, 3 * contacts[c / 3] + c % 3)]
+            }
         });
-        // The same subtraction order whether q was cached or just solved.
+        // The same summation order whether q was cached or just solved.
         let mut next = 0;
-        for (k, &c) in contacts.iter().enumerate() {
-            for &pair in &rim[c] {
+        for k in 0..contacts.len() {
+            let sign = if from_inner[k] { 1.0 } else { -1.0 };
+            for &pair in pairs(k) {
                 let q = match self.rim_cache.entries.get(&key(pair)) {
                     Some(e) => e.q.as_ref(),
                     None => {
@@ -216,7 +242,7 @@ impl BemSystem {
                 };
                 for l in 0..3 {
                     for r in 0..dofs {
-                        wt[(r, 3 * k + l)] -= q[(r, l)];
+                        wt[(r, 3 * k + l)] += sign * q[(r, l)];
                     }
                 }
             }
