@@ -40,6 +40,14 @@ use super::quadrature::Rules;
 /// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
 const PIVOT_RATIO: Real = 1e-12;
 
+/// The capacitance matrix as its LU (for `explicit_inverse`) and its inverse: a static
+/// update multiplies by the inverse, which needs no scratch memory (`solve` allocates
+/// nothing). Its size is that of the contact set, so both cost O(|C|³) once per change.
+pub(super) struct Capacitance {
+    lu: PartialPivLu<Real>,
+    inverse: Mat<Real>,
+}
+
 /// H, G, the pre-inverted base system and the current contact set.
 pub struct BemSystem {
     pub(crate) inf: Influence,
@@ -48,8 +56,8 @@ pub struct BemSystem {
     /// W = A₀⁻¹ G (column-major, 3n × 3n); empty before the first factorisation.
     pub(super) w: Mat<Real>,
     pub(super) contacts: Vec<usize>,
-    /// LU of the capacitance matrix W_CC.
-    pub(super) capacitance: Option<PartialPivLu<Real>>,
+    /// The capacitance matrix W_CC (W̃_CC with contact rims).
+    pub(super) capacitance: Option<Capacitance>,
     /// A₀⁻¹ as its LU and the bordering updates of later incisions (`border`).
     pub(super) inverse: Option<BaseInverse>,
     pub factorizations: usize,
@@ -304,7 +312,10 @@ impl BemSystem {
             }
         }
         self.contacts = contacts.to_vec();
-        self.capacitance = lu;
+        self.capacitance = lu.map(|lu| Capacitance {
+            inverse: lu.inverse(),
+            lu,
+        });
         self.rims = rims;
         self.woodbury_updates += 1;
         Ok(())
@@ -339,16 +350,16 @@ impl BemSystem {
         }
         x.copy_from_slice(u_load);
         let m = 3 * self.contacts.len();
-        let Some(lu) = &self.capacitance else {
+        let Some(cap) = &self.capacitance else {
             return Ok(());
         };
-        let mut rhs = Mat::from_fn(m, 1, |r, _| {
-            let v = self.contacts[r / 3];
-            targets.get(r / 3).map_or(0.0, |t| t[r % 3]) - u_load[3 * v + r % 3]
-        });
-        lu.solve_in_place(rhs.as_mut());
+        // The gaps U*_C − u_L,C, recomputed per row: no right-hand side is stored.
+        let gap = |c: usize| {
+            let v = self.contacts[c / 3];
+            targets.get(c / 3).map_or(0.0, |t| t[c % 3]) - u_load[3 * v + c % 3]
+        };
         for (r, pr) in p_contact.iter_mut().enumerate().take(m) {
-            *pr = rhs[(r, 0)];
+            *pr = (0..m).map(|c| cap.inverse[(r, c)] * gap(c)).sum();
             if !pr.is_finite() {
                 return Err(SimError::NotPositiveDefinite {
                     row: self.contacts[r / 3],
@@ -372,7 +383,7 @@ impl BemSystem {
             return Err(not_factored());
         }
         let a0_inv = self.base_matrix(&self.fixed).0.partial_piv_lu().inverse();
-        let Some(lu) = &self.capacitance else {
+        let Some(Capacitance { lu, .. }) = &self.capacitance else {
             return Ok(a0_inv);
         };
         let n = self.dofs();
