@@ -147,14 +147,24 @@ fn block_under_gravity_matches_quadratic_fem() {
 
 /// Gravity and contacts superpose: lifting a patch under gravity is gravity with the patch
 /// held in place plus the lift without gravity, and the supports and the instrument
-/// together carry the weight.
+/// together carry the weight; with contacts' tractions continuous or discontinuous at the
+/// contact rim.
 #[test]
 fn gravity_and_contacts_superpose() {
+    for discontinuous_contacts in [false, true] {
+        superpose(BemParams {
+            discontinuous_contacts,
+            ..BemParams::default()
+        });
+    }
+}
+
+fn superpose(params: BemParams) {
     let material = Material::new(3000.0, 0.3).unwrap();
     let surface = MeshData::from_tets(&column(0.04, 0.02, 4))
         .surface_mesh()
         .unwrap();
-    let mut bem = Bem::new(&surface, material, BemParams::default()).unwrap();
+    let mut bem = Bem::new(&surface, material, params).unwrap();
     let patch = |lift: Real| {
         let mut c = base(&bem);
         for (v, p) in bem.rest_surface().iter().enumerate() {

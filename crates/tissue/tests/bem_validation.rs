@@ -431,20 +431,58 @@ fn liver_indentation_against_quadratic_fem() {
     }
 }
 
+/// CPU time of this thread and of the whole process (rayon workers included), in s.
+fn cpu_seconds() -> (Real, Real) {
+    let read = |clock| {
+        let mut ts = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: a valid clock id and a pointer to a timespec we own.
+        let rc = unsafe { libc::clock_gettime(clock, &mut ts) };
+        if rc != 0 {
+            return Real::NAN;
+        }
+        ts.tv_sec as Real + 1e-9 * ts.tv_nsec as Real
+    };
+    (
+        read(libc::CLOCK_THREAD_CPUTIME_ID),
+        read(libc::CLOCK_PROCESS_CPUTIME_ID),
+    )
+}
+
+/// Wall, thread-CPU and process-CPU seconds of `f`.
+fn timed<T>(f: impl FnOnce() -> T) -> (T, [Real; 3]) {
+    let (t0, p0) = cpu_seconds();
+    let start = Instant::now();
+    let out = f();
+    let wall = start.elapsed().as_secs_f64();
+    let (t1, p1) = cpu_seconds();
+    (out, [wall, t1 - t0, p1 - p0])
+}
+
+fn ms(t: [Real; 3], reps: usize) -> String {
+    let r = 1e3 / reps as Real;
+    format!(
+        "{:.3} ms wall, {:.3} ms thread CPU, {:.3} ms process CPU",
+        t[0] * r,
+        t[1] * r,
+        t[2] * r
+    )
+}
+
+/// Both contact rules on the 2194-vertex liver in one run (one factorisation: the rule is
+/// switched on the built model): pre-computation, static update with 20 contacts, contact
+/// change of 10 vertices; with discontinuous contacts cold (new rim triangles) and warm
+/// (cached), and the cost of solving rim triangles ahead.
 #[test]
 #[ignore = "slow: pre-computation on the 2194-vertex liver (about a minute)"]
 fn liver_smooth_speed() {
     let data = tissue::io::read(LIVER_SMOOTH).unwrap();
     let mut surface = data.surface_mesh().unwrap();
     surface.vertices.iter_mut().for_each(|p| *p *= 0.01);
-    // BEM_DISCONTINUOUS=1 measures `discontinuous_contacts = true`.
-    let params = BemParams {
-        discontinuous_contacts: std::env::var("BEM_DISCONTINUOUS").is_ok_and(|v| v == "1"),
-        ..BemParams::default()
-    };
-    let start = Instant::now();
-    let mut bem = Bem::new(&surface, material(), params).unwrap();
-    let assembly = start.elapsed().as_secs_f64();
+    let (bem, assembly) = timed(|| Bem::new(&surface, material(), BemParams::default()).unwrap());
+    let mut bem = bem;
     let rest = bem.rest_surface().to_vec();
     let n = rest.len();
     // Three supports far apart (lowest x, highest x, lowest z).
@@ -454,18 +492,14 @@ fn liver_smooth_speed() {
             .unwrap() as u32
     };
     let fixed = vec![by(&|p| p.x), by(&|p| -p.x), by(&|p| p.z)];
-    let start = Instant::now();
-    bem.set_constraints(&Constraints::fixed(fixed.clone()))
-        .unwrap();
-    let factor = start.elapsed().as_secs_f64();
+    let ((), factor) = timed(|| {
+        bem.set_constraints(&Constraints::fixed(fixed.clone()))
+            .unwrap()
+    });
+    eprintln!("liver-smooth: {n} vertices, {} dofs", 3 * n);
     eprintln!(
-        "liver-smooth: {n} vertices, {} dofs, discontinuous_contacts = {}",
-        3 * n,
-        params.discontinuous_contacts
-    );
-    eprintln!(
-        "assembly of H and G: {assembly:.2} s; LU of A0 and W = A0^-1 G: {factor:.2} s; total {:.2} s",
-        assembly + factor
+        "assembly of H and G: {:.2} s wall ({:.2} s CPU); LU of A0 and W = A0^-1 G: {:.2} s wall ({:.2} s CPU)",
+        assembly[0], assembly[2], factor[0], factor[2]
     );
     // 20 contacts around the top-most vertex, then 10 of them replaced.
     let top = by(&|p| -p.y) as usize;
@@ -485,30 +519,93 @@ fn liver_smooth_speed() {
             })
             .collect(),
     };
-    let first: Vec<usize> = order[..20].to_vec();
-    let second: Vec<usize> = order[..10].iter().chain(&order[20..30]).copied().collect();
-    bem.set_constraints(&set(&first)).unwrap();
-    bem.step(0.01).unwrap();
+    let first = set(&order[..20]);
+    let second = set(&order[..10]
+        .iter()
+        .chain(&order[20..30])
+        .copied()
+        .collect::<Vec<_>>());
     let reps = 200;
-    let start = Instant::now();
-    for _ in 0..reps {
+    let mut force = Vec::new();
+    for rule in ["default", "discontinuous_contacts"] {
+        bem.set_constraints(&first).unwrap();
+        if rule != "default" {
+            let (pairs, switch) = timed(|| {
+                bem.set_discontinuous_contacts(true).unwrap();
+                bem.system().rim_cache_counts().0
+            });
+            eprintln!(
+                "[{rule}] switch on with 20 contacts (cold, {pairs} rim pairs): {}",
+                ms(switch, 1)
+            );
+            let before = bem.system().rim_cache_counts().0;
+            let ((), cold) = timed(|| bem.set_constraints(&second).unwrap());
+            let solved = bem.system().rim_cache_counts().0 - before;
+            eprintln!(
+                "[{rule}] contact change of 10 vertices, cold ({solved} new rim pairs): {}",
+                ms(cold, 1)
+            );
+            // The same change after warming the ring around the patch (in idle time).
+            bem.set_rim_cache_budget(0);
+            bem.set_rim_cache_budget(tissue::model::bem::DEFAULT_RIM_CACHE_BYTES);
+            bem.set_constraints(&first).unwrap();
+            let (ring, warm) = timed(|| bem.warm_contact_rims_near(1));
+            let before = bem.system().rim_cache_counts().0;
+            let ((), after_warm) = timed(|| bem.set_constraints(&second).unwrap());
+            let solved = bem.system().rim_cache_counts().0 - before;
+            eprintln!(
+                "[{rule}] warming the 1-ring around 20 contacts ({ring} pairs): {}; then the \
+                 change of 10 vertices ({solved} new rim pairs): {}",
+                ms(warm, 1),
+                ms(after_warm, 1)
+            );
+            bem.set_constraints(&first).unwrap();
+        }
         bem.step(0.01).unwrap();
+        let ((), step) = timed(|| {
+            for _ in 0..reps {
+                bem.step(0.01).unwrap();
+            }
+        });
+        force.push(bem.reactions().prescribed.iter().copied().sum::<Vec3>());
+        let before = bem.system().rim_cache_counts().0;
+        let ((), change) = timed(|| {
+            for k in 0..reps {
+                bem.set_constraints(if k % 2 == 0 { &second } else { &first })
+                    .unwrap();
+            }
+        });
+        assert_eq!(bem.system().rim_cache_counts().0, before, "all cached");
+        eprintln!("[{rule}] static update, 20 contacts: {}", ms(step, reps));
+        eprintln!(
+            "[{rule}] contact change of 10 vertices{}: {}",
+            if rule == "default" { "" } else { ", warm" },
+            ms(change, reps)
+        );
     }
-    let step = start.elapsed().as_secs_f64() / reps as f64;
-    let start = Instant::now();
-    for k in 0..reps {
-        bem.set_constraints(&set(if k % 2 == 0 { &second } else { &first }))
-            .unwrap();
-    }
-    let woodbury = start.elapsed().as_secs_f64() / reps as f64;
-    bem.step(0.01).unwrap();
-    eprintln!("static update, 20 contacts: {:.3} ms", 1e3 * step);
+    // Solving ahead: the rim pairs of the next 40 vertices around the probe.
+    let ahead: Vec<usize> = order[30..70].to_vec();
+    let (pairs, warm) = timed(|| bem.warm_contact_rims(&ahead));
+    let (bytes, cached) = bem.system().rim_cache_usage();
+    let all_pairs = 3 * surface.triangles.len();
+    let per_pair = warm[0] / pairs.max(1) as Real;
     eprintln!(
-        "contact change of 10 vertices (Woodbury, set_constraints): {:.3} ms",
-        1e3 * woodbury
+        "warm-up of 40 vertices: {pairs} pairs in {:.2} s wall ({:.2} s CPU): {:.2} ms per pair; \
+         all {all_pairs} pairs would take ~{:.0} s and {:.2} GB",
+        warm[0],
+        warm[2],
+        1e3 * per_pair,
+        per_pair * all_pairs as Real,
+        (all_pairs * 9 * n * 8) as Real / 1e9
     );
     eprintln!(
-        "probe force {:?} N",
-        bem.reactions().prescribed.iter().copied().sum::<Vec3>()
+        "rim cache: {cached} pairs, {:.1} MB; probe force default {:?} N, discontinuous {:?} N",
+        bytes as Real / 1e6,
+        force[0],
+        force[1]
     );
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    if let Some(line) = status.lines().find(|l| l.starts_with("VmHWM")) {
+        eprintln!("peak resident memory: {line}");
+    }
 }

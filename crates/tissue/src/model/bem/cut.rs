@@ -399,19 +399,7 @@ impl Bem {
                 );
                 let mut system = std::mem::replace(&mut self.system, BemSystem::new(empty()));
                 let result = if system.is_factored() {
-                    let fixed = system.fixed().to_vec();
-                    system
-                        .border(inf, Some(geometry), &k, &far_rows)
-                        .and_then(|()| {
-                            // The contact-rim option keeps A₀⁻¹ explicitly: not bordered.
-                            if system.contact_rims {
-                                let mut fixed = fixed;
-                                fixed.resize(system.influence().vertices, false);
-                                system.factor(&fixed)
-                            } else {
-                                Ok(())
-                            }
-                        })
+                    system.border(inf, Some(geometry), &k, &far_rows)
                 } else {
                     let rims = system.contact_rims;
                     system = BemSystem::new(inf);

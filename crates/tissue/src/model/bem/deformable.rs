@@ -41,6 +41,51 @@ impl Bem {
         }
     }
 
+    /// Checks `c` (as `Constraints::surface_displacements` does: a vertex that does not
+    /// exist or a non-finite target is an error naming it) into the reused masks: the fixed
+    /// set, each vertex's held displacement (fixed wins, the last prescribed entry counts)
+    /// and the contacts (held, not fixed), ascending. Nothing of the model changes.
+    fn stage_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let rest = &self.surface.vertices;
+        let n = rest.len();
+        let bad = |v: u32| SimError::BadConstraint {
+            vertex: v as usize,
+            count: n,
+        };
+        if let Some(&v) = c.fixed.iter().find(|&&v| v as usize >= n) {
+            return Err(bad(v));
+        }
+        for p in &c.prescribed {
+            if p.vertex as usize >= n {
+                return Err(bad(p.vertex));
+            }
+            if !is_finite_vec(p.position) {
+                return Err(SimError::BadParameter {
+                    name: "prescribed",
+                    value: format!("surface vertex {} -> {}", p.vertex, p.position),
+                    reason: "the target position is not finite".into(),
+                });
+            }
+        }
+        let s = &mut self.scratch;
+        s.fixed.clear();
+        s.fixed.resize(n, false);
+        for &v in &c.fixed {
+            s.fixed[v as usize] = true;
+        }
+        s.held.clear();
+        s.held.resize(n, None);
+        for p in &c.prescribed {
+            let v = p.vertex as usize;
+            if !s.fixed[v] {
+                s.held[v] = Some(p.position - rest[v]);
+            }
+        }
+        s.contacts.clear();
+        s.contacts.extend((0..n).filter(|&v| s.held[v].is_some()));
+        Ok(())
+    }
+
     /// Static solution from the current constraints and loads: targets, tractions, reactions.
     fn solve_static(&mut self) -> Result<(), SimError> {
         let m = 3 * self.contact_targets.len();
@@ -62,13 +107,15 @@ impl Bem {
         )?;
         let fixed = self.system.fixed();
         let at = |x: &[Real], v: usize| Vec3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
-        let support_area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
+        // The area a vertex's unknown traction acts on: a fixed vertex's acts only on the
+        // fixed side of the rim, and so may a contact's (`BemSystem::support_area`).
+        let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
         for (v, &is_fixed) in fixed.iter().enumerate() {
             let rest = self.surface.vertices[v];
             if is_fixed {
                 self.target[v] = rest;
                 // The particular field's traction over the support, as a mean traction.
-                let extra = body.map_or(Vec3::ZERO, |b| b.support[v] / support_area(v));
+                let extra = body.map_or(Vec3::ZERO, |b| b.support[v] / area(v));
                 self.traction[v] = at(&self.x, v) + extra;
             } else {
                 self.target[v] = rest + at(&self.x, v) + particular(rest);
@@ -80,9 +127,7 @@ impl Bem {
             self.traction[v] += at(&self.p_contact, k);
         }
         // The tissue pushes on its support with the load on that vertex minus the traction
-        // the support applies over the area it acts on (a fixed vertex's traction acts only
-        // on the fixed side of the rim, and so may a contact's: `BemSystem::support_area`).
-        let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
+        // the support applies over the area it acts on.
         let reaction = |v: usize| self.point_forces[v] - self.traction[v] * area(v);
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
             self.fixed_reactions[k] = if self.fixed_owner[k] {
@@ -120,45 +165,56 @@ impl Deformable for Bem {
 
     /// A new fixed set re-factorises (O(n³)); a new contact set costs a Woodbury update.
     /// Reactions go to the first fixed entry of a vertex, else its last prescribed entry.
+    /// With the same vertices as the last call (targets may move) nothing is allocated.
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = c.surface_displacements(&self.surface.vertices)?;
-        let n = self.surface.vertices.len();
-        let mut fixed = vec![false; n];
-        for &v in &c.fixed {
-            fixed[v as usize] = true;
-        }
-        let contacts: Vec<usize> = (0..n).filter(|&v| !fixed[v] && disp[v].is_some()).collect();
+        self.stage_constraints(c)?;
         self.assemble_pending();
-        if fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
+        if self.scratch.fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
             let stage = "bem: factorising A0 and W = A0^-1 G";
             self.progress.report(stage, 0.0);
-            self.system.factor(&fixed)?;
+            self.system.factor(&self.scratch.fixed)?;
             self.progress.report(stage, 1.0);
             self.refresh_load_response()?;
         }
-        let changed = contacts.as_slice() != self.system.contacts();
-        self.system.set_contacts(&contacts)?;
+        let changed = self.scratch.contacts.as_slice() != self.system.contacts();
+        self.system.set_contacts(&self.scratch.contacts)?;
         if changed {
             self.update_distances();
         }
-        self.contact_targets = contacts
-            .iter()
-            .map(|&v| disp[v].unwrap_or(Vec3::ZERO))
-            .collect();
-        let mut taken = vec![false; n];
-        self.fixed_owner = c
-            .fixed
-            .iter()
-            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-            .collect();
-        let mut owner = vec![false; c.prescribed.len()];
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+        self.contact_targets.clear();
+        let held = &self.scratch.held;
+        self.contact_targets.extend(
+            self.scratch
+                .contacts
+                .iter()
+                .map(|&v| held[v].unwrap_or(Vec3::ZERO)),
+        );
+        let same_vertices = c.fixed == self.constraints.fixed
+            && c.prescribed.len() == self.constraints.prescribed.len()
+            && c.prescribed
+                .iter()
+                .zip(&self.constraints.prescribed)
+                .all(|(a, b)| a.vertex == b.vertex);
+        if !same_vertices || self.fixed_owner.len() != c.fixed.len() {
+            let mut taken = vec![false; self.surface.vertices.len()];
+            self.fixed_owner = c
+                .fixed
+                .iter()
+                .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
+                .collect();
+            let mut owner = vec![false; c.prescribed.len()];
+            for (k, p) in c.prescribed.iter().enumerate().rev() {
+                owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+            }
+            self.prescribed_owner = owner;
         }
-        self.prescribed_owner = owner;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
+        self.fixed_reactions.clear();
+        self.fixed_reactions.resize(c.fixed.len(), Vec3::ZERO);
+        self.prescribed_reactions.clear();
+        self.prescribed_reactions
+            .resize(c.prescribed.len(), Vec3::ZERO);
+        self.constraints.fixed.clone_from(&c.fixed);
+        self.constraints.prescribed.clone_from(&c.prescribed);
         Ok(())
     }
 
@@ -273,8 +329,8 @@ impl Deformable for Bem {
             dofs,
             elements: self.surface.triangles.len(),
             surface_vertices: self.surface.vertices.len(),
-            // H, G, W, and A₀⁻¹ with discontinuous contacts.
-            memory_bytes: (3 + usize::from(self.params.discontinuous_contacts)) * dofs * dofs * 8,
+            // H, G, W, and the contact-rim cache.
+            memory_bytes: 3 * dofs * dofs * 8 + s.rim_cache_usage().0,
             precompute_seconds: self.assembly_seconds + s.last_factor_seconds,
             is_static: self.params.alpha == 0.0,
             details: vec![
@@ -286,6 +342,11 @@ impl Deformable for Bem {
                 ("borderings".into(), s.borderings().to_string()),
                 ("last_cut_s".into(), format!("{:.3}", s.last_cut_seconds)),
                 ("contacts".into(), s.contacts().len().to_string()),
+                ("rim_cache_pairs".into(), s.rim_cache_usage().1.to_string()),
+                (
+                    "rim_pairs_solved".into(),
+                    s.rim_cache_counts().0.to_string(),
+                ),
                 ("alpha".into(), self.params.alpha.to_string()),
             ],
         }

@@ -12,6 +12,7 @@
 mod assembly;
 mod body_force;
 mod border;
+mod contact_rims;
 mod cut;
 mod deformable;
 mod kelvin;
@@ -27,6 +28,7 @@ mod tests;
 mod tests_cut;
 
 pub use assembly::Influence;
+pub use contact_rims::DEFAULT_RIM_CACHE_BYTES;
 pub use cut::CutUpdate;
 pub use kelvin::Kelvin;
 pub use model::{Bem, BemParams};

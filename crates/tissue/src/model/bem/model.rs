@@ -31,8 +31,10 @@ pub struct BemParams {
     pub alpha: Real,
     /// Contacts' tractions discontinuous at the contact rim, as the fixed vertices' are:
     /// closer to quadratic FEM (block indentation: force gap 22% → 14% at 258 surface
-    /// vertices) but a static update costs O(n²) instead of O(n·contacts) and A₀⁻¹ is kept
-    /// (memory × 4/3). Off by default: the real-time path.
+    /// vertices). A static update costs O(n·contacts) as without it; a contact change
+    /// solves A₀ for the contact-rim triangles not seen before (3 columns each, cached up
+    /// to `DEFAULT_RIM_CACHE_BYTES`), so a probe moving onto new triangles pays O(n²) per
+    /// new triangle once. Off by default.
     #[serde(default)]
     pub discontinuous_contacts: bool,
     /// Deprecated and ignored (scenes that set it still load): models built from a scene
@@ -84,6 +86,19 @@ pub struct Bem {
     pub(super) homogeneous_targets: Vec<Vec3>,
     /// A scalpel sweep too short to open a groove yet: its first and last blade positions.
     pub(super) pending_cut: Option<([Vec3; 2], [Vec3; 2])>,
+    /// Masks `set_constraints` reuses, so that moving targets allocate nothing.
+    pub(super) scratch: ConstraintScratch,
+}
+
+/// The constraints of the last `set_constraints` call, per vertex (see
+/// `Bem::stage_constraints`).
+#[derive(Debug, Default)]
+pub(super) struct ConstraintScratch {
+    pub fixed: Vec<bool>,
+    /// Held displacement of each non-fixed vertex with a prescribed target.
+    pub held: Vec<Option<Vec3>>,
+    /// The vertices with `held`, ascending.
+    pub contacts: Vec<usize>,
 }
 
 impl std::fmt::Debug for Bem {
@@ -229,8 +244,39 @@ impl Bem {
             body: None,
             homogeneous_targets: Vec::new(),
             pending_cut: None,
+            scratch: ConstraintScratch::default(),
             surface,
         }
+    }
+
+    /// Switches `discontinuous_contacts` on a built model (no re-factorisation: the contact
+    /// set is re-applied with the new rule).
+    pub fn set_discontinuous_contacts(&mut self, on: bool) -> Result<(), SimError> {
+        self.params.discontinuous_contacts = on;
+        let contacts = self.system.contacts().to_vec();
+        self.system.set_contact_rims(on);
+        if self.system.is_factored() {
+            self.system.set_contacts(&contacts)?;
+        }
+        Ok(())
+    }
+
+    /// Solves ahead for the contact-rim triangles of `vertices` (see
+    /// `BemSystem::warm_rim_cache`); returns the (triangle, corner) pairs solved.
+    pub fn warm_contact_rims(&mut self, vertices: &[usize]) -> usize {
+        self.system.warm_rim_cache(vertices)
+    }
+
+    /// `warm_contact_rims` for the vertices within `rings` edges of the current contacts:
+    /// where a moving probe goes next. Meant for idle time between contact changes.
+    pub fn warm_contact_rims_near(&mut self, rings: usize) -> usize {
+        let around = self.graph.within_rings(self.system.contacts(), rings);
+        self.system.warm_rim_cache(&around)
+    }
+
+    /// The byte budget of the contact-rim cache (`BemSystem::set_rim_cache_budget`).
+    pub fn set_rim_cache_budget(&mut self, bytes: usize) {
+        self.system.set_rim_cache_budget(bytes);
     }
 
     pub fn params(&self) -> &BemParams {

@@ -18,8 +18,9 @@
 //! checks).
 //!
 //! Tractions are discontinuous at the rim of the fixed set (`base_matrix`), and optionally
-//! at the rim of the contact set (`set_contact_rims`: R, the rims' share of G_C, enters as
-//! W̃_{:,C} = W_{:,C} − A₀⁻¹ R, so A₀⁻¹ is kept and a static update becomes O(n²)).
+//! at the rim of the contact set (`set_contact_rims`): then W_{:,C} is replaced by the
+//! contacts' effective responses W̃_{:,C} (`contact_rims`), formed once per contact change
+//! from cached per-triangle solves, and a static update stays O(n·|C|).
 
 use std::time::Instant;
 
@@ -33,10 +34,19 @@ use crate::math::{Real, Vec3};
 
 use super::assembly::{Geometry, Influence};
 use super::border::BaseInverse;
+use super::contact_rims::{ContactRims, RimCache};
 use super::quadrature::Rules;
 
 /// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
 const PIVOT_RATIO: Real = 1e-12;
+
+/// The capacitance matrix as its LU (for `explicit_inverse`) and its inverse: a static
+/// update multiplies by the inverse, which needs no scratch memory (`solve` allocates
+/// nothing). Its size is that of the contact set, so both cost O(|C|³) once per change.
+pub(super) struct Capacitance {
+    lu: PartialPivLu<Real>,
+    inverse: Mat<Real>,
+}
 
 /// H, G, the pre-inverted base system and the current contact set.
 pub struct BemSystem {
@@ -46,8 +56,8 @@ pub struct BemSystem {
     /// W = A₀⁻¹ G (column-major, 3n × 3n); empty before the first factorisation.
     pub(super) w: Mat<Real>,
     pub(super) contacts: Vec<usize>,
-    /// LU of the capacitance matrix W_CC.
-    pub(super) capacitance: Option<PartialPivLu<Real>>,
+    /// The capacitance matrix W_CC (W̃_CC with contact rims).
+    pub(super) capacitance: Option<Capacitance>,
     /// A₀⁻¹ as its LU and the bordering updates of later incisions (`border`).
     pub(super) inverse: Option<BaseInverse>,
     pub factorizations: usize,
@@ -63,20 +73,12 @@ pub struct BemSystem {
     pub(super) rim: RimColumns,
     /// Contacts' tractions discontinuous at their rim too (`set_contact_rims`).
     pub(super) contact_rims: bool,
-    /// A₀⁻¹, kept only with `contact_rims`.
-    z: Option<Mat<Real>>,
-    /// The rim shares of the current contacts' G columns, with `contact_rims`.
+    /// With `contact_rims`: the current contacts' W̃_{:,C} and support areas.
     rims: Option<ContactRims>,
+    /// q = A₀⁻¹ g per (triangle, corner), for `contact_rims`.
+    pub(super) rim_cache: RimCache,
     /// Wall time of the last incision's update (bordering or re-assembly), in s.
     pub last_cut_seconds: Real,
-}
-
-/// For a contact set C with rims: R (3n × 3|C|) holds, per contact dof, the G share of the
-/// contact's rim triangles (those with a vertex neither fixed nor in contact), which its
-/// traction no longer acts on; `area[k]` is the area contact k's traction does act on.
-struct ContactRims {
-    r: Mat<Real>,
-    area: Vec<Real>,
 }
 
 impl BemSystem {
@@ -95,19 +97,27 @@ impl BemSystem {
             rim: RimColumns::default(),
             support_area: Vec::new(),
             contact_rims: false,
-            z: None,
             rims: None,
+            rim_cache: RimCache::default(),
             last_cut_seconds: 0.0,
         }
     }
 
     /// Makes the contacts' tractions discontinuous at the contact rim as the fixed ones are
-    /// (needs the geometry). The Woodbury structure survives, at a price: A₀⁻¹ is kept
-    /// (another (3n)² doubles), a contact change re-integrates the rim triangles, and a
-    /// static update costs one dense product with A₀⁻¹, O(n²) instead of O(n·|C|). Takes
-    /// effect at the next `factor`.
-    pub(crate) fn set_contact_rims(&mut self, on: bool) {
-        self.contact_rims = on;
+    /// (needs the geometry; see `contact_rims`). A static update stays O(n·|C|); a contact
+    /// change solves for the rim triangles not cached yet. A change of the setting drops
+    /// the contact set: set the contacts again.
+    pub fn set_contact_rims(&mut self, on: bool) {
+        if on != self.contact_rims {
+            self.contact_rims = on;
+            self.contacts.clear();
+            self.capacitance = None;
+            self.rims = None;
+        }
+    }
+
+    pub fn contact_rims(&self) -> bool {
+        self.contact_rims
     }
 
     /// Gives the system its surface so that fixed tractions become discontinuous at the rim
@@ -126,6 +136,8 @@ impl BemSystem {
         self.w = Mat::zeros(0, 0);
         self.contacts.clear();
         self.capacitance = None;
+        self.inverse = None;
+        self.drop_explicit_base_inverse();
     }
 
     /// The area over which fixed vertex `v`'s traction acts (what turns it into a reaction),
@@ -167,9 +179,10 @@ impl BemSystem {
         (a, area)
     }
 
-    /// Drops the contact-rim option's A₀⁻¹ (stale after a bordering; `factor` renews it).
+    /// Drops what the contact-rim option derived from A₀⁻¹ (the cached q and the current
+    /// W̃): stale after a bordering or a new factorisation.
     pub(super) fn drop_explicit_base_inverse(&mut self) {
-        self.z = None;
+        self.rim_cache.clear();
         self.rims = None;
     }
 
@@ -244,16 +257,8 @@ impl BemSystem {
         if w.col_iter().any(|c| c.iter().any(|v| !v.is_finite())) {
             return Err(singular());
         }
-        let z = if self.contact_rims && self.geometry.is_some() {
-            let mut z = Mat::identity(n, n);
-            solve_columns(a.as_ref(), p, z.as_mut());
-            Some(z)
-        } else {
-            None
-        };
         self.w = w;
-        self.z = z;
-        self.rims = None;
+        self.drop_explicit_base_inverse();
         self.inverse = Some(BaseInverse::new(a, perm, perm_inv));
         self.fixed = fixed.to_vec();
         self.rim = rim;
@@ -274,15 +279,25 @@ impl BemSystem {
         if !self.is_factored() {
             return Err(not_factored());
         }
+        let mut seen = vec![false; self.inf.vertices];
+        for &c in contacts {
+            match seen.get_mut(c) {
+                Some(s) if !*s && !self.fixed[c] => *s = true,
+                _ => {
+                    return Err(SimError::BadConstraint {
+                        vertex: c,
+                        count: self.inf.vertices,
+                    });
+                }
+            }
+        }
         let m = 3 * contacts.len();
         let dof = |k: usize| 3 * contacts[k / 3] + k % 3;
-        let rims = self.contact_rim_shares(contacts);
-        let mut s = Mat::from_fn(m, m, |r, c| self.w[(dof(r), dof(c))]);
-        if let (Some(rims), Some(z)) = (&rims, &self.z) {
-            // W̃_CC = W_CC − (A₀⁻¹ R)_C: only the contact rows of A₀⁻¹ are needed here.
-            let zc = Mat::from_fn(m, self.dofs(), |r, c| z[(dof(r), c)]);
-            s -= zc * &rims.r;
-        }
+        let rims = self.contact_rim_response(contacts);
+        let s = match &rims {
+            Some(rims) => Mat::from_fn(m, m, |r, c| rims.wt[(dof(r), c)]),
+            None => Mat::from_fn(m, m, |r, c| self.w[(dof(r), dof(c))]),
+        };
         let lu = (m > 0).then(|| s.partial_piv_lu());
         if let Some(lu) = &lu {
             let u = lu.U();
@@ -297,7 +312,10 @@ impl BemSystem {
             }
         }
         self.contacts = contacts.to_vec();
-        self.capacitance = lu;
+        self.capacitance = lu.map(|lu| Capacitance {
+            inverse: lu.inverse(),
+            lu,
+        });
         self.rims = rims;
         self.woodbury_updates += 1;
         Ok(())
@@ -332,44 +350,40 @@ impl BemSystem {
         }
         x.copy_from_slice(u_load);
         let m = 3 * self.contacts.len();
-        let Some(lu) = &self.capacitance else {
+        let Some(cap) = &self.capacitance else {
             return Ok(());
         };
-        let mut rhs = Mat::from_fn(m, 1, |r, _| {
-            let v = self.contacts[r / 3];
-            targets.get(r / 3).map_or(0.0, |t| t[r % 3]) - u_load[3 * v + r % 3]
-        });
-        lu.solve_in_place(rhs.as_mut());
+        // The gaps U*_C − u_L,C, recomputed per row: no right-hand side is stored.
+        let gap = |c: usize| {
+            let v = self.contacts[c / 3];
+            targets.get(c / 3).map_or(0.0, |t| t[c % 3]) - u_load[3 * v + c % 3]
+        };
         for (r, pr) in p_contact.iter_mut().enumerate().take(m) {
-            *pr = rhs[(r, 0)];
+            *pr = (0..m).map(|c| cap.inverse[(r, c)] * gap(c)).sum();
             if !pr.is_finite() {
                 return Err(SimError::NotPositiveDefinite {
                     row: self.contacts[r / 3],
                     hint: "the contact solve gave a non-finite traction".into(),
                 });
             }
-            let col = 3 * self.contacts[r / 3] + r % 3;
-            axpy(x, *pr, self.w.col_as_slice(col));
-        }
-        if let (Some(rims), Some(z)) = (&self.rims, &self.z) {
-            // x −= A₀⁻¹ (R P_C): the rims' share no longer loads the body.
-            let pc = Mat::from_fn(m, 1, |r, _| rhs[(r, 0)]);
-            let correction = z * (&rims.r * pc);
-            for (xr, c) in x.iter_mut().zip(correction.col(0).iter()) {
-                *xr -= c;
-            }
+            let column = match &self.rims {
+                Some(rims) => rims.wt.col_as_slice(r),
+                None => self.w.col_as_slice(3 * self.contacts[r / 3] + r % 3),
+            };
+            axpy(x, *pr, column);
         }
         Ok(())
     }
 
     /// A⁻¹ of the current reordered matrix (fixed and contacts exchanged) by the Woodbury
-    /// formula A⁻¹ = A₀⁻¹ − (W_{:,C} + E_C) W_CC⁻¹ (A₀⁻¹)_{C,:}. O(n³) for A₀⁻¹: for checks.
+    /// formula A⁻¹ = A₀⁻¹ − (W_{:,C} + E_C) W_CC⁻¹ (A₀⁻¹)_{C,:} (W̃ for W with contact rims).
+    /// O(n³) for A₀⁻¹, formed afresh from `base_matrix`: for checks.
     pub fn explicit_inverse(&self) -> Result<Mat<Real>, SimError> {
         if !self.is_factored() {
             return Err(not_factored());
         }
         let a0_inv = self.base_matrix(&self.fixed).0.partial_piv_lu().inverse();
-        let Some(lu) = &self.capacitance else {
+        let Some(Capacitance { lu, .. }) = &self.capacitance else {
             return Ok(a0_inv);
         };
         let n = self.dofs();
@@ -377,48 +391,14 @@ impl BemSystem {
         let dof = |k: usize| 3 * self.contacts[k / 3] + k % 3;
         let mut rows = Mat::from_fn(m, n, |r, c| a0_inv[(dof(r), c)]);
         lu.solve_in_place(rows.as_mut());
-        let mut left = Mat::from_fn(n, m, |r, c| {
-            self.w[(r, dof(c))] + if r == dof(c) { 1.0 } else { 0.0 }
+        let left = Mat::from_fn(n, m, |r, c| {
+            let response = match &self.rims {
+                Some(rims) => rims.wt[(r, c)],
+                None => self.w[(r, dof(c))],
+            };
+            response + if r == dof(c) { 1.0 } else { 0.0 }
         });
-        if let Some(rims) = &self.rims {
-            left -= &a0_inv * &rims.r;
-        }
         Ok(a0_inv - left * rows)
-    }
-}
-
-impl BemSystem {
-    /// R and the support areas for contact set `contacts` if contact rims are on (see
-    /// `ContactRims`): the rim triangles are found with the fixed and contact vertices
-    /// constrained, and re-integrated from every source.
-    fn contact_rim_shares(&self, contacts: &[usize]) -> Option<ContactRims> {
-        let geo = self.geometry.as_ref()?;
-        self.z.as_ref()?;
-        if contacts.is_empty() || geo.vertices.len() != self.inf.vertices {
-            return None;
-        }
-        let mut constrained = self.fixed.clone();
-        for &c in contacts {
-            constrained[c] = true;
-        }
-        let (rim, area) = geo.traction_supports(&constrained);
-        let rules = Rules::new();
-        let n = self.dofs();
-        let mut r = Mat::zeros(n, 3 * contacts.len());
-        for (k, &c) in contacts.iter().enumerate() {
-            for &(e, corner) in &rim[c] {
-                let g = geo.element_g_columns(e, corner, &rules);
-                for row in 0..n {
-                    for kk in 0..3 {
-                        r[(row, 3 * k + kk)] += g[3 * row + kk];
-                    }
-                }
-            }
-        }
-        Some(ContactRims {
-            r,
-            area: contacts.iter().map(|&c| area[c]).collect(),
-        })
     }
 }
 

@@ -573,3 +573,191 @@ fn discontinuous_contacts_keep_woodbury_exact() {
     }
     assert_eq!(m.system().factorizations, 1);
 }
+
+/// Equator-and-below fixed, the given vertices pushed 0.5 mm toward the centre, one step:
+/// positions, reactions and tractions.
+fn press_step(m: &mut Bem, vs: &[u32]) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
+    let rest = m.rest_surface().to_vec();
+    let c = Constraints {
+        fixed: (0..rest.len() as u32)
+            .filter(|&v| rest[v as usize].z < -0.03)
+            .collect(),
+        prescribed: vs
+            .iter()
+            .map(|&v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] * 0.99,
+            })
+            .collect(),
+    };
+    m.set_constraints(&c).unwrap();
+    m.step(0.01).unwrap();
+    (
+        m.surface().positions.to_vec(),
+        m.reactions().prescribed.to_vec(),
+        m.tractions().to_vec(),
+    )
+}
+
+#[test]
+fn rim_cache_hits_equal_cold_computations() {
+    // W̃ sums the cached q in the order a cold computation does, so a contact set reached
+    // through the cache gives the same bits as one solved from scratch.
+    let s = sphere(2);
+    let params = BemParams {
+        discontinuous_contacts: true,
+        ..BemParams::default()
+    };
+    let rest = s.vertices.clone();
+    let mut top: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.025)
+        .collect();
+    top.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
+    assert!(top.len() >= 24, "{}", top.len());
+    let (first, second) = (&top[..16], &top[6..24]);
+    let mut warm = Bem::new(&s, material(), params).unwrap();
+    let cold_first = press_step(&mut warm, first);
+    let (solved, hits) = warm.system().rim_cache_counts();
+    assert_eq!(hits, 0);
+    let partly = press_step(&mut warm, second);
+    let (solved2, hits2) = warm.system().rim_cache_counts();
+    eprintln!(
+        "rim pairs: first set {solved} solved; second set {} solved, {hits2} from the cache",
+        solved2 - solved
+    );
+    assert!(hits2 > 0 && solved2 > solved, "{solved2} {hits2}");
+    let mut fresh = Bem::new(&s, material(), params).unwrap();
+    assert!(
+        press_step(&mut fresh, second) == partly,
+        "partly cached != cold"
+    );
+    // Entirely from the cache: nothing solved.
+    assert!(press_step(&mut warm, first) == cold_first, "cached != cold");
+    assert_eq!(warm.system().rim_cache_counts().0, solved2);
+    // Without a cache (budget 0) every change is cold, with the same result.
+    let mut uncached = Bem::new(&s, material(), params).unwrap();
+    uncached.set_rim_cache_budget(0);
+    press_step(&mut uncached, first);
+    assert!(press_step(&mut uncached, second) == partly);
+    assert_eq!(uncached.system().rim_cache_usage(), (0, 0));
+    // Warming ahead: every pair of the second set's vertices, then no miss.
+    let mut ahead = Bem::new(&s, material(), params).unwrap();
+    press_step(&mut ahead, &top[..1]);
+    let warmed = ahead.warm_contact_rims(&second.iter().map(|&v| v as usize).collect::<Vec<_>>());
+    let before = ahead.system().rim_cache_counts().0;
+    assert!(press_step(&mut ahead, second) == partly);
+    assert_eq!(
+        ahead.system().rim_cache_counts().0,
+        before,
+        "{warmed} warmed"
+    );
+    // Warming the rings around the current patch covers the next, shifted patch.
+    let mut near = Bem::new(&s, material(), params).unwrap();
+    press_step(&mut near, first);
+    let around = near.warm_contact_rims_near(2);
+    let before = near.system().rim_cache_counts().0;
+    assert!(press_step(&mut near, second) == partly);
+    assert_eq!(
+        near.system().rim_cache_counts().0,
+        before,
+        "{around} warmed"
+    );
+    let (bytes, pairs) = ahead.system().rim_cache_usage();
+    assert_eq!(bytes, pairs * 3 * 3 * rest.len() * 8);
+    // The option switched on a built model: the same contact model, no re-factorisation.
+    let mut switched = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let continuous = press_step(&mut switched, second);
+    switched.set_discontinuous_contacts(true).unwrap();
+    switched.step(0.01).unwrap();
+    assert!(switched.surface().positions == &partly.0[..]);
+    assert!(continuous.0 != partly.0);
+    switched.set_discontinuous_contacts(false).unwrap();
+    switched.step(0.01).unwrap();
+    assert!(switched.surface().positions == &continuous.0[..]);
+    assert_eq!(switched.system().factorizations, 1);
+}
+
+#[test]
+fn discontinuous_contacts_follow_an_incision_by_bordering() {
+    // After a bordered incision the contact rims are solved through the bordered inverse:
+    // no re-factorisation, and the same solution as a re-assembly and fresh factorisation
+    // of the cut surface (the tolerance `tests_cut` uses for the default model).
+    let s = sphere(2);
+    let params = BemParams {
+        discontinuous_contacts: true,
+        ..BemParams::default()
+    };
+    let rest = s.vertices.clone();
+    let c = Constraints {
+        fixed: (0..rest.len() as u32)
+            .filter(|&v| rest[v as usize].z < -0.04)
+            .collect(),
+        prescribed: (0..rest.len() as u32)
+            .filter(|&v| rest[v as usize].x > 0.01 && rest[v as usize].z > 0.03)
+            .map(|v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] - Vec3::Z * 1e-3,
+            })
+            .collect(),
+    };
+    let blade = |y: Real, x0: Real, x1: Real| crate::model::CutPath {
+        start: [Vec3::new(x0, y, 0.02), Vec3::new(x0, y, 0.08)],
+        end: [Vec3::new(x1, y, 0.02), Vec3::new(x1, y, 0.08)],
+    };
+    let mut bordered = Bem::new(&s, material(), params).unwrap();
+    let mut reassembled = Bem::new(&s, material(), params).unwrap();
+    for m in [&mut bordered, &mut reassembled] {
+        m.set_constraints(&c).unwrap();
+        m.step(0.01).unwrap();
+    }
+    for (i, b) in [blade(0.001, -0.03, 0.02), blade(-0.012, -0.025, 0.03)]
+        .iter()
+        .enumerate()
+    {
+        bordered.cut(b).unwrap();
+        reassembled.incise(b, CutUpdate::Reassembly).unwrap();
+        bordered.step(0.01).unwrap();
+        reassembled.step(0.01).unwrap();
+        let sys = bordered.system();
+        assert_eq!(sys.factorizations, 1, "cut {i}: re-factorised");
+        assert_eq!(sys.borderings(), i + 1);
+        let gap = |a: &[Vec3], b: &[Vec3]| {
+            let scale = b.iter().map(|v| v.length()).fold(0.0, Real::max);
+            let worst = a
+                .iter()
+                .zip(b)
+                .map(|(p, q)| (*p - *q).length())
+                .fold(0.0, Real::max);
+            worst / scale
+        };
+        let du = gap(
+            &bordered.static_displacements(),
+            &reassembled.static_displacements(),
+        );
+        let dr = gap(
+            bordered.reactions().prescribed,
+            reassembled.reactions().prescribed,
+        );
+        // The Woodbury inverse through the bordered layers and the rim cache equals a fresh
+        // inverse of the cut surface's constrained matrix.
+        let mut mask = sys.fixed().to_vec();
+        for &v in sys.contacts() {
+            mask[v] = true;
+        }
+        let fresh = sys.base_matrix(&mask).0.partial_piv_lu().inverse();
+        let rel = (&sys.explicit_inverse().unwrap() - &fresh).norm_l2() / fresh.norm_l2();
+        let contact_area: Real = sys
+            .contacts()
+            .iter()
+            .map(|&v| sys.support_area(v).unwrap())
+            .sum();
+        let tributary: Real = sys.contacts().iter().map(|&v| bordered.areas()[v]).sum();
+        eprintln!(
+            "cut {i}: vs re-assembly displacements {du:.2e}, probe reactions {dr:.2e}; \
+             Woodbury vs fresh inverse {rel:.2e}; contact area {contact_area:.3e} of {tributary:.3e}"
+        );
+        assert!(du < 1e-6 && dr < 1e-6, "cut {i}: {du:e} {dr:e}");
+        assert!(rel < 1e-8, "cut {i}: {rel:e}");
+        assert!(contact_area < 0.9 * tributary, "the rims are not in effect");
+    }
+}

@@ -82,6 +82,35 @@ impl SurfaceGraph {
     }
 }
 
+impl SurfaceGraph {
+    /// The vertices at most `rings` edges from one of `sources` (sources included, invalid
+    /// ones skipped), ascending: the neighbourhood of a contact patch.
+    pub fn within_rings(&self, sources: &[usize], rings: usize) -> Vec<usize> {
+        let mut seen = vec![false; self.neighbours.len()];
+        let mut front: Vec<usize> = Vec::new();
+        for &s in sources {
+            if let Some(f) = seen.get_mut(s)
+                && !*f
+            {
+                *f = true;
+                front.push(s);
+            }
+        }
+        for _ in 0..rings {
+            let mut next = Vec::new();
+            for &v in &front {
+                for &(w, _) in &self.neighbours[v] {
+                    if !std::mem::replace(&mut seen[w as usize], true) {
+                        next.push(w as usize);
+                    }
+                }
+            }
+            front = next;
+        }
+        (0..seen.len()).filter(|&v| seen[v]).collect()
+    }
+}
+
 /// Moves `positions` toward `targets` by eq. 13 with viscosity `alpha` (s/m) over `dt`.
 /// Unreachable vertices (infinite distance) stay where they are.
 pub fn relax(positions: &mut [Vec3], targets: &[Vec3], distance: &[Real], alpha: Real, dt: Real) {
@@ -109,6 +138,10 @@ mod tests {
         assert_eq!(two[3], 0.0);
         assert!((two[0] - 1.0).abs() < 1e-15);
         assert!(g.distances(&[]).iter().all(|x| x.is_infinite()));
+        // Rings by edge count, not length: 1 reaches 0 and 2 (and itself), 2 reaches all.
+        assert_eq!(g.within_rings(&[1], 0), vec![1]);
+        assert_eq!(g.within_rings(&[1, 1, 9], 1), vec![0, 1, 2]);
+        assert_eq!(g.within_rings(&[1], 2), vec![0, 1, 2, 3]);
     }
 
     #[test]

@@ -1,0 +1,314 @@
+//! Contacts whose tractions are discontinuous at the contact rim (`discontinuous_contacts`)
+//! inside the Woodbury update, at the default model's cost per static update.
+//!
+//! A contact's traction acts only on its triangles whose three vertices are all constrained
+//! (fixed or in contact); on its rim triangles τ the free side's known traction applies, so
+//! its reordered column is −G_c + R_c with R_c = Σ_τ g_{τ,c}, the G share of corner c of τ.
+//! A₀⁻¹ of that column change is −W̃_{:,c} − E_c with
+//!   W̃_{:,c} = W_{:,c} − Σ_τ q_{τ,c},   q_{τ,c} = A₀⁻¹ g_{τ,c}   (3n × 3),
+//! so the update is the default one with W̃ in place of W: capacitance W̃_CC, static update
+//! x = u_L + W̃_{:,C} P_C, O(n·|C|). Since Σ over all triangles of c of q_{τ,c} is W_{:,c},
+//! also W̃_{:,c} = Σ_{inner τ} q_{τ,c} over its fully constrained triangles: each contact
+//! uses whichever list is shorter (fewer pairs to solve).
+//!
+//! q depends on the surface and A₀ only, not on the contact set, so it is cached per
+//! (triangle, corner) pair up to a byte budget (the least recently used pairs go first) and
+//! dropped with A₀ (factorisation, bordering, new H and G). A contact change integrates the
+//! missing pairs only (in parallel) and solves for all of them in one batch through the kept
+//! LU and bordering layers (`BaseInverse`); A₀⁻¹ itself is never formed. Each q is summed
+//! into W̃ in the same order whether it was cached or just solved, so a cache hit gives the
+//! same bits as a cold computation (as long as the batched solve treats its columns
+//! independently, which `tests::rim_cache_hits_equal_cold_computations` checks).
+
+use std::collections::HashMap;
+
+use faer::Mat;
+
+use crate::math::Real;
+
+use super::assembly::Geometry;
+use super::border::BaseInverse;
+use super::quadrature::Rules;
+use super::system::BemSystem;
+
+/// Default byte budget of the q cache: 256 MiB, about 1700 pairs on a 2194-vertex surface
+/// (W there is 346 MB; all 13 152 pairs would take 2.1 GB).
+pub const DEFAULT_RIM_CACHE_BYTES: usize = 256 << 20;
+
+/// The current contacts' effective responses and support areas.
+pub(super) struct ContactRims {
+    /// W̃_{:,C} (3n × 3|C|): column 3k + l is contact k's response to a unit traction
+    /// along l acting on its fully constrained triangles only.
+    pub wt: Mat<Real>,
+    /// Per contact, the area its traction acts on.
+    pub area: Vec<Real>,
+}
+
+/// (triangle, corner) → q = A₀⁻¹ g (3n × 3), least recently used first out.
+#[derive(Debug)]
+pub(super) struct RimCache {
+    entries: HashMap<(u32, u8), Entry>,
+    bytes: usize,
+    budget: usize,
+    clock: u64,
+    /// Pairs integrated and solved (cache misses and warm-ups), since the system was built.
+    pub solved: usize,
+    /// Pairs taken from the cache.
+    pub hits: usize,
+}
+
+#[derive(Debug)]
+struct Entry {
+    q: Mat<Real>,
+    used: u64,
+}
+
+impl Default for RimCache {
+    fn default() -> Self {
+        Self {
+            entries: HashMap::new(),
+            bytes: 0,
+            budget: DEFAULT_RIM_CACHE_BYTES,
+            clock: 0,
+            solved: 0,
+            hits: 0,
+        }
+    }
+}
+
+impl RimCache {
+    /// Drops every q (A₀ changed); the budget and the counters stay.
+    pub fn clear(&mut self) {
+        self.entries = HashMap::new();
+        self.bytes = 0;
+    }
+
+    pub fn bytes(&self) -> usize {
+        self.bytes
+    }
+
+    pub fn pairs(&self) -> usize {
+        self.entries.len()
+    }
+
+    pub fn budget(&self) -> usize {
+        self.budget
+    }
+
+    pub fn set_budget(&mut self, bytes: usize) {
+        self.budget = bytes;
+        self.evict();
+    }
+
+    fn contains(&self, pair: (usize, usize)) -> bool {
+        self.entries.contains_key(&key(pair))
+    }
+
+    /// Stores the pairs just solved (column block j of `fresh` is `pairs[j]`), marks every
+    /// pair of `used` as used now and evicts beyond the budget.
+    fn store(&mut self, pairs: &[(usize, usize)], fresh: &Mat<Real>, used: &[(usize, usize)]) {
+        self.clock += 1;
+        let rows = fresh.nrows();
+        for (j, &pair) in pairs.iter().enumerate() {
+            let q = Mat::from_fn(rows, 3, |r, c| fresh[(r, 3 * j + c)]);
+            self.bytes += 3 * rows * size_of::<Real>();
+            let old = self.entries.insert(
+                key(pair),
+                Entry {
+                    q,
+                    used: self.clock,
+                },
+            );
+            if let Some(old) = old {
+                self.bytes -= 3 * old.q.nrows() * size_of::<Real>();
+            }
+        }
+        for &pair in used {
+            if let Some(e) = self.entries.get_mut(&key(pair)) {
+                e.used = self.clock;
+            }
+        }
+        self.evict();
+    }
+
+    /// Removes the least recently used pairs until the cache fits its budget.
+    fn evict(&mut self) {
+        if self.bytes <= self.budget {
+            return;
+        }
+        let mut order: Vec<((u32, u8), u64)> =
+            self.entries.iter().map(|(k, e)| (*k, e.used)).collect();
+        order.sort_unstable_by_key(|&(k, used)| (used, k));
+        for (k, _) in order {
+            if self.bytes <= self.budget {
+                break;
+            }
+            if let Some(e) = self.entries.remove(&k) {
+                self.bytes -= 3 * e.q.nrows() * size_of::<Real>();
+            }
+        }
+    }
+}
+
+fn key((e, corner): (usize, usize)) -> (u32, u8) {
+    (e as u32, corner as u8)
+}
+
+/// q for each pair, as column block j of a 3n × 3|pairs| matrix: the G shares integrated
+/// in parallel over the pairs, then one batched solve with A₀⁻¹.
+fn solve_pairs(geo: &Geometry, inverse: &BaseInverse, pairs: &[(usize, usize)]) -> Mat<Real> {
+    let dofs = 3 * geo.vertices.len();
+    let rules = Rules::new();
+    let integrate = |&(e, corner): &(usize, usize)| geo.element_g_columns(e, corner, &rules);
+    #[cfg(feature = "parallel")]
+    let shares: Vec<Vec<Real>> = {
+        use rayon::prelude::*;
+        pairs.par_iter().map(integrate).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let shares: Vec<Vec<Real>> = pairs.iter().map(integrate).collect();
+    // element_g_columns: entry 3 row + k is (row, column k) of the pair's block.
+    let mut rhs = Mat::from_fn(dofs, 3 * pairs.len(), |r, c| shares[c / 3][3 * r + c % 3]);
+    inverse.solve_in_place(rhs.as_mut());
+    rhs
+}
+
+impl BemSystem {
+    /// W̃_{:,C} and the support areas for `contacts` (valid, not fixed) if contact rims are
+    /// on and the system has its surface and factorisation; `None` otherwise (continuous
+    /// contact tractions).
+    pub(super) fn contact_rim_response(&mut self, contacts: &[usize]) -> Option<ContactRims> {
+        if !self.contact_rims || contacts.is_empty() {
+            return None;
+        }
+        let geo = self.geometry.as_ref()?;
+        let inverse = self.inverse.as_ref()?;
+        if geo.vertices.len() != self.inf.vertices {
+            return None;
+        }
+        let mut constrained = self.fixed.clone();
+        for &c in contacts {
+            *constrained.get_mut(c)? = true;
+        }
+        let (rim, area) = geo.traction_supports(&constrained);
+        // The inner triangles of the contacts with a rim.
+        let mut inner = vec![Vec::new(); rim.len()];
+        for (e, el) in geo.elements.iter().enumerate() {
+            if el.nodes.iter().all(|&v| constrained[v]) {
+                for (corner, &v) in el.nodes.iter().enumerate() {
+                    if !rim[v].is_empty() {
+                        inner[v].push((e, corner));
+                    }
+                }
+            }
+        }
+        // Per contact: true when W̃ is summed from its inner triangles' q.
+        let from_inner: Vec<bool> = contacts
+            .iter()
+            .map(|&c| !rim[c].is_empty() && inner[c].len() < rim[c].len())
+            .collect();
+        let pairs = |k: usize| {
+            let c = contacts[k];
+            if from_inner[k] { &inner[c] } else { &rim[c] }
+        };
+        let needed: Vec<(usize, usize)> = (0..contacts.len())
+            .flat_map(|k| pairs(k).iter().copied())
+            .collect();
+        let missing: Vec<(usize, usize)> = needed
+            .iter()
+            .copied()
+            .filter(|&p| !self.rim_cache.contains(p))
+            .collect();
+        let fresh = solve_pairs(geo, inverse, &missing);
+        let dofs = self.dofs();
+        let mut wt = Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
+            if from_inner[c / 3] {
+                0.0
+            } else {
+                self.w[(r, 3 * contacts[c / 3] + c % 3)]
+            }
+        });
+        // The same summation order whether q was cached or just solved.
+        let mut next = 0;
+        for k in 0..contacts.len() {
+            let sign = if from_inner[k] { 1.0 } else { -1.0 };
+            for &pair in pairs(k) {
+                let q = match self.rim_cache.entries.get(&key(pair)) {
+                    Some(e) => e.q.as_ref(),
+                    None => {
+                        next += 1;
+                        fresh.as_ref().subcols(3 * (next - 1), 3)
+                    }
+                };
+                for l in 0..3 {
+                    for r in 0..dofs {
+                        wt[(r, 3 * k + l)] += sign * q[(r, l)];
+                    }
+                }
+            }
+        }
+        self.rim_cache.hits += needed.len() - missing.len();
+        self.rim_cache.solved += missing.len();
+        self.rim_cache.store(&missing, &fresh, &needed);
+        Some(ContactRims {
+            wt,
+            area: contacts.iter().map(|&c| area[c]).collect(),
+        })
+    }
+
+    /// Computes and caches q for every (triangle, corner) pair of the given vertices that
+    /// is not cached yet (fixed vertices are skipped: their rims are part of A₀), e.g. the
+    /// vertices around a probe before it touches them, or all of them when memory allows.
+    /// Within the cache's budget only. Returns the number of pairs solved.
+    pub fn warm_rim_cache(&mut self, vertices: &[usize]) -> usize {
+        let (Some(geo), Some(inverse)) = (self.geometry.as_ref(), self.inverse.as_ref()) else {
+            return 0;
+        };
+        if geo.vertices.len() != self.inf.vertices {
+            return 0;
+        }
+        let mut wanted = vec![false; self.inf.vertices];
+        for &v in vertices {
+            if let Some(w) = wanted.get_mut(v) {
+                *w = !self.fixed.get(v).copied().unwrap_or(true);
+            }
+        }
+        let mut missing = Vec::new();
+        for (e, el) in geo.elements.iter().enumerate() {
+            for (corner, &v) in el.nodes.iter().enumerate() {
+                if wanted[v] && !self.rim_cache.contains((e, corner)) {
+                    missing.push((e, corner));
+                }
+            }
+        }
+        let per_pair = 3 * self.dofs() * size_of::<Real>();
+        let room = (self
+            .rim_cache
+            .budget()
+            .saturating_sub(self.rim_cache.bytes()))
+            / per_pair;
+        missing.truncate(room);
+        if missing.is_empty() {
+            return 0;
+        }
+        let fresh = solve_pairs(geo, inverse, &missing);
+        self.rim_cache.solved += missing.len();
+        self.rim_cache.store(&missing, &fresh, &[]);
+        missing.len()
+    }
+
+    /// Bytes the cache of q = A₀⁻¹ g per (triangle, corner) holds now, and its pairs.
+    pub fn rim_cache_usage(&self) -> (usize, usize) {
+        (self.rim_cache.bytes(), self.rim_cache.pairs())
+    }
+
+    /// Pairs solved (misses and warm-ups) and pairs served from the cache so far.
+    pub fn rim_cache_counts(&self) -> (usize, usize) {
+        (self.rim_cache.solved, self.rim_cache.hits)
+    }
+
+    /// The cache's byte budget (default `DEFAULT_RIM_CACHE_BYTES`); lowering it evicts.
+    pub fn set_rim_cache_budget(&mut self, bytes: usize) {
+        self.rim_cache.set_budget(bytes);
+    }
+}
