@@ -39,6 +39,40 @@ pub fn segment_triangle(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> Option<Real> 
     (u >= -EPS && v >= -EPS && u + v <= 1.0 + EPS && (0.0..=1.0).contains(&t)).then_some(t)
 }
 
+/// The point of the triangle (a, b, c) nearest to p, by the Voronoi regions of its corners,
+/// edges and face.
+pub fn closest_point_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = va + vb + vc;
+    a + ab * (vb / denom) + ac * (vc / denom)
+}
+
 /// True when every component is finite (no NaN, no infinity).
 #[inline]
 pub fn is_finite_vec(v: Vec3) -> bool {
@@ -101,6 +135,41 @@ mod tests {
             segment_triangle(Vec3::new(-1.0, 0.2, 0.0), Vec3::new(2.0, 0.2, 0.0), tri),
             None
         );
+    }
+
+    #[test]
+    fn closest_point_on_triangle_agrees_with_a_dense_sampling() {
+        let tri = [
+            Vec3::new(0.1, -0.2, 0.3),
+            Vec3::new(1.3, 0.1, -0.2),
+            Vec3::new(0.4, 0.9, 0.5),
+        ];
+        // Points in every Voronoi region (corners, edges, face, both sides).
+        let mut seed = 7u64;
+        let mut rand = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as Real / (1u64 << 53) as Real * 4.0 - 2.0
+        };
+        for _ in 0..200 {
+            let p = Vec3::new(rand(), rand(), rand());
+            let q = closest_point_on_triangle(p, tri);
+            let mut best = Real::INFINITY;
+            let m = 300;
+            for i in 0..=m {
+                for j in 0..=(m - i) {
+                    let (u, v) = (i as Real / m as Real, j as Real / m as Real);
+                    let s = tri[0] + (tri[1] - tri[0]) * u + (tri[2] - tri[0]) * v;
+                    best = best.min((s - p).length());
+                }
+            }
+            let d = (q - p).length();
+            assert!(
+                d <= best + 1e-12 && d > best - 5e-3,
+                "{p}: {d} vs sampled {best}"
+            );
+        }
     }
 
     #[test]

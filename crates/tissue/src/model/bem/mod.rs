@@ -26,6 +26,8 @@ mod viscous;
 mod tests;
 #[cfg(test)]
 mod tests_cut;
+#[cfg(test)]
+mod tests_quadrature;
 
 pub use assembly::Influence;
 pub use contact_rims::DEFAULT_RIM_CACHE_BYTES;

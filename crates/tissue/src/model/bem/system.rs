@@ -27,7 +27,7 @@ use std::time::Instant;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::lu::partial_pivoting::{factor, solve};
 use faer::linalg::solvers::{DenseSolveCore, PartialPivLu, Solve};
-use faer::{Conj, Mat, MatMut, MatRef, Par};
+use faer::{Accum, Conj, Mat, MatMut, MatRef, Par};
 
 use crate::error::SimError;
 use crate::math::{Real, Vec3};
@@ -426,6 +426,36 @@ fn axpy(y: &mut [Real], a: Real, x: &[Real]) {
         *y += a * x;
     }
 }
+
+/// dst (+)= alpha · lhs · rhs, with column blocks of dst on separate threads (faer itself
+/// runs sequentially here, so that the haptic-rate updates never wait for a thread pool).
+/// For the O(n² r) products of an incision.
+pub(super) fn matmul_columns(
+    dst: MatMut<'_, Real>,
+    accum: Accum,
+    lhs: MatRef<'_, Real>,
+    rhs: MatRef<'_, Real>,
+    alpha: Real,
+) {
+    let k = dst.ncols();
+    #[cfg(feature = "parallel")]
+    if k >= 2 * MATMUL_BLOCK {
+        let (dl, dr) = dst.split_at_col_mut(k / 2);
+        let (rl, rr) = rhs.split_at_col(k / 2);
+        rayon::join(
+            || matmul_columns(dl, accum, lhs, rl, alpha),
+            || matmul_columns(dr, accum, lhs, rr, alpha),
+        );
+        return;
+    }
+    debug_assert_eq!(k, rhs.ncols());
+    faer::linalg::matmul::matmul(dst, accum, lhs, rhs, alpha, Par::Seq);
+}
+
+/// Columns below which a product is not split further (keeps the blocks large enough for
+/// the kernels to run at full speed).
+#[cfg(feature = "parallel")]
+const MATMUL_BLOCK: usize = 128;
 
 /// Solves L U X = P B in place, column blocks in parallel (faer itself runs sequentially
 /// here).

@@ -163,7 +163,8 @@ fn bordering_equals_a_fresh_assembly_over_three_cuts() {
         );
         assert!(ib == ir, "cut {i}: H or G differ");
         let (du, dr) = gaps(&bordered, &reassembled);
-        // Against a model built afresh, whose far rows re-sum their diagonals too.
+        // Against a model built afresh, whose far rows re-sum their diagonals: they differ
+        // by the quadrature error of the groove's T* integral (1.1e-9 measured).
         let fresh = build(&cut_surface, &s.vertices);
         let (fu, fr) = gaps(&bordered, &fresh);
         let rank = bordered.system().last_border_rank();
@@ -173,7 +174,7 @@ fn bordering_equals_a_fresh_assembly_over_three_cuts() {
             bordered.system().dofs()
         );
         assert!(du < 1e-6 && dr < 1e-6, "cut {i}: {du:e} {dr:e}");
-        assert!(fu < 1e-3 && fr < 1e-4, "cut {i}: {fu:e} {fr:e}");
+        assert!(fu < 1e-8 && fr < 1e-8, "cut {i}: {fu:e} {fr:e}");
         // One factorisation (when the constraints were first set), then only bordering.
         assert_eq!(bordered.system().factorizations, 1);
         assert_eq!(bordered.system().borderings(), i + 1);
