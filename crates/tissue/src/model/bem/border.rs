@@ -24,7 +24,7 @@
 //! moves the solution by about 1e-9 (`tests_cut`).
 
 use faer::linalg::solvers::{PartialPivLu, Solve};
-use faer::{Accum, Mat, MatMut};
+use faer::{Accum, Mat, MatMut, MatRef};
 
 use crate::error::SimError;
 use crate::math::{Real, Vec3};
@@ -56,13 +56,64 @@ pub struct BaseInverse {
 }
 
 /// One bordering: Ã⁻¹ (the previous inverse padded with identity) minus Y S⁻¹ Vᵀ Ã⁻¹.
+///
+/// Much of U and Vᵀ is unit vectors, and is kept as indices: Vᵀ's first |K| rows select
+/// the unknowns K, and U's columns for new rows are unit vectors that Ã⁻¹ leaves alone (its
+/// identity block), so Y has them too. Only the rest is multiplied, which saves 40% of an
+/// incision on the liver, where the new rows are 384 of the rank's 909.
 struct Layer {
     prev: usize,
-    /// Unknowns whose columns changed (|K|, 3 per vertex) and rows bordered outside them.
-    rank: (usize, usize),
+    /// The unknowns K whose columns changed, and the rows R bordered outside them (old
+    /// ones first, then the new ones).
+    kc: Vec<usize>,
+    rr: Vec<usize>,
+    /// Y's columns that are not unit vectors: those of K and of R's old rows.
     y: Mat<Real>,
-    vt: Mat<Real>,
+    /// Vᵀ's rows below the selection of K: ΔA over R, outside the columns K.
+    vr: Mat<Real>,
     s: PartialPivLu<Real>,
+}
+
+impl Layer {
+    fn vt_times(&self, x: MatRef<'_, Real>) -> Mat<Real> {
+        vt_times(&self.kc, self.vr.as_ref(), x)
+    }
+
+    /// x −= Y z: the dense columns of Y by a product, its unit columns by row updates.
+    fn sub_y_times(&self, mut x: MatMut<'_, Real>, z: MatRef<'_, Real>) {
+        let dense = self.y.ncols();
+        matmul_columns(
+            x.as_mut(),
+            Accum::Add,
+            self.y.as_ref(),
+            z.subrows(0, dense),
+            -1.0,
+        );
+        let mk = self.kc.len();
+        for j in dense..z.nrows() {
+            let r = self.rr[j - mk];
+            for c in 0..x.ncols() {
+                x[(r, c)] -= z[(j, c)];
+            }
+        }
+    }
+}
+
+/// Vᵀ x for Vᵀ = [E_Kᵀ ; vr]: the rows K of x, then vr x.
+fn vt_times(kc: &[usize], vr: MatRef<'_, Real>, x: MatRef<'_, Real>) -> Mat<Real> {
+    let mk = kc.len();
+    let mut out = Mat::zeros(mk + vr.nrows(), x.ncols());
+    for (i, &c) in kc.iter().enumerate() {
+        out.row_mut(i).copy_from(x.row(c));
+    }
+    matmul_columns(
+        out.as_mut().subrows_mut(mk, vr.nrows()),
+        Accum::Replace,
+        vr,
+        x,
+        1.0,
+    );
+    out
 }
 
 impl BaseInverse {
@@ -82,7 +133,7 @@ impl BaseInverse {
 
     /// The last bordering's size: (changed columns, changed rows outside them), in unknowns.
     pub fn last_rank(&self) -> Option<(usize, usize)> {
-        self.layers.last().map(|l| l.rank)
+        self.layers.last().map(|l| (l.kc.len(), l.rr.len()))
     }
 
     /// rhs ← A₀⁻¹ rhs (rhs has as many rows as the current system).
@@ -98,16 +149,9 @@ impl BaseInverse {
             return;
         };
         self.solve_level(level - 1, rhs.as_mut().subrows_mut(0, layer.prev));
-        let mut z = Mat::zeros(layer.vt.nrows(), rhs.ncols());
-        matmul_columns(
-            z.as_mut(),
-            Accum::Replace,
-            layer.vt.as_ref(),
-            rhs.as_ref(),
-            1.0,
-        );
+        let mut z = layer.vt_times(rhs.as_ref());
         layer.s.solve_in_place(z.as_mut());
-        matmul_columns(rhs, Accum::Add, layer.y.as_ref(), z.as_ref(), -1.0);
+        layer.sub_y_times(rhs, z.as_ref());
     }
 }
 
@@ -294,8 +338,10 @@ impl BemSystem {
         rr.extend(n0..n);
         let (mk, mr) = (kc.len(), rr.len());
         let r = mk + mr;
-        // Y = Ã⁻¹ U.
-        let mut y = Mat::from_fn(n, r, |row, col| {
+        // Y = Ã⁻¹ U in its dense columns: K's, solved, and the old far rows' A₀⁻¹ e_r.
+        let far = rr.iter().take_while(|&&row| row < n0).count();
+        let dense = mk + far;
+        let mut y = Mat::from_fn(n, dense, |row, col| {
             if col < mk {
                 delta(row, kc[col])
             } else {
@@ -303,18 +349,29 @@ impl BemSystem {
             }
         });
         inverse.solve_in_place(y.as_mut().subrows_mut(0, n0));
-        // Vᵀ: selection of K, and the rows R outside the columns K.
-        let vt = Mat::from_fn(r, n, |row, col| {
-            if row < mk {
-                Real::from(u8::from(col == kc[row]))
-            } else if in_k[col / 3] {
+        // Vᵀ below the selection of K: the rows R outside the columns K.
+        let vr = Mat::from_fn(mr, n, |row, col| {
+            if in_k[col / 3] {
                 0.0
             } else {
-                delta(rr[row - mk], col)
+                delta(rr[row], col)
             }
         });
+        // S = I + Vᵀ Y; Y's unit column for new row rr[j] is Vᵀ's column rr[j].
         let mut s = Mat::zeros(r, r);
-        matmul_columns(s.as_mut(), Accum::Replace, vt.as_ref(), y.as_ref(), 1.0);
+        s.as_mut()
+            .subcols_mut(0, dense)
+            .copy_from(vt_times(&kc, vr.as_ref(), y.as_ref()));
+        for j in dense..r {
+            let col = rr[j - mk];
+            for i in 0..r {
+                s[(i, j)] = if i < mk {
+                    Real::from(u8::from(kc[i] == col))
+                } else {
+                    vr[(i - mk, col)]
+                };
+            }
+        }
         for i in 0..r {
             s[(i, i)] += 1.0;
         }
@@ -329,6 +386,14 @@ impl BemSystem {
                 hint: "the incision makes the BEM system singular".into(),
             });
         }
+        let layer = Layer {
+            prev: n0,
+            kc,
+            rr,
+            y,
+            vr,
+            s,
+        };
         // Z = Ã⁻¹ G': W in the old columns outside K, solved in the columns K.
         let mut z = Mat::from_fn(n, n, |row, col| {
             if row < n0 && col < n0 && !in_k[col / 3] {
@@ -337,29 +402,22 @@ impl BemSystem {
                 inf.g_at(row, col)
             }
         });
-        let mut zk = Mat::from_fn(n0, mk, |row, col| inf.g_at(row, kc[col]));
+        let mut zk = Mat::from_fn(n0, mk, |row, col| inf.g_at(row, layer.kc[col]));
         inverse.solve_in_place(zk.as_mut());
-        for (j, &c) in kc.iter().enumerate() {
-            for row in 0..n0 {
-                z[(row, c)] = zk[(row, j)];
-            }
+        for (j, &c) in layer.kc.iter().enumerate() {
+            z.as_mut()
+                .col_mut(c)
+                .subrows_mut(0, n0)
+                .copy_from(zk.col(j));
         }
         drop(zk);
         // W' = Z − Y S⁻¹ (Vᵀ Z).
-        let mut vz = Mat::zeros(r, n);
-        matmul_columns(vz.as_mut(), Accum::Replace, vt.as_ref(), z.as_ref(), 1.0);
-        s.solve_in_place(vz.as_mut());
-        matmul_columns(z.as_mut(), Accum::Add, y.as_ref(), vz.as_ref(), -1.0);
+        let mut vz = layer.vt_times(z.as_ref());
+        layer.s.solve_in_place(vz.as_mut());
+        layer.sub_y_times(z.as_mut(), vz.as_ref());
         if z.col_iter().any(|c| c.iter().any(|v| !v.is_finite())) {
             return Err(bad_border(0));
         }
-        let layer = Layer {
-            prev: n0,
-            rank: (mk, mr),
-            y,
-            vt,
-            s,
-        };
         if let Some(inv) = self.inverse.as_mut() {
             inv.layers.push(layer);
         }
