@@ -8,9 +8,9 @@ use faer::linalg::solvers::Solve;
 
 use tissue::Material;
 use tissue::interact::{Constraints, Prescribed};
-use tissue::math::{Real, Vec3, tet_signed_volume};
+use tissue::math::{Real, Vec3};
 use tissue::mesh::generate::{BoxSplit, box_tets};
-use tissue::mesh::{MeshData, TetMesh};
+use tissue::mesh::{MeshData, TetMesh, split_tets};
 use tissue::model::Deformable;
 use tissue::model::bem::{Bem, BemParams};
 use tissue::model::fem::{FemStatic, Order};
@@ -322,46 +322,6 @@ fn block_convergence_table() {
     }
 }
 
-/// Splits every tetrahedron into eight (edge midpoints; the inner octahedron cut along one
-/// diagonal): the same body, every edge halved.
-fn refine(mesh: &TetMesh) -> TetMesh {
-    let mut vertices = mesh.vertices.clone();
-    let mut mids = std::collections::HashMap::new();
-    let mut mid = |a: u32, b: u32, vertices: &mut Vec<Vec3>| {
-        *mids.entry((a.min(b), a.max(b))).or_insert_with(|| {
-            vertices.push((vertices[a as usize] + vertices[b as usize]) * 0.5);
-            (vertices.len() - 1) as u32
-        })
-    };
-    let mut tets = Vec::with_capacity(8 * mesh.tets.len());
-    for &[a, b, c, d] in &mesh.tets {
-        let ab = mid(a, b, &mut vertices);
-        let ac = mid(a, c, &mut vertices);
-        let ad = mid(a, d, &mut vertices);
-        let bc = mid(b, c, &mut vertices);
-        let bd = mid(b, d, &mut vertices);
-        let cd = mid(c, d, &mut vertices);
-        for t in [
-            [a, ab, ac, ad],
-            [ab, b, bc, bd],
-            [ac, bc, c, cd],
-            [ad, bd, cd, d],
-            [ac, bd, ab, bc],
-            [ac, bd, bc, cd],
-            [ac, bd, cd, ad],
-            [ac, bd, ad, ab],
-        ] {
-            let [p, q, r, s] = t.map(|v| vertices[v as usize]);
-            tets.push(if tet_signed_volume(p, q, r, s) < 0.0 {
-                [t[0], t[1], t[3], t[2]]
-            } else {
-                t
-            });
-        }
-    }
-    TetMesh::new(vertices, tets)
-}
-
 /// liver.msh in metres, refined `level` times, and the indentation: three ligament patches
 /// fixed (every surface vertex within 1.2 cm of file nodes 3, 39 and 64: a single held
 /// vertex is a point support whose compliance depends on the mesh), the probe pushing 3 mm
@@ -372,7 +332,7 @@ fn liver(level: usize, probe: Probe) -> (TetMesh, Constraints) {
     tets.vertices.iter_mut().for_each(|p| *p *= 0.01);
     let anchors = [3usize, 39, 64].map(|v| tets.vertices[v]);
     for _ in 0..level {
-        tets = refine(&tets);
+        tets = split_tets(&tets).unwrap();
     }
     let surface = MeshData::from_tets(&tets).surface_mesh().unwrap();
     let mut c = Constraints::default();
