@@ -324,6 +324,18 @@ impl Geometry {
         out
     }
 
+    /// Per vertex, a third of each adjacent triangle's area: what a traction continuous
+    /// across its triangles acts on.
+    pub fn tributary_areas(&self) -> Vec<Real> {
+        let mut area = vec![0.0; self.vertices.len()];
+        for el in &self.elements {
+            for &v in &el.nodes {
+                area[v] += el.jac / 6.0;
+            }
+        }
+        area
+    }
+
     /// Where the unknown traction of each constrained vertex acts. The traction jumps where
     /// a constrained region meets a free one (the support pushes on the constrained side, the
     /// free side carries the known zero), which one value per vertex cannot represent if it

@@ -23,6 +23,8 @@
 //! entry; a model built afresh on the cut surface differs from both by the drift, which
 //! moves the solution by about 1e-9 (`tests_cut`).
 
+use std::sync::Arc;
+
 use faer::linalg::solvers::{PartialPivLu, Solve};
 use faer::{Accum, Mat, MatMut, MatRef};
 
@@ -48,11 +50,14 @@ pub const DIAGONAL_TOLERANCE: Real = 1e-6;
 const PIVOT_RATIO: Real = 1e-13;
 
 /// A₀⁻¹ as the LU of the first factorisation and the bordering layers of later cuts.
+/// Shared, not copied, by its clones: background rim solves (`rim_worker`) hold one while
+/// the system goes on (and a cut adds a layer to its own copy only).
+#[derive(Clone)]
 pub struct BaseInverse {
-    lu: Mat<Real>,
-    perm: Vec<usize>,
-    perm_inv: Vec<usize>,
-    layers: Vec<Layer>,
+    lu: Arc<Mat<Real>>,
+    perm: Arc<[usize]>,
+    perm_inv: Arc<[usize]>,
+    layers: Vec<Arc<Layer>>,
 }
 
 /// One bordering: Ã⁻¹ (the previous inverse padded with identity) minus Y S⁻¹ Vᵀ Ã⁻¹.
@@ -119,9 +124,9 @@ fn vt_times(kc: &[usize], vr: MatRef<'_, Real>, x: MatRef<'_, Real>) -> Mat<Real
 impl BaseInverse {
     pub(super) fn new(lu: Mat<Real>, perm: Vec<usize>, perm_inv: Vec<usize>) -> Self {
         Self {
-            lu,
-            perm,
-            perm_inv,
+            lu: Arc::new(lu),
+            perm: perm.into(),
+            perm_inv: perm_inv.into(),
             layers: Vec::new(),
         }
     }
@@ -145,7 +150,7 @@ impl BaseInverse {
         let Some(layer) = level.checked_sub(1).and_then(|l| self.layers.get(l)) else {
             let n = self.lu.nrows();
             let perm = faer::perm::PermRef::new_checked(&self.perm, &self.perm_inv, n);
-            solve_columns(self.lu.as_ref(), perm, rhs);
+            solve_columns((*self.lu).as_ref(), perm, rhs);
             return;
         };
         self.solve_level(level - 1, rhs.as_mut().subrows_mut(0, layer.prev));
@@ -419,14 +424,14 @@ impl BemSystem {
             return Err(bad_border(0));
         }
         if let Some(inv) = self.inverse.as_mut() {
-            inv.layers.push(layer);
+            inv.layers.push(Arc::new(layer));
         }
         self.w = z;
         self.inf = inf;
         self.fixed = fixed;
         self.rim = rim;
         self.support_area = support_area;
-        self.geometry = geometry;
+        self.geometry = geometry.map(Arc::new);
         // A₀⁻¹ of the contact-rim option is not bordered: the caller re-factorises.
         self.drop_explicit_base_inverse();
         self.contacts.clear();

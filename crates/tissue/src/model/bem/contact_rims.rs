@@ -29,6 +29,7 @@ use crate::math::Real;
 use super::assembly::Geometry;
 use super::border::BaseInverse;
 use super::quadrature::Rules;
+use super::rim_worker::Poll;
 use super::system::BemSystem;
 
 /// Default byte budget of the q cache: 256 MiB, about 1700 pairs on a 2194-vertex surface
@@ -42,6 +43,11 @@ pub(super) struct ContactRims {
     pub wt: Mat<Real>,
     /// Per contact, the area its traction acts on.
     pub area: Vec<Real>,
+    /// The contacts are on the continuous rule (W's columns, tributary areas) while the
+    /// worker solves the rim pairs they need (`background_rim_solves`).
+    pub waiting: bool,
+    /// The pairs that were missing then.
+    pub missing: Vec<(usize, usize)>,
 }
 
 /// (triangle, corner) → q = A₀⁻¹ g (3n × 3), least recently used first out.
@@ -155,18 +161,27 @@ fn key((e, corner): (usize, usize)) -> (u32, u8) {
 }
 
 /// q for each pair, as column block j of a 3n × 3|pairs| matrix: the G shares integrated
-/// in parallel over the pairs, then one batched solve with A₀⁻¹.
-fn solve_pairs(geo: &Geometry, inverse: &BaseInverse, pairs: &[(usize, usize)]) -> Mat<Real> {
+/// (over the thread pool if `parallel`), then one batched solve with A₀⁻¹.
+pub(super) fn solve_pairs(
+    geo: &Geometry,
+    inverse: &BaseInverse,
+    pairs: &[(usize, usize)],
+    parallel: bool,
+) -> Mat<Real> {
     let dofs = 3 * geo.vertices.len();
     let rules = Rules::new();
     let integrate = |&(e, corner): &(usize, usize)| geo.element_g_columns(e, corner, &rules);
-    #[cfg(feature = "parallel")]
-    let shares: Vec<Vec<Real>> = {
-        use rayon::prelude::*;
-        pairs.par_iter().map(integrate).collect()
+    let shares: Vec<Vec<Real>> = if parallel {
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            pairs.par_iter().map(integrate).collect()
+        }
+        #[cfg(not(feature = "parallel"))]
+        pairs.iter().map(integrate).collect()
+    } else {
+        pairs.iter().map(integrate).collect()
     };
-    #[cfg(not(feature = "parallel"))]
-    let shares: Vec<Vec<Real>> = pairs.iter().map(integrate).collect();
     // element_g_columns: entry 3 row + k is (row, column k) of the pair's block.
     let mut rhs = Mat::from_fn(dofs, 3 * pairs.len(), |r, c| shares[c / 3][3 * r + c % 3]);
     inverse.solve_in_place(rhs.as_mut());
@@ -176,11 +191,13 @@ fn solve_pairs(geo: &Geometry, inverse: &BaseInverse, pairs: &[(usize, usize)]) 
 impl BemSystem {
     /// W̃_{:,C} and the support areas for `contacts` (valid, not fixed) if contact rims are
     /// on and the system has its surface and factorisation; `None` otherwise (continuous
-    /// contact tractions).
+    /// contact tractions). With background solves, pairs not cached are handed to the
+    /// worker and the contacts that need them take the continuous rule until they land.
     pub(super) fn contact_rim_response(&mut self, contacts: &[usize]) -> Option<ContactRims> {
         if !self.contact_rims || contacts.is_empty() {
             return None;
         }
+        self.absorb_rim_solves(false);
         let geo = self.geometry.as_ref()?;
         let inverse = self.inverse.as_ref()?;
         if geo.vertices.len() != self.inf.vertices {
@@ -219,8 +236,38 @@ impl BemSystem {
             .copied()
             .filter(|&p| !self.rim_cache.contains(p))
             .collect();
-        let fresh = solve_pairs(geo, inverse, &missing);
+        // In the background only while the cache can hold what the contacts need: else
+        // the pairs would be evicted before use and the contacts never upgraded.
+        let missing_count = missing.len();
+        let per_pair = 3 * self.dofs() * size_of::<Real>();
+        let background = self.rim_background
+            && !missing.is_empty()
+            && needed.len() * per_pair <= self.rim_cache.budget();
         let dofs = self.dofs();
+        if background {
+            // The whole set waits on the continuous rule: mixing the rules (rims for the
+            // contacts whose pairs are cached, hats for the others) is a valid basis but a
+            // poor one (on a sphere it gave a sideways probe force of 60% of the push).
+            let mut wanted = Vec::new();
+            for &p in &missing {
+                if !self.rim_worker.in_flight(p) && !wanted.contains(&p) {
+                    wanted.push(p);
+                }
+            }
+            self.rim_worker.request(wanted, geo, inverse);
+            self.rim_cache.hits += needed.len() - missing_count;
+            self.rim_cache.store(&[], &Mat::zeros(dofs, 0), &needed);
+            let tributary = geo.tributary_areas();
+            return Some(ContactRims {
+                wt: Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
+                    self.w[(r, 3 * contacts[c / 3] + c % 3)]
+                }),
+                area: contacts.iter().map(|&c| tributary[c]).collect(),
+                waiting: true,
+                missing,
+            });
+        }
+        let fresh = solve_pairs(geo, inverse, &missing, true);
         let mut wt = Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
             if from_inner[c / 3] {
                 0.0
@@ -247,13 +294,49 @@ impl BemSystem {
                 }
             }
         }
-        self.rim_cache.hits += needed.len() - missing.len();
+        self.rim_cache.hits += needed.len() - missing_count;
         self.rim_cache.solved += missing.len();
         self.rim_cache.store(&missing, &fresh, &needed);
         Some(ContactRims {
             wt,
             area: contacts.iter().map(|&c| area[c]).collect(),
+            waiting: false,
+            missing: Vec::new(),
         })
+    }
+
+    /// Whether the contacts wait for rim pairs and re-forming them would now change
+    /// something: every missing pair has landed, or the worker stopped short of them (a
+    /// lost batch, an eviction) and must be asked again.
+    pub(super) fn rims_due(&self) -> bool {
+        let Some(rims) = self.rims.as_ref().filter(|r| r.waiting) else {
+            return false;
+        };
+        self.rim_worker.pending() == 0 || rims.missing.iter().all(|&p| self.rim_cache.contains(p))
+    }
+
+    /// Stores the worker's finished batch, if any (`wait`: waits for a running one), and
+    /// starts the next. Returns whether a batch landed (or was lost, so that its pairs are
+    /// asked for again).
+    pub(super) fn absorb_rim_solves(&mut self, wait: bool) -> bool {
+        let poll = if wait {
+            self.rim_worker.wait()
+        } else {
+            self.rim_worker.poll()
+        };
+        let landed = match poll {
+            Poll::Idle | Poll::Busy => return false,
+            Poll::Lost => true,
+            Poll::Done(solved) => {
+                self.rim_cache.solved += solved.pairs.len();
+                self.rim_cache.store(&solved.pairs, &solved.q, &[]);
+                true
+            }
+        };
+        if let (Some(geo), Some(inverse)) = (&self.geometry, &self.inverse) {
+            self.rim_worker.start_next(geo, inverse);
+        }
+        landed
     }
 
     /// Computes and caches q for every (triangle, corner) pair of the given vertices that
@@ -291,7 +374,7 @@ impl BemSystem {
         if missing.is_empty() {
             return 0;
         }
-        let fresh = solve_pairs(geo, inverse, &missing);
+        let fresh = solve_pairs(geo, inverse, &missing, true);
         self.rim_cache.solved += missing.len();
         self.rim_cache.store(&missing, &fresh, &[]);
         missing.len()

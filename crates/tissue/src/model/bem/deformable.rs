@@ -274,6 +274,8 @@ impl Deformable for Bem {
         if self.params.alpha > 0.0 && !(dt.is_finite() && dt > 0.0) {
             return Err(SimError::BadTimeStep { dt });
         }
+        // Contacts waiting on background rim solves switch over when these land.
+        self.system.collect_rim_solves()?;
         self.solve_static()?;
         if self.params.alpha > 0.0 {
             relax(

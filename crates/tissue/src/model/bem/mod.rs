@@ -18,12 +18,15 @@ mod deformable;
 mod kelvin;
 mod model;
 mod quadrature;
+mod rim_worker;
 mod stroke;
 mod system;
 mod viscous;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_background;
 #[cfg(test)]
 mod tests_cut;
 #[cfg(test)]

@@ -22,6 +22,7 @@
 //! contacts' effective responses W̃_{:,C} (`contact_rims`), formed once per contact change
 //! from cached per-triangle solves, and a static update stays O(n·|C|).
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
@@ -36,6 +37,7 @@ use super::assembly::{Geometry, Influence};
 use super::border::BaseInverse;
 use super::contact_rims::{ContactRims, RimCache};
 use super::quadrature::Rules;
+use super::rim_worker::RimWorker;
 
 /// Smallest |pivot| / largest |pivot| of A₀'s LU accepted as regular.
 const PIVOT_RATIO: Real = 1e-12;
@@ -65,7 +67,7 @@ pub struct BemSystem {
     pub last_factor_seconds: Real,
     /// The surface, to re-integrate the rim triangles of the fixed set (`base_matrix`);
     /// without it the fixed vertices' tractions stay continuous across the rim.
-    pub(super) geometry: Option<Geometry>,
+    pub(super) geometry: Option<Arc<Geometry>>,
     /// Per vertex, the area its unknown traction acts on for the factorised fixed set (0 for
     /// the others); empty without geometry.
     pub(super) support_area: Vec<Real>,
@@ -74,9 +76,12 @@ pub struct BemSystem {
     /// Contacts' tractions discontinuous at their rim too (`set_contact_rims`).
     pub(super) contact_rims: bool,
     /// With `contact_rims`: the current contacts' W̃_{:,C} and support areas.
-    rims: Option<ContactRims>,
+    pub(super) rims: Option<ContactRims>,
     /// q = A₀⁻¹ g per (triangle, corner), for `contact_rims`.
     pub(super) rim_cache: RimCache,
+    /// Missing q solved by `rim_worker` while the contacts wait on the continuous rule.
+    pub(super) rim_background: bool,
+    pub(super) rim_worker: RimWorker,
     /// Wall time of the last incision's update (bordering or re-assembly), in s.
     pub last_cut_seconds: Real,
 }
@@ -99,6 +104,8 @@ impl BemSystem {
             contact_rims: false,
             rims: None,
             rim_cache: RimCache::default(),
+            rim_background: false,
+            rim_worker: RimWorker::default(),
             last_cut_seconds: 0.0,
         }
     }
@@ -120,14 +127,66 @@ impl BemSystem {
         self.contact_rims
     }
 
+    /// With contact rims on: solve the rim pairs a contact change misses on a worker thread
+    /// (`rim_worker`) instead of before the change returns. Until they land, the contact set
+    /// keeps continuous tractions; `collect_rim_solves` switches it over. Off: the change
+    /// waits for its solves (the result does not depend on timing).
+    pub fn set_rim_background(&mut self, on: bool) {
+        self.rim_background = on;
+    }
+
+    pub fn rim_background(&self) -> bool {
+        self.rim_background
+    }
+
+    /// Whether the contacts are on the continuous rule while the rim pairs they need are
+    /// solved in the background.
+    pub fn contacts_waiting_for_rims(&self) -> bool {
+        self.rims.as_ref().is_some_and(|r| r.waiting)
+    }
+
+    /// Rim pairs asked of the worker and not delivered yet.
+    pub fn pending_rim_solves(&self) -> usize {
+        self.rim_worker.pending()
+    }
+
+    /// Stores finished background solves and, once every pair the waiting contacts need is
+    /// there, re-forms the same contact set with its rims (a Woodbury update,
+    /// O(n·pairs + |C|³)). Returns whether the contact model changed. Cheap when nothing
+    /// landed. On error nothing changes.
+    pub fn collect_rim_solves(&mut self) -> Result<bool, SimError> {
+        if !self.absorb_rim_solves(false) || !self.rims_due() {
+            return Ok(false);
+        }
+        let contacts = self.contacts.clone();
+        self.apply_contacts(&contacts)?;
+        Ok(true)
+    }
+
+    /// Waits for the rim pairs the current contacts need and re-forms the contact set with
+    /// them: afterwards the contacts are as the blocking rule gives them, bit for bit.
+    pub fn finish_rim_solves(&mut self) -> Result<(), SimError> {
+        if !self.contacts_waiting_for_rims() {
+            return Ok(());
+        }
+        // What is running lands; what waits is solved here rather than twice.
+        self.rim_worker.drop_queue();
+        self.absorb_rim_solves(true);
+        let background = std::mem::replace(&mut self.rim_background, false);
+        let contacts = self.contacts.clone();
+        let applied = self.apply_contacts(&contacts);
+        self.rim_background = background;
+        applied
+    }
+
     /// Gives the system its surface so that fixed tractions become discontinuous at the rim
     /// of the fixed set (see `base_matrix`). Takes effect at the next `factor`.
     pub(crate) fn set_geometry(&mut self, geometry: Option<Geometry>) {
-        self.geometry = geometry;
+        self.geometry = geometry.map(Arc::new);
     }
 
     pub(crate) fn geometry(&self) -> Option<&Geometry> {
-        self.geometry.as_ref()
+        self.geometry.as_deref()
     }
 
     /// Replaces H and G (a deferred assembly); the factorisation is dropped.
@@ -183,6 +242,7 @@ impl BemSystem {
     /// W̃): stale after a bordering or a new factorisation.
     pub(super) fn drop_explicit_base_inverse(&mut self) {
         self.rim_cache.clear();
+        self.rim_worker.cancel();
         self.rims = None;
     }
 
@@ -291,6 +351,12 @@ impl BemSystem {
                 }
             }
         }
+        self.apply_contacts(contacts)
+    }
+
+    /// The Woodbury update for `contacts` (checked by the caller), even if they are the
+    /// current ones: W_CC (W̃_CC) and its LU. Nothing changes on error.
+    fn apply_contacts(&mut self, contacts: &[usize]) -> Result<(), SimError> {
         let m = 3 * contacts.len();
         let dof = |k: usize| 3 * contacts[k / 3] + k % 3;
         let rims = self.contact_rim_response(contacts);
@@ -457,6 +523,9 @@ pub(super) fn matmul_columns(
 #[cfg(feature = "parallel")]
 const MATMUL_BLOCK: usize = 128;
 
+/// Right-hand sides below which `solve_columns` does not split (one thread).
+pub(super) const SOLVE_BLOCK: usize = 64;
+
 /// Solves L U X = P B in place, column blocks in parallel (faer itself runs sequentially
 /// here).
 pub(super) fn solve_columns(
@@ -468,7 +537,7 @@ pub(super) fn solve_columns(
     let chunk = rhs
         .ncols()
         .div_ceil(4 * rayon::current_num_threads())
-        .max(64);
+        .max(SOLVE_BLOCK);
     #[cfg(not(feature = "parallel"))]
     let chunk = rhs.ncols();
     split_solve(lu, perm, rhs, chunk);

@@ -1,0 +1,149 @@
+//! Background rim solves (`background_rim_solves`): while the worker solves, the contacts
+//! are exactly the continuous rule's; once the pairs land the result is the blocking
+//! rule's, bit for bit.
+
+use super::tests::{material, sphere};
+use super::*;
+use crate::interact::{Constraints, Prescribed};
+use crate::math::{Real, Vec3};
+use crate::model::Deformable;
+
+fn params(background: bool) -> BemParams {
+    BemParams {
+        discontinuous_contacts: true,
+        background_rim_solves: background,
+        ..BemParams::default()
+    }
+}
+
+/// The vertices below `z_fixed` held, `vs` pushed 0.5 mm toward the centre.
+fn press(rest: &[Vec3], z_fixed: Real, vs: &[u32]) -> Constraints {
+    Constraints {
+        fixed: (0..rest.len() as u32)
+            .filter(|&v| rest[v as usize].z < z_fixed)
+            .collect(),
+        prescribed: vs
+            .iter()
+            .map(|&v| Prescribed {
+                vertex: v,
+                position: rest[v as usize] * 0.99,
+            })
+            .collect(),
+    }
+}
+
+/// One step under `c`: positions, reactions and tractions.
+fn step(m: &mut Bem, c: &Constraints) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
+    m.set_constraints(c).unwrap();
+    m.step(0.01).unwrap();
+    (
+        m.surface().positions.to_vec(),
+        m.reactions().prescribed.to_vec(),
+        m.tractions().to_vec(),
+    )
+}
+
+/// x = u_L + W_{:,C} P_C straight from the system (no landing of background solves).
+fn static_solution(m: &Bem, c: &Constraints) -> Vec<Real> {
+    let sys = m.system();
+    let targets: Vec<Vec3> = c
+        .prescribed
+        .iter()
+        .map(|p| p.position - m.rest_surface()[p.vertex as usize])
+        .collect();
+    let u_load = vec![0.0; sys.dofs()];
+    let mut x = vec![0.0; sys.dofs()];
+    let mut p = vec![0.0; 3 * targets.len()];
+    sys.solve(&targets, &u_load, &mut x, &mut p).unwrap();
+    x
+}
+
+/// The top vertices, highest first.
+fn top(rest: &[Vec3]) -> Vec<u32> {
+    let mut top: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.025)
+        .collect();
+    top.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
+    top
+}
+
+#[test]
+fn background_rim_solves_start_continuous_and_end_as_the_blocking_rule() {
+    let s = sphere(2);
+    let rest = s.vertices.clone();
+    let top = top(&rest);
+    let first = press(&rest, -0.03, &top[..16]);
+    let second = press(&rest, -0.03, &top[6..24]);
+
+    let mut blocking = Bem::new(&s, material(), params(false)).unwrap();
+    let blocking_first = step(&mut blocking, &first);
+    let blocking_second = step(&mut blocking, &second);
+    let mut continuous = Bem::new(&s, material(), BemParams::default()).unwrap();
+    continuous.set_constraints(&first).unwrap();
+
+    // Cold: the contacts wait on the continuous rule, exactly the default model's.
+    let mut m = Bem::new(&s, material(), params(true)).unwrap();
+    m.set_constraints(&first).unwrap();
+    assert!(m.system().contacts_waiting_for_rims());
+    assert!(m.system().pending_rim_solves() > 0);
+    assert!(static_solution(&m, &first) == static_solution(&continuous, &first));
+    for p in &first.prescribed {
+        let v = p.vertex as usize;
+        let area = m.system().support_area(v).unwrap();
+        assert!((area - m.areas()[v]).abs() <= 1e-12 * area, "{area}");
+    }
+
+    // Finished: the blocking rule's step, bit for bit.
+    m.finish_contact_rims().unwrap();
+    assert!(!m.system().contacts_waiting_for_rims());
+    assert!(step(&mut m, &first) == blocking_first);
+
+    // Partly cached: still the continuous rule until every pair is there.
+    m.set_constraints(&second).unwrap();
+    continuous.set_constraints(&second).unwrap();
+    eprintln!(
+        "second set: {} pairs to solve",
+        m.system().pending_rim_solves()
+    );
+    assert!(m.system().contacts_waiting_for_rims());
+    assert!(static_solution(&m, &second) == static_solution(&continuous, &second));
+
+    // Landing while stepping: the steps switch the contacts over by themselves.
+    let start = std::time::Instant::now();
+    let mut steps = 0;
+    while m.system().contacts_waiting_for_rims() {
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "the background solves never landed"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        m.step(0.01).unwrap();
+        steps += 1;
+    }
+    eprintln!("landed after {steps} steps");
+    assert!(step(&mut m, &second) == blocking_second);
+    assert_eq!(m.system().factorizations, 1);
+}
+
+#[test]
+fn a_new_factorisation_drops_the_rim_solves_in_flight() {
+    // Pairs solved for the old A₀ must never reach the cache of the new one.
+    let s = sphere(2);
+    let rest = s.vertices.clone();
+    let top = top(&rest);
+    let old = press(&rest, -0.03, &top[..16]);
+    let new = press(&rest, -0.02, &top[..16]);
+    let mut m = Bem::new(&s, material(), params(true)).unwrap();
+    m.set_constraints(&old).unwrap();
+    assert!(m.system().pending_rim_solves() > 0);
+    m.set_constraints(&new).unwrap();
+    assert_eq!(m.system().factorizations, 2);
+    m.finish_contact_rims().unwrap();
+    let mut blocking = Bem::new(&s, material(), params(false)).unwrap();
+    assert!(step(&mut m, &new) == step(&mut blocking, &new));
+    // No more pairs than the new contacts need were stored.
+    assert_eq!(
+        m.system().rim_cache_usage().1,
+        blocking.system().rim_cache_usage().1
+    );
+}
