@@ -194,22 +194,12 @@ fn woodbury_equals_a_fresh_inversion() {
     let fixed: Vec<u32> = (0..rest.len() as u32)
         .filter(|&v| rest[v as usize].z < -0.03)
         .collect();
-    let press = |vs: &[u32]| Constraints {
-        fixed: fixed.clone(),
-        prescribed: vs
-            .iter()
-            .map(|&v| Prescribed {
-                vertex: v,
-                position: rest[v as usize] * 0.99,
-            })
-            .collect(),
-    };
     let top: Vec<u32> = (0..rest.len() as u32)
         .filter(|&v| rest[v as usize].z > 0.02)
         .collect();
     assert!(top.len() >= 10 && fixed.len() >= 3);
     for set in [&top[..3], &top[..10], &top[4..7]] {
-        m.set_constraints(&press(set)).unwrap();
+        m.set_constraints(&press(&rest, -0.03, set)).unwrap();
         let sys = m.system();
         // A₀ (fixed tractions discontinuous at the rim) with the contacts' columns −G.
         let (mut a, _) = sys.base_matrix(sys.fixed());
@@ -555,24 +545,11 @@ fn discontinuous_contacts_keep_woodbury_exact() {
     };
     let mut m = Bem::new(&s, material(), params).unwrap();
     let rest = m.rest_surface().to_vec();
-    let fixed: Vec<u32> = (0..rest.len() as u32)
-        .filter(|&v| rest[v as usize].z < -0.03)
-        .collect();
     let top: Vec<u32> = (0..rest.len() as u32)
         .filter(|&v| rest[v as usize].z > 0.02)
         .collect();
-    let press = |vs: &[u32]| Constraints {
-        fixed: fixed.clone(),
-        prescribed: vs
-            .iter()
-            .map(|&v| Prescribed {
-                vertex: v,
-                position: rest[v as usize] * 0.99,
-            })
-            .collect(),
-    };
     for set in [&top[..10], &top[..], &top[4..7]] {
-        m.set_constraints(&press(set)).unwrap();
+        m.set_constraints(&press(&rest, -0.03, set)).unwrap();
         let sys = m.system();
         let mut mask = sys.fixed().to_vec();
         for &v in set {
@@ -600,13 +577,11 @@ fn discontinuous_contacts_keep_woodbury_exact() {
     assert_eq!(m.system().factorizations, 1);
 }
 
-/// Equator-and-below fixed, the given vertices pushed 0.5 mm toward the centre, one step:
-/// positions, reactions and tractions.
-fn press_step(m: &mut Bem, vs: &[u32]) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
-    let rest = m.rest_surface().to_vec();
-    let c = Constraints {
+/// The vertices below `z_fixed` held, `vs` pushed 0.5 mm toward the centre.
+pub(super) fn press(rest: &[Vec3], z_fixed: Real, vs: &[u32]) -> Constraints {
+    Constraints {
         fixed: (0..rest.len() as u32)
-            .filter(|&v| rest[v as usize].z < -0.03)
+            .filter(|&v| rest[v as usize].z < z_fixed)
             .collect(),
         prescribed: vs
             .iter()
@@ -615,14 +590,33 @@ fn press_step(m: &mut Bem, vs: &[u32]) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
                 position: rest[v as usize] * 0.99,
             })
             .collect(),
-    };
-    m.set_constraints(&c).unwrap();
+    }
+}
+
+/// One step under `c`: positions, reactions and tractions.
+pub(super) fn step(m: &mut Bem, c: &Constraints) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
+    m.set_constraints(c).unwrap();
     m.step(0.01).unwrap();
     (
         m.surface().positions.to_vec(),
         m.reactions().prescribed.to_vec(),
         m.tractions().to_vec(),
     )
+}
+
+/// The sphere's top vertices (z > 0.025), highest first.
+pub(super) fn top(rest: &[Vec3]) -> Vec<u32> {
+    let mut top: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z > 0.025)
+        .collect();
+    top.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
+    top
+}
+
+/// Equator-and-below fixed, the given vertices pushed 0.5 mm toward the centre, one step.
+fn press_step(m: &mut Bem, vs: &[u32]) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
+    let rest = m.rest_surface().to_vec();
+    step(m, &press(&rest, -0.03, vs))
 }
 
 #[test]
@@ -635,10 +629,7 @@ fn rim_cache_hits_equal_cold_computations() {
         ..BemParams::default()
     };
     let rest = s.vertices.clone();
-    let mut top: Vec<u32> = (0..rest.len() as u32)
-        .filter(|&v| rest[v as usize].z > 0.025)
-        .collect();
-    top.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
+    let top = top(&rest);
     assert!(top.len() >= 24, "{}", top.len());
     let (first, second) = (&top[..16], &top[6..24]);
     let mut warm = Bem::new(&s, material(), params).unwrap();

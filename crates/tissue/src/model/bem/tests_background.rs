@@ -2,9 +2,9 @@
 //! are exactly the continuous rule's; once the pairs land the result is the blocking
 //! rule's, bit for bit.
 
-use super::tests::{material, sphere};
+use super::tests::{material, press, sphere, step, top};
 use super::*;
-use crate::interact::{Constraints, Prescribed};
+use crate::interact::Constraints;
 use crate::math::{Real, Vec3};
 use crate::model::Deformable;
 
@@ -14,33 +14,6 @@ fn params(background: bool) -> BemParams {
         background_rim_solves: background,
         ..BemParams::default()
     }
-}
-
-/// The vertices below `z_fixed` held, `vs` pushed 0.5 mm toward the centre.
-fn press(rest: &[Vec3], z_fixed: Real, vs: &[u32]) -> Constraints {
-    Constraints {
-        fixed: (0..rest.len() as u32)
-            .filter(|&v| rest[v as usize].z < z_fixed)
-            .collect(),
-        prescribed: vs
-            .iter()
-            .map(|&v| Prescribed {
-                vertex: v,
-                position: rest[v as usize] * 0.99,
-            })
-            .collect(),
-    }
-}
-
-/// One step under `c`: positions, reactions and tractions.
-fn step(m: &mut Bem, c: &Constraints) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
-    m.set_constraints(c).unwrap();
-    m.step(0.01).unwrap();
-    (
-        m.surface().positions.to_vec(),
-        m.reactions().prescribed.to_vec(),
-        m.tractions().to_vec(),
-    )
 }
 
 /// x = u_L + W_{:,C} P_C straight from the system (no landing of background solves).
@@ -56,15 +29,6 @@ fn static_solution(m: &Bem, c: &Constraints) -> Vec<Real> {
     let mut p = vec![0.0; 3 * targets.len()];
     sys.solve(&targets, &u_load, &mut x, &mut p).unwrap();
     x
-}
-
-/// The top vertices, highest first.
-fn top(rest: &[Vec3]) -> Vec<u32> {
-    let mut top: Vec<u32> = (0..rest.len() as u32)
-        .filter(|&v| rest[v as usize].z > 0.025)
-        .collect();
-    top.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
-    top
 }
 
 #[test]
