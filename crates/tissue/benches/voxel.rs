@@ -46,6 +46,44 @@ fn chainmail(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     group.finish();
 }
 
+/// A scalpel sweep of one voxel across a 1,000,000-voxel block, alternating between two
+/// parallel planes so that every sweep cuts new links: the cost of an edit, dominated by
+/// redrawing the voxel boundary (`voxel::boundary::redraw`).
+fn chainmail_cut(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
+    let mut group = c.benchmark_group("chainmail");
+    group.sample_size(10);
+    let h = 0.001;
+    let grid = VoxelGrid::filled([100, 100, 100], h);
+    let mut m = tissue::model::chainmail::ChainMail::new(
+        grid,
+        None,
+        Material::new(3000.0, 0.3).expect("material"),
+        ChainMailParams::default(),
+    )
+    .expect("model");
+    eprintln!(
+        "chainmail 1M: {} drawn vertices, {} triangles",
+        m.surface().positions.len(),
+        m.surface().triangles.len()
+    );
+    let top = 0.1;
+    let mut k = 0usize;
+    group.bench_function("cut_sweep_1M_voxels", |b| {
+        b.iter(|| {
+            // Planes x = const between voxel centres, 1 voxel long each, marching in y.
+            let x = (10.5 + (k % 80) as f64) * h;
+            let y = ((k / 80) % 90) as f64 * h + 0.0055;
+            k += 1;
+            let blade = tissue::model::CutPath {
+                start: [Vec3::new(x, y, top), Vec3::new(x, y, top - 0.01)],
+                end: [Vec3::new(x, y + h, top), Vec3::new(x, y + h, top - 0.01)],
+            };
+            black_box(m.cut(&blade).expect("cut"))
+        })
+    });
+    group.finish();
+}
+
 fn linked_volumes(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let mut group = c.benchmark_group("linked_volumes");
     group.sample_size(10);
@@ -83,6 +121,6 @@ fn linked_volumes(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
-    targets = chainmail, linked_volumes
+    targets = chainmail, chainmail_cut, linked_volumes
 }
 criterion_main!(benches);

@@ -78,6 +78,16 @@ impl CutPath {
         [[s0, s1, e1], [s0, e1, e0]]
     }
 
+    /// The swept quad's bounding box, padded for `segment_triangle`'s 1e-12 tolerance.
+    fn bounds(&self) -> (Vec3, Vec3) {
+        let [s0, s1] = self.start;
+        let [e0, e1] = self.end;
+        let lo = s0.min(s1).min(e0.min(e1));
+        let hi = s0.max(s1).max(e0.max(e1));
+        let pad = Vec3::splat(1e-9 * (hi - lo).length());
+        (lo - pad, hi + pad)
+    }
+
     /// True if every blade position is finite.
     pub fn is_finite(&self) -> bool {
         self.start
@@ -88,6 +98,12 @@ impl CutPath {
 
     /// Where the segment p→q crosses the swept quad, as a fraction of p→q.
     pub fn crossing(&self, p: Vec3, q: Vec3) -> Option<Real> {
+        // Models test every link or vertex of a body against a blade that touches few of
+        // them: a box test first.
+        let (lo, hi) = self.bounds();
+        if p.min(q).cmpgt(hi).any() || p.max(q).cmplt(lo).any() {
+            return None;
+        }
         self.triangles()
             .into_iter()
             .find_map(|t| segment_triangle(p, q, t))

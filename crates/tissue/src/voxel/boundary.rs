@@ -20,10 +20,10 @@
 //! (they are all on its side of any cut), written as a `TrilinearEmbedding` with equal
 //! weights, so `apply` and `apply_transpose` work as for the given surface.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use crate::math::{Real, Vec3};
-use crate::mesh::topology::{UnionFind, triangle_edges, vertex_neighbours};
+use crate::mesh::topology::{UnionFind, oriented_surface_neighbours};
 
 use super::TrilinearEmbedding;
 use super::topology::VoxelLinks;
@@ -60,7 +60,7 @@ pub fn boundary_surface_with(
 
     // Faces as (voxel, direction), with their corners counter-clockwise seen from outside.
     let mut faces: Vec<(usize, usize)> = Vec::new();
-    let mut face_of: HashMap<(usize, usize), usize> = HashMap::new();
+    let mut face_of: FxHashMap<(usize, usize), usize> = FxHashMap::default();
     for v in 0..links.len() {
         for d in 0..6 {
             if boundary(v, d) {
@@ -119,7 +119,7 @@ pub fn boundary_surface_with(
     }
 
     // Vertices: one per class; rest at its lattice corner, following its voxels.
-    let mut vertex_of_root: HashMap<usize, u32> = HashMap::new();
+    let mut vertex_of_root: FxHashMap<usize, u32> = FxHashMap::default();
     let mut rest = Vec::new();
     let mut members: Vec<Vec<u32>> = Vec::new();
     let mut slot_vertex = vec![0u32; 4 * faces.len()];
@@ -144,7 +144,7 @@ pub fn boundary_surface_with(
     // shared (the voxels are joined around both ends), two twin pairs run between the same
     // two vertices. Every pair after the first gets a midpoint vertex of its own, so that
     // no two triangles' edges coincide.
-    let mut on_edge: HashMap<(u32, u32), Vec<(usize, usize)>> = HashMap::new();
+    let mut on_edge: FxHashMap<(u32, u32), Vec<(usize, usize)>> = FxHashMap::default();
     for f in 0..faces.len() {
         for e in 0..4 {
             let (a, b) = (slot_vertex[4 * f + e], slot_vertex[4 * f + (e + 1) % 4]);
@@ -154,7 +154,7 @@ pub fn boundary_surface_with(
                 .push((f, e));
         }
     }
-    let mut midpoint: HashMap<(usize, usize), u32> = HashMap::new();
+    let mut midpoint: FxHashMap<(usize, usize), u32> = FxHashMap::default();
     let mut shared: Vec<_> = on_edge.into_values().filter(|u| u.len() > 2).collect();
     shared.sort_unstable();
     for uses in shared {
@@ -267,7 +267,7 @@ pub fn boundary_surface_with(
 /// around the lattice edge through linked cells until a boundary face closes the wedge.
 fn twin(
     links: &VoxelLinks,
-    face_of: &HashMap<(usize, usize), usize>,
+    face_of: &FxHashMap<(usize, usize), usize>,
     v: usize,
     p: usize,
     sp: bool,
@@ -295,7 +295,7 @@ fn split_in_four(
     follows: &mut Vec<Vec<(u32, Real)>>,
     triangles: &[[u32; 3]],
 ) -> Vec<[u32; 3]> {
-    let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut mid: FxHashMap<(u32, u32), u32> = FxHashMap::default();
     let mut out = Vec::with_capacity(4 * triangles.len());
     for tri in triangles {
         let m = [0, 1, 2].map(|e| {
@@ -337,7 +337,8 @@ fn taubin(x: &mut [Vec3], triangles: &[[u32; 3]], passes: usize, boxes: &[(Vec3,
     if passes == 0 {
         return;
     }
-    let nb = vertex_neighbours(x.len(), &triangle_edges(triangles));
+    // The boundary is closed and oriented by construction.
+    let nb = oriented_surface_neighbours(x.len(), triangles);
     let mut next = x.to_vec();
     for _ in 0..passes {
         for factor in [0.5, -0.53] {
@@ -400,6 +401,7 @@ pub(crate) fn closed_pieces(
     min_area: Real,
 ) -> Result<Vec<i64>, String> {
     use crate::mesh::topology::{components, euler_characteristic};
+    use std::collections::HashMap;
     let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
     for (t, &[a, b, c]) in triangles.iter().enumerate() {
         if a == b || b == c || a == c {

@@ -156,8 +156,14 @@ impl TrilinearEmbedding {
     /// Drops the corners for which `keep(vertex, node)` is false and renormalises; returns
     /// the vertices left with no corner (they keep their last binding).
     pub fn rebind(&mut self, keep: impl Fn(usize, u32) -> bool) -> Vec<usize> {
+        self.rebind_first(self.len(), keep)
+    }
+
+    /// `rebind` for the first `count` vertices only (the others are left as they are).
+    pub fn rebind_first(&mut self, count: usize, keep: impl Fn(usize, u32) -> bool) -> Vec<usize> {
         let mut orphans = Vec::new();
-        for (v, (ids, w)) in self.nodes.iter().zip(self.weights.iter_mut()).enumerate() {
+        let corners = self.nodes.iter().zip(self.weights.iter_mut()).take(count);
+        for (v, (ids, w)) in corners.enumerate() {
             let mut kept = *w;
             for k in 0..8 {
                 if kept[k] != 0.0 && !keep(v, ids[k]) {

@@ -32,8 +32,9 @@ impl ChainMail {
         l.unpin(&gone.iter().map(|&v| v as u32).collect::<Vec<_>>());
         if !gone.is_empty() {
             let topology = &self.lattice.topology;
-            self.embedding
-                .rebind(|_, n| topology.is_occupied(n as usize));
+            self.embedding.rebind_first(self.original_vertices, |_, n| {
+                topology.is_occupied(n as usize)
+            });
             self.topology_changed();
         }
         Ok(gone.len())
@@ -223,8 +224,10 @@ impl Deformable for ChainMail {
         if removed > 0 {
             // The given surface's vertices drop the elements now across the blade.
             let (surface, x) = (&self.surface, &self.lattice.x);
-            self.embedding
-                .rebind(|v, n| blade.crossing(surface[v], x[n as usize]).is_none());
+            // Only the given surface's vertices: the drawn ones are redrawn below.
+            self.embedding.rebind_first(self.original_vertices, |v, n| {
+                blade.crossing(surface[v], x[n as usize]).is_none()
+            });
             self.topology_changed();
         }
         Ok(CutInfo {

@@ -38,8 +38,10 @@ impl LinkedVolumes {
         if !removed.is_empty() {
             self.remove_springs(&removed);
             let (surface, x) = (&self.surface, &self.state.x);
-            self.embedding
-                .rebind(|v, n| blade.crossing(surface[v], x[n as usize]).is_none());
+            // Only the given surface's vertices: the drawn ones are redrawn below.
+            self.embedding.rebind_first(self.original_vertices, |v, n| {
+                blade.crossing(surface[v], x[n as usize]).is_none()
+            });
             self.topology_changed();
         }
         Ok(CutInfo {
@@ -67,7 +69,8 @@ impl LinkedVolumes {
         }
         self.remove_springs(&links);
         let carved: HashSet<u32> = gone.iter().map(|&v| self.element_of[v]).collect();
-        self.embedding.rebind(|_, n| !carved.contains(&n));
+        self.embedding
+            .rebind_first(self.original_vertices, |_, n| !carved.contains(&n));
         self.fixed_elements.retain(|e| !carved.contains(e));
         self.topology_changed();
         Ok(gone.len())
