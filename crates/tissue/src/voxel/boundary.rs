@@ -54,21 +54,149 @@ pub fn boundary_surface_with(
     subdivisions: usize,
     smoothing: usize,
 ) -> BoundarySurface {
+    build(links, &Region::all(links.dims), subdivisions, smoothing).into_surface()
+}
+
+/// A box of voxels, by grid coordinates, bounds included.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Region {
+    pub lo: [usize; 3],
+    pub hi: [usize; 3],
+}
+
+impl Region {
+    pub fn all(dims: [usize; 3]) -> Self {
+        Region {
+            lo: [0; 3],
+            hi: dims.map(|d| d.saturating_sub(1)),
+        }
+    }
+
+    /// This box grown by `margin` voxels each way, within a grid of `dims`.
+    pub fn grown(&self, margin: usize, dims: [usize; 3]) -> Self {
+        Region {
+            lo: self.lo.map(|l| l.saturating_sub(margin)),
+            hi: [0, 1, 2].map(|a| (self.hi[a] + margin).min(dims[a].saturating_sub(1))),
+        }
+    }
+
+    pub fn contains(&self, c: [usize; 3]) -> bool {
+        (0..3).all(|a| self.lo[a] <= c[a] && c[a] <= self.hi[a])
+    }
+
+    pub fn voxels(&self) -> usize {
+        (0..3).map(|a| self.hi[a] + 1 - self.lo[a]).product()
+    }
+
+    /// Whether the point `c`, in voxel units (voxel centres at integers), lies within the
+    /// box grown by `margin`.
+    pub fn reaches(&self, c: Vec3, margin: Real) -> bool {
+        let c = c.to_array();
+        (0..3).all(|a| c[a] >= self.lo[a] as Real - margin && c[a] <= self.hi[a] as Real + margin)
+    }
+}
+
+/// What identifies a boundary vertex whatever part of the lattice it was built from, so an
+/// edit can rebuild a window and splice it in (`DrawnBoundary`). Faces are keyed
+/// 6·voxel + direction and face corners 4·face + slot. A corner vertex is its class's
+/// smallest corner key, a midpoint added where two twin pairs share an edge the smaller of
+/// its two (face, edge) keys, a face centre its face key (each tagged in the top bits).
+/// A vertex of a triangle split is the pair of its edge's ends; an unsplit one pairs with
+/// `u64::MAX`.
+pub(crate) type VertexKey = u128;
+
+const TAG_SHIFT: u32 = 62;
+const CORNER: u64 = 0;
+const TWIN_MIDPOINT: u64 = 1 << TAG_SHIFT;
+const FACE_CENTRE: u64 = 2 << TAG_SHIFT;
+
+fn unsplit(key: u64) -> VertexKey {
+    ((u64::MAX as u128) << 64) | key as u128
+}
+
+fn split_key(a: VertexKey, b: VertexKey) -> VertexKey {
+    let (a, b) = (a as u64, b as u64);
+    ((a.max(b) as u128) << 64) | a.min(b) as u128
+}
+
+/// The boundary faces of a region, triangulated, split and smoothed, with keys.
+pub(crate) struct Built {
+    /// Smoothed rest positions.
+    pub rest: Vec<Vec3>,
+    /// Rest positions before smoothing, in voxel units (voxel centres at integers).
+    pub lattice: Vec<Vec3>,
+    /// Per vertex, the voxels it follows and their weights (at most eight).
+    pub follows: Vec<Vec<(u32, Real)>>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per triangle, the key of the voxel face it tiles.
+    pub face_of_triangle: Vec<u64>,
+    pub keys: Vec<VertexKey>,
+}
+
+impl Built {
+    fn into_surface(self) -> BoundarySurface {
+        BoundarySurface {
+            embedding: embedding_of(self.rest, &self.follows),
+            triangles: self.triangles,
+        }
+    }
+}
+
+/// Rest positions and followed voxels as a `TrilinearEmbedding` (at most eight voxels per
+/// vertex: a lattice corner has eight cells around it).
+pub(crate) fn embedding_of(rest: Vec<Vec3>, follows: &[Vec<(u32, Real)>]) -> TrilinearEmbedding {
+    let (nodes, weights) = follows
+        .iter()
+        .map(|m| {
+            let mut ids = [0u32; 8];
+            let mut w = [0.0; 8];
+            for (k, &(v, x)) in m.iter().take(8).enumerate() {
+                ids[k] = v;
+                w[k] = x;
+            }
+            (ids, w)
+        })
+        .unzip();
+    TrilinearEmbedding {
+        rest,
+        nodes,
+        weights,
+    }
+}
+
+/// The boundary of the occupied voxels of `region` (their faces; twins and classes are
+/// found among those, so near the region's sides the result is only a window's).
+pub(crate) fn build(
+    links: &VoxelLinks,
+    region: &Region,
+    subdivisions: usize,
+    smoothing: usize,
+) -> Built {
     let [nx, ny, _] = links.dims;
     let coords = |v: usize| [v % nx, (v / nx) % ny, v / (nx * ny)];
     let boundary = |v: usize, d: usize| links.is_occupied(v) && links.linked(v, d).is_none();
 
-    // Faces as (voxel, direction), with their corners counter-clockwise seen from outside.
+    // Faces as (voxel, direction), with their corners counter-clockwise seen from outside,
+    // in increasing key order (which makes a class's first corner its smallest).
     let mut faces: Vec<(usize, usize)> = Vec::new();
     let mut face_of: FxHashMap<(usize, usize), usize> = FxHashMap::default();
-    for v in 0..links.len() {
-        for d in 0..6 {
-            if boundary(v, d) {
-                face_of.insert((v, d), faces.len());
-                faces.push((v, d));
+    if !links.is_empty() {
+        for k in region.lo[2]..=region.hi[2] {
+            for j in region.lo[1]..=region.hi[1] {
+                for i in region.lo[0]..=region.hi[0] {
+                    let v = i + nx * (j + ny * k);
+                    for d in 0..6 {
+                        if boundary(v, d) {
+                            face_of.insert((v, d), faces.len());
+                            faces.push((v, d));
+                        }
+                    }
+                }
             }
         }
     }
+    let face_key = |f: usize| (6 * faces[f].0 + faces[f].1) as u64;
+    let slot_key = |f: usize, s: usize| 4 * face_key(f) + s as u64;
     let corners_of = |(v, d): (usize, usize)| -> [[usize; 3]; 4] {
         let (p, positive) = (d / 2, d & 1 == 1);
         let (u, w) = ((p + 1) % 3, (p + 2) % 3);
@@ -121,6 +249,7 @@ pub fn boundary_surface_with(
     // Vertices: one per class; rest at its lattice corner, following its voxels.
     let mut vertex_of_root: FxHashMap<usize, u32> = FxHashMap::default();
     let mut rest = Vec::new();
+    let mut keys: Vec<VertexKey> = Vec::new();
     let mut members: Vec<Vec<u32>> = Vec::new();
     let mut slot_vertex = vec![0u32; 4 * faces.len()];
     for (f, &face) in faces.iter().enumerate() {
@@ -130,6 +259,7 @@ pub fn boundary_surface_with(
             let id = *vertex_of_root.entry(root).or_insert_with(|| {
                 let c = corners[s].map(|x| x as Real - 0.5);
                 rest.push(links.origin + Vec3::from_array(c) * links.spacing);
+                keys.push(unsplit(CORNER | slot_key(f, s)));
                 members.push(Vec::new());
                 (rest.len() - 1) as u32
             });
@@ -173,6 +303,7 @@ pub fn boundary_surface_with(
             }
             let (a, b) = (slot_vertex[4 * f + e], slot_vertex[4 * f + (e + 1) % 4]);
             rest.push(0.5 * (rest[a as usize] + rest[b as usize]));
+            keys.push(unsplit(TWIN_MIDPOINT | slot_key(f, e).min(slot_key(g, e2))));
             let mut m = vec![faces[f].0 as u32];
             if faces[g].0 != faces[f].0 {
                 m.push(faces[g].0 as u32);
@@ -184,6 +315,7 @@ pub fn boundary_surface_with(
         }
     }
     let mut triangles = Vec::with_capacity(2 * faces.len());
+    let mut face_of_triangle = Vec::with_capacity(2 * faces.len());
     for (f, &(v, d)) in faces.iter().enumerate() {
         let q = &slot_vertex[4 * f..4 * f + 4];
         if (0..4).all(|e| !midpoint.contains_key(&(f, e))) {
@@ -197,6 +329,7 @@ pub fn boundary_surface_with(
                 triangles.push([q[1], q[2], q[3]]);
                 triangles.push([q[1], q[3], q[0]]);
             }
+            face_of_triangle.resize(triangles.len(), face_key(f));
             continue;
         }
         // The face as a polygon with its midpoints, fanned from a vertex at its centre
@@ -210,11 +343,13 @@ pub fn boundary_surface_with(
         }
         let centre = q.iter().map(|&c| rest[c as usize]).sum::<Vec3>() / 4.0;
         rest.push(centre);
+        keys.push(unsplit(FACE_CENTRE | face_key(f)));
         members.push(vec![v as u32]);
         let c = (rest.len() - 1) as u32;
         for k in 0..poly.len() {
             triangles.push([c, poly[k], poly[(k + 1) % poly.len()]]);
         }
+        face_of_triangle.resize(triangles.len(), face_key(f));
     }
     // A lattice corner has eight cells around it, so a class has at most eight voxels.
     let mut follows: Vec<Vec<(u32, Real)>> = members
@@ -225,20 +360,9 @@ pub fn boundary_surface_with(
         })
         .collect();
     for _ in 0..subdivisions {
-        triangles = split_in_four(&mut rest, &mut follows, &triangles);
+        triangles = split_in_four(&mut rest, &mut follows, &mut keys, &triangles);
+        face_of_triangle = face_of_triangle.iter().flat_map(|&f| [f; 4]).collect();
     }
-    let (nodes, weights): (Vec<[u32; 8]>, Vec<[Real; 8]>) = follows
-        .iter()
-        .map(|m| {
-            let mut ids = [0u32; 8];
-            let mut w = [0.0; 8];
-            for (k, &(v, x)) in m.iter().take(8).enumerate() {
-                ids[k] = v;
-                w[k] = x;
-            }
-            (ids, w)
-        })
-        .unzip();
     let boxes: Vec<(Vec3, Vec3)> = follows
         .iter()
         .map(|m| {
@@ -252,14 +376,18 @@ pub fn boundary_surface_with(
             )
         })
         .collect();
+    let lattice = rest
+        .iter()
+        .map(|&p| (p - links.origin) / links.spacing)
+        .collect();
     taubin(&mut rest, &triangles, smoothing, &boxes);
-    BoundarySurface {
-        embedding: TrilinearEmbedding {
-            rest,
-            nodes,
-            weights,
-        },
+    Built {
+        rest,
+        lattice,
+        follows,
         triangles,
+        face_of_triangle,
+        keys,
     }
 }
 
@@ -293,6 +421,7 @@ fn twin(
 fn split_in_four(
     rest: &mut Vec<Vec3>,
     follows: &mut Vec<Vec<(u32, Real)>>,
+    keys: &mut Vec<VertexKey>,
     triangles: &[[u32; 3]],
 ) -> Vec<[u32; 3]> {
     let mut mid: FxHashMap<(u32, u32), u32> = FxHashMap::default();
@@ -302,6 +431,7 @@ fn split_in_four(
             let (a, b) = (tri[e], tri[(e + 1) % 3]);
             *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
                 rest.push(0.5 * (rest[a as usize] + rest[b as usize]));
+                keys.push(split_key(keys[a as usize], keys[b as usize]));
                 let mut w: Vec<(u32, Real)> = Vec::with_capacity(8);
                 for &(v, x) in follows[a as usize].iter().chain(&follows[b as usize]) {
                     match w.iter_mut().find(|(u, _)| *u == v) {
@@ -310,7 +440,8 @@ fn split_in_four(
                     }
                 }
                 if w.len() > 8 {
-                    w.sort_by(|p, q| q.1.total_cmp(&p.1));
+                    // Ties by voxel: the same vertex whichever triangle reaches it first.
+                    w.sort_by(|p, q| q.1.total_cmp(&p.1).then(p.0.cmp(&q.0)));
                     w.truncate(8);
                     let sum: Real = w.iter().map(|p| p.1).sum();
                     w.iter_mut().for_each(|p| p.1 /= sum);
@@ -361,35 +492,6 @@ pub const SUBDIVISIONS: usize = 1;
 
 /// Taubin passes the models give the boundary surface.
 pub const SMOOTHING: usize = 8;
-
-/// Switches a model's drawn surface to the voxel boundary: keeps the first `original`
-/// vertices of `embedding` (no longer drawn, but constraints keep naming them and they
-/// keep following their elements), replaces any vertices after them by the boundary's,
-/// with voxel ids renamed through `element_of` (voxel → element id) when given, and
-/// returns the triangles to draw (numbered after the original vertices).
-pub fn redraw(
-    embedding: &mut TrilinearEmbedding,
-    original: usize,
-    links: &VoxelLinks,
-    element_of: Option<&[u32]>,
-) -> Vec<[u32; 3]> {
-    let b = boundary_surface_with(links, SUBDIVISIONS, SMOOTHING);
-    let mut e = b.embedding;
-    if let Some(map) = element_of {
-        e.remap(map);
-    }
-    embedding.rest.truncate(original);
-    embedding.nodes.truncate(original);
-    embedding.weights.truncate(original);
-    embedding.rest.extend(e.rest);
-    embedding.nodes.extend(e.nodes);
-    embedding.weights.extend(e.weights);
-    let offset = original as u32;
-    b.triangles
-        .into_iter()
-        .map(|t| t.map(|v| v + offset))
-        .collect()
-}
 
 /// Test helper: checks that a surface is closed and oriented (every directed edge has
 /// exactly one opposite twin) with no degenerate triangle (repeated vertex or area below

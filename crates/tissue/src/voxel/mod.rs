@@ -11,12 +11,14 @@
 //! - `marching`: a surface from the voxels when none was given (marching tetrahedra)
 //! - `topology`: which voxels and links exist; cut, carve and join (both models)
 //! - `boundary`: the closed surface of the linked voxels, drawn after a topology edit
+//! - `drawn`: that surface kept between edits and redrawn only where an edit reaches
 //!
 //! Voxel (i, j, k) has its centre at `origin + (i·sx, j·sy, k·sz)`, as in `VoxelImage`.
 
 pub mod boundary;
 pub mod components;
 pub mod distance;
+pub mod drawn;
 pub mod embed;
 pub mod marching;
 pub mod select;
@@ -28,6 +30,7 @@ use crate::math::{Real, Vec3};
 pub use boundary::{BoundarySurface, boundary_surface};
 pub use components::{Components, components, keep_component_at, keep_largest};
 pub use distance::DistanceMap;
+pub use drawn::{DrawnBoundary, DrawnSurface};
 pub use embed::TrilinearEmbedding;
 pub use marching::marching_surface;
 pub use select::{from_image_labels, from_image_threshold};

@@ -1,9 +1,9 @@
 //! `Deformable` for `ChainMail`, and its topology edits: `cut` (links crossed by a scalpel
 //! sweep), `carve` (elements under a ball) and `join` (links between touching elements).
 //! The links live in the shared `voxel::VoxelLinks`. After an edit the drawn surface is the
-//! closed boundary of the linked voxels (`voxel::boundary::redraw`), numbered after the
-//! given surface's vertices, which stay (undrawn, still following their elements) so that
-//! constraints naming them keep their meaning.
+//! closed boundary of the linked voxels (`voxel::DrawnBoundary`, redrawn near the edit),
+//! numbered after the given surface's vertices, which stay (undrawn, still following their
+//! elements) so that constraints naming them keep their meaning.
 
 use std::collections::HashMap;
 
@@ -11,7 +11,8 @@ use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
-use crate::voxel::boundary::redraw;
+use crate::voxel::DrawnSurface;
+use crate::voxel::topology::Link;
 
 use super::ChainMail;
 
@@ -28,14 +29,14 @@ impl ChainMail {
         }
         let l = &mut self.lattice;
         let x = &l.x;
-        let (gone, _) = l.topology.carve(|v| x[v], centre, radius);
+        let (gone, links) = l.topology.carve(|v| x[v], centre, radius);
         l.unpin(&gone.iter().map(|&v| v as u32).collect::<Vec<_>>());
         if !gone.is_empty() {
             let topology = &self.lattice.topology;
             self.embedding.rebind_first(self.original_vertices, |_, n| {
                 topology.is_occupied(n as usize)
             });
-            self.topology_changed();
+            self.topology_changed(&links, &gone);
         }
         Ok(gone.len())
     }
@@ -44,22 +45,24 @@ impl ChainMail {
     /// (to `tol` m); returns the links added.
     pub fn join(&mut self, tol: Real) -> usize {
         let added = self.lattice.join(tol.max(0.0));
-        if added > 0 {
-            self.topology_changed();
+        if !added.is_empty() {
+            self.topology_changed(&added, &[]);
         }
-        added
+        added.len()
     }
 
     /// After an edit: the drawn surface becomes the boundary of the linked voxels (closed
     /// whatever was cut); the given surface's vertices keep their numbers, undrawn.
-    fn topology_changed(&mut self) {
+    fn topology_changed(&mut self, edited: &[Link], removed: &[usize]) {
         self.topology_version += 1;
-        self.triangles = redraw(
-            &mut self.embedding,
-            self.original_vertices,
-            &self.lattice.topology,
-            None,
-        );
+        let surface = DrawnSurface {
+            embedding: &mut self.embedding,
+            original: self.original_vertices,
+            triangles: &mut self.triangles,
+            element_of: None,
+        };
+        self.drawn
+            .redraw(surface, &self.lattice.topology, edited, removed);
         let n = self.embedding.len();
         self.surface.resize(n, Vec3::ZERO);
         self.fixed_vertex.resize(n, false);
@@ -220,18 +223,18 @@ impl Deformable for ChainMail {
             });
         }
         let x = &self.lattice.x;
-        let removed = self.lattice.topology.cut(|v| x[v], blade).len();
-        if removed > 0 {
+        let cut = self.lattice.topology.cut(|v| x[v], blade);
+        if !cut.is_empty() {
             // The given surface's vertices drop the elements now across the blade.
             let (surface, x) = (&self.surface, &self.lattice.x);
             // Only the given surface's vertices: the drawn ones are redrawn below.
             self.embedding.rebind_first(self.original_vertices, |v, n| {
                 blade.crossing(surface[v], x[n as usize]).is_none()
             });
-            self.topology_changed();
+            self.topology_changed(&cut, &[]);
         }
         Ok(CutInfo {
-            removed_elements: removed,
+            removed_elements: cut.len(),
             added_vertices: 0,
             topology_version: self.topology_version,
         })

@@ -24,6 +24,7 @@
 //! rest drop out of the active list, so an undisturbed object costs nothing.
 
 use crate::math::{Real, Vec3};
+use crate::voxel::topology::Link;
 use crate::voxel::{VoxelGrid, VoxelLinks};
 
 /// Per-voxel link limits, as fractions of the lattice spacing.
@@ -389,8 +390,9 @@ impl Lattice {
     }
 
     /// Links elements that are lattice neighbours, unlinked, and whose current offset
-    /// satisfies the link's limits to `tol` m (they touch as at rest); returns links added.
-    pub fn join(&mut self, tol: Real) -> usize {
+    /// satisfies the link's limits to `tol` m (they touch as at rest); returns the links
+    /// added.
+    pub fn join(&mut self, tol: Real) -> Vec<Link> {
         // The limits need the labels while the links change: edit a copy (join is rare).
         let mut topology = self.topology.clone();
         let added = topology.join(|a, b, d| {
@@ -399,6 +401,6 @@ impl Lattice {
                 <= tol
         });
         self.topology = topology;
-        added.len()
+        added
     }
 }

@@ -44,7 +44,8 @@ use crate::mesh::SurfaceMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
 use crate::voxel::{
-    DistanceMap, TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface, voxelize_to,
+    DistanceMap, DrawnBoundary, TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface,
+    voxelize_to,
 };
 
 pub use lattice::{Lattice, Limits, Propagation};
@@ -168,6 +169,8 @@ pub struct ChainMail {
     /// Vertices of the given (or marching) surface; the voxel boundary drawn after a
     /// topology edit is numbered after them.
     original_vertices: usize,
+    /// The voxel boundary drawn after edits.
+    drawn: DrawnBoundary,
     distance: DistanceMap,
     vertex_area: Vec<Real>,
     force_stiffness: Real,
@@ -237,6 +240,7 @@ impl ChainMail {
             embedding,
             triangles: surface.triangles,
             original_vertices: surface.vertices.len(),
+            drawn: DrawnBoundary::new(),
             surface: surface.vertices,
             distance,
             force_stiffness,

@@ -39,7 +39,8 @@ use crate::mesh::SurfaceMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
 use crate::voxel::{
-    TrilinearEmbedding, VoxelGrid, VoxelLinks, keep_largest, marching_surface, voxelize_to,
+    DrawnBoundary, TrilinearEmbedding, VoxelGrid, VoxelLinks, keep_largest, marching_surface,
+    voxelize_to,
 };
 
 pub use springs::{Spring, SpringLattice, family_coefficients};
@@ -105,6 +106,8 @@ pub struct LinkedVolumes {
     /// Vertices of the given (or marching) surface; the voxel boundary drawn after a
     /// topology edit is numbered after them.
     original_vertices: usize,
+    /// The voxel boundary drawn after edits.
+    drawn: DrawnBoundary,
     topology_version: u32,
     material: Material,
     system: SpringLattice,
@@ -190,6 +193,7 @@ impl LinkedVolumes {
             coef,
             spring_modulus,
             original_vertices: nv,
+            drawn: DrawnBoundary::new(),
             topology_version: 0,
             params,
             material,

@@ -7,16 +7,16 @@
 //! its cached Jacobians belong to the old springs. A carved element keeps its particle (ids
 //! stay compact and stable) but has no spring left and is no longer drawn or held; it
 //! drifts with its own velocity, out of sight. After any edit the drawn surface is the
-//! closed boundary of the linked voxels (`voxel::boundary::redraw`), numbered after the
-//! given surface's vertices, which stay (undrawn, following their elements) so that
-//! constraints naming them keep their meaning.
+//! closed boundary of the linked voxels (`voxel::DrawnBoundary`, redrawn near the edit),
+//! numbered after the given surface's vertices, which stay (undrawn, following their
+//! elements) so that constraints naming them keep their meaning.
 
 use std::collections::HashSet;
 
 use crate::error::SimError;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{CutInfo, CutPath};
-use crate::voxel::boundary::redraw;
+use crate::voxel::DrawnSurface;
 use crate::voxel::topology::Link;
 
 use super::{LinkedVolumes, spring_for};
@@ -42,7 +42,7 @@ impl LinkedVolumes {
             self.embedding.rebind_first(self.original_vertices, |v, n| {
                 blade.crossing(surface[v], x[n as usize]).is_none()
             });
-            self.topology_changed();
+            self.topology_changed(&removed, &[]);
         }
         Ok(CutInfo {
             removed_elements: removed.len(),
@@ -72,7 +72,7 @@ impl LinkedVolumes {
         self.embedding
             .rebind_first(self.original_vertices, |_, n| !carved.contains(&n));
         self.fixed_elements.retain(|e| !carved.contains(e));
-        self.topology_changed();
+        self.topology_changed(&links, &gone);
         Ok(gone.len())
     }
 
@@ -114,7 +114,7 @@ impl LinkedVolumes {
             })
             .collect();
         self.system.edit_springs(|_| true, &springs);
-        self.topology_changed();
+        self.topology_changed(&added, &[]);
         added.len()
     }
 
@@ -141,17 +141,18 @@ impl LinkedVolumes {
             .edit_springs(|s| !gone.contains(&key(s.a, s.b)), &[]);
     }
 
-    fn topology_changed(&mut self) {
+    fn topology_changed(&mut self, edited: &[Link], removed: &[usize]) {
         self.topology_version += 1;
         // The volume term's stencils follow the links: none across a cut.
         self.system.rebuild_volume_term(&self.rest);
         self.integrator.invalidate();
-        self.triangles = redraw(
-            &mut self.embedding,
-            self.original_vertices,
-            &self.topology,
-            Some(&self.element_of),
-        );
+        let surface = DrawnSurface {
+            embedding: &mut self.embedding,
+            original: self.original_vertices,
+            triangles: &mut self.triangles,
+            element_of: Some(&self.element_of),
+        };
+        self.drawn.redraw(surface, &self.topology, edited, removed);
         let n = self.embedding.len();
         self.surface.resize(n, Vec3::ZERO);
         self.fixed_vertex.resize(n, false);
