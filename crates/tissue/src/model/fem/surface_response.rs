@@ -28,9 +28,12 @@ use crate::model::{
 use super::static_model::{FemStatic, NodalSolution};
 use super::system::DofProblem;
 
-pub(crate) use super::small_dense::SmallDense;
+use super::small_dense::SmallDense;
 
 const NONE: u32 = u32::MAX;
+
+/// Contacts the step buffers are sized for before any step.
+const INITIAL_CONTACTS: usize = 16;
 
 /// The condensed stiffness of the free surface dofs and its rows at the fixed dofs.
 pub(crate) struct Condensation {
@@ -181,6 +184,8 @@ pub(crate) struct SurfaceCore {
     pub us_trial: Vec<Real>,
     /// Forces the contacts apply to the tissue (3 per contact).
     pub lambda: Vec<Real>,
+    /// The contact block and its right-hand side, solved in place.
+    pub small: SmallDense,
     surface_positions: Vec<Vec3>,
     surface_reaction: Vec<Vec3>,
     reactions: ConstraintReactions,
@@ -210,6 +215,7 @@ impl SurfaceCore {
             us: Vec::new(),
             us_trial: Vec::new(),
             lambda: Vec::new(),
+            small: SmallDense::new(3 * INITIAL_CONTACTS),
             surface_reaction: vec![Vec3::ZERO; ns],
             reactions: ConstraintReactions::default(),
             precompute_seconds: 0.0,
@@ -448,9 +454,9 @@ pub(crate) trait SurfaceResponse: Send {
 
     fn core(&self) -> &SurfaceCore;
     fn core_mut(&mut self) -> &mut SurfaceCore;
-    /// Condenses for the fixed mask in `core().mask` and pre-computes; nothing changes on
-    /// error.
-    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError>;
+    /// Derives and keeps what the model answers from, given the compliance W of a new fixed
+    /// set; nothing changes on error.
+    fn adopt_compliance(&mut self, w: Mat<Real>) -> Result<(), SimError>;
     /// Refreshes the surface displacements under the loads alone.
     fn update_u0(&mut self);
     /// Solves for the core's contacts, writing `us_trial` and `lambda`.
@@ -471,6 +477,19 @@ pub(crate) trait SurfaceResponse: Send {
         self.rebuild(progress)?;
         self.core_mut().record(&c);
         self.core_mut().reset();
+        Ok(())
+    }
+
+    /// Condenses for the fixed mask in `core().mask` and pre-computes; nothing changes on
+    /// error.
+    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
+        let started = Instant::now();
+        let set = FixedSet::new(self.core().mask.clone());
+        let cond = condense(&mut self.core_mut().fem, &set, progress)?;
+        self.adopt_compliance(compliance(&cond.c)?)?;
+        self.core_mut().install(set, &cond, started);
+        self.core_mut().condense_loads()?;
+        self.update_u0();
         Ok(())
     }
 }
