@@ -26,6 +26,7 @@ use crate::model::{
 };
 
 use super::static_model::{FemStatic, NodalSolution};
+use super::surface_nodes::nodal_forces;
 use super::system::DofProblem;
 
 use super::small_dense::SmallDense;
@@ -81,9 +82,7 @@ impl FixedSet {
 fn surface_held(fem: &FemStatic, forces: &[Real]) -> Result<DofProblem, SimError> {
     let mut dp = DofProblem::new(forces.len());
     for &n in fem.surface_nodes() {
-        for k in 0..3 {
-            dp.hold(3 * n as usize + k, 0.0)?;
-        }
+        dp.hold_node(n as usize, Vec3::ZERO)?;
     }
     dp.finish();
     dp.forces.copy_from_slice(forces);
@@ -309,40 +308,6 @@ impl SurfaceCore {
         self.lambda.resize(self.targets.len(), 0.0);
     }
 
-    /// Nodal forces of `loads` (consistent gravity, point loads on surface nodes), checked.
-    pub fn nodal_forces(&self, loads: &Loads) -> Result<Vec<Real>, SimError> {
-        if !is_finite_vec(loads.gravity) {
-            return Err(SimError::BadParameter {
-                name: "gravity",
-                value: loads.gravity.to_string(),
-                reason: "must be finite".into(),
-            });
-        }
-        let mut f = self
-            .fem
-            .body_load(loads.gravity * self.fem.material().density);
-        let nodes = self.fem.surface_nodes();
-        for &(v, force) in &loads.point_loads {
-            let Some(&n) = nodes.get(v as usize) else {
-                return Err(SimError::BadConstraint {
-                    vertex: v as usize,
-                    count: nodes.len(),
-                });
-            };
-            if !is_finite_vec(force) {
-                return Err(SimError::BadParameter {
-                    name: "point_loads",
-                    value: format!("surface vertex {v} -> {force}"),
-                    reason: "the force is not finite".into(),
-                });
-            }
-            for k in 0..3 {
-                f[3 * n as usize + k] += force[k];
-            }
-        }
-        Ok(f)
-    }
-
     /// Condenses `self.forces` onto the surface: f̃_s = f_s − K_si K_ii⁻¹ f_i on free dofs,
     /// and the support reactions of the surface at rest.
     pub fn condense_loads(&mut self) -> Result<(), SimError> {
@@ -423,7 +388,10 @@ impl SurfaceCore {
 
     /// Sets the loads (checked, condensed); nothing changes on error.
     pub fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        let f = self.nodal_forces(loads)?;
+        let density = self.fem.material().density;
+        let f = nodal_forces(loads, self.fem.surface_nodes(), |g| {
+            self.fem.body_load(g * density)
+        })?;
         let old = std::mem::replace(&mut self.forces, f);
         if self.ready()
             && let Err(e) = self.condense_loads()
