@@ -3,8 +3,7 @@
 //! with a global allocator (this file is its own test binary, with one test, so no other test
 //! allocates meanwhile).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
 use tissue::Material;
 use tissue::interact::{Constraints, Prescribed};
@@ -13,22 +12,7 @@ use tissue::mesh::generate::icosphere;
 use tissue::model::Deformable;
 use tissue::model::bem::{Bem, BemParams};
 
-struct Counting;
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, size) }
-    }
-}
+use common::counting_alloc::{self, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -69,10 +53,10 @@ fn moving_targets_allocate_nothing() {
         m.step(0.01).unwrap();
         let mut allocations = 0;
         for c in &frames {
-            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            let before = counting_alloc::allocations();
             m.set_constraints(c).unwrap();
             m.step(0.01).unwrap();
-            allocations += ALLOCATIONS.load(Ordering::Relaxed) - before;
+            allocations += counting_alloc::allocations() - before;
         }
         assert_eq!(
             allocations, 0,

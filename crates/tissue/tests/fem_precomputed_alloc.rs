@@ -2,8 +2,7 @@
 //! contact set was seen: counted with a global allocator (this file is its own test binary,
 //! with one test, so no other test allocates meanwhile).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
 use tissue::Material;
 use tissue::interact::{Constraints, Prescribed};
@@ -11,22 +10,7 @@ use tissue::math::Vec3;
 use tissue::model::Deformable;
 use tissue::model::fem::{FemCondensed, FemPrecomputedTensors};
 
-struct Counting;
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, size) }
-    }
-}
+use common::counting_alloc::{self, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -66,12 +50,12 @@ fn contact_updates_allocate_nothing_after_warm_up() {
         // Warm-up with the largest set.
         model.set_constraints(&sets[0]).unwrap();
         model.step(0.0).unwrap();
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let before = counting_alloc::allocations();
         for c in sets.iter().cycle().take(20) {
             model.set_constraints(c).unwrap();
             model.step(0.0).unwrap();
         }
-        let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
+        let during = counting_alloc::allocations() - before;
         assert_eq!(during, 0, "{} allocated {during} times", model.kind());
         assert!(model.surface().positions.iter().all(|p| p.is_finite()));
     }

@@ -3,10 +3,11 @@
 
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Real, Vec3};
 use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
 
 use super::static_model::{FemStatic, Order};
+use super::surface_nodes::nodal_forces;
 use super::system::DofProblem;
 
 impl FemStatic {
@@ -76,18 +77,12 @@ impl Deformable for FemStatic {
         let mut dp = DofProblem::new(self.system.dofs());
         for (s, d) in disp.iter().enumerate() {
             if let Some(d) = d {
-                let n = self.boundary.nodes[s] as usize;
-                for k in 0..3 {
-                    dp.hold(3 * n + k, d[k])?;
-                }
+                dp.hold_node(self.boundary.nodes[s] as usize, *d)?;
             }
         }
         for &(m, a, b) in &self.surface_mids {
             if let (Some(da), Some(db)) = (disp[a as usize], disp[b as usize]) {
-                let d = (da + db) * 0.5;
-                for k in 0..3 {
-                    dp.hold(3 * m as usize + k, d[k])?;
-                }
+                dp.hold_node(m as usize, (da + db) * 0.5)?;
             }
         }
         dp.finish();
@@ -100,28 +95,9 @@ impl Deformable for FemStatic {
     /// Gravity becomes the consistent body load ρ g over every element; point loads act on
     /// the node of their surface vertex.
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        if !is_finite_vec(loads.gravity) {
-            return Err(SimError::BadParameter {
-                name: "gravity",
-                value: loads.gravity.to_string(),
-                reason: "must be finite".into(),
-            });
-        }
-        let mut f = self.body_load(loads.gravity * self.material.density);
-        for &(v, force) in &loads.point_loads {
-            let n = self.node_of(v)?;
-            if !is_finite_vec(force) {
-                return Err(SimError::BadParameter {
-                    name: "point_loads",
-                    value: format!("surface vertex {v} -> {force}"),
-                    reason: "the force is not finite".into(),
-                });
-            }
-            for k in 0..3 {
-                f[3 * n + k] += force[k];
-            }
-        }
-        self.problem.forces = f;
+        let density = self.material.density;
+        self.problem.forces =
+            nodal_forces(loads, &self.boundary.nodes, |g| self.body_load(g * density))?;
         self.loads = loads.clone();
         Ok(())
     }

@@ -15,6 +15,7 @@
 //! - `system`: constraint elimination keeping the pattern, factorisation cache, rigid-mode check
 //! - `mass`: lumped nodal masses for the dynamic variants
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
+//! - `surface_nodes`: surface vertices (as constraints and loads name them) to mesh nodes
 //! - `surface_response`: K condensed onto the surface (C, W = C⁻¹), shared by the two below
 //! - `small_dense`: the in-place contact block solver of the two below
 //! - `condensed`: `fem-condensed`, fast finite elements (Bro-Nielsen), pre-inverted compliance
@@ -34,6 +35,7 @@ mod precomputed;
 pub mod quadratic_mesh;
 mod small_dense;
 mod static_model;
+mod surface_nodes;
 mod surface_response;
 mod system;
 

@@ -326,21 +326,6 @@ impl FemStatic {
             reactions: v(&r),
         })
     }
-
-    pub(super) fn bad_vertex(&self, vertex: u32) -> SimError {
-        SimError::BadConstraint {
-            vertex: vertex as usize,
-            count: self.boundary.nodes.len(),
-        }
-    }
-
-    pub(super) fn node_of(&self, vertex: u32) -> Result<usize, SimError> {
-        self.boundary
-            .nodes
-            .get(vertex as usize)
-            .map(|&n| n as usize)
-            .ok_or_else(|| self.bad_vertex(vertex))
-    }
 }
 
 /// The mid-edge nodes of the boundary triangles' edges, each once.

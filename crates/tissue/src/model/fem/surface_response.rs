@@ -26,11 +26,15 @@ use crate::model::{
 };
 
 use super::static_model::{FemStatic, NodalSolution};
+use super::surface_nodes::nodal_forces;
 use super::system::DofProblem;
 
-pub(crate) use super::small_dense::SmallDense;
+use super::small_dense::SmallDense;
 
 const NONE: u32 = u32::MAX;
+
+/// Contacts the step buffers are sized for before any step.
+const INITIAL_CONTACTS: usize = 16;
 
 /// The condensed stiffness of the free surface dofs and its rows at the fixed dofs.
 pub(crate) struct Condensation {
@@ -78,9 +82,7 @@ impl FixedSet {
 fn surface_held(fem: &FemStatic, forces: &[Real]) -> Result<DofProblem, SimError> {
     let mut dp = DofProblem::new(forces.len());
     for &n in fem.surface_nodes() {
-        for k in 0..3 {
-            dp.hold(3 * n as usize + k, 0.0)?;
-        }
+        dp.hold_node(n as usize, Vec3::ZERO)?;
     }
     dp.finish();
     dp.forces.copy_from_slice(forces);
@@ -181,6 +183,8 @@ pub(crate) struct SurfaceCore {
     pub us_trial: Vec<Real>,
     /// Forces the contacts apply to the tissue (3 per contact).
     pub lambda: Vec<Real>,
+    /// The contact block and its right-hand side, solved in place.
+    pub small: SmallDense,
     surface_positions: Vec<Vec3>,
     surface_reaction: Vec<Vec3>,
     reactions: ConstraintReactions,
@@ -210,6 +214,7 @@ impl SurfaceCore {
             us: Vec::new(),
             us_trial: Vec::new(),
             lambda: Vec::new(),
+            small: SmallDense::new(3 * INITIAL_CONTACTS),
             surface_reaction: vec![Vec3::ZERO; ns],
             reactions: ConstraintReactions::default(),
             precompute_seconds: 0.0,
@@ -303,40 +308,6 @@ impl SurfaceCore {
         self.lambda.resize(self.targets.len(), 0.0);
     }
 
-    /// Nodal forces of `loads` (consistent gravity, point loads on surface nodes), checked.
-    pub fn nodal_forces(&self, loads: &Loads) -> Result<Vec<Real>, SimError> {
-        if !is_finite_vec(loads.gravity) {
-            return Err(SimError::BadParameter {
-                name: "gravity",
-                value: loads.gravity.to_string(),
-                reason: "must be finite".into(),
-            });
-        }
-        let mut f = self
-            .fem
-            .body_load(loads.gravity * self.fem.material().density);
-        let nodes = self.fem.surface_nodes();
-        for &(v, force) in &loads.point_loads {
-            let Some(&n) = nodes.get(v as usize) else {
-                return Err(SimError::BadConstraint {
-                    vertex: v as usize,
-                    count: nodes.len(),
-                });
-            };
-            if !is_finite_vec(force) {
-                return Err(SimError::BadParameter {
-                    name: "point_loads",
-                    value: format!("surface vertex {v} -> {force}"),
-                    reason: "the force is not finite".into(),
-                });
-            }
-            for k in 0..3 {
-                f[3 * n as usize + k] += force[k];
-            }
-        }
-        Ok(f)
-    }
-
     /// Condenses `self.forces` onto the surface: f̃_s = f_s − K_si K_ii⁻¹ f_i on free dofs,
     /// and the support reactions of the surface at rest.
     pub fn condense_loads(&mut self) -> Result<(), SimError> {
@@ -417,7 +388,10 @@ impl SurfaceCore {
 
     /// Sets the loads (checked, condensed); nothing changes on error.
     pub fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        let f = self.nodal_forces(loads)?;
+        let density = self.fem.material().density;
+        let f = nodal_forces(loads, self.fem.surface_nodes(), |g| {
+            self.fem.body_load(g * density)
+        })?;
         let old = std::mem::replace(&mut self.forces, f);
         if self.ready()
             && let Err(e) = self.condense_loads()
@@ -448,9 +422,9 @@ pub(crate) trait SurfaceResponse: Send {
 
     fn core(&self) -> &SurfaceCore;
     fn core_mut(&mut self) -> &mut SurfaceCore;
-    /// Condenses for the fixed mask in `core().mask` and pre-computes; nothing changes on
-    /// error.
-    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError>;
+    /// Derives and keeps what the model answers from, given the compliance W of a new fixed
+    /// set; nothing changes on error.
+    fn adopt_compliance(&mut self, w: Mat<Real>) -> Result<(), SimError>;
     /// Refreshes the surface displacements under the loads alone.
     fn update_u0(&mut self);
     /// Solves for the core's contacts, writing `us_trial` and `lambda`.
@@ -471,6 +445,19 @@ pub(crate) trait SurfaceResponse: Send {
         self.rebuild(progress)?;
         self.core_mut().record(&c);
         self.core_mut().reset();
+        Ok(())
+    }
+
+    /// Condenses for the fixed mask in `core().mask` and pre-computes; nothing changes on
+    /// error.
+    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
+        let started = Instant::now();
+        let set = FixedSet::new(self.core().mask.clone());
+        let cond = condense(&mut self.core_mut().fem, &set, progress)?;
+        self.adopt_compliance(compliance(&cond.c)?)?;
+        self.core_mut().install(set, &cond, started);
+        self.core_mut().condense_loads()?;
+        self.update_u0();
         Ok(())
     }
 }

@@ -62,6 +62,14 @@ impl DofProblem {
         Ok(())
     }
 
+    /// Holds the three dofs of `node` at displacement `d`.
+    pub(crate) fn hold_node(&mut self, node: usize, d: Vec3) -> Result<(), SimError> {
+        for k in 0..3 {
+            self.hold(3 * node + k, d[k])?;
+        }
+        Ok(())
+    }
+
     /// Sorts the held list (after a series of `hold`).
     pub fn finish(&mut self) {
         self.list.sort_unstable();

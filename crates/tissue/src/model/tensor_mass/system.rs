@@ -103,11 +103,11 @@ pub struct TensorSystem {
     /// Gravity share and point loads per node, in N.
     pub(super) external: Vec<Vec3>,
     pub(super) gravity: Vec3,
+    /// Displacements x − rest of the last elastic force pass.
     u: Vec<Vec3>,
     kv: Vec<Vec3>,
-    /// Elastic + penalty energy of the last force evaluation and where it was done.
+    /// Elastic + penalty energy of the last `add_forces`, at the displacements `u`.
     energy: Option<Real>,
-    energy_at: Vec<Vec3>,
     /// Displacements at which `prepare_jacobians` linearised.
     jacobian_u: Vec<Vec3>,
     penalty_pass: PenaltyPass,
@@ -168,7 +168,6 @@ impl TensorSystem {
             u: vec![Vec3::ZERO; n],
             kv: vec![Vec3::ZERO; n],
             energy: None,
-            energy_at: vec![Vec3::ZERO; n],
             jacobian_u: vec![Vec3::ZERO; n],
             penalty_pass: PenaltyPass::default(),
         };
@@ -246,6 +245,8 @@ impl TensorSystem {
     /// elastic + penalty energy, got on the way: ½uᵀKu = −½ u·f_linear, and the
     /// non-linear terms sum their own.
     pub fn add_elastic_forces(&mut self, x: &[Vec3], f: &mut [Vec3]) -> Real {
+        // `u` changes: the energy kept for the old one no longer applies.
+        self.energy = None;
         for ((u, x), r) in self.u.iter_mut().zip(x).zip(&self.rest) {
             *u = *x - *r;
         }
@@ -314,7 +315,6 @@ impl TensorSystem {
     /// All forces at (x, v): elastic, penalty, damping and loads, added to `f`.
     pub fn add_forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
         let w = self.add_elastic_forces(x, f);
-        self.energy_at.clone_from_slice(x);
         self.energy = Some(w);
         for ((fi, vi), (m, e)) in f
             .iter_mut()
@@ -333,8 +333,8 @@ impl TensorSystem {
     }
 
     /// Elastic + penalty energy at `x` minus the work of the loads: what the blow-up guard
-    /// watches. The value from the last force evaluation when `x` is where it was done (the
-    /// integrators ask right after evaluating), else per element.
+    /// watches. The value from the last force evaluation when `x` gives the displacements it
+    /// was done at (the integrators ask right after evaluating), else per element.
     pub fn potential_energy(&self, x: &[Vec3]) -> Real {
         let load: Real = self
             .external
@@ -343,8 +343,17 @@ impl TensorSystem {
             .zip(&self.rest)
             .map(|((e, x), r)| e.dot(*x - *r))
             .sum();
+        // The force pass sees x only through u = x − rest, so u is the key of its energy, and
+        // it keeps u anyway: no copy of x per force evaluation.
+        let at_u = || {
+            x.len() == self.u.len()
+                && x.iter()
+                    .zip(&self.rest)
+                    .zip(&self.u)
+                    .all(|((x, r), u)| *x - *r == *u)
+        };
         match self.energy {
-            Some(w) if self.energy_at == x => w - load,
+            Some(w) if at_u() => w - load,
             _ => self.element_energy(x) - load,
         }
     }

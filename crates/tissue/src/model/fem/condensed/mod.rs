@@ -9,8 +9,6 @@
 //! cost is reported in `info()` ("rebuilds", "last_rebuild_s"). The interior is computed
 //! only on demand (`interior_displacements`). Same answers as `fem-static` (linear order).
 
-use std::time::Instant;
-
 use faer::Mat;
 use serde::Deserialize;
 
@@ -22,9 +20,7 @@ use crate::model::BuildInput;
 use crate::model::registry::parse_params;
 
 use super::static_model::{FemStatic, Order};
-use super::surface_response::{
-    FixedSet, SmallDense, SurfaceCore, SurfaceResponse, compliance, condense,
-};
+use super::surface_response::{SurfaceCore, SurfaceResponse};
 
 #[cfg(test)]
 pub(crate) mod tests;
@@ -34,9 +30,6 @@ pub(crate) mod tests;
 #[serde(deny_unknown_fields)]
 struct Params {}
 
-/// Contacts the step buffers are sized for before any step.
-const INITIAL_CONTACTS: usize = 16;
-
 /// Condensed, pre-inverted linear FEM on the surface.
 pub struct FemCondensed {
     core: SurfaceCore,
@@ -44,7 +37,6 @@ pub struct FemCondensed {
     w: Mat<Real>,
     /// W f̃: the surface displacements under the loads alone.
     u0: Vec<Real>,
-    small: SmallDense,
 }
 
 impl std::fmt::Debug for FemCondensed {
@@ -80,7 +72,6 @@ impl FemCondensed {
             core: SurfaceCore::new(fem),
             w: Mat::zeros(0, 0),
             u0: Vec::new(),
-            small: SmallDense::new(3 * INITIAL_CONTACTS),
         };
         model.install_fixed(fixed, progress)?;
         Ok(model)
@@ -104,33 +95,7 @@ impl FemCondensed {
 
     /// Sizes the step buffers for `contacts` contact vertices (they also grow on demand).
     pub fn reserve_contacts(&mut self, contacts: usize) {
-        self.small.reserve(3 * contacts);
-    }
-
-    /// Condenses for the fixed mask in `core.mask` and pre-inverts; nothing changes on error.
-    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
-        let started = Instant::now();
-        let set = FixedSet::new(self.core.mask.clone());
-        let cond = condense(&mut self.core.fem, &set, progress)?;
-        let w = compliance(&cond.c)?;
-        self.core.install(set, &cond, started);
-        self.w = w;
-        self.core.condense_loads()?;
-        self.update_u0();
-        Ok(())
-    }
-
-    fn update_u0(&mut self) {
-        let n = self.w.nrows();
-        self.u0.clear();
-        self.u0.resize(n, 0.0);
-        for (j, &f) in self.core.f_cond.iter().enumerate() {
-            if f != 0.0 {
-                for (u, &w) in self.u0.iter_mut().zip(self.w.col_as_slice(j)) {
-                    *u += w * f;
-                }
-            }
-        }
+        self.core.small.reserve(3 * contacts);
     }
 }
 
@@ -148,12 +113,22 @@ impl SurfaceResponse for FemCondensed {
         &mut self.core
     }
 
-    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
-        FemCondensed::rebuild(self, progress)
+    fn adopt_compliance(&mut self, w: Mat<Real>) -> Result<(), SimError> {
+        self.w = w;
+        Ok(())
     }
 
     fn update_u0(&mut self) {
-        FemCondensed::update_u0(self);
+        let n = self.w.nrows();
+        self.u0.clear();
+        self.u0.resize(n, 0.0);
+        for (j, &f) in self.core.f_cond.iter().enumerate() {
+            if f != 0.0 {
+                for (u, &w) in self.u0.iter_mut().zip(self.w.col_as_slice(j)) {
+                    *u += w * f;
+                }
+            }
+        }
     }
 
     /// W_pp λ = u_p − (W f̃)_p, then u_s = W f̃ + W_{:,p} λ.
@@ -161,7 +136,7 @@ impl SurfaceResponse for FemCondensed {
         let m = self.core.targets.len();
         let contacts = &self.core.contacts;
         let dof = |r: usize| 3 * contacts[r / 3] as usize + r % 3;
-        let (mut block, rhs) = self.small.block_and_rhs(m);
+        let (mut block, rhs) = self.core.small.block_and_rhs(m);
         for c in 0..m {
             for r in c..m {
                 block[(r, c)] = self.w[(dof(r), dof(c))];
@@ -170,7 +145,7 @@ impl SurfaceResponse for FemCondensed {
         for (r, x) in rhs.iter_mut().enumerate() {
             *x = self.core.targets[r] - self.u0[dof(r)];
         }
-        let rhs = self.small.solve_spd_rhs(m)?;
+        let rhs = self.core.small.solve_spd_rhs(m)?;
         let us = &mut self.core.us_trial;
         us.copy_from_slice(&self.u0);
         for (r, &l) in rhs.iter().enumerate() {
@@ -194,7 +169,7 @@ impl SurfaceResponse for FemCondensed {
             ("compliance_bytes".into(), (n * n * 8).to_string()),
             (
                 "contact_capacity".into(),
-                (self.small.a.nrows() / 3).to_string(),
+                (self.core.small.a.nrows() / 3).to_string(),
             ),
         ]
     }

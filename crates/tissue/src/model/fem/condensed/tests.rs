@@ -11,22 +11,20 @@ use crate::model::{Deformable, Reactions};
 pub(crate) const LIVER: &str =
     concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
 
-/// The liver in metres.
-pub(crate) fn liver() -> TetMesh {
-    let mut m = crate::io::read(LIVER).unwrap().tet_mesh(LIVER).unwrap();
-    m.vertices.iter_mut().for_each(|v| *v *= 0.01);
-    m
-}
-
 pub(crate) fn liver_material() -> Material {
     Material::new(3000.0, 0.3).unwrap()
 }
 
-/// File vertices 3, 39, 64 as surface vertices (the nearest surface vertex if interior).
-pub(crate) fn liver_fixed(fem: &FemStatic) -> Vec<u32> {
+/// The liver in metres, its linear `fem-static` (the reference) and the fixed set of these
+/// tests: file vertices 3, 39, 64 as surface vertices (the nearest surface vertex if
+/// interior).
+pub(crate) fn liver_static() -> (TetMesh, FemStatic, Vec<u32>) {
+    let mut mesh = crate::io::read(LIVER).unwrap().tet_mesh(LIVER).unwrap();
+    mesh.vertices.iter_mut().for_each(|v| *v *= 0.01);
+    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
     let nodes = fem.surface_nodes();
     let rest = fem.rest_nodes();
-    [3usize, 39, 64]
+    let fixed = [3usize, 39, 64]
         .iter()
         .map(|&v| {
             (0..nodes.len() as u32)
@@ -36,7 +34,20 @@ pub(crate) fn liver_fixed(fem: &FemStatic) -> Vec<u32> {
                 })
                 .unwrap()
         })
-        .collect()
+        .collect();
+    (mesh, fem, fixed)
+}
+
+/// Cutting is refused: the pre-computation holds for one topology only.
+pub(crate) fn assert_cannot_cut(model: &mut dyn Deformable) {
+    let blade = crate::model::CutPath {
+        start: [Vec3::ZERO; 2],
+        end: [Vec3::X; 2],
+    };
+    assert!(matches!(
+        model.cut(&blade),
+        Err(SimError::Unsupported { .. })
+    ));
 }
 
 /// A small deterministic generator (LCG), uniform in [0, 1).
@@ -149,9 +160,7 @@ pub(crate) fn applied_load(fem: &FemStatic, l: &Loads) -> Vec3 {
 
 #[test]
 fn liver_matches_fem_static_for_random_contact_sets() {
-    let mesh = liver();
-    let mut reference = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&reference);
+    let (mesh, mut reference, fixed) = liver_static();
     let calls = RefCell::new(Vec::new());
     let mut model = FemCondensed::new_with_progress(&mesh, liver_material(), &fixed, &|f| {
         calls.borrow_mut().push(f)
@@ -237,9 +246,7 @@ fn box_matches_fem_static() {
 
 #[test]
 fn compliance_is_symmetric_positive_and_inverts_the_condensed_stiffness() {
-    let mesh = liver();
-    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&fem);
+    let (mesh, _, fixed) = liver_static();
     let model = FemCondensed::new(&mesh, liver_material(), &fixed).unwrap();
     let w = model.compliance();
     let n = w.nrows();
@@ -261,9 +268,7 @@ fn compliance_is_symmetric_positive_and_inverts_the_condensed_stiffness() {
 
 #[test]
 fn bad_input_is_refused_and_keeps_the_state() {
-    let mesh = liver();
-    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&fem);
+    let (mesh, fem, fixed) = liver_static();
     let rest = fem.rest_surface().to_vec();
     let mut model = FemCondensed::new(&mesh, liver_material(), &fixed).unwrap();
     let c = random_constraints(&rest, &fixed, 4, 1e-3, &mut Rng::new(3));
@@ -284,13 +289,7 @@ fn bad_input_is_refused_and_keeps_the_state() {
     ));
     model.step(0.0).unwrap();
     assert_eq!(model.surface().positions, &before[..]);
-    assert!(matches!(
-        model.cut(&crate::model::CutPath {
-            start: [Vec3::ZERO; 2],
-            end: [Vec3::X; 2]
-        }),
-        Err(SimError::Unsupported { .. })
-    ));
+    assert_cannot_cut(&mut model);
     let info = model.info();
     assert!(info.is_static && info.memory_bytes > 411 * 411 * 8);
     // Too few fixed vertices: a clear error, the model keeps its condensation.
@@ -309,9 +308,7 @@ fn bad_input_is_refused_and_keeps_the_state() {
 
 #[test]
 fn contact_buffers_grow_only_when_more_contacts_appear() {
-    let mesh = liver();
-    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&fem);
+    let (mesh, fem, fixed) = liver_static();
     let rest = fem.rest_surface().to_vec();
     let mut model = FemCondensed::new(&mesh, liver_material(), &fixed).unwrap();
     let capacity = |m: &FemCondensed| detail(m, "contact_capacity");
@@ -332,9 +329,7 @@ fn contact_buffers_grow_only_when_more_contacts_appear() {
 #[test]
 fn condensation_reports_its_progress_once_per_free_surface_vertex() {
     use std::sync::{Arc, Mutex};
-    let mesh = liver();
-    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&fem);
+    let (mesh, fem, fixed) = liver_static();
     let free = fem.rest_surface().len() - fixed.len();
     let mut model = FemCondensed::new(&mesh, liver_material(), &[]).unwrap();
     let seen = Arc::new(Mutex::new(Vec::new()));

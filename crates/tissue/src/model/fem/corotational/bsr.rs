@@ -93,13 +93,7 @@ impl BlockStiffness {
         self.blocks.iter_mut().for_each(|b| *b = [0.0; 9]);
         let blocks = &mut self.blocks;
         for ((e, r), slots) in elements.iter().zip(rotations).zip(&self.slots) {
-            let rows = e.dm_inv.transpose();
-            let g = [
-                -(rows.x_axis + rows.y_axis + rows.z_axis),
-                rows.x_axis,
-                rows.y_axis,
-                rows.z_axis,
-            ];
+            let g = e.shape_gradients();
             let rg = g.map(|ga| (*r * ga).to_array());
             let (l, m) = (lame.lambda * e.volume, lame.mu * e.volume);
             for (k, &s) in slots.iter().enumerate() {

@@ -6,18 +6,12 @@ use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3};
 use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
 
+use super::super::surface_nodes::node_of;
 use super::FemCorotational;
 
 impl FemCorotational {
     fn node_of(&self, vertex: u32) -> Result<usize, SimError> {
-        self.boundary
-            .nodes
-            .get(vertex as usize)
-            .map(|&n| n as usize)
-            .ok_or(SimError::BadConstraint {
-                vertex: vertex as usize,
-                count: self.boundary.nodes.len(),
-            })
+        node_of(&self.boundary.nodes, vertex)
     }
 
     /// Each vertex's reaction goes to its first fixed entry, else its last prescribed one.

@@ -52,6 +52,24 @@ impl ElementRest {
     pub fn gradient(&self, x: &[Vec3]) -> Mat3 {
         self.gradient_flat(crate::math::flatten(x))
     }
+
+    /// g₀..g₃, the gradients of the four shape functions.
+    #[inline]
+    pub(super) fn shape_gradients(&self) -> [Vec3; 4] {
+        per_node(self.dm_inv.transpose())
+    }
+}
+
+/// The columns of `m` as nodes 1..3 and minus their sum as node 0: node 0's shape function
+/// is 1 minus the others'.
+#[inline]
+fn per_node(m: Mat3) -> [Vec3; 4] {
+    [
+        -(m.x_axis + m.y_axis + m.z_axis),
+        m.x_axis,
+        m.y_axis,
+        m.z_axis,
+    ]
 }
 
 /// tr m.
@@ -78,13 +96,7 @@ impl Lame {
 /// Adds the node forces −P Dm⁻ᵀ (and their opposite sum on node 0) into `out` (flat).
 #[inline]
 fn scatter(e: &ElementRest, p: &Mat3, sign: Real, out: &mut [Real]) {
-    let cols = *p * e.dm_inv.transpose() * sign;
-    let f = [
-        -(cols.x_axis + cols.y_axis + cols.z_axis),
-        cols.x_axis,
-        cols.y_axis,
-        cols.z_axis,
-    ];
+    let f = per_node(*p * e.dm_inv.transpose() * sign);
     for (n, fa) in e.nodes.iter().zip(f) {
         let i = 3 * *n as usize;
         out[i] += fa.x;
@@ -141,14 +153,7 @@ pub fn add_stiffness_diagonal(
     diag: &mut [Real],
 ) {
     for (e, r) in elements.iter().zip(rotations) {
-        let rows = e.dm_inv.transpose();
-        let g = [
-            -(rows.x_axis + rows.y_axis + rows.z_axis),
-            rows.x_axis,
-            rows.y_axis,
-            rows.z_axis,
-        ];
-        for (n, ga) in e.nodes.iter().zip(g) {
+        for (n, ga) in e.nodes.iter().zip(e.shape_gradients()) {
             let rg = *r * ga;
             let d =
                 (rg * rg) * (lame.lambda + lame.mu) + Vec3::splat(lame.mu * ga.length_squared());

@@ -5,27 +5,13 @@
 
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Real, Vec3};
 
+use super::super::surface_nodes::nodal_forces;
 use super::super::system::DofProblem;
 use super::common::Core;
 
 impl Core {
-    pub(super) fn bad_vertex(&self, vertex: u32) -> SimError {
-        SimError::BadConstraint {
-            vertex: vertex as usize,
-            count: self.boundary.nodes.len(),
-        }
-    }
-
-    pub(super) fn node_of(&self, vertex: u32) -> Result<usize, SimError> {
-        self.boundary
-            .nodes
-            .get(vertex as usize)
-            .map(|&n| n as usize)
-            .ok_or_else(|| self.bad_vertex(vertex))
-    }
-
     /// Fixed vertices are held at rest, prescribed ones reach their target at the end of
     /// each step; fixed wins. Checked fully before anything changes.
     pub fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
@@ -33,10 +19,7 @@ impl Core {
         let mut dp = DofProblem::new(self.dofs());
         for (s, d) in disp.iter().enumerate() {
             if let Some(d) = d {
-                let n = self.boundary.nodes[s] as usize;
-                for k in 0..3 {
-                    dp.hold(3 * n + k, d[k])?;
-                }
+                dp.hold_node(self.boundary.nodes[s] as usize, *d)?;
             }
         }
         dp.finish();
@@ -50,33 +33,10 @@ impl Core {
     /// Gravity gives each node its lumped mass times g (the consistent load of the linear
     /// tet); point loads act on the node of their surface vertex.
     pub fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        if !is_finite_vec(loads.gravity) {
-            return Err(SimError::BadParameter {
-                name: "gravity",
-                value: loads.gravity.to_string(),
-                reason: "must be finite".into(),
-            });
-        }
-        let mut f: Vec<Real> = self
-            .mass
-            .iter()
-            .enumerate()
-            .map(|(d, m)| m * loads.gravity[d % 3])
-            .collect();
-        for &(v, force) in &loads.point_loads {
-            let n = self.node_of(v)?;
-            if !is_finite_vec(force) {
-                return Err(SimError::BadParameter {
-                    name: "point_loads",
-                    value: format!("surface vertex {v} -> {force}"),
-                    reason: "the force is not finite".into(),
-                });
-            }
-            for k in 0..3 {
-                f[3 * n + k] += force[k];
-            }
-        }
-        self.problem.forces = f;
+        self.problem.forces = nodal_forces(loads, &self.boundary.nodes, |g| {
+            let mass = self.mass.iter().enumerate();
+            mass.map(|(d, m)| m * g[d % 3]).collect()
+        })?;
         self.update_energy_floor();
         Ok(())
     }

@@ -13,8 +13,6 @@
 //! LU), then u_i = u0_i + Σ_k T^U_{i,k} a_k and P_k = T^F_k a_k, where u0 is the response to
 //! the loads alone. Same answers as `fem-static` (linear order) and `fem-condensed`.
 
-use std::time::Instant;
-
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
@@ -25,9 +23,7 @@ use crate::model::BuildInput;
 use crate::model::registry::parse_params;
 
 use super::static_model::{FemStatic, Order};
-use super::surface_response::{
-    FixedSet, SmallDense, SurfaceCore, SurfaceResponse, compliance, condense,
-};
+use super::surface_response::{SurfaceCore, SurfaceResponse};
 
 #[cfg(test)]
 mod tests;
@@ -36,8 +32,6 @@ mod tests;
 #[derive(Clone, Copy, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Params {}
-
-const INITIAL_CONTACTS: usize = 16;
 
 /// Linear FEM answered from pre-computed elementary tensors.
 pub struct FemPrecomputedTensors {
@@ -51,7 +45,6 @@ pub struct FemPrecomputedTensors {
     /// W_kk, to turn condensed loads into displacements (u0).
     w_diag: Vec<Mat3>,
     u0: Vec<Vec3>,
-    small: SmallDense,
 }
 
 impl std::fmt::Debug for FemPrecomputedTensors {
@@ -94,7 +87,6 @@ impl FemPrecomputedTensors {
             t_f: Vec::new(),
             w_diag: Vec::new(),
             u0: Vec::new(),
-            small: SmallDense::new(3 * INITIAL_CONTACTS),
         };
         model.install_fixed(fixed, progress)?;
         Ok(model)
@@ -122,20 +114,32 @@ impl FemPrecomputedTensors {
 
     /// Sizes the step buffers for `contacts` contact vertices (they also grow on demand).
     pub fn reserve_contacts(&mut self, contacts: usize) {
-        self.small.reserve(3 * contacts);
+        self.core.small.reserve(3 * contacts);
     }
 
     /// Bytes held by the tensors (n²·9 + 2n·9 doubles).
     pub fn tensor_bytes(&self) -> usize {
         (self.t_u.len() + self.t_f.len() + self.w_diag.len()) * 72
     }
+}
 
-    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
-        let started = Instant::now();
-        let set = FixedSet::new(self.core.mask.clone());
-        let cond = condense(&mut self.core.fem, &set, progress)?;
-        let w = compliance(&cond.c)?;
-        let n = set.free.len();
+impl SurfaceResponse for FemPrecomputedTensors {
+    const KIND: &'static str = "fem-precomputed-tensors";
+    const REBUILD_STAGE: &'static str = "pre-computing the surface tensors";
+    const NO_CUT_REASON: &'static str = "its tensors are pre-computed for a fixed topology; \
+        a cut would need all n² tensors again";
+
+    fn core(&self) -> &SurfaceCore {
+        &self.core
+    }
+
+    fn core_mut(&mut self) -> &mut SurfaceCore {
+        &mut self.core
+    }
+
+    /// The tensors from W (see the module notes); W itself is dropped.
+    fn adopt_compliance(&mut self, w: faer::Mat<Real>) -> Result<(), SimError> {
+        let n = w.nrows() / 3;
         let w_diag: Vec<Mat3> = (0..n).map(|k| block(&w, k, k)).collect();
         let t_f: Vec<Mat3> = w_diag.iter().map(|b| b.inverse()).collect();
         if let Some(k) = t_f.iter().position(|t| !t.is_finite()) {
@@ -148,10 +152,7 @@ impl FemPrecomputedTensors {
         for (k, tf) in t_f.iter().enumerate() {
             t_u.extend((0..n).map(|i| block(&w, i, k) * *tf));
         }
-        self.core.install(set, &cond, started);
         (self.n, self.t_u, self.t_f, self.w_diag) = (n, t_u, t_f, w_diag);
-        self.core.condense_loads()?;
-        self.update_u0();
         Ok(())
     }
 
@@ -175,35 +176,12 @@ impl FemPrecomputedTensors {
             }
         }
     }
-}
-
-impl SurfaceResponse for FemPrecomputedTensors {
-    const KIND: &'static str = "fem-precomputed-tensors";
-    const REBUILD_STAGE: &'static str = "pre-computing the surface tensors";
-    const NO_CUT_REASON: &'static str = "its tensors are pre-computed for a fixed topology; \
-        a cut would need all n² tensors again";
-
-    fn core(&self) -> &SurfaceCore {
-        &self.core
-    }
-
-    fn core_mut(&mut self) -> &mut SurfaceCore {
-        &mut self.core
-    }
-
-    fn rebuild(&mut self, progress: &dyn Fn(f64)) -> Result<(), SimError> {
-        FemPrecomputedTensors::rebuild(self, progress)
-    }
-
-    fn update_u0(&mut self) {
-        FemPrecomputedTensors::update_u0(self);
-    }
 
     /// Σ_k T^U_jk a_k = target_j − u0_j for the virtual displacements a, then superposition.
     fn solve_contacts(&mut self) -> Result<(), SimError> {
         let m = self.core.targets.len();
         let (n, contacts) = (self.n, &self.core.contacts);
-        let (mut a, rhs) = self.small.block_and_rhs(m);
+        let (mut a, rhs) = self.core.small.block_and_rhs(m);
         for (kb, &k) in contacts.iter().enumerate() {
             for (jb, &j) in contacts.iter().enumerate() {
                 let t = self.t_u[k as usize * n + j as usize];
@@ -219,7 +197,7 @@ impl SurfaceResponse for FemPrecomputedTensors {
                 rhs[3 * jb + r] = self.core.targets[3 * jb + r] - self.u0[j as usize][r];
             }
         }
-        let rhs = self.small.solve_general_rhs(m)?;
+        let rhs = self.core.small.solve_general_rhs(m)?;
         let us = &mut self.core.us_trial;
         for (i, u) in self.u0.iter().enumerate() {
             us[3 * i..3 * i + 3].copy_from_slice(&u.to_array());

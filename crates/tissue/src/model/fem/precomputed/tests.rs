@@ -6,15 +6,13 @@ use crate::mesh::generate::BoxSplit;
 use crate::model::Deformable;
 use crate::model::fem::FemCondensed;
 use crate::model::fem::condensed::tests::{
-    Rng, applied_load, apply, box_matches_fem_static_with, check_balance, compare, liver,
-    liver_fixed, liver_material, loads, random_constraints,
+    Rng, applied_load, apply, assert_cannot_cut, box_matches_fem_static_with, check_balance,
+    compare, liver_material, liver_static, loads, random_constraints,
 };
 
 #[test]
 fn liver_matches_fem_static_and_fem_condensed() {
-    let mesh = liver();
-    let mut reference = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&reference);
+    let (mesh, mut reference, fixed) = liver_static();
     let mut tensors = FemPrecomputedTensors::new(&mesh, liver_material(), &fixed).unwrap();
     let mut condensed = FemCondensed::new(&mesh, liver_material(), &fixed).unwrap();
     let rest = reference.rest_surface().to_vec();
@@ -45,9 +43,7 @@ fn box_matches_fem_static() {
 /// One contact, no load: u_i = T^U_{i,k} ū, P_k = T^F_k ū, T^U_{k,k} = I, T^F symmetric.
 #[test]
 fn single_contact_is_the_tensor_closed_form() {
-    let mesh = liver();
-    let mut reference = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&reference);
+    let (mesh, mut reference, fixed) = liver_static();
     let mut model = FemPrecomputedTensors::new(&mesh, liver_material(), &fixed).unwrap();
     let free = model.free_vertices().to_vec();
     let rest = model.rest_surface().to_vec();
@@ -83,9 +79,7 @@ fn single_contact_is_the_tensor_closed_form() {
 
 #[test]
 fn bad_input_is_refused_and_keeps_the_state() {
-    let mesh = liver();
-    let fem = FemStatic::new(&mesh, liver_material(), Order::Linear).unwrap();
-    let fixed = liver_fixed(&fem);
+    let (mesh, fem, fixed) = liver_static();
     let rest = fem.rest_surface().to_vec();
     let mut model = FemPrecomputedTensors::new(&mesh, liver_material(), &fixed).unwrap();
     let c = random_constraints(&rest, &fixed, 6, 1e-3, &mut Rng::new(2));
@@ -97,13 +91,7 @@ fn bad_input_is_refused_and_keeps_the_state() {
     assert!(model.set_constraints(&bad).is_err());
     model.step(0.0).unwrap();
     assert_eq!(model.surface().positions, &before[..]);
-    assert!(matches!(
-        model.cut(&crate::model::CutPath {
-            start: [Vec3::ZERO; 2],
-            end: [Vec3::X; 2]
-        }),
-        Err(SimError::Unsupported { .. })
-    ));
+    assert_cannot_cut(&mut model);
     model.reset();
     assert_eq!(model.surface().positions, &rest[..]);
 }
