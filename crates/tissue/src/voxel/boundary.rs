@@ -214,6 +214,7 @@ pub(crate) fn build(
             c
         })
     };
+    let face_corners: Vec<[[usize; 3]; 4]> = faces.iter().map(|&f| corners_of(f)).collect();
 
     // Twin edges: join the face corners on each side of every face edge.
     let mut uf = UnionFind::new(4 * faces.len());
@@ -221,13 +222,13 @@ pub(crate) fn build(
     let mut twin_of = vec![[u32::MAX; 4]; faces.len()];
     for (f, &(v, d)) in faces.iter().enumerate() {
         let (p, sp) = (d / 2, d & 1 == 1);
-        let corners = corners_of((v, d));
+        let corners = &face_corners[f];
         for q in [(p + 1) % 3, (p + 2) % 3] {
             for sq in [false, true] {
                 let Some(g) = twin(links, &face_of, v, p, sp, q, sq) else {
                     continue;
                 };
-                let other = corners_of(faces[g]);
+                let other = &face_corners[g];
                 let base = coords(v)[q] + sq as usize;
                 if let Some(s) =
                     (0..4).find(|&s| corners[s][q] == base && corners[(s + 1) % 4][q] == base)
@@ -247,22 +248,23 @@ pub(crate) fn build(
     }
 
     // Vertices: one per class; rest at its lattice corner, following its voxels.
-    let mut vertex_of_root: FxHashMap<usize, u32> = FxHashMap::default();
+    let mut vertex_of_root = vec![u32::MAX; 4 * faces.len()];
     let mut rest = Vec::new();
     let mut keys: Vec<VertexKey> = Vec::new();
     let mut members: Vec<Vec<u32>> = Vec::new();
     let mut slot_vertex = vec![0u32; 4 * faces.len()];
     for (f, &face) in faces.iter().enumerate() {
-        let corners = corners_of(face);
+        let corners = &face_corners[f];
         for s in 0..4 {
             let root = uf.find(4 * f + s);
-            let id = *vertex_of_root.entry(root).or_insert_with(|| {
+            if vertex_of_root[root] == u32::MAX {
                 let c = corners[s].map(|x| x as Real - 0.5);
                 rest.push(links.origin + Vec3::from_array(c) * links.spacing);
                 keys.push(unsplit(CORNER | slot_key(f, s)));
                 members.push(Vec::new());
-                (rest.len() - 1) as u32
-            });
+                vertex_of_root[root] = (rest.len() - 1) as u32;
+            }
+            let id = vertex_of_root[root];
             slot_vertex[4 * f + s] = id;
             let m = &mut members[id as usize];
             if !m.contains(&(face.0 as u32)) {
@@ -274,18 +276,28 @@ pub(crate) fn build(
     // shared (the voxels are joined around both ends), two twin pairs run between the same
     // two vertices. Every pair after the first gets a midpoint vertex of its own, so that
     // no two triangles' edges coincide.
+    let edge = |f: usize, e: usize| {
+        let (a, b) = (slot_vertex[4 * f + e], slot_vertex[4 * f + (e + 1) % 4]);
+        (a.min(b), a.max(b))
+    };
+    let mut uses_of_edge: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+    uses_of_edge.reserve(2 * faces.len());
+    for f in 0..faces.len() {
+        for e in 0..4 {
+            *uses_of_edge.entry(edge(f, e)).or_insert(0) += 1;
+        }
+    }
+    // Shared edges are rare: list their uses only.
     let mut on_edge: FxHashMap<(u32, u32), Vec<(usize, usize)>> = FxHashMap::default();
     for f in 0..faces.len() {
         for e in 0..4 {
-            let (a, b) = (slot_vertex[4 * f + e], slot_vertex[4 * f + (e + 1) % 4]);
-            on_edge
-                .entry((a.min(b), a.max(b)))
-                .or_default()
-                .push((f, e));
+            if uses_of_edge[&edge(f, e)] > 2 {
+                on_edge.entry(edge(f, e)).or_default().push((f, e));
+            }
         }
     }
     let mut midpoint: FxHashMap<(usize, usize), u32> = FxHashMap::default();
-    let mut shared: Vec<_> = on_edge.into_values().filter(|u| u.len() > 2).collect();
+    let mut shared: Vec<_> = on_edge.into_values().collect();
     shared.sort_unstable();
     for uses in shared {
         let mut done: Vec<usize> = Vec::new();

@@ -81,7 +81,9 @@ impl DrawnBoundary {
         let Some(dirty) = touched_region(links, edited, removed) else {
             return;
         };
-        let window = dirty.grown(2 * reach() + 4, links.dims);
+        // Positions within `reach` of the edit may change, and each depends on the lattice
+        // within `reach` of itself; the window's own sides are wrong by a voxel or so.
+        let window = dirty.grown(2 * reach() + 2, links.dims);
         let unused = self.uses.iter().filter(|&&u| u == 0).count();
         let incremental = self.drawn
             && SUBDIVISIONS <= 1

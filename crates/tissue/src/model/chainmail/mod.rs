@@ -159,7 +159,7 @@ impl ChainMailParams {
 }
 
 /// The ChainMail model (see the module doc).
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct ChainMail {
     params: ChainMailParams,
     lattice: Lattice,
