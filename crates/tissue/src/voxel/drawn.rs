@@ -35,6 +35,8 @@ pub struct DrawnBoundary {
     uses: Vec<u32>,
     /// Whether the boundary is drawn (after the first edit).
     drawn: bool,
+    /// The whole boundary built ahead (`prepare`), drawn at the first edit.
+    pending: Option<(TrilinearEmbedding, Vec<[u32; 3]>)>,
     /// Vertices in the last redraw (to report what an edit cost).
     last_window_vertices: usize,
 }
@@ -62,6 +64,19 @@ impl DrawnBoundary {
         Self::default()
     }
 
+    /// Builds the whole boundary now, at the model's build, so that the first edit too only
+    /// redraws near itself (on a liver at 96 voxels the whole boundary takes about 90 ms).
+    pub fn prepare(&mut self, links: &VoxelLinks, element_of: Option<&[u32]>) {
+        let b = build(links, &Region::all(links.dims), SUBDIVISIONS, SMOOTHING);
+        let mut e = embedding_of(b.rest, &b.follows);
+        if let Some(map) = element_of {
+            e.remap(map);
+        }
+        self.adopt(&b.triangles, b.keys, b.face_of_triangle);
+        self.pending = Some((e, b.triangles));
+        self.drawn = false;
+    }
+
     /// Vertices built by the last redraw (the window's, or all of them).
     pub fn last_window_vertices(&self) -> usize {
         self.last_window_vertices
@@ -84,6 +99,12 @@ impl DrawnBoundary {
         // Positions within `reach` of the edit may change, and each depends on the lattice
         // within `reach` of itself; the window's own sides are wrong by a voxel or so.
         let window = dirty.grown(2 * reach() + 2, links.dims);
+        if !self.drawn
+            && let Some((e, t)) = self.pending.take()
+        {
+            install(&mut surface, e, &t);
+            self.drawn = true;
+        }
         let unused = self.uses.iter().filter(|&&u| u == 0).count();
         let incremental = self.drawn
             && SUBDIVISIONS <= 1
@@ -101,32 +122,29 @@ impl DrawnBoundary {
         if let Some(map) = surface.element_of {
             e.remap(map);
         }
-        let embedding = surface.embedding;
-        let original = surface.original;
-        embedding.rest.truncate(original);
-        embedding.nodes.truncate(original);
-        embedding.weights.truncate(original);
-        embedding.rest.extend(e.rest);
-        embedding.nodes.extend(e.nodes);
-        embedding.weights.extend(e.weights);
-        let offset = original as u32;
-        *surface.triangles = b.triangles.iter().map(|t| t.map(|v| v + offset)).collect();
-        self.uses = vec![0; b.keys.len()];
-        for t in &b.triangles {
+        let mut surface = surface;
+        install(&mut surface, e, &b.triangles);
+        self.adopt(&b.triangles, b.keys, b.face_of_triangle);
+        self.pending = None;
+        self.drawn = true;
+        self.last_window_vertices = self.keys.len();
+    }
+
+    /// Takes a whole boundary's keys and triangles as the drawn state.
+    fn adopt(&mut self, triangles: &[[u32; 3]], keys: Vec<VertexKey>, face_of_triangle: Vec<u64>) {
+        self.uses = vec![0; keys.len()];
+        for t in triangles {
             for &v in t {
                 self.uses[v as usize] += 1;
             }
         }
-        self.index = b
-            .keys
+        self.index = keys
             .iter()
             .enumerate()
             .map(|(v, &k)| (k, v as u32))
             .collect();
-        self.keys = b.keys;
-        self.face_of_triangle = b.face_of_triangle;
-        self.drawn = true;
-        self.last_window_vertices = self.keys.len();
+        self.keys = keys;
+        self.face_of_triangle = face_of_triangle;
     }
 
     /// Rebuilds `window` and replaces what the edit in `dirty` can have changed: the
@@ -226,6 +244,19 @@ impl DrawnBoundary {
         }
         true
     }
+}
+
+/// Puts a whole boundary after the given vertices, in place of any drawn before.
+fn install(surface: &mut DrawnSurface<'_>, e: TrilinearEmbedding, triangles: &[[u32; 3]]) {
+    let (embedding, original) = (&mut *surface.embedding, surface.original);
+    embedding.rest.truncate(original);
+    embedding.nodes.truncate(original);
+    embedding.weights.truncate(original);
+    embedding.rest.extend(e.rest);
+    embedding.nodes.extend(e.nodes);
+    embedding.weights.extend(e.weights);
+    let offset = original as u32;
+    *surface.triangles = triangles.iter().map(|t| t.map(|v| v + offset)).collect();
 }
 
 impl DrawnSurface<'_> {

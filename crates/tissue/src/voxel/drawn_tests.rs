@@ -204,6 +204,30 @@ fn edits_redrawn_near_themselves_equal_a_full_rebuild() {
 }
 
 #[test]
+fn a_boundary_prepared_ahead_makes_the_first_edit_local_too() {
+    let grid = VoxelGrid::filled([100, 100, 40], 1.0);
+    let links = VoxelLinks::new(&grid, 6);
+    let mut drawn = DrawnBoundary::new();
+    drawn.prepare(&links, None);
+    let all = drawn.keys.len();
+    // A model drawing its given surface (here: none) until the first edit.
+    let mut m = Model {
+        links,
+        drawn,
+        embedding: TrilinearEmbedding {
+            rest: Vec::new(),
+            nodes: Vec::new(),
+            weights: Vec::new(),
+        },
+        triangles: Vec::new(),
+        element_of: None,
+    };
+    assert!(m.cut(&blade(50.5, 40.2, 47.8, 39.0, 4.0)) > 0);
+    let w = m.check("first cut after prepare");
+    assert!(w < all / 2, "{w} of {all}");
+}
+
+#[test]
 fn drawn_vertices_keep_their_numbers_across_an_edit_elsewhere() {
     let grid = VoxelGrid::filled([100, 100, 40], 1.0);
     let mut m = Model::new(VoxelLinks::new(&grid, 6), None);

@@ -234,13 +234,16 @@ impl ChainMail {
                 vertex_area[v as usize] += share;
             }
         }
+        // Built now so that the first edit, too, only redraws near itself.
+        let mut drawn = DrawnBoundary::new();
+        drawn.prepare(&lattice.topology, None);
         Ok(Self {
             params,
             lattice,
             embedding,
             triangles: surface.triangles,
             original_vertices: surface.vertices.len(),
-            drawn: DrawnBoundary::new(),
+            drawn,
             surface: surface.vertices,
             distance,
             force_stiffness,

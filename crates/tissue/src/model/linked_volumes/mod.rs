@@ -187,13 +187,16 @@ impl LinkedVolumes {
         let system = SpringLattice::new(springs, masses, material.damping)
             .with_volume_term(&rest, moduli, volume);
         let nv = surface.vertices.len();
+        // Built now so that the first edit, too, only redraws near itself.
+        let mut drawn = DrawnBoundary::new();
+        drawn.prepare(&topology, Some(&id));
         Ok(Self {
             topology,
             element_of: id,
             coef,
             spring_modulus,
             original_vertices: nv,
-            drawn: DrawnBoundary::new(),
+            drawn,
             topology_version: 0,
             params,
             material,
