@@ -19,10 +19,11 @@ struct Model {
 }
 
 impl Model {
-    fn new(links: VoxelLinks, element_of: Option<Vec<u32>>) -> Self {
-        let mut m = Model {
+    /// Nothing drawn yet.
+    fn blank(links: VoxelLinks, element_of: Option<Vec<u32>>, drawn: DrawnBoundary) -> Self {
+        Model {
             links,
-            drawn: DrawnBoundary::new(),
+            drawn,
             embedding: TrilinearEmbedding {
                 rest: Vec::new(),
                 nodes: Vec::new(),
@@ -30,7 +31,12 @@ impl Model {
             },
             triangles: Vec::new(),
             element_of,
-        };
+        }
+    }
+
+    /// The whole boundary drawn.
+    fn new(links: VoxelLinks, element_of: Option<Vec<u32>>) -> Self {
+        let mut m = Model::blank(links, element_of, DrawnBoundary::new());
         let surface = DrawnSurface {
             embedding: &mut m.embedding,
             original: 0,
@@ -80,7 +86,11 @@ impl Model {
     /// Checks the drawn surface against a full rebuild; returns the vertices the last
     /// redraw built.
     fn check(&self, what: &str) -> usize {
-        let mut full = self.clone_drawn();
+        let mut full = Model::blank(
+            self.links.clone(),
+            self.element_of.clone(),
+            DrawnBoundary::new(),
+        );
         let full_surface = DrawnSurface {
             embedding: &mut full.embedding,
             original: 0,
@@ -113,20 +123,6 @@ impl Model {
         closed_pieces(&self.triangles, &self.embedding.rest, 0.0)
             .unwrap_or_else(|e| panic!("{what}: {e}"));
         self.drawn.last_window_vertices()
-    }
-
-    fn clone_drawn(&self) -> Model {
-        Model {
-            links: self.links.clone(),
-            drawn: DrawnBoundary::new(),
-            embedding: TrilinearEmbedding {
-                rest: Vec::new(),
-                nodes: Vec::new(),
-                weights: Vec::new(),
-            },
-            triangles: Vec::new(),
-            element_of: self.element_of.clone(),
-        }
     }
 }
 
@@ -211,17 +207,7 @@ fn a_boundary_prepared_ahead_makes_the_first_edit_local_too() {
     drawn.prepare(&links, None);
     let all = drawn.keys.len();
     // A model drawing its given surface (here: none) until the first edit.
-    let mut m = Model {
-        links,
-        drawn,
-        embedding: TrilinearEmbedding {
-            rest: Vec::new(),
-            nodes: Vec::new(),
-            weights: Vec::new(),
-        },
-        triangles: Vec::new(),
-        element_of: None,
-    };
+    let mut m = Model::blank(links, None, drawn);
     assert!(m.cut(&blade(50.5, 40.2, 47.8, 39.0, 4.0)) > 0);
     let w = m.check("first cut after prepare");
     assert!(w < all / 2, "{w} of {all}");
