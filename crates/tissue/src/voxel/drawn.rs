@@ -5,9 +5,9 @@
 //! smoothed position on what lies within `reach` voxels (each Taubin sweep moves data one
 //! edge, at most half a voxel after one split). So after an edit only a window around the
 //! changed links is rebuilt, and spliced into the kept surface by vertex keys, which name
-//! a vertex the same whichever window it was built in. On a 100³ block this turns a cut
-//! from a rebuild of the whole boundary (a quarter of a million vertices) into a rebuild
-//! of a few thousand. The result equals a full rebuild (`boundary::build` over the whole
+//! a vertex the same whichever window it was built in. On a 100³ block this turns a
+//! one-voxel scalpel sweep from a rebuild of the whole boundary (240,000 vertices) into one
+//! of about 15,000. The result equals a full rebuild (`boundary::build` over the whole
 //! grid) up to the order of floating-point sums, which `tests` checks after every edit of a
 //! sequence.
 //!
