@@ -96,6 +96,18 @@ impl CutPath {
             .all(|p| is_finite_vec(*p))
     }
 
+    /// The error a model's `cut` gives for a blade that is not finite.
+    pub fn check(&self) -> Result<(), SimError> {
+        if self.is_finite() {
+            return Ok(());
+        }
+        Err(SimError::BadParameter {
+            name: "cut",
+            value: format!("{self:?}"),
+            reason: "the blade positions are not finite".into(),
+        })
+    }
+
     /// Where the segment p→q crosses the swept quad, as a fraction of p→q.
     pub fn crossing(&self, p: Vec3, q: Vec3) -> Option<Real> {
         // Models test every link or vertex of a body against a blade that touches few of

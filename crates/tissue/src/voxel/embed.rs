@@ -13,8 +13,9 @@
 
 use crate::error::MeshError;
 use crate::math::{Real, Vec3};
+use crate::mesh::SurfaceMesh;
 
-use super::VoxelGrid;
+use super::{VoxelGrid, keep_largest, marching_surface};
 
 /// How far (in voxels) a vertex with no occupied corner may be from an occupied voxel.
 const MAX_SNAP: usize = 6;
@@ -206,6 +207,23 @@ fn nearest_occupied(grid: &VoxelGrid, p: Vec3) -> Option<usize> {
         }
     }
     None
+}
+
+/// What a voxel model is built on: the grid cut down to its largest connected part, and
+/// the surface to draw (the given one, or marching tetrahedra over the voxels) embedded in
+/// it.
+pub fn embedded_body(
+    grid: &mut VoxelGrid,
+    surface: Option<SurfaceMesh>,
+) -> Result<(SurfaceMesh, TrilinearEmbedding), MeshError> {
+    if keep_largest(grid) == 0 {
+        return Err(MeshError::Empty {
+            what: "occupied voxels",
+        });
+    }
+    let surface = surface.unwrap_or_else(|| marching_surface(grid));
+    let embedding = TrilinearEmbedding::build(grid, &surface.vertices)?;
+    Ok((surface, embedding))
 }
 
 #[cfg(test)]

@@ -31,7 +31,7 @@ pub use boundary::{BoundarySurface, boundary_surface};
 pub use components::{Components, components, keep_component_at, keep_largest};
 pub use distance::DistanceMap;
 pub use drawn::{DrawnBoundary, DrawnSurface};
-pub use embed::TrilinearEmbedding;
+pub use embed::{TrilinearEmbedding, embedded_body};
 pub use marching::marching_surface;
 pub use select::{from_image_labels, from_image_threshold};
 pub use topology::VoxelLinks;

@@ -215,13 +215,7 @@ impl Deformable for ChainMail {
 
     /// Removes every link whose segment (current positions) crosses the blade's swept quad.
     fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        if !blade.is_finite() {
-            return Err(SimError::BadParameter {
-                name: "cut",
-                value: format!("{blade:?}"),
-                reason: "the blade must be finite".into(),
-            });
-        }
+        blade.check()?;
         let x = &self.lattice.x;
         let cut = self.lattice.topology.cut(|v| x[v], blade);
         if !cut.is_empty() {

@@ -36,7 +36,7 @@ use std::time::Instant;
 
 use serde::Deserialize;
 
-use crate::error::{Error, MeshError, SimError};
+use crate::error::{Error, SimError};
 use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
@@ -44,8 +44,7 @@ use crate::mesh::SurfaceMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
 use crate::voxel::{
-    DistanceMap, DrawnBoundary, TrilinearEmbedding, VoxelGrid, keep_largest, marching_surface,
-    voxelize_to,
+    DistanceMap, DrawnBoundary, TrilinearEmbedding, VoxelGrid, embedded_body, voxelize_to,
 };
 
 pub use lattice::{Lattice, Limits, Propagation};
@@ -212,14 +211,7 @@ impl ChainMail {
     ) -> Result<Self, Error> {
         let start = Instant::now();
         params.check()?;
-        if keep_largest(&mut grid) == 0 {
-            return Err(MeshError::Empty {
-                what: "occupied voxels",
-            }
-            .into());
-        }
-        let surface = surface.unwrap_or_else(|| marching_surface(&grid));
-        let embedding = TrilinearEmbedding::build(&grid, &surface.vertices)?;
+        let (surface, embedding) = embedded_body(&mut grid, surface)?;
         let classes = grid.labels.iter().copied().max().unwrap_or(1) as usize + 1;
         let lattice = Lattice::new(&grid, &vec![params.limits(); classes]);
         let distance = DistanceMap::of(&grid);

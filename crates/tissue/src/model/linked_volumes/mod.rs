@@ -30,7 +30,7 @@ use std::time::Instant;
 
 use serde::Deserialize;
 
-use crate::error::{Error, MeshError, SimError};
+use crate::error::{Error, SimError};
 use crate::integrate::{Hold, Integrator, ParticleState, Scheme};
 use crate::interact::Constraints;
 use crate::material::Material;
@@ -39,8 +39,7 @@ use crate::mesh::SurfaceMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
 use crate::voxel::{
-    DrawnBoundary, TrilinearEmbedding, VoxelGrid, VoxelLinks, keep_largest, marching_surface,
-    voxelize_to,
+    DrawnBoundary, TrilinearEmbedding, VoxelGrid, VoxelLinks, embedded_body, voxelize_to,
 };
 
 pub use springs::{Spring, SpringLattice, family_coefficients};
@@ -157,14 +156,7 @@ impl LinkedVolumes {
         let material = material.validated()?;
         let coef = family_coefficients(params.neighbours)?;
         let moduli = lattice_moduli(&material, params.neighbours)?;
-        if keep_largest(&mut grid) == 0 {
-            return Err(MeshError::Empty {
-                what: "occupied voxels",
-            }
-            .into());
-        }
-        let surface = surface.unwrap_or_else(|| marching_surface(&grid));
-        let mut embedding = TrilinearEmbedding::build(&grid, &surface.vertices)?;
+        let (surface, mut embedding) = embedded_body(&mut grid, surface)?;
         // Compact element ids over the occupied voxels.
         let mut id = vec![u32::MAX; grid.len()];
         let mut rest = Vec::new();

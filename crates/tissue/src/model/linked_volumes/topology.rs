@@ -25,13 +25,7 @@ impl LinkedVolumes {
     /// Removes every spring crossing the blade's swept quad (current positions); the
     /// `Deformable::cut` of this model.
     pub fn cut_links(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
-        if !blade.is_finite() {
-            return Err(SimError::BadParameter {
-                name: "cut",
-                value: format!("{blade:?}"),
-                reason: "the blade must be finite".into(),
-            });
-        }
+        blade.check()?;
         let (x, id) = (&self.state.x, &self.element_of);
         let at = |v: usize| x[id[v] as usize];
         let removed = self.topology.cut(at, blade);

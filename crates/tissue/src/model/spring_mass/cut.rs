@@ -53,13 +53,7 @@ fn key(a: u32, b: u32) -> [u32; 2] {
 }
 
 pub(crate) fn cut_model(model: &mut SpringModel, blade: &CutPath) -> Result<CutInfo, SimError> {
-    if !blade.is_finite() {
-        return Err(SimError::BadParameter {
-            name: "cut",
-            value: format!("{blade:?}"),
-            reason: "the blade positions are not finite".into(),
-        });
-    }
+    blade.check()?;
     let x = &model.state.x;
     let old_edges = triangle_edges(&model.triangles);
     // 1. Crossings: this sweep's, then the pending ones of edges that still exist.
