@@ -219,9 +219,9 @@ impl Deformable for ChainMail {
         let x = &self.lattice.x;
         let cut = self.lattice.topology.cut(|v| x[v], blade);
         if !cut.is_empty() {
-            // The given surface's vertices drop the elements now across the blade.
+            // The given surface's vertices drop the elements now across the blade (the drawn
+            // ones are redrawn below).
             let (surface, x) = (&self.surface, &self.lattice.x);
-            // Only the given surface's vertices: the drawn ones are redrawn below.
             self.embedding.rebind_first(self.original_vertices, |v, n| {
                 blade.crossing(surface[v], x[n as usize]).is_none()
             });

@@ -31,8 +31,9 @@ impl LinkedVolumes {
         let removed = self.topology.cut(at, blade);
         if !removed.is_empty() {
             self.remove_springs(&removed);
+            // The given surface's vertices drop the elements now across the blade (the drawn
+            // ones are redrawn below).
             let (surface, x) = (&self.surface, &self.state.x);
-            // Only the given surface's vertices: the drawn ones are redrawn below.
             self.embedding.rebind_first(self.original_vertices, |v, n| {
                 blade.crossing(surface[v], x[n as usize]).is_none()
             });
