@@ -145,6 +145,36 @@ fn chainmail_liver_cut(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     group.finish();
 }
 
+/// A one-voxel scalpel sweep on linked volumes (26 neighbours, 100,000 voxels): besides the
+/// redraw near the edit, a cut edits the springs and rebuilds the volume term's stencils.
+fn linked_volumes_cut(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
+    let mut group = c.benchmark_group("linked_volumes");
+    group.sample_size(10);
+    let h = 0.002;
+    let params = LinkedVolumesParams {
+        neighbours: 26,
+        ..Default::default()
+    };
+    let grid = VoxelGrid::filled([50, 50, 40], h);
+    let material = Material::new(3000.0, 0.3).expect("material");
+    let mut m = LinkedVolumes::new(grid, None, material, params).expect("model");
+    let top = 40.0 * h;
+    let mut k = 0usize;
+    group.bench_function("cut_sweep_100k_voxels_26", |b| {
+        b.iter(|| {
+            let x = (5.5 + (k % 40) as f64) * h;
+            let y = ((k / 40) % 45) as f64 * h + 0.5 * h;
+            k += 1;
+            let blade = tissue::model::CutPath {
+                start: [Vec3::new(x, y, top), Vec3::new(x, y, top - 5.0 * h)],
+                end: [Vec3::new(x, y + h, top), Vec3::new(x, y + h, top - 5.0 * h)],
+            };
+            black_box(m.cut(&blade).expect("cut"))
+        })
+    });
+    group.finish();
+}
+
 fn linked_volumes(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let mut group = c.benchmark_group("linked_volumes");
     group.sample_size(10);
@@ -182,6 +212,6 @@ fn linked_volumes(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(cpu_time::ThreadCpuTime);
-    targets = chainmail, chainmail_cut, chainmail_liver_cut, linked_volumes
+    targets = chainmail, chainmail_cut, chainmail_liver_cut, linked_volumes_cut, linked_volumes
 }
 criterion_main!(benches);

@@ -13,6 +13,8 @@
 
 use std::collections::HashSet;
 
+use rustc_hash::FxHashSet;
+
 use crate::error::SimError;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{CutInfo, CutPath};
@@ -125,15 +127,24 @@ impl LinkedVolumes {
 
     fn remove_springs(&mut self, links: &[Link]) {
         let key = |a: u32, b: u32| (a.min(b), a.max(b));
-        let gone: HashSet<(u32, u32)> = links
+        let gone: FxHashSet<(u32, u32)> = links
             .iter()
             .filter_map(|&(a, d)| {
                 let b = self.topology.lattice_neighbour(a as usize, d as usize)?;
                 Some(key(self.element_of[a as usize], self.element_of[b]))
             })
             .collect();
-        self.system
-            .edit_springs(|s| !gone.contains(&key(s.a, s.b)), &[]);
+        // Every spring is tested: a lookup by element first, so that only the few springs
+        // at a cut element are hashed.
+        let mut at_cut = vec![false; self.rest.len()];
+        for &(a, b) in &gone {
+            at_cut[a as usize] = true;
+            at_cut[b as usize] = true;
+        }
+        self.system.edit_springs(
+            |s| !(at_cut[s.a as usize] && gone.contains(&key(s.a, s.b))),
+            &[],
+        );
     }
 
     fn topology_changed(&mut self, edited: &[Link], removed: &[usize]) {
