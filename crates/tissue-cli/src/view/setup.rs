@@ -76,9 +76,11 @@ impl Setup {
         if kind != self.scene.model_kind {
             params.clear();
         }
-        let model = self
+        let mut model = self
             .scene
             .build_model(kind, &self.body, material, &params)?;
+        // The page steps the model against the wall clock.
+        model.set_real_time(true);
         let mut sim = self.scene.build_with_model(model, &self.body.mesh)?;
         let probe = Instrument::new(
             PROBE,

@@ -38,9 +38,9 @@ pub struct CouplingReport {
     pub last_error: Option<String>,
 }
 
-/// Steps the simulation in real time (never ahead of the wall clock) for `seconds`.
-/// A failed step is counted and retried with the next pose; the model keeps its last good
-/// state.
+/// Steps the simulation in real time (never ahead of the wall clock) for `seconds`, with
+/// the model told so (`Deformable::set_real_time`). A failed step is counted and retried
+/// with the next pose; the model keeps its last good state.
 pub fn run_coupled(
     sim: &mut Simulation,
     index: usize,
@@ -48,6 +48,7 @@ pub fn run_coupled(
     dt: Real,
     seconds: Real,
 ) -> CouplingReport {
+    sim.model_mut().set_real_time(true);
     let start = Instant::now();
     let t0 = sim.time();
     let mut r = CouplingReport::default();

@@ -182,5 +182,13 @@ pub trait Deformable: Send {
         let _ = progress;
     }
 
+    /// Whether the caller steps against a wall clock (the viewer, a haptic loop). A model
+    /// may then answer a step from a cheaper approximation while it finishes expensive work
+    /// off the calling thread, instead of making the step wait for it. Off (the default),
+    /// a step's result never depends on timing. Models without such work ignore it.
+    fn set_real_time(&mut self, on: bool) {
+        let _ = on;
+    }
+
     fn info(&self) -> ModelInfo;
 }

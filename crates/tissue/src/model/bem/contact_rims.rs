@@ -254,6 +254,8 @@ impl BemSystem {
                     wanted.push(p);
                 }
             }
+            self.ahead_of(contacts, &self.fixed, &mut wanted);
+            let (geo, inverse) = (self.geometry.as_ref()?, self.inverse.as_ref()?);
             self.rim_worker.request(wanted, geo, inverse);
             self.rim_cache.hits += needed.len() - missing_count;
             self.rim_cache.store(&[], &Mat::zeros(dofs, 0), &needed);
@@ -268,6 +270,12 @@ impl BemSystem {
             });
         }
         let fresh = solve_pairs(geo, inverse, &missing, true);
+        if self.rim_background {
+            let mut ahead = Vec::new();
+            self.ahead_of(contacts, &self.fixed, &mut ahead);
+            let (geo, inverse) = (self.geometry.as_ref()?, self.inverse.as_ref()?);
+            self.rim_worker.request(ahead, geo, inverse);
+        }
         let mut wt = Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
             if from_inner[c / 3] {
                 0.0
@@ -303,6 +311,58 @@ impl BemSystem {
             waiting: false,
             missing: Vec::new(),
         })
+    }
+
+    /// Appends to `wanted` (the pairs the current contacts still need, first in the queue)
+    /// the pairs the next contact sets are likely to need: those of the vertices on either
+    /// side of the contact set's edge (a triangle with a contact and a free corner), where
+    /// a moving or deepening probe goes next; a contact's list is whichever side of its rim
+    /// is shorter, so both sides are asked for. Skips what is cached or in flight and stops
+    /// at the cache's room, so that speculation never evicts what the contacts use.
+    fn ahead_of(&self, contacts: &[usize], fixed: &[bool], wanted: &mut Vec<(usize, usize)>) {
+        let Some(geo) = self.geometry.as_ref() else {
+            return;
+        };
+        let per_pair = 3 * self.dofs() * size_of::<Real>();
+        let room = self
+            .rim_cache
+            .budget()
+            .saturating_sub(self.rim_cache.bytes())
+            / per_pair;
+        let room = room.saturating_sub(self.rim_worker.pending());
+        if wanted.len() >= room {
+            return;
+        }
+        let mut contact = vec![false; geo.vertices.len()];
+        for &c in contacts {
+            contact[c] = true;
+        }
+        let free = |v: usize| !contact[v] && !fixed.get(v).copied().unwrap_or(true);
+        let mut near = vec![false; geo.vertices.len()];
+        for el in &geo.elements {
+            let nodes = el.nodes;
+            if nodes.iter().any(|&v| contact[v]) && nodes.iter().any(|&v| free(v)) {
+                for v in nodes {
+                    near[v] |= contact[v] || free(v);
+                }
+            }
+        }
+        let known: std::collections::HashSet<(usize, usize)> = wanted.iter().copied().collect();
+        for (e, el) in geo.elements.iter().enumerate() {
+            for (corner, &v) in el.nodes.iter().enumerate() {
+                let pair = (e, corner);
+                if wanted.len() >= room {
+                    return;
+                }
+                if near[v]
+                    && !known.contains(&pair)
+                    && !self.rim_cache.contains(pair)
+                    && !self.rim_worker.in_flight(pair)
+                {
+                    wanted.push(pair);
+                }
+            }
+        }
     }
 
     /// Whether the contacts wait for rim pairs and re-forming them would now change

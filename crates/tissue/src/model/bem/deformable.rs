@@ -127,8 +127,16 @@ impl Bem {
             self.traction[v] += at(&self.p_contact, k);
         }
         // The tissue pushes on its support with the load on that vertex minus the traction
-        // the support applies over the area it acts on.
-        let reaction = |v: usize| self.point_forces[v] - self.traction[v] * area(v);
+        // the support applies over the area it acts on. A load on a contact acts over the
+        // vertex's whole hat (it is known traction, on either side of a contact rim), so
+        // the contact's reaction is its unknown traction over its support alone.
+        let reaction = |v: usize| {
+            if fixed[v] {
+                self.point_forces[v] - self.traction[v] * area(v)
+            } else {
+                -(self.traction[v] - at(&self.load_traction, v)) * area(v)
+            }
+        };
         for (k, &v) in self.constraints.fixed.iter().enumerate() {
             self.fixed_reactions[k] = if self.fixed_owner[k] {
                 reaction(v as usize)
@@ -309,6 +317,14 @@ impl Deformable for Bem {
         self.progress = progress;
     }
 
+    /// Rim solves go to the background in real time, unless the scene chose
+    /// (`background_rim_solves`).
+    fn set_real_time(&mut self, on: bool) {
+        if self.params.background_rim_solves.is_none() {
+            self.system.set_rim_background(on);
+        }
+    }
+
     fn reset(&mut self) {
         self.pending_cut = None;
         self.positions.copy_from_slice(&self.surface.vertices);
@@ -331,8 +347,8 @@ impl Deformable for Bem {
             dofs,
             elements: self.surface.triangles.len(),
             surface_vertices: self.surface.vertices.len(),
-            // H, G, W, and the contact-rim cache.
-            memory_bytes: 3 * dofs * dofs * 8 + s.rim_cache_usage().0,
+            // H, G, W, the LU of A₀ and the contact-rim cache.
+            memory_bytes: 4 * dofs * dofs * 8 + s.rim_cache_usage().0,
             precompute_seconds: self.assembly_seconds + s.last_factor_seconds,
             is_static: self.params.alpha == 0.0,
             details: vec![

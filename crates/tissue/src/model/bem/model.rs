@@ -23,31 +23,53 @@ use super::system::BemSystem;
 use super::viscous::SurfaceGraph;
 
 /// The `[model]` settings of `bem`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct BemParams {
     /// Quasi-viscosity α of eq. 13, in s/m (0: static, the target is reached at once).
-    #[serde(default)]
     pub alpha: Real,
-    /// Contacts' tractions discontinuous at the contact rim, as the fixed vertices' are:
-    /// closer to quadratic FEM (block indentation: force gap 22% → 14% at 258 surface
-    /// vertices). A static update costs O(n·contacts) as without it; a contact change
-    /// solves A₀ for the contact-rim triangles not seen before (3 columns each, cached up
-    /// to `DEFAULT_RIM_CACHE_BYTES`), so a probe moving onto new triangles pays O(n²) per
-    /// new triangle once. Off by default.
-    #[serde(default)]
+    /// Contacts' tractions discontinuous at the contact rim, as the fixed vertices' are (on
+    /// by default): a contact's traction acts on its fully constrained triangles only, as
+    /// quadratic FEM's does (block indentation at 1026 surface vertices: force gap 10.3% →
+    /// 4.4%). A static update costs O(n·contacts) either way; a contact change solves A₀
+    /// for the contact-rim triangles not seen before (3 columns each, cached up to
+    /// `DEFAULT_RIM_CACHE_BYTES`), so a probe moving onto new triangles pays O(n²) per new
+    /// triangle once (see `background_rim_solves`). Off: the hat functions' continuous
+    /// tractions, whose load reaches half a ring past the contact (stiffer by O(h)), with
+    /// no rim solves at all.
     pub discontinuous_contacts: bool,
     /// With `discontinuous_contacts`: solve the rim triangles a contact change reaches on a
     /// worker thread instead of before the step goes on. Until they land (about 6 ms per
     /// triangle corner on a 2194-vertex surface), the contact set keeps the continuous
-    /// rule; a later step switches it over. For interactive scenes; off, a step's result
-    /// does not depend on timing.
-    #[serde(default)]
-    pub background_rim_solves: bool,
+    /// rule; a later step switches it over. Unset, it follows the driver
+    /// (`Deformable::set_real_time`): on in the viewer and the haptic loop, off in `tissue
+    /// run`, where a step's result must not depend on timing.
+    pub background_rim_solves: Option<bool>,
     /// Deprecated and ignored (scenes that set it still load): models built from a scene
     /// report their assembly and factorisation through `Deformable::set_progress`.
-    #[serde(default)]
     pub progress: bool,
+}
+
+impl Default for BemParams {
+    fn default() -> Self {
+        Self {
+            alpha: 0.0,
+            discontinuous_contacts: true,
+            background_rim_solves: None,
+            progress: false,
+        }
+    }
+}
+
+impl BemParams {
+    /// The default settings with the contacts' tractions continuous across their rim (the
+    /// hat functions': no rim solves, O(h) stiffer).
+    pub fn continuous() -> Self {
+        Self {
+            discontinuous_contacts: false,
+            ..Self::default()
+        }
+    }
 }
 
 /// Linear elastostatics by collocation BEM on the surface mesh.
@@ -188,7 +210,7 @@ impl Bem {
         model.system.set_contact_rims(params.discontinuous_contacts);
         model
             .system
-            .set_rim_background(params.background_rim_solves);
+            .set_rim_background(params.background_rim_solves.unwrap_or(false));
         Ok(model)
     }
 
@@ -274,7 +296,7 @@ impl Bem {
     /// Switches `background_rim_solves` on a built model (the current contacts stay as they
     /// are until their next change or `finish_contact_rims`).
     pub fn set_background_rim_solves(&mut self, on: bool) {
-        self.params.background_rim_solves = on;
+        self.params.background_rim_solves = Some(on);
         self.system.set_rim_background(on);
     }
 

@@ -11,7 +11,7 @@ use crate::model::Deformable;
 fn params(background: bool) -> BemParams {
     BemParams {
         discontinuous_contacts: true,
-        background_rim_solves: background,
+        background_rim_solves: Some(background),
         ..BemParams::default()
     }
 }
@@ -42,7 +42,7 @@ fn background_rim_solves_start_continuous_and_end_as_the_blocking_rule() {
     let mut blocking = Bem::new(&s, material(), params(false)).unwrap();
     let blocking_first = step(&mut blocking, &first);
     let blocking_second = step(&mut blocking, &second);
-    let mut continuous = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let mut continuous = Bem::new(&s, material(), BemParams::continuous()).unwrap();
     continuous.set_constraints(&first).unwrap();
 
     // Cold: the contacts wait on the continuous rule, exactly the default model's.
@@ -110,4 +110,63 @@ fn a_new_factorisation_drops_the_rim_solves_in_flight() {
         m.system().rim_cache_usage().1,
         blocking.system().rim_cache_usage().1
     );
+}
+
+/// Steps until the worker has nothing left to solve (or a minute has gone by).
+fn settle(m: &mut Bem) {
+    let start = std::time::Instant::now();
+    while m.system().pending_rim_solves() > 0 {
+        assert!(start.elapsed().as_secs() < 60, "the worker never finished");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        m.step(0.01).unwrap();
+    }
+    m.step(0.01).unwrap();
+}
+
+#[test]
+fn real_time_follows_the_driver_unless_the_scene_chose() {
+    let s = sphere(2);
+    let rest = s.vertices.clone();
+    let first = press(&rest, -0.03, &top(&rest)[..8]);
+    // Unset: blocking until the driver says it runs against the clock.
+    let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    assert!(m.params().discontinuous_contacts);
+    m.set_real_time(true);
+    m.set_constraints(&first).unwrap();
+    assert!(m.system().contacts_waiting_for_rims());
+    // Chosen off: the driver does not override it.
+    let mut chosen = Bem::new(&s, material(), params(false)).unwrap();
+    chosen.set_real_time(true);
+    chosen.set_constraints(&first).unwrap();
+    assert!(!chosen.system().contacts_waiting_for_rims());
+    assert_eq!(chosen.system().pending_rim_solves(), 0);
+}
+
+#[test]
+fn real_time_solves_ahead_of_a_growing_patch() {
+    // While the probe rests, the worker solves the rim pairs on both sides of the patch's
+    // edge, so the next, larger patch switches to its rims at once, with the bits the
+    // blocking rule gives it.
+    let s = sphere(2);
+    let rest = s.vertices.clone();
+    let top = top(&rest);
+    let first = press(&rest, -0.03, &top[..8]);
+    let grown = press(&rest, -0.03, &top[..14]);
+    let mut blocking = Bem::new(&s, material(), BemParams::default()).unwrap();
+    blocking.set_constraints(&first).unwrap();
+    let (needed, _) = blocking.system().rim_cache_counts();
+    let mut m = Bem::new(&s, material(), BemParams::default()).unwrap();
+    m.set_real_time(true);
+    m.set_constraints(&first).unwrap();
+    settle(&mut m);
+    let (solved, _) = m.system().rim_cache_counts();
+    eprintln!("first patch: {needed} pairs needed, {solved} solved with those ahead");
+    assert!(solved > needed, "{solved} {needed}");
+    assert!(!m.system().contacts_waiting_for_rims());
+    m.set_constraints(&grown).unwrap();
+    assert!(
+        !m.system().contacts_waiting_for_rims(),
+        "the grown patch's rims were not solved ahead"
+    );
+    assert!(step(&mut m, &grown) == step(&mut blocking, &grown));
 }
