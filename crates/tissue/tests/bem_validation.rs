@@ -206,8 +206,8 @@ fn print_row(label: &str, row: &Row, axis: Vec3) {
     eprintln!(
         "| {label} | {} | {:.5} | {:.5} | {:+.2}% | {:.2}% | {continuous} | {:.1} |",
         row.vertices,
-        row.rims.force.dot(axis),
-        row.fem.force.dot(axis),
+        row.rims.force.dot(axis).abs(),
+        row.fem.force.dot(axis).abs(),
         100.0 * force_gap(&row.rims, &row.fem, axis),
         100.0 * displacement_gap(&row.rims, &row.fem),
         row.bem_seconds
@@ -221,10 +221,11 @@ fn extrapolate(h1: Real, f1: Real, h2: Real, f2: Real) -> Real {
 
 #[test]
 fn block_indentation_approaches_quadratic_fem_under_refinement() {
-    // The 5% target is not reached on meshes this coarse (`block_convergence_table`): on a
-    // given mesh the BEM is stiffer and the gap shrinks about like h. Checked here: the
-    // measured gaps (2 and 4 cells, about 0.5 s), their halving, and that tractions
-    // discontinuous at the contact rim too (dense solve) bring the displacements within 5%.
+    // On meshes this coarse (2 and 4 cells, about 0.5 s) both rules are stiffer than FEM
+    // and the gaps shrink about like h (`block_convergence_table`). Checked here: the
+    // measured gaps, their halving, that the default rule (tractions discontinuous at the
+    // contact rim) equals a dense solve of its system and brings the displacements within
+    // 5% at 258 vertices, and that it is closer than the continuous rule.
     let measured = [
         // (probe, cells, force gap, displacement gap; the same with `discontinuous_contacts`),
         // as measured on 2026-11-22.
@@ -243,7 +244,7 @@ fn block_indentation_approaches_quadratic_fem_under_refinement() {
             displacement_gap(&row.bem, &row.fem),
         );
         eprintln!(
-            "{probe:?}, {cells} cells, {} surface vertices: force BEM {:.4e} N, FEM-P2 {:.4e} N ({:+.1}%), displacement gap {:.1}%",
+            "{probe:?}, {cells} cells, {} surface vertices: continuous rule: force {:.4e} N, FEM-P2 {:.4e} N ({:+.1}%), displacement gap {:.1}%",
             row.vertices,
             row.bem.force.z,
             row.fem.force.z,
@@ -291,6 +292,33 @@ fn block_indentation_approaches_quadratic_fem_under_refinement() {
             fine.0 < 0.55 * coarse.0 && fine.1 < 0.55 * coarse.1,
             "{gaps:?}"
         );
+    }
+}
+
+#[test]
+fn default_bem_is_within_five_percent_of_quadratic_fem_on_the_block() {
+    // The issue's target on the 8-cell block (1026 surface vertices, about 3 s for both
+    // probes): force and surface displacement within 5% of quadratic FEM on the same body.
+    // The continuous rule is not, which is why it is not the default.
+    for probe in [Probe::Punch, Probe::Sphere] {
+        let (mesh, c) = block(8, probe);
+        let row = compare(&mesh, &c, false);
+        let down = -Vec3::Z;
+        let (fg, dg) = (
+            force_gap(&row.rims, &row.fem, down),
+            displacement_gap(&row.rims, &row.fem),
+        );
+        let continuous = force_gap(&row.bem, &row.fem, down);
+        eprintln!(
+            "{probe:?}, {} surface vertices: force gap {:+.2}%, displacement gap {:.2}% \
+             (continuous rule: force gap {:+.2}%)",
+            row.vertices,
+            100.0 * fg,
+            100.0 * dg,
+            100.0 * continuous
+        );
+        assert!(fg.abs() < 0.05 && dg < 0.05, "{probe:?}: {fg} {dg}");
+        assert!(continuous > 0.075, "{probe:?}: {continuous}");
     }
 }
 
