@@ -570,6 +570,29 @@ fn liver_smooth_speed() {
             ms(change, reps)
         );
     }
+    // Real time: a cold contact set answers at once on the continuous rule; the rims land
+    // from the worker and take over at a later step.
+    bem.set_rim_cache_budget(0);
+    bem.set_rim_cache_budget(tissue::model::bem::DEFAULT_RIM_CACHE_BYTES);
+    bem.set_constraints(&Constraints::fixed(fixed.clone()))
+        .unwrap();
+    bem.set_background_rim_solves(true);
+    let ((), cold) = timed(|| bem.set_constraints(&second).unwrap());
+    assert!(bem.system().contacts_waiting_for_rims());
+    let landing = Instant::now();
+    let mut steps = 0;
+    while bem.system().contacts_waiting_for_rims() {
+        std::thread::sleep(std::time::Duration::from_millis(1));
+        bem.step(0.01).unwrap();
+        steps += 1;
+    }
+    eprintln!(
+        "[discontinuous_contacts, real time] 20 contacts on an empty cache: {}; rims in \
+         effect after {:.3} s ({steps} steps)",
+        ms(cold, 1),
+        landing.elapsed().as_secs_f64()
+    );
+    bem.set_background_rim_solves(false);
     // Solving ahead: the rim pairs of the next 40 vertices around the probe.
     let ahead: Vec<usize> = order[30..70].to_vec();
     let (pairs, warm) = timed(|| bem.warm_contact_rims(&ahead));
