@@ -10,7 +10,9 @@ use crate::math::Real;
 use crate::sim::{Simulation, StepReport};
 
 /// One full update: instrument `index` goes to the device pose, the simulation steps `dt`,
-/// and its force on that instrument becomes the local model's new anchor.
+/// and its force on that instrument becomes the local model's new anchor. A loop of its
+/// own that calls this against the clock tells the model so once (`sim.model_mut().
+/// set_real_time(true)`), as `run_coupled` does.
 pub fn step_coupled(
     sim: &mut Simulation,
     index: usize,
