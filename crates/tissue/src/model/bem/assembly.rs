@@ -281,6 +281,10 @@ pub(crate) struct Geometry {
     pub vertices: Vec<Vec3>,
     pub elements: Vec<Element>,
     pub kelvin: Kelvin,
+    /// Per vertex, its (element, corner) pairs.
+    pub corners: Vec<Vec<(usize, usize)>>,
+    /// Per vertex, the other vertices of its elements (each once).
+    pub neighbours: Vec<Vec<usize>>,
 }
 
 impl Geometry {
@@ -298,10 +302,26 @@ impl Geometry {
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
+        let n = surface.vertices.len();
+        let mut corners = vec![Vec::new(); n];
+        let mut neighbours = vec![Vec::new(); n];
+        for (e, tri) in surface.triangles.iter().enumerate() {
+            for (corner, &v) in tri.iter().enumerate() {
+                corners[v as usize].push((e, corner));
+                neighbours[v as usize]
+                    .extend(tri.iter().map(|&w| w as usize).filter(|&w| w != v as usize));
+            }
+        }
+        for list in &mut neighbours {
+            list.sort_unstable();
+            list.dedup();
+        }
         Ok(Self {
             vertices: surface.vertices.clone(),
             elements,
             kelvin: Kelvin::new(material.mu(), material.poisson_ratio),
+            corners,
+            neighbours,
         })
     }
 

@@ -21,6 +21,7 @@
 //! independently, which `tests::rim_cache_hits_equal_cold_computations` checks).
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use faer::Mat;
 
@@ -137,6 +138,11 @@ impl RimCache {
         self.evict();
     }
 
+    /// Marks the pairs as used now (those not cached are skipped).
+    fn touch(&mut self, pairs: &[(usize, usize)]) {
+        self.store(&[], &Mat::zeros(0, 0), pairs);
+    }
+
     /// Removes the least recently used pairs until the cache fits its budget.
     fn evict(&mut self) {
         if self.bytes <= self.budget {
@@ -198,8 +204,8 @@ impl BemSystem {
             return None;
         }
         self.absorb_rim_solves(false);
-        let geo = self.geometry.as_ref()?;
-        let inverse = self.inverse.as_ref()?;
+        let geo = Arc::clone(self.geometry.as_ref()?);
+        self.inverse.as_ref()?;
         if geo.vertices.len() != self.inf.vertices {
             return None;
         }
@@ -254,9 +260,9 @@ impl BemSystem {
                     wanted.push(p);
                 }
             }
-            self.ahead_of(contacts, &self.fixed, &mut wanted);
-            let (geo, inverse) = (self.geometry.as_ref()?, self.inverse.as_ref()?);
-            self.rim_worker.request(wanted, geo, inverse);
+            self.ahead_of(contacts, &mut wanted);
+            self.rim_worker
+                .request(wanted, self.geometry.as_ref()?, self.inverse.as_ref()?);
             self.rim_cache.hits += needed.len() - missing_count;
             self.rim_cache.store(&[], &Mat::zeros(dofs, 0), &needed);
             let tributary = geo.tributary_areas();
@@ -269,12 +275,12 @@ impl BemSystem {
                 missing,
             });
         }
-        let fresh = solve_pairs(geo, inverse, &missing, true);
+        let fresh = solve_pairs(&geo, self.inverse.as_ref()?, &missing, true);
         if self.rim_background {
             let mut ahead = Vec::new();
-            self.ahead_of(contacts, &self.fixed, &mut ahead);
-            let (geo, inverse) = (self.geometry.as_ref()?, self.inverse.as_ref()?);
-            self.rim_worker.request(ahead, geo, inverse);
+            self.ahead_of(contacts, &mut ahead);
+            self.rim_worker
+                .request(ahead, self.geometry.as_ref()?, self.inverse.as_ref()?);
         }
         let mut wt = Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
             if from_inner[c / 3] {
@@ -314,55 +320,65 @@ impl BemSystem {
     }
 
     /// Appends to `wanted` (the pairs the current contacts still need, first in the queue)
-    /// the pairs the next contact sets are likely to need: those of the vertices on either
-    /// side of the contact set's edge (a triangle with a contact and a free corner), where
-    /// a moving or deepening probe goes next; a contact's list is whichever side of its rim
-    /// is shorter, so both sides are asked for. Skips what is cached or in flight and stops
-    /// at the cache's room, so that speculation never evicts what the contacts use.
-    fn ahead_of(&self, contacts: &[usize], fixed: &[bool], wanted: &mut Vec<(usize, usize)>) {
-        let Some(geo) = self.geometry.as_ref() else {
+    /// the pairs the next contact sets are likely to need, nearest first: those of the
+    /// vertices on either side of the contact set's edge (a triangle with a contact and a
+    /// free corner; a contact's list is whichever side of its rim is shorter, so both sides
+    /// are asked for), then ring by ring outward over the free surface, where a sliding
+    /// probe goes. The region covers half the cache's budget: what it holds already is
+    /// marked used, so that the least recently used pairs evicted to make room are those
+    /// farthest from the probe, never the region's or the contacts' own.
+    fn ahead_of(&mut self, contacts: &[usize], wanted: &mut Vec<(usize, usize)>) {
+        let Some(geo) = self.geometry.clone() else {
             return;
         };
+        let n = geo.vertices.len();
         let per_pair = 3 * self.dofs() * size_of::<Real>();
-        let room = self
-            .rim_cache
-            .budget()
-            .saturating_sub(self.rim_cache.bytes())
-            / per_pair;
-        let room = room.saturating_sub(self.rim_worker.pending());
-        if wanted.len() >= room {
-            return;
-        }
-        let mut contact = vec![false; geo.vertices.len()];
+        let region = self.rim_cache.budget() / per_pair / 2;
+        let mut contact = vec![false; n];
         for &c in contacts {
             contact[c] = true;
         }
+        let fixed = &self.fixed;
         let free = |v: usize| !contact[v] && !fixed.get(v).copied().unwrap_or(true);
-        let mut near = vec![false; geo.vertices.len()];
+        let mut ring = vec![usize::MAX; n];
+        let mut order = Vec::new();
         for el in &geo.elements {
             let nodes = el.nodes;
             if nodes.iter().any(|&v| contact[v]) && nodes.iter().any(|&v| free(v)) {
                 for v in nodes {
-                    near[v] |= contact[v] || free(v);
+                    if (contact[v] || free(v)) && ring[v] == usize::MAX {
+                        ring[v] = 0;
+                        order.push(v);
+                    }
                 }
             }
         }
         let known: std::collections::HashSet<(usize, usize)> = wanted.iter().copied().collect();
-        for (e, el) in geo.elements.iter().enumerate() {
-            for (corner, &v) in el.nodes.iter().enumerate() {
-                let pair = (e, corner);
-                if wanted.len() >= room {
-                    return;
+        let mut held = Vec::new();
+        let mut counted = 0;
+        let mut k = 0;
+        'walk: while k < order.len() {
+            let v = order[k];
+            k += 1;
+            for &pair in &geo.corners[v] {
+                counted += 1;
+                if counted > region {
+                    break 'walk;
                 }
-                if near[v]
-                    && !known.contains(&pair)
-                    && !self.rim_cache.contains(pair)
-                    && !self.rim_worker.in_flight(pair)
-                {
+                if self.rim_cache.contains(pair) {
+                    held.push(pair);
+                } else if !known.contains(&pair) && !self.rim_worker.in_flight(pair) {
                     wanted.push(pair);
                 }
             }
+            for &w in &geo.neighbours[v] {
+                if ring[w] == usize::MAX && free(w) {
+                    ring[w] = ring[v] + 1;
+                    order.push(w);
+                }
+            }
         }
+        self.rim_cache.touch(&held);
     }
 
     /// Whether the contacts wait for rim pairs and re-forming them would now change
