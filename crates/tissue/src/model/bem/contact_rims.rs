@@ -117,7 +117,11 @@ impl RimCache {
         self.clock += 1;
         let rows = fresh.nrows();
         for (j, &pair) in pairs.iter().enumerate() {
-            let q = Mat::from_fn(rows, 3, |r, c| fresh[(r, 3 * j + c)]);
+            let mut q = Mat::zeros(rows, 3);
+            for c in 0..3 {
+                q.col_as_slice_mut(c)
+                    .copy_from_slice(fresh.col_as_slice(3 * j + c));
+            }
             self.bytes += 3 * rows * size_of::<Real>();
             let old = self.entries.insert(
                 key(pair),
@@ -266,10 +270,13 @@ impl BemSystem {
             self.rim_cache.hits += needed.len() - missing_count;
             self.rim_cache.store(&[], &Mat::zeros(dofs, 0), &needed);
             let tributary = geo.tributary_areas();
+            let mut wt = Mat::zeros(dofs, 3 * contacts.len());
+            for (c, column) in (0..3 * contacts.len()).map(|c| (c, 3 * contacts[c / 3] + c % 3)) {
+                wt.col_as_slice_mut(c)
+                    .copy_from_slice(self.w.col_as_slice(column));
+            }
             return Some(ContactRims {
-                wt: Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
-                    self.w[(r, 3 * contacts[c / 3] + c % 3)]
-                }),
+                wt,
                 area: contacts.iter().map(|&c| tributary[c]).collect(),
                 waiting: true,
                 missing,
@@ -282,17 +289,18 @@ impl BemSystem {
             self.rim_worker
                 .request(ahead, self.geometry.as_ref()?, self.inverse.as_ref()?);
         }
-        let mut wt = Mat::from_fn(dofs, 3 * contacts.len(), |r, c| {
-            if from_inner[c / 3] {
-                0.0
-            } else {
-                self.w[(r, 3 * contacts[c / 3] + c % 3)]
-            }
-        });
-        // The same summation order whether q was cached or just solved.
+        let mut wt = Mat::zeros(dofs, 3 * contacts.len());
+        // The same summation order whether q was cached or just solved. Whole columns at a
+        // time: on 50 contacts this runs at every contact change of a moving probe.
         let mut next = 0;
         for k in 0..contacts.len() {
             let sign = if from_inner[k] { 1.0 } else { -1.0 };
+            if !from_inner[k] {
+                for l in 0..3 {
+                    wt.col_as_slice_mut(3 * k + l)
+                        .copy_from_slice(self.w.col_as_slice(3 * contacts[k] + l));
+                }
+            }
             for &pair in pairs(k) {
                 let q = match self.rim_cache.entries.get(&key(pair)) {
                     Some(e) => e.q.as_ref(),
@@ -302,8 +310,20 @@ impl BemSystem {
                     }
                 };
                 for l in 0..3 {
-                    for r in 0..dofs {
-                        wt[(r, 3 * k + l)] += sign * q[(r, l)];
+                    let column = q.col(l);
+                    let source = column.try_as_col_major().map(|c| c.as_slice());
+                    let target = wt.col_as_slice_mut(3 * k + l);
+                    match source {
+                        Some(src) => {
+                            for (t, v) in target.iter_mut().zip(src) {
+                                *t += sign * v;
+                            }
+                        }
+                        None => {
+                            for (r, t) in target.iter_mut().enumerate() {
+                                *t += sign * column[r];
+                            }
+                        }
                     }
                 }
             }
@@ -464,6 +484,11 @@ impl BemSystem {
     /// Pairs solved (misses and warm-ups) and pairs served from the cache so far.
     pub fn rim_cache_counts(&self) -> (usize, usize) {
         (self.rim_cache.solved, self.rim_cache.hits)
+    }
+
+    /// The cache's byte budget.
+    pub fn rim_cache_budget(&self) -> usize {
+        self.rim_cache.budget()
     }
 
     /// The cache's byte budget (default `DEFAULT_RIM_CACHE_BYTES`); lowering it evicts.
