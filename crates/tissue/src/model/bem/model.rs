@@ -19,6 +19,7 @@ use crate::model::{BuildInput, Progress};
 
 use super::assembly::{Geometry, Influence, assemble};
 use super::body_force::GravityResponse;
+use super::contact_rims::DEFAULT_RIM_CACHE_BYTES;
 use super::system::BemSystem;
 use super::viscous::SurfaceGraph;
 
@@ -45,6 +46,10 @@ pub struct BemParams {
     /// (`Deformable::set_real_time`): on in the viewer and the haptic loop, off in `tissue
     /// run`, where a step's result must not depend on timing.
     pub background_rim_solves: Option<bool>,
+    /// The byte budget of the rim cache, in MiB (default 256, `DEFAULT_RIM_CACHE_BYTES`).
+    /// In real time the worker keeps half of it solved around the probe; all the pairs of a
+    /// 2194-vertex surface take about 2000 MiB.
+    pub rim_cache_mib: Option<Real>,
     /// Deprecated and ignored (scenes that set it still load): models built from a scene
     /// report their assembly and factorisation through `Deformable::set_progress`.
     pub progress: bool,
@@ -56,6 +61,7 @@ impl Default for BemParams {
             alpha: 0.0,
             discontinuous_contacts: true,
             background_rim_solves: None,
+            rim_cache_mib: None,
             progress: false,
         }
     }
@@ -184,6 +190,21 @@ impl Bem {
             }
             .into());
         }
+        let rim_cache_bytes = match params.rim_cache_mib {
+            None => DEFAULT_RIM_CACHE_BYTES,
+            Some(mib) if mib.is_finite() && (0.0..=(1u64 << 30) as Real).contains(&mib) => {
+                (mib * (1u64 << 20) as Real) as usize
+            }
+            Some(mib) => {
+                return Err(SimError::BadParameter {
+                    name: "rim_cache_mib",
+                    value: mib.to_string(),
+                    reason: "the rim cache's budget must be a finite size in MiB, not negative"
+                        .into(),
+                }
+                .into());
+            }
+        };
         let surface = checked_surface(surface)?;
         let geometry = Geometry::new(&surface, &material)?;
         let kelvin = geometry.kelvin;
@@ -211,6 +232,7 @@ impl Bem {
         model
             .system
             .set_rim_background(params.background_rim_solves.unwrap_or(false));
+        model.system.set_rim_cache_budget(rim_cache_bytes);
         Ok(model)
     }
 

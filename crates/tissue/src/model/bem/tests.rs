@@ -413,6 +413,23 @@ fn bad_input_is_refused_with_its_reason() {
             .to_string()
             .contains("alpha")
     );
+    // The rim cache's budget from a scene, in MiB; a negative one names the key.
+    let mut budget = toml::Table::new();
+    budget.insert("rim_cache_mib".into(), toml::Value::Float(1.5));
+    let m = Bem::from_input(&crate::model::BuildInput {
+        params: &budget,
+        ..input
+    })
+    .unwrap();
+    assert_eq!(m.system().rim_cache_budget(), 3 << 19);
+    budget.insert("rim_cache_mib".into(), toml::Value::Float(-2.0));
+    let e = Bem::from_input(&crate::model::BuildInput {
+        params: &budget,
+        ..input
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("rim_cache_mib"), "{e}");
 }
 
 #[test]
