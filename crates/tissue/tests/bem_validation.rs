@@ -674,14 +674,23 @@ fn liver_smooth_press_in_real_time() {
     let tick = std::time::Duration::from_millis(10);
     let mut finals = Vec::new();
     let warm_all = std::env::var("BEM_WARM_ALL").is_ok();
-    for (rule, discontinuous, background, budget) in [
-        ("continuous", false, false, 0),
-        ("discontinuous, blocking", true, false, 0),
-        ("discontinuous, background", true, true, 0),
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    for (rule, discontinuous, background, threads, budget) in [
+        ("continuous", false, false, 1, 0),
+        ("discontinuous, blocking", true, false, 1, 0),
+        ("discontinuous, background, 1 thread", true, true, 1, 0),
+        (
+            "discontinuous, background, a thread per core",
+            true,
+            true,
+            cores,
+            0,
+        ),
         (
             "discontinuous, background, 4300 MiB",
             true,
             true,
+            cores,
             4300 << 20,
         ),
     ] {
@@ -698,6 +707,7 @@ fn liver_smooth_press_in_real_time() {
             .unwrap();
         bem.set_discontinuous_contacts(discontinuous).unwrap();
         bem.set_background_rim_solves(background);
+        bem.set_rim_solve_threads(threads);
         if budget > 0 {
             // The probe rests on its first patch while the worker solves the whole
             // surface outward from it (half the budget covers every pair).

@@ -411,25 +411,28 @@ impl BemSystem {
         self.rim_worker.pending() == 0 || rims.missing.iter().all(|&p| self.rim_cache.contains(p))
     }
 
-    /// Stores the worker's finished batch, if any (`wait`: waits for a running one), and
-    /// starts the next. Returns whether a batch landed (or was lost, so that its pairs are
-    /// asked for again).
+    /// Stores the worker's finished batches, if any (`wait`: waits for every running one),
+    /// and starts the next. Returns whether a batch landed (or was lost, so that its pairs
+    /// are asked for again).
     pub(super) fn absorb_rim_solves(&mut self, wait: bool) -> bool {
-        let poll = if wait {
-            self.rim_worker.wait()
-        } else {
-            self.rim_worker.poll()
-        };
-        let landed = match poll {
-            Poll::Idle | Poll::Busy => return false,
-            Poll::Lost => true,
-            Poll::Done(solved) => {
-                self.rim_cache.solved += solved.pairs.len();
-                self.rim_cache.store(&solved.pairs, &solved.q, &[]);
-                true
+        let mut landed = false;
+        loop {
+            let poll = if wait {
+                self.rim_worker.wait()
+            } else {
+                self.rim_worker.poll()
+            };
+            match poll {
+                Poll::Idle | Poll::Busy => break,
+                Poll::Lost => landed = true,
+                Poll::Done(solved) => {
+                    self.rim_cache.solved += solved.pairs.len();
+                    self.rim_cache.store(&solved.pairs, &solved.q, &[]);
+                    landed = true;
+                }
             }
-        };
-        if let (Some(geo), Some(inverse)) = (&self.geometry, &self.inverse) {
+        }
+        if landed && let (Some(geo), Some(inverse)) = (&self.geometry, &self.inverse) {
             self.rim_worker.start_next(geo, inverse);
         }
         landed

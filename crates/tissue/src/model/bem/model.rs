@@ -322,6 +322,12 @@ impl Bem {
         self.system.set_rim_background(on);
     }
 
+    /// Threads for background rim solves (default: one per core; each runs only in the time
+    /// the simulation leaves idle).
+    pub fn set_rim_solve_threads(&mut self, threads: usize) {
+        self.system.set_rim_threads(threads);
+    }
+
     /// Waits for the background rim solves the current contacts need and switches them to
     /// the discontinuous rule; the next step gives what the blocking rule gives.
     pub fn finish_contact_rims(&mut self) -> Result<(), SimError> {

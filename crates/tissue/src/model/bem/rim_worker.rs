@@ -2,8 +2,9 @@
 //!
 //! A contact change onto triangles whose q = A₀⁻¹ g is not cached costs O(n²) per
 //! (triangle, corner) pair, about 6 ms each on a 2194-vertex liver: a probe sliding onto
-//! new triangles would stall every step. In the background the pairs are solved by a
-//! worker thread in batches while the contact set keeps the continuous rule (all of it:
+//! new triangles would stall every step. In the background the pairs are solved by worker
+//! threads (one batch each, as many as there are cores, each in the idle scheduling class)
+//! while the contact set keeps the continuous rule (all of it:
 //! see `BemSystem::contact_rim_response`); when the last pair it needs lands, the set is
 //! re-formed with the rims (`BemSystem::collect_rim_solves`). The worker holds its own
 //! handles to the geometry and the LU (`BaseInverse` shares them), so the system never
@@ -50,38 +51,60 @@ struct Running {
     result: Receiver<Mat<Real>>,
 }
 
-/// The batch being solved, if any, and the pairs waiting for the next one.
-#[derive(Default)]
+/// The batches being solved, oldest first, and the pairs waiting for the next ones.
 pub(super) struct RimWorker {
-    running: Option<Running>,
+    running: Vec<Running>,
     queue: Vec<(usize, usize)>,
+    /// Batches solved at once, one thread each.
+    threads: usize,
+}
+
+impl Default for RimWorker {
+    /// One thread per core: they only take the time the simulation leaves idle.
+    fn default() -> Self {
+        Self {
+            running: Vec::new(),
+            queue: Vec::new(),
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        }
+    }
 }
 
 impl RimWorker {
     /// Whether `pair` is being solved now.
     pub fn in_flight(&self, pair: (usize, usize)) -> bool {
-        self.running
-            .as_ref()
-            .is_some_and(|r| r.pairs.contains(&pair))
+        self.running.iter().any(|r| r.pairs.contains(&pair))
     }
 
     /// Pairs asked for and not delivered yet (running or queued).
     pub fn pending(&self) -> usize {
-        self.running.as_ref().map_or(0, |r| r.pairs.len()) + self.queue.len()
+        self.running.iter().map(|r| r.pairs.len()).sum::<usize>() + self.queue.len()
+    }
+
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    /// Batches solved at once (at least one); the running ones finish either way.
+    pub fn set_threads(&mut self, threads: usize) {
+        self.threads = threads.max(1);
     }
 
     /// Replaces the waiting pairs (those the current contacts still need, and not in flight)
-    /// and starts the next batch if the worker is free.
+    /// and starts batches on the free threads.
     pub fn request(&mut self, pairs: Vec<(usize, usize)>, geo: &Arc<Geometry>, inv: &BaseInverse) {
         self.queue = pairs;
         self.start_next(geo, inv);
     }
 
-    /// Starts a batch from the front of the queue unless one is running.
+    /// Starts batches from the front of the queue while threads are free.
     pub fn start_next(&mut self, geo: &Arc<Geometry>, inv: &BaseInverse) {
-        if self.running.is_some() || self.queue.is_empty() {
-            return;
+        while self.running.len() < self.threads && !self.queue.is_empty() {
+            self.start_batch(geo, inv);
         }
+    }
+
+    fn start_batch(&mut self, geo: &Arc<Geometry>, inv: &BaseInverse) {
         let rest = self.queue.split_off(self.queue.len().min(BATCH));
         let pairs = std::mem::replace(&mut self.queue, rest);
         let (send, result) = mpsc::channel();
@@ -100,57 +123,58 @@ impl RimWorker {
             // No thread to be had: solve here, at the blocking rule's cost, same result.
             let _ = send.send(solve_pairs(geo, inv, &pairs, true));
         }
-        self.running = Some(Running { pairs, result });
+        self.running.push(Running { pairs, result });
     }
 
-    /// Takes a finished batch without waiting.
+    /// Takes a finished batch, the oldest first, without waiting.
     pub fn poll(&mut self) -> Poll {
-        let Some(run) = &self.running else {
+        if self.running.is_empty() {
             return Poll::Idle;
-        };
-        match run.result.try_recv() {
-            Ok(q) => self.finish(q),
-            Err(TryRecvError::Empty) => Poll::Busy,
-            Err(TryRecvError::Disconnected) => {
-                self.running = None;
-                Poll::Lost
+        }
+        for i in 0..self.running.len() {
+            match self.running[i].result.try_recv() {
+                Ok(q) => return self.finish(i, q),
+                Err(TryRecvError::Empty) => {}
+                Err(TryRecvError::Disconnected) => {
+                    self.running.remove(i);
+                    return Poll::Lost;
+                }
             }
         }
+        Poll::Busy
     }
 
-    /// Waits for the running batch, if any.
+    /// Waits for the oldest running batch, if any.
     pub fn wait(&mut self) -> Poll {
-        let Some(run) = &self.running else {
+        let Some(run) = self.running.first() else {
             return Poll::Idle;
         };
         match run.result.recv() {
-            Ok(q) => self.finish(q),
+            Ok(q) => self.finish(0, q),
             Err(_) => {
-                self.running = None;
+                self.running.remove(0);
                 Poll::Lost
             }
         }
     }
 
-    fn finish(&mut self, q: Mat<Real>) -> Poll {
-        match self.running.take() {
-            Some(run) => Poll::Done(Solved {
-                pairs: run.pairs,
-                q,
-            }),
-            None => Poll::Idle,
-        }
+    fn finish(&mut self, i: usize, q: Mat<Real>) -> Poll {
+        let run = self.running.remove(i);
+        Poll::Done(Solved {
+            pairs: run.pairs,
+            q,
+        })
     }
 
-    /// Forgets the waiting pairs (the running batch goes on).
+    /// Forgets the waiting pairs (the running batches go on).
     pub fn drop_queue(&mut self) {
         self.queue.clear();
     }
 
-    /// Forgets the running batch and the queue (A₀ changed: their q would be stale). The
-    /// thread finishes on its own and its result is dropped.
+    /// Forgets the running batches and the queue (A₀ changed: their q would be stale). The
+    /// threads finish on their own and their results are dropped.
     pub fn cancel(&mut self) {
-        self.running = None;
+        self.running.clear();
         self.queue.clear();
     }
 }

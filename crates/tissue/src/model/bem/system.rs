@@ -139,6 +139,16 @@ impl BemSystem {
         self.rim_background
     }
 
+    /// Batches of background rim solves run at once, one thread each (default: one per
+    /// core, at least 1).
+    pub fn set_rim_threads(&mut self, threads: usize) {
+        self.rim_worker.set_threads(threads);
+    }
+
+    pub fn rim_threads(&self) -> usize {
+        self.rim_worker.threads()
+    }
+
     /// Whether the contacts are on the continuous rule while the rim pairs they need are
     /// solved in the background.
     pub fn contacts_waiting_for_rims(&self) -> bool {
