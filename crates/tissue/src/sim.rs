@@ -14,7 +14,7 @@ use crate::interact::contact::{
 };
 use crate::interact::instrument::{Instrument, InstrumentKind};
 use crate::interact::{Constraints, Loads, Prescribed};
-use crate::math::{Real, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::model::{Deformable, StepInfo};
 
 /// Default cap of the static contact loop (solves per step).
@@ -56,6 +56,10 @@ pub struct Simulation {
     max_contact_iterations: usize,
     /// The constraints the model holds now (restored when a step fails).
     constraints: Constraints,
+    /// How many of their prescribed entries each instrument gave, in order. When the
+    /// contact loop stops at its cap, the instruments' contact sets have moved on from
+    /// what the model last solved with.
+    held: Vec<usize>,
 }
 
 impl Simulation {
@@ -84,6 +88,7 @@ impl Simulation {
             is_static,
             max_contact_iterations: DEFAULT_CONTACT_ITERATIONS,
             constraints,
+            held: Vec::new(),
         })
     }
 
@@ -95,6 +100,9 @@ impl Simulation {
 
     /// Removes instrument `index`; what it held is let go from the next step on.
     pub fn remove_instrument(&mut self, index: usize) -> Option<Instrument> {
+        // The model keeps its constraints until the next step; their split among the
+        // instruments no longer holds.
+        self.held.clear();
         (index < self.instruments.len()).then(|| self.instruments.remove(index))
     }
 
@@ -152,6 +160,18 @@ impl Simulation {
     /// Force on each instrument after the last step, in N.
     pub fn instrument_forces(&self) -> Vec<Vec3> {
         self.instruments.iter().map(|i| i.force).collect()
+    }
+
+    /// Instrument `index`'s tangent stiffness after the last step (dF/dx for a small move
+    /// of the instrument with its contacts held, N/m), where the model gives it in closed
+    /// form (`Deformable::prescribed_stiffness`); `None` otherwise or without contacts.
+    pub fn instrument_stiffness(&self, index: usize) -> Option<Mat3> {
+        let start: usize = self.held.get(..index)?.iter().sum();
+        let count = *self.held.get(index)?;
+        if count == 0 {
+            return None;
+        }
+        self.model.prescribed_stiffness(start..start + count)
     }
 
     /// Sum of the reactions at the fixed vertices after the last step, in N.
@@ -238,6 +258,8 @@ impl Simulation {
             self.model.set_constraints(&constraints)?;
             let info = self.model.step(dt)?;
             self.constraints = constraints;
+            self.held.clear();
+            self.held.extend(next.iter().map(|i| i.contacts.len()));
             self.refresh_bvh();
             self.collect_forces(next);
             if !self.is_static {

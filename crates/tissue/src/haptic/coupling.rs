@@ -10,7 +10,8 @@ use crate::math::Real;
 use crate::sim::{Simulation, StepReport};
 
 /// One full update: instrument `index` goes to the device pose, the simulation steps `dt`,
-/// and its force on that instrument becomes the local model's new anchor. A loop of its
+/// and its force on that instrument becomes the local model's new anchor, with the model's
+/// tangent stiffness where it gives one (else the loop estimates it). A loop of its
 /// own that calls this against the clock tells the model so once (`sim.model_mut().
 /// set_real_time(true)`), as `run_coupled` does.
 pub fn step_coupled(
@@ -24,7 +25,8 @@ pub fn step_coupled(
     let report = sim.step(dt)?;
     let force = report.forces.get(index).copied().unwrap_or_default();
     let touching = report.contacts.get(index).is_some_and(|&n| n > 0);
-    handle.update_contact(pose.position, force, touching);
+    let stiffness = sim.instrument_stiffness(index);
+    handle.update_contact_with_stiffness(pose.position, force, touching, stiffness);
     Ok(report)
 }
 

@@ -98,6 +98,19 @@ impl HapticHandle {
         lock(&self.shared.contact).update(position, force, in_contact);
     }
 
+    /// `update_contact` with the model's tangent stiffness, where it has one (see
+    /// `LocalContact::update_with_stiffness`); one lock, so the loop never sees the new
+    /// anchor with the old stiffness.
+    pub fn update_contact_with_stiffness(
+        &self,
+        position: Vec3,
+        force: Vec3,
+        in_contact: bool,
+        stiffness: Option<Mat3>,
+    ) {
+        lock(&self.shared.contact).update_with_stiffness(position, force, in_contact, stiffness);
+    }
+
     /// Sets a known contact stiffness (df/dx, N/m) instead of the estimate.
     pub fn set_stiffness(&self, k: Mat3) {
         lock(&self.shared.contact).set_stiffness(k);

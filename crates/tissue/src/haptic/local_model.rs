@@ -78,10 +78,27 @@ impl LocalContact {
     /// Takes a full update: the instrument was at `position` and felt `force`;
     /// `in_contact` says whether it touched anything.
     pub fn update(&mut self, position: Vec3, force: Vec3, in_contact: bool) {
+        self.update_with_stiffness(position, force, in_contact, None);
+    }
+
+    /// `update` with the model's own tangent stiffness at that state, where it has one
+    /// (`Simulation::instrument_stiffness`): it replaces the secant estimate, which a jump
+    /// of the model's force between updates (a contact vertex gained or lost, a model
+    /// refining its contact rule) turns into a spurious stiffness up to the cap, felt as a
+    /// kick when the hand moves on.
+    pub fn update_with_stiffness(
+        &mut self,
+        position: Vec3,
+        force: Vec3,
+        in_contact: bool,
+        known: Option<Mat3>,
+    ) {
         if !(crate::math::is_finite_vec(position) && crate::math::is_finite_vec(force)) {
             return;
         }
-        if in_contact && self.in_contact {
+        if let Some(k) = known.filter(|k| in_contact && k.is_finite()) {
+            self.set_stiffness(k);
+        } else if in_contact && self.in_contact {
             let dx = position - self.anchor;
             let df = force - self.force;
             let dx2 = dx.length_squared();
@@ -268,6 +285,31 @@ mod tests {
         // Force capped at 2 N.
         let f = m.force_at(Vec3::new(0.0, -1.0, 0.0));
         assert!((f.length() - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_known_stiffness_replaces_the_secant_through_a_force_jump() {
+        // The true stiffness is -20 N/m; between two updates 0.1 mm apart the model's force
+        // jumps by 0.02 N (a contact vertex gained). The secant reads that as 200 N/m more
+        // and the next 0.1 mm of hand motion would feel 0.02 N too much; the known one
+        // gives the model's own tangent.
+        let k = Mat3::from_diagonal(Vec3::splat(-20.0));
+        let (x0, x1) = (Vec3::ZERO, Vec3::new(0.0, -1e-4, 0.0));
+        let (f0, f1) = (Vec3::new(0.0, 0.05, 0.0), Vec3::new(0.0, 0.072, 0.0));
+        let mut secant = LocalContact::new(5000.0, 10.0);
+        secant.update(x0, f0, true);
+        secant.update(x1, f1, true);
+        assert!((secant.stiffness().y_axis.y + 220.0).abs() < 1e-9);
+        let mut known = LocalContact::new(5000.0, 10.0);
+        known.update_with_stiffness(x0, f0, true, Some(k));
+        known.update_with_stiffness(x1, f1, true, Some(k));
+        assert_eq!(known.stiffness(), k);
+        let x2 = Vec3::new(0.0, -2e-4, 0.0);
+        assert!((known.force_at(x2).y - 0.074).abs() < 1e-12);
+        assert!((secant.force_at(x2).y - 0.094).abs() < 1e-12);
+        // A stiffness that is not finite is not taken: the secant goes on.
+        known.update_with_stiffness(x2, f1, true, Some(Mat3::from_diagonal(Vec3::NAN)));
+        assert!(known.stiffness().is_finite());
     }
 
     #[test]

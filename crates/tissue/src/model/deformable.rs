@@ -2,7 +2,7 @@
 
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
-use crate::math::{Real, Vec3, is_finite_vec, segment_triangle};
+use crate::math::{Mat3, Real, Vec3, is_finite_vec, segment_triangle};
 
 use super::Progress;
 
@@ -188,6 +188,17 @@ pub trait Deformable: Send {
     /// a step's result never depends on timing. Models without such work ignore it.
     fn set_real_time(&mut self, on: bool) {
         let _ = on;
+    }
+
+    /// The stiffness the prescribed entries `entries` (indices into the `prescribed` list of
+    /// the last `set_constraints`) show together, in N/m: dF/dt, where F is the sum of their
+    /// reactions and t a translation of all their targets, everything else held (the other
+    /// constraints, the contact set, the loads). An instrument's tangent stiffness, which a
+    /// haptic loop needs between full updates. `None` for models that cannot give it in
+    /// closed form; the loop then estimates it from successive updates.
+    fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        let _ = entries;
+        None
     }
 
     fn info(&self) -> ModelInfo;

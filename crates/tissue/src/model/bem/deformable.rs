@@ -4,7 +4,7 @@
 
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::model::{
     CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
 };
@@ -297,6 +297,21 @@ impl Deformable for Bem {
             self.positions.copy_from_slice(&self.target);
         }
         Ok(StepInfo::default())
+    }
+
+    /// The reactions are −P_c · area_c with P_C = W̃_CC⁻¹ (targets − u_L): linear in the
+    /// targets, so the stiffness is exact and the same whatever the targets are.
+    fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        let prescribed = self.constraints.prescribed.get(entries.clone())?;
+        let owners = self.prescribed_owner.get(entries)?;
+        let vertices: Vec<usize> = prescribed
+            .iter()
+            .zip(owners)
+            .filter(|&(_, &owner)| owner)
+            .map(|(p, _)| p.vertex as usize)
+            .collect();
+        let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
+        Some(-self.system.held_traction_stiffness(&vertices, area)?)
     }
 
     fn reactions(&self) -> Reactions<'_> {

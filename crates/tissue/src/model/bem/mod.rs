@@ -31,6 +31,8 @@ mod tests_background;
 mod tests_cut;
 #[cfg(test)]
 mod tests_quadrature;
+#[cfg(test)]
+mod tests_stiffness;
 
 pub use assembly::Influence;
 pub use contact_rims::DEFAULT_RIM_CACHE_BYTES;

@@ -31,7 +31,7 @@ use faer::linalg::solvers::{DenseSolveCore, PartialPivLu, Solve};
 use faer::{Accum, Conj, Mat, MatMut, MatRef, Par};
 
 use crate::error::SimError;
-use crate::math::{Real, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 
 use super::assembly::{Geometry, Influence};
 use super::border::BaseInverse;
@@ -449,6 +449,37 @@ impl BemSystem {
             axpy(x, *pr, column);
         }
         Ok(())
+    }
+
+    /// d(Σ_{c∈V} area_c P_c)/dt for the contacts V among `vertices` (others are skipped),
+    /// when all their targets move by t: Σ_{c,d∈V} area_c (W̃_CC⁻¹)_{cd}, from the kept
+    /// inverse of the capacitance, O(|V|²), with `area(v)` the area vertex v's traction acts
+    /// on. `None` without contacts among them.
+    pub fn held_traction_stiffness(
+        &self,
+        vertices: &[usize],
+        area: impl Fn(usize) -> Real,
+    ) -> Option<Mat3> {
+        let cap = self.capacitance.as_ref()?;
+        let index: Vec<usize> = vertices
+            .iter()
+            .filter_map(|&v| self.contacts.iter().position(|&c| c == v))
+            .collect();
+        if index.is_empty() {
+            return None;
+        }
+        let mut k = [[0.0; 3]; 3];
+        for &c in &index {
+            let area = area(self.contacts[c]);
+            for &d in &index {
+                for (r, row) in k.iter_mut().enumerate() {
+                    for (l, entry) in row.iter_mut().enumerate() {
+                        *entry += area * cap.inverse[(3 * c + r, 3 * d + l)];
+                    }
+                }
+            }
+        }
+        Some(Mat3::from_cols_array_2d(&k).transpose())
     }
 
     /// A⁻¹ of the current reordered matrix (fixed and contacts exchanged) by the Woodbury
