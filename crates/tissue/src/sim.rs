@@ -238,6 +238,7 @@ impl Simulation {
         self.refresh_bvh();
         let n = self.model.surface().positions.len();
         let mut taken = vec![false; n];
+        let mut returned = Returned::new(n);
         for &v in &self.fixed {
             if let Some(t) = taken.get_mut(v as usize) {
                 *t = true;
@@ -265,7 +266,7 @@ impl Simulation {
             if !self.is_static {
                 break info;
             }
-            let changed = self.update_active_set(next, &mut taken);
+            let changed = self.update_active_set(next, &mut taken, &mut returned);
             if !changed {
                 break info;
             }
@@ -399,7 +400,19 @@ impl Simulation {
 
     /// One round of the static active set: release adhesive probe contacts, add vertices
     /// that now penetrate a probe. Returns whether anything changed.
-    fn update_active_set(&self, next: &mut [Instrument], taken: &mut [bool]) -> bool {
+    ///
+    /// Held vertices stick to their point of the sphere, so the vertices at the rim of the
+    /// patch can pull while held and, released all at once, spring back inside the ball:
+    /// the loop then cycles between the two sets until its cap (`bem`'s default contact
+    /// rule did so on most steps of a press). A vertex taken back after a release in this
+    /// step is kept for the rest of the step (`Returned`): the loop ends, and in the presses
+    /// measured it ended with every contact pushing (a returned vertex may keep a pull).
+    fn update_active_set(
+        &self,
+        next: &mut [Instrument],
+        taken: &mut [bool],
+        returned: &mut Returned,
+    ) -> bool {
         let s = self.model.surface();
         let mut changed = false;
         for inst in next.iter_mut() {
@@ -411,7 +424,8 @@ impl Simulation {
             let before = inst.contacts.len();
             let mut kept = Vec::with_capacity(before);
             for (k, f) in inst.contacts.iter().zip(&inst.reactions) {
-                if is_adhesive(*f, k.target, c, scale) {
+                if is_adhesive(*f, k.target, c, scale) && !returned.is_back(k.vertex) {
+                    returned.release(k.vertex);
                     if let Some(t) = taken.get_mut(k.vertex as usize) {
                         *t = false;
                     }
@@ -422,6 +436,9 @@ impl Simulation {
             let fresh = vertices_in_ball(&self.bvh, s.positions, s.triangles, c, r, &|v| {
                 is_taken(taken, v)
             });
+            for k in &fresh {
+                returned.take(k.vertex);
+            }
             changed |= kept.len() != before || !fresh.is_empty();
             mark(taken, &fresh);
             kept.extend(fresh);
@@ -430,6 +447,43 @@ impl Simulation {
             inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
         }
         changed
+    }
+}
+
+/// Per surface vertex, within one step's contact loop: released as adhesive, and taken
+/// again after that (then held to the end of the step).
+struct Returned {
+    state: Vec<u8>,
+}
+
+impl Returned {
+    const RELEASED: u8 = 1;
+    const BACK: u8 = 2;
+
+    fn new(vertices: usize) -> Self {
+        Self {
+            state: vec![0; vertices],
+        }
+    }
+
+    fn release(&mut self, v: u32) {
+        if let Some(s) = self.state.get_mut(v as usize) {
+            *s = Self::RELEASED;
+        }
+    }
+
+    fn take(&mut self, v: u32) {
+        if let Some(s) = self
+            .state
+            .get_mut(v as usize)
+            .filter(|s| **s == Self::RELEASED)
+        {
+            *s = Self::BACK;
+        }
+    }
+
+    fn is_back(&self, v: u32) -> bool {
+        self.state.get(v as usize) == Some(&Self::BACK)
     }
 }
 
