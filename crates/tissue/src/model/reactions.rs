@@ -76,6 +76,21 @@ impl ConstraintReactions {
         }
     }
 
+    /// The vertices whose reactions the prescribed entries `entries` report (each vertex
+    /// once, at the entry that owns it); `None` when the range is out of bounds.
+    pub fn owned_prescribed(&self, entries: std::ops::Range<usize>) -> Option<Vec<u32>> {
+        let prescribed = self.constraints.prescribed.get(entries.clone())?;
+        let owners = self.prescribed_owner.get(entries)?;
+        Some(
+            prescribed
+                .iter()
+                .zip(owners)
+                .filter(|&(_, &owner)| owner)
+                .map(|(p, _)| p.vertex)
+                .collect(),
+        )
+    }
+
     pub fn reactions(&self) -> Reactions<'_> {
         Reactions {
             fixed: &self.fixed,

@@ -14,12 +14,12 @@
 
 use std::time::Instant;
 
-use faer::linalg::solvers::DenseSolveCore;
+use faer::linalg::solvers::{DenseSolveCore, Solve};
 use faer::{Mat, Side};
 
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::model::{
     ConstraintReactions, CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo,
     SurfaceView,
@@ -367,6 +367,22 @@ impl SurfaceCore {
         self.reactions.reactions()
     }
 
+    /// Indices into `contacts` of the vertices whose reactions the prescribed entries
+    /// `entries` report (fixed ones are not contacts); `None` when the range is out of
+    /// bounds.
+    pub fn contacts_of_entries(&self, entries: std::ops::Range<usize>) -> Option<Vec<usize>> {
+        let vertices = self.reactions.owned_prescribed(entries)?;
+        Some(
+            vertices
+                .iter()
+                .filter_map(|&v| {
+                    let slot = *self.set.slot.get(v as usize)?;
+                    self.contacts.iter().position(|&a| a == slot)
+                })
+                .collect(),
+        )
+    }
+
     /// Back to rest: zero surface displacements and contact forces.
     pub fn reset(&mut self) {
         self.us_trial.iter_mut().for_each(|v| *v = 0.0);
@@ -429,6 +445,11 @@ pub(crate) trait SurfaceResponse: Send {
     fn update_u0(&mut self);
     /// Solves for the core's contacts, writing `us_trial` and `lambda`.
     fn solve_contacts(&mut self) -> Result<(), SimError>;
+    /// The contacts' system as `solve_contacts` forms it (3m × 3m, all of it): A a = t − u₀
+    /// for the contacts' unknowns a.
+    fn contact_block(&self) -> Mat<Real>;
+    /// The force contact k applies to the tissue per unit of its unknown: λ_k = F_k a_k.
+    fn contact_force_map(&self, k: usize) -> Mat3;
     /// Bytes held beyond the core.
     fn own_memory_bytes(&self) -> usize;
     /// Model-specific facts for `info()`.
@@ -515,6 +536,32 @@ impl<T: SurfaceResponse> Deformable for T {
 
     fn reactions(&self) -> Reactions<'_> {
         self.core().reactions()
+    }
+
+    /// The reactions are −λ_k = −F_k a_k with A a = t − u₀: linear in the targets, so the
+    /// stiffness is −Σ_{k∈V} F_k (A⁻¹ E_V)_k, E_V the unit translation of V's targets. A
+    /// fresh O(m³) factorisation of the contact block: once per full update, not per tick.
+    fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        let selected = self.core().contacts_of_entries(entries)?;
+        if selected.is_empty() {
+            return None;
+        }
+        let a = self.contact_block();
+        let mut e = Mat::<Real>::zeros(a.nrows(), 3);
+        for &k in &selected {
+            for l in 0..3 {
+                e[(3 * k + l, l)] = 1.0;
+            }
+        }
+        let x = a.partial_piv_lu().solve(&e);
+        let mut k_total = Mat3::ZERO;
+        for &k in &selected {
+            let block = Mat3::from_cols_array_2d(&std::array::from_fn(|c| {
+                std::array::from_fn(|r| x[(3 * k + r, c)])
+            }));
+            k_total -= self.contact_force_map(k) * block;
+        }
+        k_total.is_finite().then_some(k_total)
     }
 
     fn cut(&mut self, _blade: &CutPath) -> Result<CutInfo, SimError> {

@@ -9,12 +9,12 @@
 //! cost is reported in `info()` ("rebuilds", "last_rebuild_s"). The interior is computed
 //! only on demand (`interior_displacements`). Same answers as `fem-static` (linear order).
 
-use faer::Mat;
+use faer::{Mat, MatMut};
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
 use crate::material::Material;
-use crate::math::{Real, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
@@ -136,12 +136,8 @@ impl SurfaceResponse for FemCondensed {
         let m = self.core.targets.len();
         let contacts = &self.core.contacts;
         let dof = |r: usize| 3 * contacts[r / 3] as usize + r % 3;
-        let (mut block, rhs) = self.core.small.block_and_rhs(m);
-        for c in 0..m {
-            for r in c..m {
-                block[(r, c)] = self.w[(dof(r), dof(c))];
-            }
-        }
+        let (block, rhs) = self.core.small.block_and_rhs(m);
+        fill_compliance_block(&self.w, contacts, block, true);
         for (r, x) in rhs.iter_mut().enumerate() {
             *x = self.core.targets[r] - self.u0[dof(r)];
         }
@@ -155,6 +151,18 @@ impl SurfaceResponse for FemCondensed {
         }
         self.core.lambda.copy_from_slice(rhs);
         Ok(())
+    }
+
+    fn contact_block(&self) -> Mat<Real> {
+        let m = 3 * self.core.contacts.len();
+        let mut a = Mat::zeros(m, m);
+        fill_compliance_block(&self.w, &self.core.contacts, a.as_mut(), false);
+        a
+    }
+
+    /// λ is the unknown itself.
+    fn contact_force_map(&self, _k: usize) -> Mat3 {
+        Mat3::IDENTITY
     }
 
     fn own_memory_bytes(&self) -> usize {
@@ -172,5 +180,17 @@ impl SurfaceResponse for FemCondensed {
                 (self.core.small.a.nrows() / 3).to_string(),
             ),
         ]
+    }
+}
+
+/// W_CC, the compliance between the contacts (indices into the free surface vertices), into
+/// `a`; only its lower triangle when `lower` (what a Cholesky factorisation reads).
+fn fill_compliance_block(w: &Mat<Real>, contacts: &[u32], mut a: MatMut<'_, Real>, lower: bool) {
+    let m = 3 * contacts.len();
+    let dof = |r: usize| 3 * contacts[r / 3] as usize + r % 3;
+    for c in 0..m {
+        for r in if lower { c } else { 0 }..m {
+            a[(r, c)] = w[(dof(r), dof(c))];
+        }
     }
 }

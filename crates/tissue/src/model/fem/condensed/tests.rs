@@ -237,6 +237,73 @@ pub(crate) fn box_matches_fem_static_with<M: Deformable>(
     }
 }
 
+/// `prescribed_stiffness` of a surface-response model on the clamped beam against central
+/// differences of `fem-static`'s reactions (an independent implementation): two instruments
+/// (entries 0..5 and the rest), a vertex given to both, loads on.
+pub(crate) fn stiffness_matches_fem_static_differences_with<M: Deformable>(
+    build: impl Fn(&TetMesh, Material, &[u32]) -> M,
+) {
+    let mesh = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.02, 0.02),
+        [10, 2, 2],
+        BoxSplit::Six,
+    );
+    let material = Material::new(5000.0, 0.4).unwrap();
+    let mut reference = FemStatic::new(&mesh, material, Order::Linear).unwrap();
+    let rest = reference.rest_surface().to_vec();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].x < 1e-9)
+        .collect();
+    let mut model = build(&mesh, material, &fixed);
+    let mut c = random_constraints(&rest, &fixed, 9, 1e-3, &mut Rng::new(5));
+    let mut repeat = c.prescribed[2];
+    repeat.position += Vec3::splat(1e-4);
+    c.prescribed.push(repeat);
+    let l = loads(20);
+    apply(&mut [&mut reference, &mut model], &c, &l);
+    let k = model.prescribed_stiffness(0..5).unwrap();
+    assert!(model.prescribed_stiffness(0..100).is_none());
+    let h = 1e-5;
+    let mut force = |shift: Vec3| {
+        let mut moved = c.clone();
+        for p in &mut moved.prescribed[..5] {
+            p.position += shift;
+        }
+        apply(&mut [&mut reference], &moved, &l);
+        reference.reactions().prescribed[..5]
+            .iter()
+            .copied()
+            .sum::<Vec3>()
+    };
+    let columns: Vec<Vec3> = Vec3::AXES
+        .iter()
+        .map(|&e| (force(e * h) - force(-e * h)) / (2.0 * h))
+        .collect();
+    let fd = Mat3::from_cols(columns[0], columns[1], columns[2]);
+    let scale = fd
+        .to_cols_array()
+        .iter()
+        .fold(0.0, |a: Real, b| a.max(b.abs()));
+    let gap = (k - fd)
+        .to_cols_array()
+        .iter()
+        .fold(0.0, |a: Real, b| a.max(b.abs()));
+    eprintln!(
+        "{}: stiffness gap to fem-static differences {:.1e}",
+        model.kind(),
+        gap / scale
+    );
+    assert!(gap <= 1e-6 * scale, "{k:?} vs {fd:?}");
+}
+
+#[test]
+fn stiffness_matches_fem_static_differences() {
+    stiffness_matches_fem_static_differences_with(|mesh, material, fixed| {
+        FemCondensed::new(mesh, material, fixed).unwrap()
+    });
+}
+
 #[test]
 fn box_matches_fem_static() {
     box_matches_fem_static_with(BoxSplit::Six, 11, 20, [2, 8], |mesh, material, fixed| {

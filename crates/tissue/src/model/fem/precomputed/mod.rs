@@ -13,6 +13,7 @@
 //! LU), then u_i = u0_i + Σ_k T^U_{i,k} a_k and P_k = T^F_k a_k, where u0 is the response to
 //! the loads alone. Same answers as `fem-static` (linear order) and `fem-condensed`.
 
+use faer::{Mat, MatMut};
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
@@ -181,17 +182,8 @@ impl SurfaceResponse for FemPrecomputedTensors {
     fn solve_contacts(&mut self) -> Result<(), SimError> {
         let m = self.core.targets.len();
         let (n, contacts) = (self.n, &self.core.contacts);
-        let (mut a, rhs) = self.core.small.block_and_rhs(m);
-        for (kb, &k) in contacts.iter().enumerate() {
-            for (jb, &j) in contacts.iter().enumerate() {
-                let t = self.t_u[k as usize * n + j as usize];
-                for c in 0..3 {
-                    for r in 0..3 {
-                        a[(3 * jb + r, 3 * kb + c)] = t.col(c)[r];
-                    }
-                }
-            }
-        }
+        let (a, rhs) = self.core.small.block_and_rhs(m);
+        fill_tensor_block(&self.t_u, n, contacts, a);
         for (jb, &j) in contacts.iter().enumerate() {
             for r in 0..3 {
                 rhs[3 * jb + r] = self.core.targets[3 * jb + r] - self.u0[j as usize][r];
@@ -217,6 +209,18 @@ impl SurfaceResponse for FemPrecomputedTensors {
         Ok(())
     }
 
+    fn contact_block(&self) -> Mat<Real> {
+        let m = 3 * self.core.contacts.len();
+        let mut a = Mat::zeros(m, m);
+        fill_tensor_block(&self.t_u, self.n, &self.core.contacts, a.as_mut());
+        a
+    }
+
+    /// λ_k = T_f[k] a_k.
+    fn contact_force_map(&self, k: usize) -> Mat3 {
+        self.t_f[self.core.contacts[k] as usize]
+    }
+
     fn own_memory_bytes(&self) -> usize {
         self.tensor_bytes()
     }
@@ -226,5 +230,20 @@ impl SurfaceResponse for FemPrecomputedTensors {
             ("surface_nodes".into(), self.n.to_string()),
             ("tensor_bytes".into(), self.tensor_bytes().to_string()),
         ]
+    }
+}
+
+/// The contacts' superposition system into `a`: block (j, k) is T_u[k][j], the
+/// displacement of contact j per unit virtual displacement a_k of contact k.
+fn fill_tensor_block(t_u: &[Mat3], n: usize, contacts: &[u32], mut a: MatMut<'_, Real>) {
+    for (kb, &k) in contacts.iter().enumerate() {
+        for (jb, &j) in contacts.iter().enumerate() {
+            let t = t_u[k as usize * n + j as usize];
+            for c in 0..3 {
+                for r in 0..3 {
+                    a[(3 * jb + r, 3 * kb + c)] = t.col(c)[r];
+                }
+            }
+        }
     }
 }

@@ -8,6 +8,7 @@ use crate::model::fem::FemCondensed;
 use crate::model::fem::condensed::tests::{
     Rng, applied_load, apply, assert_cannot_cut, box_matches_fem_static_with, check_balance,
     compare, liver_material, liver_static, loads, random_constraints,
+    stiffness_matches_fem_static_differences_with,
 };
 
 #[test]
@@ -36,6 +37,13 @@ fn liver_matches_fem_static_and_fem_condensed() {
 #[test]
 fn box_matches_fem_static() {
     box_matches_fem_static_with(BoxSplit::Five, 23, 30, [3, 9], |mesh, material, fixed| {
+        FemPrecomputedTensors::new(mesh, material, fixed).unwrap()
+    });
+}
+
+#[test]
+fn stiffness_matches_fem_static_differences() {
+    stiffness_matches_fem_static_differences_with(|mesh, material, fixed| {
         FemPrecomputedTensors::new(mesh, material, fixed).unwrap()
     });
 }
