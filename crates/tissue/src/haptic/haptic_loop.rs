@@ -111,6 +111,11 @@ impl HapticHandle {
         lock(&self.shared.contact).update_with_stiffness(position, force, in_contact, stiffness);
     }
 
+    /// The stiffness the loop evaluates with now (df/dx, N/m, symmetric and capped).
+    pub fn stiffness(&self) -> Mat3 {
+        lock(&self.shared.contact).stiffness()
+    }
+
     /// Sets a known contact stiffness (df/dx, N/m) instead of the estimate.
     pub fn set_stiffness(&self, k: Mat3) {
         lock(&self.shared.contact).set_stiffness(k);

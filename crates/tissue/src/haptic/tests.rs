@@ -95,3 +95,54 @@ fn bridge_rejects_malformed_datagrams_and_keeps_the_pose() {
     bridge.stop();
     lp.stop();
 }
+
+/// `step_coupled` hands the loop the model's own stiffness (here `bem`'s, for a grasper on
+/// a sphere), symmetrised, instead of a secant estimate.
+#[test]
+fn a_coupled_step_gives_the_loop_the_models_stiffness() {
+    use crate::interact::{Instrument, InstrumentKind, Loads, Trajectory};
+    use crate::material::Material;
+    use crate::mesh::generate::icosphere;
+    use crate::model::bem::{Bem, BemParams};
+    use crate::sim::Simulation;
+
+    let s = icosphere(Vec3::ZERO, 0.05, 2);
+    let fixed = (0..s.vertices.len() as u32)
+        .filter(|&v| s.vertices[v as usize].z < -0.03)
+        .collect();
+    let model = Bem::new(
+        &s,
+        Material::new(3000.0, 0.3).unwrap(),
+        BemParams::default(),
+    )
+    .unwrap();
+    let mut sim = Simulation::new(Box::new(model), fixed, Loads::default()).unwrap();
+    let at = Vec3::new(0.0, 0.0, 0.05);
+    let grasp = InstrumentKind::Grasper {
+        grasp_at: 0.0,
+        release_at: None,
+    };
+    sim.add_instrument(Instrument::new("grasper", grasp, 0.02, Trajectory::fixed(at)).unwrap());
+    let lp = HapticLoop::start(HapticConfig::default()).unwrap_or_else(|e| panic!("{e}"));
+    let h = lp.handle();
+    for depth in [0.0, 1e-3, 2e-3] {
+        h.set_pose(Pose {
+            position: at - Vec3::Z * depth,
+            ..Pose::default()
+        });
+        step_coupled(&mut sim, 0, &h, 0.01).unwrap();
+    }
+    let k = sim.instrument_stiffness(0).unwrap();
+    let sym = (k + k.transpose()) * 0.5;
+    let gap = (h.stiffness() - sym)
+        .to_cols_array()
+        .iter()
+        .fold(0.0, |a: f64, b| a.max(b.abs()));
+    assert!(
+        gap <= 1e-9 * sym.z_axis.z.abs(),
+        "{:?} vs {sym:?}",
+        h.stiffness()
+    );
+    assert!(sym.z_axis.z < 0.0);
+    lp.stop();
+}
