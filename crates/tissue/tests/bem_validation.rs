@@ -780,3 +780,68 @@ fn liver_smooth_press_in_real_time() {
         );
     }
 }
+
+/// Contact changes of a probe patch on the liver that grows one vertex at a time from 5 to
+/// 56 and shrinks back to 40, every rim pair cached beforehand (blocking rule): the time of
+/// `set_constraints` per change. Measures the forming of W̃ (columns of unchanged contacts
+/// copied, memory reused), not the rim solves.
+#[test]
+#[ignore = "slow: pre-computation on the 2194-vertex liver"]
+fn liver_smooth_cached_contact_changes() {
+    let data = tissue::io::read(LIVER_SMOOTH).unwrap();
+    let mut surface = data.surface_mesh().unwrap();
+    surface.vertices.iter_mut().for_each(|p| *p *= 0.01);
+    let mut bem = Bem::new(&surface, material(), BemParams::default()).unwrap();
+    let rest = bem.rest_surface().to_vec();
+    let n = rest.len();
+    let by = |f: &dyn Fn(&Vec3) -> Real| {
+        (0..n)
+            .min_by(|&a, &b| f(&rest[a]).total_cmp(&f(&rest[b])))
+            .unwrap()
+    };
+    let fixed: Vec<u32> = [by(&|p| p.x), by(&|p| -p.x), by(&|p| p.z)]
+        .iter()
+        .map(|&v| v as u32)
+        .collect();
+    let top = by(&|p| -p.y);
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| {
+        (rest[a] - rest[top])
+            .length()
+            .total_cmp(&(rest[b] - rest[top]).length())
+    });
+    let at = |count: usize| Constraints {
+        fixed: fixed.clone(),
+        prescribed: order[..count]
+            .iter()
+            .map(|&v| Prescribed {
+                vertex: v as u32,
+                position: rest[v] - Vec3::Y * 0.002,
+            })
+            .collect(),
+    };
+    bem.set_constraints(&Constraints::fixed(fixed.clone()))
+        .unwrap();
+    bem.set_rim_cache_budget(1500 << 20);
+    let warmed = bem.warm_contact_rims(&order[..120]);
+    let mut times = Vec::new();
+    for count in (5..=56).chain((40..56).rev()) {
+        let start = Instant::now();
+        bem.set_constraints(&at(count)).unwrap();
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        bem.step(0.01).unwrap();
+    }
+    let solved = bem.system().rim_cache_counts().0;
+    assert_eq!(solved, warmed, "every pair was cached");
+    let mean = times.iter().sum::<Real>() / times.len() as Real;
+    let mut sorted = times.clone();
+    sorted.sort_by(Real::total_cmp);
+    eprintln!(
+        "{} cached contact changes (5..56 contacts): mean {mean:.2} ms, median {:.2} ms, max \
+         {:.2} ms; {} contacts' columns reused",
+        times.len(),
+        sorted[times.len() / 2],
+        sorted[times.len() - 1],
+        bem.system().rim_contacts_reused()
+    );
+}

@@ -77,6 +77,8 @@ pub struct BemSystem {
     pub(super) contact_rims: bool,
     /// With `contact_rims`: the current contacts' W̃_{:,C} and support areas.
     pub(super) rims: Option<ContactRims>,
+    /// The memory of a replaced W̃, reused by the next contact change.
+    pub(super) spare_response: Mat<Real>,
     /// q = A₀⁻¹ g per (triangle, corner), for `contact_rims`.
     pub(super) rim_cache: RimCache,
     /// Missing q solved by `rim_worker` while the contacts wait on the continuous rule.
@@ -103,6 +105,7 @@ impl BemSystem {
             support_area: Vec::new(),
             contact_rims: false,
             rims: None,
+            spare_response: Mat::zeros(0, 0),
             rim_cache: RimCache::default(),
             rim_background: false,
             rim_worker: RimWorker::default(),
@@ -392,7 +395,9 @@ impl BemSystem {
             inverse: lu.inverse(),
             lu,
         });
-        self.rims = rims;
+        if let Some(old) = std::mem::replace(&mut self.rims, rims) {
+            self.spare_response = old.wt;
+        }
         self.woodbury_updates += 1;
         Ok(())
     }

@@ -695,6 +695,19 @@ fn rim_cache_hits_equal_cold_computations() {
         press_step(&mut fresh, second) == partly,
         "partly cached != cold"
     );
+    // One more vertex: the contacts whose rims did not change keep their columns, and the
+    // result is still the cold one's.
+    let mut grown = Bem::new(&s, material(), params).unwrap();
+    press_step(&mut grown, &top[..16]);
+    let before = grown.system().rim_contacts_reused();
+    let grown_result = press_step(&mut grown, &top[..17]);
+    assert!(grown.system().rim_contacts_reused() > before);
+    let mut cold = Bem::new(&s, material(), params).unwrap();
+    assert!(
+        press_step(&mut cold, &top[..17]) == grown_result,
+        "reused != cold"
+    );
+    assert_eq!(cold.system().rim_contacts_reused(), 0);
     // Entirely from the cache: nothing solved.
     assert!(press_step(&mut warm, first) == cold_first, "cached != cold");
     assert_eq!(warm.system().rim_cache_counts().0, solved2);
