@@ -256,8 +256,7 @@ impl BemSystem {
         // Contacts whose columns the current set already has (not while it waits: those
         // are W's columns): a probe that moves on changes a few contacts' rims at a time,
         // and summing q columns again would read them all from memory.
-        let previous = self.rims.take();
-        let reused: Vec<Option<usize>> = match previous.as_ref().filter(|r| !r.waiting) {
+        let reused: Vec<Option<usize>> = match self.rims.as_ref().filter(|r| !r.waiting) {
             Some(prev) => {
                 let at: HashMap<usize, usize> = prev
                     .keys
@@ -310,7 +309,6 @@ impl BemSystem {
                 wt.col_as_slice_mut(c)
                     .copy_from_slice(self.w.col_as_slice(column));
             }
-            self.rims = previous;
             return Some(ContactRims {
                 wt,
                 area: contacts.iter().map(|&c| tributary[c]).collect(),
@@ -319,7 +317,6 @@ impl BemSystem {
                 keys: Vec::new(),
             });
         }
-        self.rims = previous;
         let fresh = if missing.is_empty() {
             Mat::zeros(dofs, 0)
         } else {
