@@ -322,8 +322,8 @@ impl Bem {
         self.system.set_rim_background(on);
     }
 
-    /// Threads for background rim solves (default: one per core; each runs only in the time
-    /// the simulation leaves idle).
+    /// Threads for background rim solves (default and most: one per core; at least one;
+    /// each runs only in the time the simulation leaves idle).
     pub fn set_rim_solve_threads(&mut self, threads: usize) {
         self.system.set_rim_threads(threads);
     }

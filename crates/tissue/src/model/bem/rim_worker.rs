@@ -65,7 +65,7 @@ impl Default for RimWorker {
         Self {
             running: Vec::new(),
             queue: Vec::new(),
-            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            threads: cores(),
         }
     }
 }
@@ -85,9 +85,10 @@ impl RimWorker {
         self.threads
     }
 
-    /// Batches solved at once (at least one); the running ones finish either way.
+    /// Batches solved at once, between one and the number of cores (more threads than
+    /// cores would only share them); the running ones finish either way.
     pub fn set_threads(&mut self, threads: usize) {
-        self.threads = threads.max(1);
+        self.threads = threads.clamp(1, cores());
     }
 
     /// Replaces the waiting pairs (those the current contacts still need, and not in flight)
@@ -177,6 +178,10 @@ impl RimWorker {
         self.running.clear();
         self.queue.clear();
     }
+}
+
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// Puts the calling thread in the idle scheduling class (Linux's SCHED_IDLE, which needs no

@@ -142,8 +142,8 @@ impl BemSystem {
         self.rim_background
     }
 
-    /// Batches of background rim solves run at once, one thread each (default: one per
-    /// core, at least 1).
+    /// Batches of background rim solves run at once, one thread each (default and most: one
+    /// per core; at least 1).
     pub fn set_rim_threads(&mut self, threads: usize) {
         self.rim_worker.set_threads(threads);
     }
