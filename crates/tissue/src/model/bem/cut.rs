@@ -452,7 +452,7 @@ impl Bem {
         // the constraints or loads no longer fit the cut body, the cut model (consistent, with
         // what it accepted) is kept and the error says why.
         let applied = next
-            .set_constraints(&self.constraints)
+            .set_constraints(self.reactions.constraints())
             .and_then(|()| next.set_loads(&loads));
         *self = next;
         applied?;

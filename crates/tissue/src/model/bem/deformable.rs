@@ -137,20 +137,7 @@ impl Bem {
                 -(self.traction[v] - at(&self.load_traction, v)) * area(v)
             }
         };
-        for (k, &v) in self.constraints.fixed.iter().enumerate() {
-            self.fixed_reactions[k] = if self.fixed_owner[k] {
-                reaction(v as usize)
-            } else {
-                Vec3::ZERO
-            };
-        }
-        for (k, p) in self.constraints.prescribed.iter().enumerate() {
-            self.prescribed_reactions[k] = if self.prescribed_owner[k] {
-                reaction(p.vertex as usize)
-            } else {
-                Vec3::ZERO
-            };
-        }
+        self.reactions.distribute(|v| reaction(v as usize));
         Ok(())
     }
 }
@@ -197,32 +184,7 @@ impl Deformable for Bem {
                 .iter()
                 .map(|&v| held[v].unwrap_or(Vec3::ZERO)),
         );
-        let same_vertices = c.fixed == self.constraints.fixed
-            && c.prescribed.len() == self.constraints.prescribed.len()
-            && c.prescribed
-                .iter()
-                .zip(&self.constraints.prescribed)
-                .all(|(a, b)| a.vertex == b.vertex);
-        if !same_vertices || self.fixed_owner.len() != c.fixed.len() {
-            let mut taken = vec![false; self.surface.vertices.len()];
-            self.fixed_owner = c
-                .fixed
-                .iter()
-                .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-                .collect();
-            let mut owner = vec![false; c.prescribed.len()];
-            for (k, p) in c.prescribed.iter().enumerate().rev() {
-                owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
-            }
-            self.prescribed_owner = owner;
-        }
-        self.fixed_reactions.clear();
-        self.fixed_reactions.resize(c.fixed.len(), Vec3::ZERO);
-        self.prescribed_reactions.clear();
-        self.prescribed_reactions
-            .resize(c.prescribed.len(), Vec3::ZERO);
-        self.constraints.fixed.clone_from(&c.fixed);
-        self.constraints.prescribed.clone_from(&c.prescribed);
+        self.reactions.set(c);
         Ok(())
     }
 
@@ -302,23 +264,15 @@ impl Deformable for Bem {
     /// The reactions are −P_c · area_c with P_C = W̃_CC⁻¹ (targets − u_L): linear in the
     /// targets, so the stiffness is exact and the same whatever the targets are.
     fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
-        let prescribed = self.constraints.prescribed.get(entries.clone())?;
-        let owners = self.prescribed_owner.get(entries)?;
-        let vertices: Vec<usize> = prescribed
-            .iter()
-            .zip(owners)
-            .filter(|&(_, &owner)| owner)
-            .map(|(p, _)| p.vertex as usize)
+        let vertices: Vec<usize> = (self.reactions.owned_prescribed(entries)?.iter())
+            .map(|&v| v as usize)
             .collect();
         let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
         Some(-self.system.held_traction_stiffness(&vertices, area)?)
     }
 
     fn reactions(&self) -> Reactions<'_> {
-        Reactions {
-            fixed: &self.fixed_reactions,
-            prescribed: &self.prescribed_reactions,
-        }
+        self.reactions.reactions()
     }
 
     /// Opens the incision as a narrow groove (`cut`) and extends the pre-inverted system by
@@ -345,12 +299,7 @@ impl Deformable for Bem {
         self.positions.copy_from_slice(&self.surface.vertices);
         self.target.copy_from_slice(&self.surface.vertices);
         self.traction.iter_mut().for_each(|t| *t = Vec3::ZERO);
-        self.fixed_reactions
-            .iter_mut()
-            .for_each(|r| *r = Vec3::ZERO);
-        self.prescribed_reactions
-            .iter_mut()
-            .for_each(|r| *r = Vec3::ZERO);
+        self.reactions.distribute(|_| Vec3::ZERO);
     }
 
     fn info(&self) -> ModelInfo {

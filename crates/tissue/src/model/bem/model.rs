@@ -10,10 +10,10 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, MeshError, SimError};
-use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::mesh::SurfaceMesh;
+use crate::model::ConstraintReactions;
 use crate::model::registry::parse_params;
 use crate::model::{BuildInput, Progress};
 
@@ -91,7 +91,8 @@ pub struct Bem {
     pub(super) graph: SurfaceGraph,
     pub(super) distance: Vec<Real>,
     pub(super) system: BemSystem,
-    pub(super) constraints: Constraints,
+    /// The constraints of the last `set_constraints` and the reaction of each entry.
+    pub(super) reactions: ConstraintReactions,
     /// Contact vertices (prescribed, not fixed), ascending, and their displacements.
     pub(super) contact_targets: Vec<Vec3>,
     pub(super) point_forces: Vec<Vec3>,
@@ -102,10 +103,6 @@ pub struct Bem {
     pub(super) p_contact: Vec<Real>,
     /// Traction per vertex after the last step, in Pa.
     pub(super) traction: Vec<Vec3>,
-    pub(super) fixed_owner: Vec<bool>,
-    pub(super) prescribed_owner: Vec<bool>,
-    pub(super) fixed_reactions: Vec<Vec3>,
-    pub(super) prescribed_reactions: Vec<Vec3>,
     pub(super) assembly_seconds: Real,
     /// Where the assembly and factorisation report (`Deformable::set_progress`).
     pub(super) progress: Progress,
@@ -278,7 +275,7 @@ impl Bem {
             distance: vec![0.0; n],
             areas,
             system: BemSystem::new(inf),
-            constraints: Constraints::default(),
+            reactions: ConstraintReactions::default(),
             contact_targets: Vec::new(),
             point_forces: vec![Vec3::ZERO; n],
             load_traction: vec![0.0; 3 * n],
@@ -286,10 +283,6 @@ impl Bem {
             x: vec![0.0; 3 * n],
             p_contact: Vec::new(),
             traction: vec![Vec3::ZERO; n],
-            fixed_owner: Vec::new(),
-            prescribed_owner: Vec::new(),
-            fixed_reactions: Vec::new(),
-            prescribed_reactions: Vec::new(),
             assembly_seconds,
             progress: Progress::silent(),
             pending_assembly: false,
