@@ -108,6 +108,27 @@ pub fn unflatten_mut(v: &mut [Real]) -> &mut [Vec3] {
     unsafe { std::slice::from_raw_parts_mut(v.as_mut_ptr().cast::<Vec3>(), v.len() / 3) }
 }
 
+/// Checks shared by the tests of several model families.
+#[cfg(test)]
+pub(crate) mod testing {
+    use super::{Mat3, Real, Vec3};
+
+    /// The Jacobian of `f` at the origin of its argument by central differences of step
+    /// `h`: column j is (f(h e_j) − f(−h e_j)) / 2h. Exact to rounding for a linear `f`.
+    pub fn central_jacobian(h: Real, mut f: impl FnMut(Vec3) -> Vec3) -> Mat3 {
+        let mut columns = [Vec3::ZERO; 3];
+        for (column, axis) in columns.iter_mut().zip(Vec3::AXES) {
+            *column = (f(axis * h) - f(-axis * h)) / (2.0 * h);
+        }
+        Mat3::from_cols(columns[0], columns[1], columns[2])
+    }
+
+    /// The largest entry of `m` in magnitude.
+    pub fn max_entry(m: Mat3) -> Real {
+        m.to_cols_array().iter().fold(0.0, |a, b| a.max(b.abs()))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

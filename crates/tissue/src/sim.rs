@@ -60,6 +60,8 @@ pub struct Simulation {
     /// contact loop stops at its cap, the instruments' contact sets have moved on from
     /// what the model last solved with.
     held: Vec<usize>,
+    /// The contact loop's per-vertex release record, kept to reuse its memory.
+    returned: Returned,
 }
 
 impl Simulation {
@@ -89,6 +91,7 @@ impl Simulation {
             max_contact_iterations: DEFAULT_CONTACT_ITERATIONS,
             constraints,
             held: Vec::new(),
+            returned: Returned::default(),
         })
     }
 
@@ -238,7 +241,8 @@ impl Simulation {
         self.refresh_bvh();
         let n = self.model.surface().positions.len();
         let mut taken = vec![false; n];
-        let mut returned = Returned::new(n);
+        let mut returned = std::mem::take(&mut self.returned);
+        returned.reset(n);
         for &v in &self.fixed {
             if let Some(t) = taken.get_mut(v as usize) {
                 *t = true;
@@ -275,6 +279,7 @@ impl Simulation {
                 break info;
             }
         };
+        self.returned = returned;
         Ok(StepReport {
             time: t1,
             step: self.steps + 1,
@@ -452,6 +457,7 @@ impl Simulation {
 
 /// Per surface vertex, within one step's contact loop: released as adhesive, and taken
 /// again after that (then held to the end of the step).
+#[derive(Default)]
 struct Returned {
     state: Vec<u8>,
 }
@@ -460,10 +466,10 @@ impl Returned {
     const RELEASED: u8 = 1;
     const BACK: u8 = 2;
 
-    fn new(vertices: usize) -> Self {
-        Self {
-            state: vec![0; vertices],
-        }
+    /// Nothing released, for `vertices` surface vertices.
+    fn reset(&mut self, vertices: usize) {
+        self.state.clear();
+        self.state.resize(vertices, 0);
     }
 
     fn release(&mut self, v: u32) {

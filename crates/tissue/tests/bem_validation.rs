@@ -620,16 +620,10 @@ fn liver_smooth_speed() {
     }
 }
 
-/// A press on the 2194-vertex liver paced in real time at 100 Hz, as the viewer steps it:
-/// the contact patch grows from 5 to 55 vertices over 1 s (a new set every other step),
-/// then holds for 1 s. Per contact rule: the sim thread's time per step (constraints and
-/// step), and with background rim solves how many steps ran on the continuous rule and how
-/// long after the stop the rims landed. The probe force at the end is compared with the
-/// blocking rule's. With `BEM_WARM_ALL=1`, also with a rim cache large enough for the worker
-/// to solve every pair while the probe rests on its first patch (about a minute, 2 GB more).
-#[test]
-#[ignore = "slow: pre-computation on the 2194-vertex liver, then 6 s of paced steps"]
-fn liver_smooth_press_in_real_time() {
+/// The liver-smooth `bem` (continuous rule) held at its extreme vertices in −x, +x and −z,
+/// factorised for that fixed set; the fixed vertices; and every vertex ordered by distance
+/// from the top (+y) vertex: the first k are a probe patch of k contacts.
+fn liver_press_setup() -> (Bem, Vec<u32>, Vec<usize>) {
     let data = tissue::io::read(LIVER_SMOOTH).unwrap();
     let mut surface = data.surface_mesh().unwrap();
     surface.vertices.iter_mut().for_each(|p| *p *= 0.01);
@@ -652,25 +646,51 @@ fn liver_smooth_press_in_real_time() {
             .length()
             .total_cmp(&(rest[b] - rest[top]).length())
     });
+    bem.set_constraints(&Constraints::fixed(fixed.clone()))
+        .unwrap();
+    (bem, fixed, order)
+}
+
+/// The patch of the first `count` vertices of `order` pushed `depth` along −y.
+fn press_patch(
+    rest: &[Vec3],
+    fixed: &[u32],
+    order: &[usize],
+    count: usize,
+    depth: Real,
+) -> Constraints {
+    Constraints {
+        fixed: fixed.to_vec(),
+        prescribed: order[..count]
+            .iter()
+            .map(|&v| Prescribed {
+                vertex: v as u32,
+                position: rest[v] - Vec3::Y * depth,
+            })
+            .collect(),
+    }
+}
+
+/// A press on the 2194-vertex liver paced in real time at 100 Hz, as the viewer steps it:
+/// the contact patch grows from 5 to 55 vertices over 1 s (a new set every other step),
+/// then holds for 1 s. Per contact rule: the sim thread's time per step (constraints and
+/// step), and with background rim solves how many steps ran on the continuous rule and how
+/// long after the stop the rims landed. The probe force at the end is compared with the
+/// blocking rule's. With `BEM_WARM_ALL=1`, also with a rim cache large enough for the worker
+/// to solve every pair while the probe rests on its first patch (about a minute, 2 GB more).
+#[test]
+#[ignore = "slow: pre-computation on the 2194-vertex liver, then 6 s of paced steps"]
+fn liver_smooth_press_in_real_time() {
+    let (mut bem, fixed, order) = liver_press_setup();
+    let rest = bem.rest_surface().to_vec();
     let at = |k: u32| {
         let (count, depth) = if k < 100 {
             (5 + k as usize / 2, 0.004 * k as Real / 100.0)
         } else {
             (55, 0.004)
         };
-        Constraints {
-            fixed: fixed.clone(),
-            prescribed: order[..count]
-                .iter()
-                .map(|&v| Prescribed {
-                    vertex: v as u32,
-                    position: rest[v] - Vec3::Y * depth,
-                })
-                .collect(),
-        }
+        press_patch(&rest, &fixed, &order, count, depth)
     };
-    bem.set_constraints(&Constraints::fixed(fixed.clone()))
-        .unwrap();
     let tick = std::time::Duration::from_millis(10);
     let mut finals = Vec::new();
     let warm_all = std::env::var("BEM_WARM_ALL").is_ok();
@@ -788,40 +808,10 @@ fn liver_smooth_press_in_real_time() {
 #[test]
 #[ignore = "slow: pre-computation on the 2194-vertex liver"]
 fn liver_smooth_cached_contact_changes() {
-    let data = tissue::io::read(LIVER_SMOOTH).unwrap();
-    let mut surface = data.surface_mesh().unwrap();
-    surface.vertices.iter_mut().for_each(|p| *p *= 0.01);
-    let mut bem = Bem::new(&surface, material(), BemParams::default()).unwrap();
+    let (mut bem, fixed, order) = liver_press_setup();
+    bem.set_discontinuous_contacts(true).unwrap();
     let rest = bem.rest_surface().to_vec();
-    let n = rest.len();
-    let by = |f: &dyn Fn(&Vec3) -> Real| {
-        (0..n)
-            .min_by(|&a, &b| f(&rest[a]).total_cmp(&f(&rest[b])))
-            .unwrap()
-    };
-    let fixed: Vec<u32> = [by(&|p| p.x), by(&|p| -p.x), by(&|p| p.z)]
-        .iter()
-        .map(|&v| v as u32)
-        .collect();
-    let top = by(&|p| -p.y);
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| {
-        (rest[a] - rest[top])
-            .length()
-            .total_cmp(&(rest[b] - rest[top]).length())
-    });
-    let at = |count: usize| Constraints {
-        fixed: fixed.clone(),
-        prescribed: order[..count]
-            .iter()
-            .map(|&v| Prescribed {
-                vertex: v as u32,
-                position: rest[v] - Vec3::Y * 0.002,
-            })
-            .collect(),
-    };
-    bem.set_constraints(&Constraints::fixed(fixed.clone()))
-        .unwrap();
+    let at = |count: usize| press_patch(&rest, &fixed, &order, count, 0.002);
     bem.set_rim_cache_budget(1500 << 20);
     let warmed = bem.warm_contact_rims(&order[..120]);
     let mut times = Vec::new();

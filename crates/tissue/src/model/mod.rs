@@ -17,6 +17,8 @@ pub mod registry;
 pub mod spline;
 pub mod spring_mass;
 pub mod tensor_mass;
+#[cfg(test)]
+pub(crate) mod testing;
 
 pub use deformable::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,

@@ -360,20 +360,9 @@ impl BemSystem {
                     }
                 };
                 for l in 0..3 {
-                    let column = q.col(l);
-                    let source = column.try_as_col_major().map(|c| c.as_slice());
                     let target = wt.col_as_slice_mut(3 * k + l);
-                    match source {
-                        Some(src) => {
-                            for (t, v) in target.iter_mut().zip(src) {
-                                *t += sign * v;
-                            }
-                        }
-                        None => {
-                            for (r, t) in target.iter_mut().enumerate() {
-                                *t += sign * column[r];
-                            }
-                        }
+                    for (t, v) in target.iter_mut().zip(q.col(l).iter()) {
+                        *t += sign * v;
                     }
                 }
             }

@@ -10,6 +10,7 @@ use crate::model::{
 };
 
 use super::model::Bem;
+use super::system::BemSystem;
 use super::viscous::relax;
 
 impl Bem {
@@ -107,9 +108,7 @@ impl Bem {
         )?;
         let fixed = self.system.fixed();
         let at = |x: &[Real], v: usize| Vec3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
-        // The area a vertex's unknown traction acts on: a fixed vertex's acts only on the
-        // fixed side of the rim, and so may a contact's (`BemSystem::support_area`).
-        let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
+        let area = |v: usize| traction_area(&self.system, &self.areas, v);
         for (v, &is_fixed) in fixed.iter().enumerate() {
             let rest = self.surface.vertices[v];
             if is_fixed {
@@ -267,8 +266,11 @@ impl Deformable for Bem {
         let vertices: Vec<usize> = (self.reactions.owned_prescribed(entries)?.iter())
             .map(|&v| v as usize)
             .collect();
-        let area = |v: usize| self.system.support_area(v).unwrap_or(self.areas[v]);
-        Some(-self.system.held_traction_stiffness(&vertices, area)?)
+        Some(
+            -self.system.held_traction_stiffness(&vertices, |v| {
+                traction_area(&self.system, &self.areas, v)
+            })?,
+        )
     }
 
     fn reactions(&self) -> Reactions<'_> {
@@ -333,4 +335,11 @@ impl Deformable for Bem {
             ],
         }
     }
+}
+
+/// The area vertex v's unknown traction acts on: a fixed vertex's acts only on the fixed side
+/// of the rim, and so may a contact's (`BemSystem::support_area`); else its tributary area
+/// (`areas`).
+fn traction_area(system: &BemSystem, areas: &[Real], v: usize) -> Real {
+    system.support_area(v).unwrap_or(areas[v])
 }
