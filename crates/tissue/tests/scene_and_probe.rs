@@ -164,7 +164,7 @@ impl Deformable for SpringBed {
             .collect();
         Ok(StepInfo {
             iterations,
-            residual: 0.0,
+            ..StepInfo::default()
         })
     }
     fn reactions(&self) -> Reactions<'_> {

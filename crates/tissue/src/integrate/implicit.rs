@@ -107,6 +107,7 @@ impl ImplicitSolver {
         Ok(StepInfo {
             iterations: result.iterations,
             residual: result.relative_residual,
+            ..StepInfo::default()
         })
     }
 

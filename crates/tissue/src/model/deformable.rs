@@ -37,6 +37,14 @@ pub struct StepInfo {
     pub iterations: usize,
     /// Final relative residual of an iterative solver (0 for a direct solve).
     pub residual: Real,
+    /// True when an iterative solver stopped at its iteration cap before reaching its
+    /// tolerance: the step is less accurate than the model's setting asks, and the caller
+    /// (`tissue run`'s summary, the viewer) says so instead of passing it off as converged.
+    pub capped: bool,
+    /// Internal steps the model took to cover `dt` (explicit models split a step that is
+    /// above their stability limit); 0 where the model does not step in time (static models)
+    /// or does not report it, 1 for a single step.
+    pub substeps: u32,
 }
 
 /// A description of a built model, for `tissue run` summaries and comparisons.

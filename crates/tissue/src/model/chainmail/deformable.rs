@@ -203,6 +203,7 @@ impl Deformable for ChainMail {
         Ok(StepInfo {
             iterations: self.last.moved,
             residual: 0.0,
+            ..StepInfo::default()
         })
     }
 

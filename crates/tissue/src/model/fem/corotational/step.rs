@@ -130,6 +130,7 @@ impl FemCorotational {
         Ok(StepInfo {
             iterations: cg.iterations,
             residual: cg.relative_residual,
+            ..StepInfo::default()
         })
     }
 
