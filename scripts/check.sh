@@ -12,6 +12,9 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 echo "== tests (release: faer's generic code is very slow unoptimised)"
 cargo test --release --workspace --locked
 
+echo "== python (pip install ./python, pytest)"
+bash scripts/python-test.sh
+
 echo "== benches compile"
 cargo bench --workspace --locked --no-run
 

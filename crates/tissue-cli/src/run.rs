@@ -13,7 +13,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
 use tissue::Real;
 use tissue::io::{WriteOptions, write_with};
-use tissue::mesh::{Field, MeshData, surface::signed_volume_of};
+use tissue::mesh::{Field, MeshData};
 use tissue::model::{Deformable, Progress};
 use tissue::scene::Scene;
 use tissue::sim::Simulation;
@@ -111,7 +111,7 @@ pub fn execute(
     let info = sim.model().info();
     let total = scene.run.step_count();
     let every = scene.output.every;
-    let initial_volume = volume(sim.model());
+    let initial_volume = tissue::metrics::volume(sim.model());
     if let Some(w) = &mut writer {
         w.frame(&sim)?;
         w.forces(&sim);
@@ -135,7 +135,7 @@ pub fn execute(
             error = Some(format!("step {k} (from t = {t} s) failed: {e}"));
             break;
         }
-        max_displacement = max_displacement.max(displacement_max(sim.model()));
+        max_displacement = max_displacement.max(tissue::metrics::max_displacement(sim.model()));
         for f in sim.instrument_forces() {
             max_force = max_force.max(f.length());
         }
@@ -158,7 +158,7 @@ pub fn execute(
         steps: sim.steps(),
         wall_seconds,
         initial_volume,
-        final_volume: volume(sim.model()),
+        final_volume: tissue::metrics::volume(sim.model()),
         max_displacement,
         max_instrument_force: max_force,
         surface_vertices: sim.model().surface().positions.len(),
@@ -170,35 +170,6 @@ pub fn execute(
         w.finish(scene, &sim, &outcome)?;
     }
     Ok(outcome)
-}
-
-/// Enclosed volume now: the tetrahedra if the model has them, else the closed surface.
-fn volume(model: &dyn Deformable) -> Real {
-    match model.volume() {
-        Some(v) => v
-            .tets
-            .iter()
-            .filter_map(|t| {
-                let [a, b, c, d] = t.map(|i| v.positions.get(i as usize).copied());
-                Some(tissue::math::tet_signed_volume(a?, b?, c?, d?))
-            })
-            .sum(),
-        None => {
-            let s = model.surface();
-            signed_volume_of(s.positions, s.triangles)
-        }
-    }
-}
-
-fn displacement_max(model: &dyn Deformable) -> Real {
-    let (now, rest) = match model.volume() {
-        Some(v) => (v.positions, v.rest_positions),
-        None => (model.surface().positions, model.rest_surface()),
-    };
-    now.iter()
-        .zip(rest)
-        .map(|(p, q)| p.distance(*q))
-        .fold(0.0, Real::max)
 }
 
 /// The mesh written for a frame: tetrahedra if any, else the surface, with displacements.

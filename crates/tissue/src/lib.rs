@@ -14,6 +14,7 @@ pub mod io;
 pub mod material;
 pub mod math;
 pub mod mesh;
+pub mod metrics;
 pub mod model;
 pub mod scene;
 pub mod sim;
