@@ -20,10 +20,10 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             let mesh = io::read(file)?;
             let report = inspect(&mesh);
             if *json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
+                crate::outln!("{}", serde_json::to_string_pretty(&report)?);
             } else {
-                println!("{}", file.display());
-                print!("{report}");
+                crate::outln!("{}", file.display());
+                crate::out!("{report}");
             }
             Ok(())
         }
@@ -49,7 +49,7 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
                 binary: !*ascii,
             };
             io::write_with(output, &mesh, &options)?;
-            println!("wrote {}: {}", output.display(), counts(&mesh));
+            crate::outln!("wrote {}: {}", output.display(), counts(&mesh));
             Ok(())
         }
         MeshCommand::Repair {
@@ -71,8 +71,8 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             let report = repair(&mut mesh, &options);
             io::write(output, &mesh)
                 .with_context(|| format!("writing the repaired mesh of {}", input.display()))?;
-            println!("{report}");
-            println!("wrote {}: {}", output.display(), counts(&mesh));
+            crate::outln!("{report}");
+            crate::outln!("wrote {}: {}", output.display(), counts(&mesh));
             Ok(())
         }
     }
@@ -120,21 +120,21 @@ fn inspect_image(file: &Path, format: ImageFormat, json: bool) -> anyhow::Result
             "zeros": s.zeros,
             "negatives": s.negatives,
         });
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         let [nx, ny, nz] = image.dims;
-        println!("{}", file.display());
-        println!(
+        crate::outln!("{}", file.display());
+        crate::outln!(
             "image ({format:?}): {nx} × {ny} × {nz} = {} voxels",
             s.count
         );
-        println!("spacing: {sx} {sy} {sz} ({unit})");
-        println!("origin:  {ox} {oy} {oz} ({unit}; centre of voxel 0)");
-        println!("values:  {}, {}", image.source_type, image.byte_order);
-        println!("range:   {} .. {}, mean {:.4}", s.min, s.max, s.mean);
+        crate::outln!("spacing: {sx} {sy} {sz} ({unit})");
+        crate::outln!("origin:  {ox} {oy} {oz} ({unit}; centre of voxel 0)");
+        crate::outln!("values:  {}, {}", image.source_type, image.byte_order);
+        crate::outln!("range:   {} .. {}, mean {:.4}", s.min, s.max, s.mean);
         let pct = |n: usize| 100.0 * n as f64 / s.count.max(1) as f64;
-        println!("zeros:   {} ({:.2} %)", s.zeros, pct(s.zeros));
-        println!("negative: {} ({:.2} %)", s.negatives, pct(s.negatives));
+        crate::outln!("zeros:   {} ({:.2} %)", s.zeros, pct(s.zeros));
+        crate::outln!("negative: {} ({:.2} %)", s.negatives, pct(s.negatives));
     }
     Ok(())
 }

@@ -136,7 +136,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
             args.host, shown
         );
     }
-    println!(
+    crate::outln!(
         "tissue view: http://{shown}:{}/?token={}  (Ctrl-C stops)",
         addr.port(),
         access.token()
