@@ -49,7 +49,7 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
                 binary: !*ascii,
             };
             io::write_with(output, &mesh, &options)?;
-            crate::outln!("wrote {}: {}", output.display(), counts(&mesh));
+            crate::outln!("{}", written(output, &mesh)?);
             Ok(())
         }
         MeshCommand::Repair {
@@ -72,10 +72,89 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             io::write(output, &mesh)
                 .with_context(|| format!("writing the repaired mesh of {}", input.display()))?;
             crate::outln!("{report}");
-            crate::outln!("wrote {}: {}", output.display(), counts(&mesh));
+            crate::outln!("{}", written(output, &mesh)?);
             Ok(())
         }
     }
+}
+
+/// What a written file holds, read back from it (so the counts are the file's, whatever the
+/// format kept), and what of `source` it left out.
+fn written(output: &Path, source: &MeshData) -> anyhow::Result<String> {
+    let back = io::read(output)
+        .with_context(|| format!("reading back {} to count what it holds", output.display()))?;
+    let mut line = format!("wrote {}: {}", output.display(), counts(&back));
+    let lost = dropped(source, &back);
+    if !lost.is_empty() {
+        line.push_str(&format!(
+            "\n  dropped (the format cannot hold them): {}",
+            lost.join(", ")
+        ));
+    }
+    Ok(line)
+}
+
+/// What `source` had that `written` lacks, in words.
+fn dropped(source: &MeshData, written: &MeshData) -> Vec<String> {
+    let mut out = Vec::new();
+    let count = |out: &mut Vec<String>, had: usize, kept: usize, what: &str| {
+        if kept < had {
+            out.push(format!("{} of {had} {what}", had - kept));
+        }
+    };
+    count(
+        &mut out,
+        source.tets.len(),
+        written.tets.len(),
+        "tetrahedra",
+    );
+    count(
+        &mut out,
+        source.tets10.len(),
+        written.tets10.len(),
+        "10-node tetrahedra",
+    );
+    count(
+        &mut out,
+        source.fixed_vertices.len(),
+        written.fixed_vertices.len(),
+        "fixed vertices",
+    );
+    count(
+        &mut out,
+        source.triangle_tags.len(),
+        written.triangle_tags.len(),
+        "triangle tags",
+    );
+    count(
+        &mut out,
+        source.tet_tags.len(),
+        written.tet_tags.len(),
+        "tetrahedron tags",
+    );
+    count(
+        &mut out,
+        source.point_data.len(),
+        written.point_data.len(),
+        "point data fields",
+    );
+    if source.has_volume() && !written.has_volume() && !written.triangles.is_empty() {
+        let n = source.vertices.len().saturating_sub(written.vertices.len());
+        out.push(format!(
+            "the interior ({n} vertices inside; the boundary surface was written)"
+        ));
+    } else if written.triangles.len() < source.triangles.len() {
+        count(
+            &mut out,
+            source.triangles.len(),
+            written.triangles.len(),
+            "triangles",
+        );
+    }
+    if source.material.is_some() && written.material.is_none() {
+        out.push("the material record".into());
+    }
+    out
 }
 
 fn counts(mesh: &MeshData) -> String {
