@@ -31,7 +31,7 @@ trap 'kill "$SERVER" 2>/dev/null || true; wait "$SERVER" 2>/dev/null || true' EX
 
 URL=""
 for _ in $(seq 1 300); do
-    URL=$(grep -o 'http://[0-9.]*:[0-9]*/' "$LOG" | head -n1 || true)
+    URL=$(grep -o 'http://[0-9.]*:[0-9]*/?token=[0-9a-f]*' "$LOG" | head -n1 || true)
     [ -n "$URL" ] && break
     if ! kill -0 "$SERVER" 2>/dev/null; then cat "$LOG"; echo "browser-test: the server died"; exit 1; fi
     sleep 0.1

@@ -39,7 +39,9 @@ state.send = send;
 state.sendRaw = (text) => ws && ws.readyState === WebSocket.OPEN && ws.send(text);
 
 function connect() {
-  ws = new WebSocket(`ws://${location.host}/ws`);
+  // The session token `tissue view` printed in the page's URL (docs/security.md).
+  const token = new URLSearchParams(location.search).get('token') || '';
+  ws = new WebSocket(`ws://${location.host}/ws?token=${encodeURIComponent(token)}`);
   ws.onopen = () => { $('status').textContent = 'connected'; };
   ws.onclose = () => {
     $('status').textContent = 'disconnected: reconnecting…';

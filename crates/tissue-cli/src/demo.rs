@@ -18,7 +18,7 @@ const LIVER_NAME: &str = "liver.msh (built in)";
 
 pub fn demo(args: &DemoArgs) -> anyhow::Result<()> {
     if args.print_scene {
-        print!("{SCENE}");
+        crate::out!("{SCENE}");
         return Ok(());
     }
     let scene = Scene::from_toml(
@@ -30,23 +30,25 @@ pub fn demo(args: &DemoArgs) -> anyhow::Result<()> {
     let sim = scene.build_with_mesh(mesh, LIVER_NAME)?;
     let o = execute(&scene, sim, args.out.as_deref(), false)?;
     let change = 100.0 * (o.final_volume - o.initial_volume) / o.initial_volume;
-    println!("tissue demo: a probe pressing 1 cm into a liver held at three ligament nodes");
-    println!("  model              {}", o.model);
-    println!(
+    crate::outln!("tissue demo: a probe pressing 1 cm into a liver held at three ligament nodes");
+    crate::outln!("  model              {}", o.model);
+    crate::outln!(
         "  mesh               {} nodes, {} elements, {} surface vertices",
-        o.nodes, o.elements, o.surface_vertices
+        o.nodes,
+        o.elements,
+        o.surface_vertices
     );
-    println!(
+    crate::outln!(
         "  steps              {} in {:.3} s ({:.1} steps/s)",
         o.steps,
         o.wall_seconds,
         o.steps as Real / o.wall_seconds.max(1e-12)
     );
-    println!("  max probe force    {:.4} N", o.max_instrument_force);
-    println!("  max displacement   {:.3} mm", 1e3 * o.max_displacement);
-    println!("  volume change      {change:+.3} %");
+    crate::outln!("  max probe force    {:.4} N", o.max_instrument_force);
+    crate::outln!("  max displacement   {:.3} mm", 1e3 * o.max_displacement);
+    crate::outln!("  volume change      {change:+.3} %");
     if let Some(out) = &args.out {
-        println!("  outputs            {}", out.display());
+        crate::outln!("  outputs            {}", out.display());
     }
     match o.error {
         Some(e) => anyhow::bail!(e),

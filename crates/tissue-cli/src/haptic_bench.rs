@@ -117,27 +117,31 @@ pub fn haptic_bench(args: &HapticBenchArgs) -> anyhow::Result<()> {
         device_forces_received: device.forces_received,
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        println!(
+        crate::outln!(
             "haptic-bench {} ({}), {:.1} s",
-            out.scene, out.model, seconds
+            out.scene,
+            out.model,
+            seconds
         );
-        println!("  rate_hz            {:.1}", out.rate_hz);
-        println!("  p50_us             {:.0}", out.p50_us);
-        println!("  p99_us             {:.0}", out.p99_us);
-        println!(
+        crate::outln!("  rate_hz            {:.1}", out.rate_hz);
+        crate::outln!("  p50_us             {:.0}", out.p50_us);
+        crate::outln!("  p99_us             {:.0}", out.p99_us);
+        crate::outln!(
             "  missed_deadlines   {} of {} ({:.3} %)",
             out.missed_deadlines,
             out.ticks,
             100.0 * out.missed_deadlines as Real / (out.ticks.max(1)) as Real
         );
-        println!("  max_force          {:.4} N", out.max_force);
-        println!("  realtime priority  {}", out.realtime_priority);
-        println!("  sim updates        {:.1} /s", out.sim_updates_hz);
-        println!(
+        crate::outln!("  max_force          {:.4} N", out.max_force);
+        crate::outln!("  realtime priority  {}", out.realtime_priority);
+        crate::outln!("  sim updates        {:.1} /s", out.sim_updates_hz);
+        crate::outln!(
             "  device round trip  p50 {:.0} us, p99 {:.0} us ({} forces)",
-            out.device_round_trip_p50_us, out.device_round_trip_p99_us, out.device_forces_received
+            out.device_round_trip_p50_us,
+            out.device_round_trip_p99_us,
+            out.device_forces_received
         );
     }
     if let Some(e) = coupling.last_error {

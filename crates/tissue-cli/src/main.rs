@@ -3,9 +3,11 @@
 mod demo;
 mod haptic_bench;
 mod mesh_cmd;
+mod out;
 mod run;
 mod view;
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -100,18 +102,27 @@ fn main() -> ExitCode {
         Command::Mesh(cmd) => mesh_cmd::mesh(&cmd),
         Command::View(args) => view::view(&args),
         Command::HapticBench(args) => haptic_bench::haptic_bench(&args),
-        Command::Models => {
-            for k in tissue::model::KINDS {
-                println!("{:<26} {}", k.name, k.summary);
-            }
-            Ok(())
-        }
+        Command::Models => models(),
     };
+    // What is still buffered fails here, not silently at exit.
+    let result = result.and_then(|()| {
+        out::flush().map_err(|e| anyhow::Error::new(e).context("writing to standard output"))
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader left (`tissue models | head -1`): nothing more to say to anyone.
+        Err(e) if out::is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            // Not `eprintln!`: it panics when stderr is closed too.
+            let _ = writeln!(std::io::stderr(), "error: {e:#}");
             ExitCode::FAILURE
         }
     }
+}
+
+fn models() -> anyhow::Result<()> {
+    for k in tissue::model::KINDS {
+        outln!("{:<26} {}", k.name, k.summary);
+    }
+    Ok(())
 }

@@ -20,10 +20,10 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             let mesh = io::read(file)?;
             let report = inspect(&mesh);
             if *json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
+                crate::outln!("{}", serde_json::to_string_pretty(&report)?);
             } else {
-                println!("{}", file.display());
-                print!("{report}");
+                crate::outln!("{}", file.display());
+                crate::out!("{report}");
             }
             Ok(())
         }
@@ -49,7 +49,7 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
                 binary: !*ascii,
             };
             io::write_with(output, &mesh, &options)?;
-            println!("wrote {}: {}", output.display(), counts(&mesh));
+            crate::outln!("{}", written(output, &mesh)?);
             Ok(())
         }
         MeshCommand::Repair {
@@ -71,11 +71,90 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             let report = repair(&mut mesh, &options);
             io::write(output, &mesh)
                 .with_context(|| format!("writing the repaired mesh of {}", input.display()))?;
-            println!("{report}");
-            println!("wrote {}: {}", output.display(), counts(&mesh));
+            crate::outln!("{report}");
+            crate::outln!("{}", written(output, &mesh)?);
             Ok(())
         }
     }
+}
+
+/// What a written file holds, read back from it (so the counts are the file's, whatever the
+/// format kept), and what of `source` it left out.
+fn written(output: &Path, source: &MeshData) -> anyhow::Result<String> {
+    let back = io::read(output)
+        .with_context(|| format!("reading back {} to count what it holds", output.display()))?;
+    let mut line = format!("wrote {}: {}", output.display(), counts(&back));
+    let lost = dropped(source, &back);
+    if !lost.is_empty() {
+        line.push_str(&format!(
+            "\n  dropped (the format cannot hold them): {}",
+            lost.join(", ")
+        ));
+    }
+    Ok(line)
+}
+
+/// What `source` had that `written` lacks, in words.
+fn dropped(source: &MeshData, written: &MeshData) -> Vec<String> {
+    let mut out = Vec::new();
+    let count = |out: &mut Vec<String>, had: usize, kept: usize, what: &str| {
+        if kept < had {
+            out.push(format!("{} of {had} {what}", had - kept));
+        }
+    };
+    count(
+        &mut out,
+        source.tets.len(),
+        written.tets.len(),
+        "tetrahedra",
+    );
+    count(
+        &mut out,
+        source.tets10.len(),
+        written.tets10.len(),
+        "10-node tetrahedra",
+    );
+    count(
+        &mut out,
+        source.fixed_vertices.len(),
+        written.fixed_vertices.len(),
+        "fixed vertices",
+    );
+    count(
+        &mut out,
+        source.triangle_tags.len(),
+        written.triangle_tags.len(),
+        "triangle tags",
+    );
+    count(
+        &mut out,
+        source.tet_tags.len(),
+        written.tet_tags.len(),
+        "tetrahedron tags",
+    );
+    count(
+        &mut out,
+        source.point_data.len(),
+        written.point_data.len(),
+        "point data fields",
+    );
+    if source.has_volume() && !written.has_volume() && !written.triangles.is_empty() {
+        let n = source.vertices.len().saturating_sub(written.vertices.len());
+        out.push(format!(
+            "the interior ({n} vertices inside; the boundary surface was written)"
+        ));
+    } else if written.triangles.len() < source.triangles.len() {
+        count(
+            &mut out,
+            source.triangles.len(),
+            written.triangles.len(),
+            "triangles",
+        );
+    }
+    if source.material.is_some() && written.material.is_none() {
+        out.push("the material record".into());
+    }
+    out
 }
 
 fn counts(mesh: &MeshData) -> String {
@@ -120,21 +199,21 @@ fn inspect_image(file: &Path, format: ImageFormat, json: bool) -> anyhow::Result
             "zeros": s.zeros,
             "negatives": s.negatives,
         });
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         let [nx, ny, nz] = image.dims;
-        println!("{}", file.display());
-        println!(
+        crate::outln!("{}", file.display());
+        crate::outln!(
             "image ({format:?}): {nx} × {ny} × {nz} = {} voxels",
             s.count
         );
-        println!("spacing: {sx} {sy} {sz} ({unit})");
-        println!("origin:  {ox} {oy} {oz} ({unit}; centre of voxel 0)");
-        println!("values:  {}, {}", image.source_type, image.byte_order);
-        println!("range:   {} .. {}, mean {:.4}", s.min, s.max, s.mean);
+        crate::outln!("spacing: {sx} {sy} {sz} ({unit})");
+        crate::outln!("origin:  {ox} {oy} {oz} ({unit}; centre of voxel 0)");
+        crate::outln!("values:  {}, {}", image.source_type, image.byte_order);
+        crate::outln!("range:   {} .. {}, mean {:.4}", s.min, s.max, s.mean);
         let pct = |n: usize| 100.0 * n as f64 / s.count.max(1) as f64;
-        println!("zeros:   {} ({:.2} %)", s.zeros, pct(s.zeros));
-        println!("negative: {} ({:.2} %)", s.negatives, pct(s.negatives));
+        crate::outln!("zeros:   {} ({:.2} %)", s.zeros, pct(s.zeros));
+        crate::outln!("negative: {} ({:.2} %)", s.negatives, pct(s.negatives));
     }
     Ok(())
 }

@@ -146,6 +146,20 @@ pub enum SimError {
         node: usize,
         reason: String,
     },
+    /// A step ended in a state no tissue reaches (`interact::plausibility`): it was not
+    /// accepted, and time, instruments and outputs stay at the last plausible step.
+    #[error(
+        "step {step}: {quantity} is {value:.3e}, beyond the plausible {bound:.3e} ({reason}); \
+         stopped at the last plausible step (a diverged solve: lower dt, raise damping or \
+         check the material)"
+    )]
+    Implausible {
+        step: u64,
+        quantity: String,
+        value: Real,
+        bound: Real,
+        reason: String,
+    },
     /// A matrix that must be symmetric positive definite is not (e.g. a body left free to move).
     #[error("the system matrix is not positive definite near row {row}: {hint}")]
     NotPositiveDefinite { row: usize, hint: String },

@@ -13,6 +13,7 @@ use crate::interact::contact::{
     Contact, PENETRATION_TOLERANCE, is_adhesive, project_to_sphere, vertices_in_ball,
 };
 use crate::interact::instrument::{Instrument, InstrumentKind};
+use crate::interact::plausibility::Plausibility;
 use crate::interact::{Constraints, Loads, Prescribed};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{Deformable, StepInfo};
@@ -62,6 +63,8 @@ pub struct Simulation {
     held: Vec<usize>,
     /// The contact loop's per-vertex release record, kept to reuse its memory.
     returned: Returned,
+    /// The bounds a step's result must stay within to be accepted.
+    plausibility: Plausibility,
 }
 
 impl Simulation {
@@ -77,6 +80,7 @@ impl Simulation {
         let s = model.surface();
         let bvh = Bvh::build(s.positions, s.triangles);
         let is_static = model.info().is_static;
+        let plausibility = Plausibility::for_body(model.rest_surface());
         Ok(Self {
             model,
             fixed,
@@ -92,7 +96,17 @@ impl Simulation {
             constraints,
             held: Vec::new(),
             returned: Returned::default(),
+            plausibility,
         })
+    }
+
+    /// Replaces the plausibility bounds (the scene adds the material's force bound).
+    pub fn set_plausibility(&mut self, bounds: Plausibility) {
+        self.plausibility = bounds;
+    }
+
+    pub fn plausibility(&self) -> &Plausibility {
+        &self.plausibility
     }
 
     /// Adds an instrument, placed where its path is now.
@@ -213,7 +227,13 @@ impl Simulation {
             return Err(SimError::BadTimeStep { dt });
         }
         let mut next = self.instruments.clone();
-        match self.advance(dt, &mut next) {
+        let result = self.advance(dt, &mut next).and_then(|report| {
+            let state = self
+                .plausibility
+                .check(self.model.as_ref(), &next, report.step);
+            state.map(|()| report)
+        });
+        match result {
             Ok(report) => {
                 self.instruments = next;
                 self.time = report.time;

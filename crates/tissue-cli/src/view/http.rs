@@ -62,10 +62,22 @@ fn content_type(path: &Path) -> &'static str {
     }
 }
 
-fn respond(stream: &mut TcpStream, status: &str, ctype: &str, body: &[u8], head_only: bool) {
+/// Extra headers for one response (a `Set-Cookie` line, or nothing).
+type Extra<'a> = Option<&'a str>;
+
+fn respond(
+    stream: &mut TcpStream,
+    status: &str,
+    ctype: &str,
+    body: &[u8],
+    head_only: bool,
+    cookie: Extra,
+) {
+    let cookie = cookie.map_or_else(String::new, |c| format!("Set-Cookie: {c}\r\n"));
     let header = format!(
-        "HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {}\r\n\
-         Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n",
+        "HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {}\r\n{cookie}\
+         Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\n\
+         Referrer-Policy: no-referrer\r\nConnection: close\r\n\r\n",
         body.len()
     );
     // A page that went away mid-response is no error of ours.
@@ -76,11 +88,30 @@ fn respond(stream: &mut TcpStream, status: &str, ctype: &str, body: &[u8], head_
     let _ = stream.flush();
 }
 
-/// Reads the rest of the head (already peeked) and answers it.
-pub fn serve(mut stream: TcpStream, head: &str, root: &Path) {
-    // Consume what was peeked so the socket closes cleanly.
+/// Consumes the peeked head so the socket closes cleanly.
+fn consume(stream: &mut TcpStream, head: &str) {
     let mut sink = vec![0u8; head.len()];
     let _ = stream.read_exact(&mut sink);
+}
+
+/// Answers a request the access rule turned away: 403 with the reason.
+pub fn refuse(mut stream: TcpStream, head: &str, reason: &str) {
+    consume(&mut stream, head);
+    let body = format!("forbidden: {reason}\n");
+    respond(
+        &mut stream,
+        "403 Forbidden",
+        "text/plain; charset=utf-8",
+        body.as_bytes(),
+        false,
+        None,
+    );
+}
+
+/// Reads the rest of the head (already peeked) and answers it; `cookie` is set on the
+/// response when there is one.
+pub fn serve(mut stream: TcpStream, head: &str, root: &Path, cookie: Extra) {
+    consume(&mut stream, head);
     let Some((method, path)) = request_line(head) else {
         return respond(
             &mut stream,
@@ -88,6 +119,7 @@ pub fn serve(mut stream: TcpStream, head: &str, root: &Path) {
             "text/plain",
             b"bad request\n",
             false,
+            None,
         );
     };
     let head_only = method == "HEAD";
@@ -98,17 +130,26 @@ pub fn serve(mut stream: TcpStream, head: &str, root: &Path) {
             "text/plain",
             b"only GET and HEAD\n",
             false,
+            None,
         );
     }
     let file = resolve(root, path).filter(|p| p.is_file());
     match file.map(|f| (std::fs::read(&f), f)) {
-        Some((Ok(body), f)) => respond(&mut stream, "200 OK", content_type(&f), &body, head_only),
+        Some((Ok(body), f)) => respond(
+            &mut stream,
+            "200 OK",
+            content_type(&f),
+            &body,
+            head_only,
+            cookie,
+        ),
         _ => respond(
             &mut stream,
             "404 Not Found",
             "text/plain",
             b"not found\n",
             head_only,
+            None,
         ),
     }
 }

@@ -3,6 +3,7 @@
 //! directory (`http`) and upgrades `/ws` to a WebSocket (`ws`) that carries JSON messages
 //! (`messages`). One thread per connection, one for the simulation, one for the haptic loop.
 
+mod access;
 mod http;
 mod hub;
 mod messages;
@@ -25,6 +26,7 @@ use anyhow::{Context, bail};
 use clap::Args;
 use tissue::scene::Scene;
 
+use access::{Access, Grant};
 use hub::Hub;
 use session::Session;
 use setup::Setup;
@@ -37,7 +39,8 @@ pub struct ViewArgs {
     /// TCP port (0 picks a free one).
     #[arg(long, default_value_t = 8765)]
     pub port: u16,
-    /// Address to listen on; anything but loopback exposes the simulation to the network.
+    /// Address to listen on; anything but loopback exposes the simulation to the network
+    /// (the session token in the printed URL is then all that guards it).
     #[arg(long, default_value = "127.0.0.1")]
     pub host: IpAddr,
     /// The page's directory (default: $TISSUE_VIEWER_DIR, else the `viewer/` of the
@@ -113,25 +116,32 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     let listener = TcpListener::bind((args.host, args.port))
         .with_context(|| format!("cannot listen on {}:{}", args.host, args.port))?;
     let addr = listener.local_addr()?;
+    let access = Access::random(args.host, addr.port())
+        .context("cannot draw the session token from the system's random source")?;
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::Builder::new()
         .name("tissue-view-sim".into())
         .spawn(move || session.run(rx))?;
+    // An unspecified address (0.0.0.0, ::) is reached by whatever name: print loopback.
+    let shown = if args.host.is_unspecified() {
+        access::url_host(IpAddr::from([127, 0, 0, 1]))
+    } else {
+        access::url_host(args.host)
+    };
     if !args.host.is_loopback() {
         eprintln!(
-            "tissue view: warning: listening on {} (not loopback)",
-            args.host
+            "tissue view: warning: listening on {} (not loopback): anyone on the network \
+             who has the URL's token can see the scene and drive it; every request must \
+             carry the token and name {} (or a loopback name) as its Host",
+            args.host, shown
         );
     }
-    let host = match args.host {
-        IpAddr::V6(h) => format!("[{h}]"),
-        IpAddr::V4(h) => h.to_string(),
-    };
-    println!(
-        "tissue view: http://{host}:{}/  (Ctrl-C stops)",
-        addr.port()
+    crate::outln!(
+        "tissue view: http://{shown}:{}/?token={}  (Ctrl-C stops)",
+        addr.port(),
+        access.token()
     );
-    accept_loop(listener, root, hub, tx, bounds);
+    accept_loop(listener, root, hub, tx, bounds, Arc::new(access));
     Ok(())
 }
 
@@ -142,6 +152,7 @@ fn accept_loop(
     hub: Arc<Hub>,
     tx: Sender<messages::Command>,
     bounds: messages::Bounds,
+    access: Arc<Access>,
 ) {
     let live = Arc::new(AtomicUsize::new(0));
     for stream in listener.incoming() {
@@ -150,11 +161,12 @@ fn accept_loop(
             continue; // dropped: closes the socket
         }
         live.fetch_add(1, Ordering::Relaxed);
-        let (hub, tx, root, done) = (
+        let (hub, tx, root, done, access) = (
             Arc::clone(&hub),
             tx.clone(),
             root.clone(),
             Arc::clone(&live),
+            Arc::clone(&access),
         );
         let spawned = std::thread::Builder::new()
             .name("tissue-view-conn".into())
@@ -164,10 +176,18 @@ fn accept_loop(
                     .map_or_else(|_| "?".to_string(), |a| a.to_string());
                 if let Some(head) = peek_head(&stream) {
                     let ws_path = http::request_line(&head).is_some_and(|(_, p)| p == "/ws");
-                    if ws_path && http::is_websocket(&head) {
-                        ws::serve(stream, peer, hub, tx, bounds);
-                    } else {
-                        http::serve(stream, &head, &root);
+                    match access.check(&head) {
+                        Err(e) => {
+                            eprintln!("tissue view: {peer}: refused: {e}");
+                            http::refuse(stream, &head, &e.to_string());
+                        }
+                        Ok(_) if ws_path && http::is_websocket(&head) => {
+                            ws::serve(stream, peer, hub, tx, bounds);
+                        }
+                        Ok(grant) => {
+                            let cookie = (grant == Grant::Query).then(|| access.set_cookie());
+                            http::serve(stream, &head, &root, cookie.as_deref());
+                        }
                     }
                 }
                 done.fetch_sub(1, Ordering::Relaxed);

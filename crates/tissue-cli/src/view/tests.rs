@@ -1,6 +1,7 @@
-//! The server over real sockets: static files stay under the root, and a WebSocket page that
-//! sends malformed, binary or oversized messages gets errors back while its connection and
-//! the command channel keep working.
+//! The server over real sockets: static files stay under the root; a request without the
+//! session token, from another origin or naming another host is refused (page and WebSocket
+//! alike); a WebSocket page that sends malformed, binary or oversized messages gets errors
+//! back while its connection and the command channel keep working.
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
@@ -9,11 +10,17 @@ use std::sync::mpsc::{Receiver, channel};
 use std::time::Duration;
 
 use tissue::Vec3;
+use tungstenite::client::IntoClientRequest;
+use tungstenite::http::HeaderValue;
 use tungstenite::{Message, WebSocket};
 
 use super::accept_loop;
+use super::access::Access;
 use super::hub::Hub;
 use super::messages::{Bounds, Command, MAX_MESSAGE_BYTES};
+
+/// The session token of the test servers.
+const TOKEN: &str = "0123abcd";
 
 fn server() -> (u16, Arc<Hub>, Receiver<Command>) {
     let root = std::env::temp_dir().join(format!("tissue-view-test-{}", std::process::id()));
@@ -29,25 +36,57 @@ fn server() -> (u16, Arc<Hub>, Receiver<Command>) {
         radius: 1.0,
     };
     let h = Arc::clone(&hub);
-    std::thread::spawn(move || accept_loop(listener, root, h, tx, bounds));
+    let access = Arc::new(Access::new(TOKEN.into(), [127, 0, 0, 1].into(), port));
+    std::thread::spawn(move || accept_loop(listener, root, h, tx, bounds, access));
     (port, hub, rx)
 }
 
-fn get(port: u16, path: &str) -> String {
+/// A raw GET with the given extra header lines; the whole response.
+fn get_with(port: u16, path: &str, headers: &str) -> String {
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap_or_else(|e| panic!("{e}"));
-    write!(s, "GET {path} HTTP/1.1\r\nHost: x\r\n\r\n").unwrap_or_else(|e| panic!("{e}"));
+    write!(s, "GET {path} HTTP/1.1\r\n{headers}\r\n").unwrap_or_else(|e| panic!("{e}"));
     let mut out = String::new();
     let _ = s.read_to_string(&mut out);
     out
 }
 
-fn connect(port: u16) -> WebSocket<TcpStream> {
-    let s = TcpStream::connect(("127.0.0.1", port)).unwrap_or_else(|e| panic!("{e}"));
+/// A GET as the page makes it: the right Host, the token in the query.
+fn get(port: u16, path: &str) -> String {
+    let sep = if path.contains('?') { '&' } else { '?' };
+    let host = format!("Host: 127.0.0.1:{port}\r\n");
+    get_with(port, &format!("{path}{sep}token={TOKEN}"), &host)
+}
+
+/// A WebSocket handshake to `/ws{query}` with extra headers; the socket or the refusal.
+fn handshake(
+    port: u16,
+    query: &str,
+    headers: &[(&'static str, String)],
+) -> Result<WebSocket<TcpStream>, String> {
+    let s = TcpStream::connect(("127.0.0.1", port)).map_err(|e| e.to_string())?;
     s.set_read_timeout(Some(Duration::from_secs(5)))
-        .unwrap_or_else(|e| panic!("{e}"));
-    let (ws, _) = tungstenite::client(format!("ws://127.0.0.1:{port}/ws"), s)
-        .unwrap_or_else(|e| panic!("{e}"));
-    ws
+        .map_err(|e| e.to_string())?;
+    let mut req = format!("ws://127.0.0.1:{port}/ws{query}")
+        .into_client_request()
+        .map_err(|e| e.to_string())?;
+    for (k, v) in headers {
+        let v = HeaderValue::from_str(v).map_err(|e| e.to_string())?;
+        req.headers_mut().insert(*k, v);
+    }
+    match tungstenite::client(req, s) {
+        Ok((ws, _)) => Ok(ws),
+        Err(tungstenite::HandshakeError::Failure(tungstenite::Error::Http(r))) => Err(format!(
+            "{} {}",
+            r.status(),
+            String::from_utf8_lossy(r.body().as_deref().unwrap_or_default())
+        )),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+fn connect(port: u16) -> WebSocket<TcpStream> {
+    let origin = ("Origin", format!("http://127.0.0.1:{port}"));
+    handshake(port, &format!("?token={TOKEN}"), &[origin]).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The next notice's text, skipping init and frame messages.
@@ -75,6 +114,65 @@ fn static_files_stay_under_the_root() {
     assert!(get(port, "/../../etc/passwd").starts_with("HTTP/1.1 404"));
     assert!(get(port, "/.hidden").starts_with("HTTP/1.1 404"));
     assert!(get(port, "/missing.js").starts_with("HTTP/1.1 404"));
+}
+
+#[test]
+fn strangers_are_refused_page_and_websocket() {
+    let (port, _, _) = server();
+    let here = format!("Host: 127.0.0.1:{port}\r\n");
+    let token = format!("?token={TOKEN}");
+
+    // The page: the token by query sets the cookie; the cookie alone is then enough.
+    let first = get_with(port, &format!("/{token}"), &here);
+    let cookie = format!("tissue_token_{port}={TOKEN}");
+    assert!(
+        first.starts_with("HTTP/1.1 200") && first.contains(&format!("Set-Cookie: {cookie};")),
+        "{first}"
+    );
+    let by_cookie = get_with(port, "/", &format!("{here}Cookie: {cookie}\r\n"));
+    assert!(by_cookie.starts_with("HTTP/1.1 200"), "{by_cookie}");
+    for (path, headers, why) in [
+        ("/".to_string(), here.clone(), "token"),
+        ("/?token=0123abce".into(), here.clone(), "token"),
+        (
+            format!("/{token}"),
+            format!("Host: evil.example:{port}\r\n"),
+            "Host",
+        ),
+        (format!("/{token}"), String::new(), "Host"),
+        (
+            format!("/{token}"),
+            format!("{here}Origin: http://evil.example\r\n"),
+            "cross-origin",
+        ),
+    ] {
+        let r = get_with(port, &path, &headers);
+        assert!(
+            r.starts_with("HTTP/1.1 403") && r.contains(why) && !r.contains("hello"),
+            "{path} {headers}: {r}"
+        );
+    }
+
+    // The WebSocket: the same three refusals, each before any scene data is sent.
+    let evil = ("Origin", "http://evil.example".to_string());
+    let e = handshake(port, &token, &[evil]).err().unwrap_or_default();
+    assert!(e.starts_with("403") && e.contains("cross-origin"), "{e}");
+    let rebind = ("Host", format!("evil.example:{port}"));
+    let e = handshake(port, &token, &[rebind]).err().unwrap_or_default();
+    assert!(e.starts_with("403") && e.contains("Host"), "{e}");
+    let e = handshake(port, "", &[]).err().unwrap_or_default();
+    assert!(e.starts_with("403") && e.contains("token"), "{e}");
+    let e = handshake(port, "?token=wrong", &[])
+        .err()
+        .unwrap_or_default();
+    assert!(e.starts_with("403") && e.contains("token"), "{e}");
+
+    // The right ones get through: query token with the served origin, or the cookie.
+    let mut ws = connect(port);
+    assert!(ws.read().is_ok());
+    let jar = ("Cookie", cookie);
+    let mut ws = handshake(port, "", &[jar]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(ws.read().is_ok());
 }
 
 #[test]

@@ -5,6 +5,7 @@ pub mod bvh;
 pub mod constraints;
 pub mod contact;
 pub mod instrument;
+pub mod plausibility;
 pub mod region;
 pub mod trajectory;
 

@@ -24,6 +24,15 @@ pub const EXAMPLES: usize = 5;
 pub const DEGENERATE_TET_QUALITY: Real = 1e-3;
 /// A triangle with quality below this is degenerate (its corners are nearly collinear).
 pub const DEGENERATE_TRIANGLE_QUALITY: Real = 1e-6;
+/// Coordinates larger than this in magnitude are reported (`FarVertex`) and left out of the
+/// scale of the mesh: a product of three such (a volume) still fits in an f64.
+pub const MAX_COORDINATE: Real = 1e100;
+
+/// Whether a vertex is finite and within `MAX_COORDINATE` of the origin on every axis.
+pub fn is_usable_vertex(p: Vec3) -> bool {
+    is_finite_vec(p) && p.abs().max_element() <= MAX_COORDINATE
+}
+
 /// Vertices closer than this fraction of the bounding-box diagonal coincide.
 pub const COINCIDENT_TOLERANCE: Real = 1e-9;
 
@@ -53,6 +62,14 @@ fn check_parts(
     for (v, p) in vertices.iter().enumerate() {
         if !is_finite_vec(*p) {
             c.push(Problem::NonFiniteVertex { vertex: v });
+        } else if !is_usable_vertex(*p) {
+            c.push(Problem::FarVertex {
+                vertex: v,
+                coordinate: p
+                    .to_array()
+                    .into_iter()
+                    .fold(0.0, |m: Real, x| if x.abs() > m.abs() { x } else { m }),
+            });
         }
     }
     let n = vertices.len();
@@ -120,6 +137,9 @@ fn tet_problems(vertices: &[Vec3], tets: &[(usize, [u32; 4])], c: &mut Collector
     let p = |i: u32| vertices[i as usize];
     for &(t, el @ [a, b, cc, d]) in tets {
         let (a, b, cc, d) = (p(a), p(b), p(cc), p(d));
+        if ![a, b, cc, d].into_iter().all(is_usable_vertex) {
+            continue; // its vertex is the problem, already reported
+        }
         let volume = tet_signed_volume(a, b, cc, d);
         let quality = tet_quality(a, b, cc, d);
         if has_repeat(&el) || volume == 0.0 || quality.abs() < DEGENERATE_TET_QUALITY {
@@ -174,7 +194,8 @@ fn triangle_problems(
     let mut ids = Vec::with_capacity(tris.len());
     for &(t, el @ [a, b, cc]) in tris {
         let (a, b, cc) = (p(a), p(b), p(cc));
-        if has_repeat(&el) || triangle_quality(a, b, cc) < DEGENERATE_TRIANGLE_QUALITY {
+        let usable = [a, b, cc].into_iter().all(is_usable_vertex);
+        if usable && (has_repeat(&el) || triangle_quality(a, b, cc) < DEGENERATE_TRIANGLE_QUALITY) {
             let area = triangle_area_vector(a, b, cc).length();
             c.push(Problem::DegenerateTriangle { triangle: t, area });
         }
@@ -323,9 +344,10 @@ fn duplicate_vertex_problems(vertices: &[Vec3], c: &mut Collector) {
     }
 }
 
-/// Bounding-box diagonal over the finite vertices (0 if none).
+/// Bounding-box diagonal over the usable vertices (finite, within `MAX_COORDINATE`; 0 if
+/// none): one vertex at 1e308 would otherwise make every other vertex "coincide".
 pub(crate) fn finite_diagonal(vertices: &[Vec3]) -> Real {
-    let mut it = vertices.iter().copied().filter(|p| is_finite_vec(*p));
+    let mut it = vertices.iter().copied().filter(|p| is_usable_vertex(*p));
     let Some(first) = it.next() else { return 0.0 };
     let (lo, hi) = it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
     let d = (hi - lo).length();

@@ -33,10 +33,11 @@ pub struct Inspection {
     pub triangles: usize,
     pub tetrahedra: usize,
     pub tetrahedra10: usize,
-    /// Tetrahedra volume if any; else the enclosed volume of a closed surface; else none.
+    /// Tetrahedra volume if any; else the enclosed volume of a closed surface; else none
+    /// (also when it is not finite: a vertex named in `problems` makes it so).
     pub volume: Option<Real>,
-    /// Area of the boundary (volume meshes) or of the triangles.
-    pub surface_area: Real,
+    /// Area of the boundary (volume meshes) or of the triangles; none when not finite.
+    pub surface_area: Option<Real>,
     pub bounds: Option<Bounds>,
     /// Connected components (through shared vertices) of the volume, else of the surface.
     pub components: usize,
@@ -83,6 +84,9 @@ pub fn inspect(mesh: &MeshData) -> Inspection {
     let ef = edge_faces(&surface.triangles);
     let closed = !surface.triangles.is_empty() && ef.with_face_count(|k| k != 2).next().is_none();
     let volume = volume.or_else(|| closed.then(|| surface.signed_volume()));
+    // A NaN or 1e308 coordinate is a named problem; its overflow is no measurement.
+    let volume = volume.filter(|v| v.is_finite());
+    let area = Some(surface.area()).filter(|a| a.is_finite());
     let finite: Vec<_> = mesh
         .vertices
         .iter()
@@ -106,7 +110,7 @@ pub fn inspect(mesh: &MeshData) -> Inspection {
         tetrahedra: mesh.tets.len(),
         tetrahedra10: mesh.tets10.len(),
         volume,
-        surface_area: surface.area(),
+        surface_area: area,
         bounds,
         components: comps,
         euler_characteristic: euler_characteristic(&surface.triangles),
@@ -135,9 +139,15 @@ impl fmt::Display for Inspection {
         if self.fixed_vertices > 0 {
             row(f, "fixed vertices", self.fixed_vertices.to_string())?;
         }
-        let volume = self.volume.map_or("- (surface not closed)".into(), num);
+        const NOT_FINITE: &str = "- (not finite: see the problems)";
+        let volume = match self.volume {
+            Some(v) => num(v),
+            None if self.tetrahedra + self.tetrahedra10 > 0 || self.closed => NOT_FINITE.into(),
+            None => "- (surface not closed)".into(),
+        };
         row(f, "volume", volume)?;
-        row(f, "surface area", num(self.surface_area))?;
+        let area = self.surface_area.map_or(NOT_FINITE.into(), num);
+        row(f, "surface area", area)?;
         if let Some(b) = &self.bounds {
             let v = |a: [Real; 3]| format!("({}, {}, {})", num(a[0]), num(a[1]), num(a[2]));
             row(f, "bounds", format!("{} .. {}", v(b.min), v(b.max)))?;
@@ -219,7 +229,7 @@ mod tests {
         assert_eq!((i.vertices, i.tetrahedra, i.components), (30, 48, 1));
         assert_eq!(i.boundary_triangles, Some(2 * 2 * (8 + 4 + 2)));
         assert!((i.volume.unwrap_or(0.0) - 1.0).abs() < 1e-12);
-        assert!((i.surface_area - 2.0 * (2.0 + 1.0 + 0.5)).abs() < 1e-12);
+        assert!((i.surface_area.unwrap_or(0.0) - 2.0 * (2.0 + 1.0 + 0.5)).abs() < 1e-12);
         assert_eq!(i.euler_characteristic, 2);
         assert!(i.closed && i.problems.is_empty());
         assert_eq!(i.bounds.as_ref().map(|b| b.max), Some([2.0, 1.0, 0.5]));
@@ -247,5 +257,39 @@ mod tests {
         let s = inspect(&MeshData::from_surface(&icosphere(Vec3::ZERO, 1.0, 2)));
         assert_eq!((s.components, s.euler_characteristic), (1, 2));
         assert!(s.volume.is_some_and(|v| v > 0.0));
+    }
+
+    /// A vertex at 1e308 or NaN is a named problem, not `inf` / `NaN` printed as an area
+    /// or a volume, and does not make the other vertices "coincide".
+    #[test]
+    fn absurd_coordinates_are_problems_not_numbers() {
+        let base = box_tets(Vec3::ZERO, Vec3::ONE, [2, 2, 2], BoxSplit::Six);
+        for (bad, kind) in [
+            (Vec3::new(1e308, 0.0, -1e308), "far_vertex"),
+            (Vec3::new(Real::NAN, 0.0, 0.0), "non_finite_vertex"),
+            (Vec3::new(0.0, Real::INFINITY, 0.0), "non_finite_vertex"),
+        ] {
+            for surface in [false, true] {
+                let mut m = MeshData::from_tets(&base);
+                if surface {
+                    m = MeshData::from_surface(&boundary_surface(&base).surface);
+                }
+                m.vertices[0] = bad;
+                let i = inspect(&m);
+                let kinds: Vec<_> = i.problems.iter().map(|p| p.problem.kind()).collect();
+                assert!(kinds.contains(&kind), "{bad}: {kinds:?}");
+                assert!(!kinds.contains(&"duplicate_vertices"), "{bad}: {kinds:?}");
+                let text = i.to_string().to_lowercase();
+                for word in ["inf", "nan"] {
+                    let lines: Vec<_> = text
+                        .lines()
+                        .filter(|l| l.contains(word) && !l.starts_with("  - "))
+                        .collect();
+                    assert!(lines.is_empty(), "{bad} {surface}: {lines:?}\n{text}");
+                }
+                let json = serde_json::to_string(&i).unwrap_or_default().to_lowercase();
+                assert!(!json.contains("nan") && !json.contains("inf"), "{json}");
+            }
+        }
     }
 }

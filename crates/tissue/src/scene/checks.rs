@@ -15,6 +15,9 @@ pub(super) fn known_kinds() -> String {
     KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
 }
 
+/// Steps a scene may ask for (`duration / dt`), exclusive.
+pub const MAX_STEPS: Real = 1e9;
+
 pub(super) fn check_run(run: &RunSpec) -> Result<(), String> {
     if !(run.duration.is_finite() && run.duration > 0.0) {
         return Err(format!(
@@ -31,9 +34,13 @@ pub(super) fn check_run(run: &RunSpec) -> Result<(), String> {
             run.dt, run.duration
         ));
     }
-    if run.duration / run.dt > 1e9 {
+    // Compared as a float: the step count of dt = 1e-300 overflows an integer. 1e9 steps
+    // or more is days of computing for any model: a typo, not a plan.
+    let steps = (run.duration / run.dt).ceil();
+    if !(steps < MAX_STEPS) {
         return Err(format!(
-            "dt = {}: more than 1e9 steps in duration = {}",
+            "dt = {} s gives {steps:e} steps over duration = {} s, and {MAX_STEPS:e} or more \
+             would run for days: raise dt or shorten duration",
             run.dt, run.duration
         ));
     }
@@ -234,4 +241,23 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
         .clone()
         .unwrap_or_else(|| format!("{}{}", i.kind, k + 1));
     Instrument::new(name, kind, radius, trajectory).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod run_tests {
+    use super::*;
+
+    #[test]
+    fn a_billion_steps_is_refused_at_load() {
+        let run = |duration, dt| check_run(&RunSpec { duration, dt });
+        assert!(run(1.0, 1e-3).is_ok());
+        for (duration, dt) in [(1.0, 1e-9), (10.0, 1e-9), (1.0, 1e-300), (1e300, 1.0)] {
+            let e = run(duration, dt).err().unwrap_or_default();
+            assert!(
+                e.contains("steps over duration") && e.contains("raise dt"),
+                "{e}"
+            );
+        }
+        assert!(run(0.999, 1e-9).is_ok());
+    }
 }

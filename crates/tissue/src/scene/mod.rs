@@ -18,6 +18,7 @@ use toml::Spanned;
 
 use crate::error::{Error, IoError, SceneError};
 use crate::interact::Loads;
+use crate::interact::plausibility::check_instrument_size;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::MeshData;
@@ -429,10 +430,19 @@ impl Scene {
         };
         let mut sim = Simulation::new(model, fixed, loads)?;
         sim.set_max_contact_iterations(self.contact.max_iterations);
+        let young =
+            (self.material.map(|m| m.young_modulus)).or(mesh.material.map(|m| m.young_modulus));
+        if let Some(e) = young {
+            let bounds = sim.plausibility().clone().with_young_modulus(e);
+            sim.set_plausibility(bounds);
+        }
+        let size = sim.plausibility().size;
         for (k, i) in self.instruments.iter().enumerate() {
-            let inst = make_instrument(&i.value, k).map_err(|m| {
-                self.invalid(format!("line {}: [[instrument]] {}: {m}", i.line, k + 1))
-            })?;
+            let inst = make_instrument(&i.value, k)
+                .and_then(|inst| check_instrument_size(&inst, size).map(|()| inst))
+                .map_err(|m| {
+                    self.invalid(format!("line {}: [[instrument]] {}: {m}", i.line, k + 1))
+                })?;
             sim.add_instrument(inst);
         }
         Ok(sim)

@@ -231,6 +231,15 @@ impl Parser<'_> {
         };
         let points = match self.array(Section::Points, None) {
             Some(a) if a.values.len() == npts.saturating_mul(3) && a.head.components == 3 => a,
+            Some(a) if a.head.components != 3 => {
+                return Err(self.error(
+                    a.head.at,
+                    format!(
+                        "Points has NumberOfComponents = {}, but points in space need 3",
+                        a.head.components
+                    ),
+                ));
+            }
             Some(a) => return Err(count_error(a, "Points", npts.saturating_mul(3))),
             None if npts == 0 => &Array {
                 head: Head {

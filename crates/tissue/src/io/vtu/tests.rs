@@ -199,3 +199,16 @@ fn malformed_appended_sections_name_the_line() {
     assert_eq!(e.location, Location::Byte(start as u64));
     assert!(e.message.contains("but 23 follow"), "{e}");
 }
+
+#[test]
+fn points_with_two_components_say_so() {
+    let f = "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>\
+             <Piece NumberOfPoints=\"2\" NumberOfCells=\"0\"><Points>\
+             <DataArray type=\"Float64\" NumberOfComponents=\"2\" format=\"ascii\">1 2 3 4 5 6\
+             </DataArray></Points></Piece></UnstructuredGrid></VTKFile>";
+    let e = parse(f.as_bytes(), Path::new("p.vtu")).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "p.vtu:1: Points has NumberOfComponents = 2, but points in space need 3"
+    );
+}

@@ -16,6 +16,12 @@ pub enum Problem {
     NonFiniteVertex {
         vertex: usize,
     },
+    /// A coordinate so large (beyond `MAX_COORDINATE`) that areas, volumes and distances
+    /// through the vertex overflow: a corrupt file, not an organ.
+    FarVertex {
+        vertex: usize,
+        coordinate: Real,
+    },
     IndexOutOfRange {
         element_kind: &'static str,
         element: usize,
@@ -95,6 +101,7 @@ impl Problem {
     pub fn kind(&self) -> &'static str {
         match self {
             Problem::NonFiniteVertex { .. } => "non_finite_vertex",
+            Problem::FarVertex { .. } => "far_vertex",
             Problem::IndexOutOfRange { .. } => "index_out_of_range",
             Problem::InvertedTet { .. } => "inverted_tet",
             Problem::DegenerateTet { .. } => "degenerate_tet",
@@ -119,6 +126,12 @@ impl fmt::Display for Problem {
             Problem::NonFiniteVertex { vertex } => {
                 write!(f, "vertex {vertex} has a non-finite coordinate")
             }
+            Problem::FarVertex { vertex, coordinate } => write!(
+                f,
+                "vertex {vertex} has the coordinate {coordinate:e}, beyond ±{:e}: \
+                 areas and volumes through it overflow",
+                super::MAX_COORDINATE
+            ),
             Problem::IndexOutOfRange {
                 element_kind,
                 element,
