@@ -15,6 +15,7 @@
 //! next one when the state has not been touched in between, so every explicit scheme costs
 //! its textbook number of force evaluations per step and still reports fresh reactions.
 
+pub mod coupling;
 mod implicit;
 mod schemes;
 #[cfg(test)]

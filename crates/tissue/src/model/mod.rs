@@ -10,6 +10,7 @@ pub mod bem;
 pub mod chainmail;
 mod deformable;
 pub mod fem;
+pub mod hybrid;
 pub mod linked_volumes;
 mod progress;
 mod reactions;

@@ -6,6 +6,7 @@ use crate::mesh::MeshData;
 use crate::model::Deformable;
 use crate::model::bem;
 use crate::model::fem;
+use crate::model::hybrid;
 use crate::model::spline;
 use crate::model::spring_mass::{Kind as SpringKind, SpringModel};
 use crate::model::tensor_mass;
@@ -80,6 +81,10 @@ pub const KINDS: &[KindInfo] = &[
         name: "tensor-mass-nonlinear",
         summary: "Picinbono's St Venant-Kirchhoff tensor-mass, volume penalty, fibres, hybrid, cuts",
     },
+    KindInfo {
+        name: "hybrid",
+        summary: "tensor-mass in a cut region (given, or grown around the scalpel), pre-computed linear FEM elsewhere",
+    },
 ];
 
 /// What a model is built from.
@@ -120,6 +125,7 @@ pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, 
         "linked-volumes" => Ok(Box::new(linked_volumes::LinkedVolumes::from_input(input)?)),
         "tensor-mass" => Ok(Box::new(tensor_mass::TensorMass::from_input(input, false)?)),
         "tensor-mass-nonlinear" => Ok(Box::new(tensor_mass::TensorMass::from_input(input, true)?)),
+        "hybrid" => Ok(Box::new(hybrid::Hybrid::from_input(input)?)),
         _ => Err(SimError::UnknownModel {
             kind: kind.to_string(),
             known: KINDS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),

@@ -6,6 +6,7 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
+use crate::integrate::coupling::{Coupled, NodeCoupling};
 use crate::integrate::{Hold, Integrator, ParticleState, Scheme};
 use crate::interact::{Constraints, Loads};
 use crate::material::Material;
@@ -218,6 +219,17 @@ impl TensorMass {
     /// One step: the hybrid switch (if on), then the shared integrator. On error the state
     /// is the last good one.
     pub fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        self.advance_coupled(dt, None)
+    }
+
+    /// `advance` with the forces of `coupling` added to the system's (the `hybrid` model's
+    /// interface forces): they enter every force evaluation, the energy guard and the
+    /// implicit Jacobian.
+    pub fn advance_coupled(
+        &mut self,
+        dt: Real,
+        coupling: Option<&dyn NodeCoupling>,
+    ) -> Result<StepInfo, SimError> {
         let check = self
             .integrator
             .steps()
@@ -236,9 +248,20 @@ impl TensorMass {
                 h.target = self.state.x[h.particle];
             }
         }
-        let info = self
-            .integrator
-            .step(&mut self.system, &mut self.state, &self.step_holds, dt)?;
+        let info = match coupling {
+            None => {
+                self.integrator
+                    .step(&mut self.system, &mut self.state, &self.step_holds, dt)?
+            }
+            Some(coupling) => {
+                let mut coupled = Coupled {
+                    system: &mut self.system,
+                    coupling,
+                };
+                self.integrator
+                    .step(&mut coupled, &mut self.state, &self.step_holds, dt)?
+            }
+        };
         self.surface.update_positions(&self.state.x);
         self.distribute_reactions();
         Ok(info)

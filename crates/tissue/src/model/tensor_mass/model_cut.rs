@@ -109,6 +109,25 @@ impl TensorMass {
         Ok(())
     }
 
+    /// Removes the listed tetrahedra as a cut would (then the slivers they leave, and the
+    /// fragments if the settings remove them): how the `hybrid` model carries its cuts over
+    /// to a grown region's new tensor-mass part.
+    pub fn remove_tets(&mut self, tets: &[usize]) -> CutInfo {
+        let remove = self.params.fragments == Fragments::Remove;
+        let cutter = self
+            .cutter
+            .get_or_insert_with(|| Cutter::new(&self.system, &self.state.x));
+        let report = cutter.remove_tets(
+            &mut self.system,
+            &mut self.surface,
+            &self.state.x,
+            tets,
+            remove,
+            CutReport::default(),
+        );
+        self.after_removal(report)
+    }
+
     /// Removes what the blade touches (see `cut`).
     pub fn cut_along(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
         let ok = |p: &[Vec3; 2]| p.iter().all(|v| v.is_finite());
@@ -130,6 +149,11 @@ impl TensorMass {
             blade,
             remove,
         );
+        Ok(self.after_removal(report))
+    }
+
+    /// The model-side bookkeeping of a removal: alive list, holds, topology version.
+    fn after_removal(&mut self, report: CutReport) -> CutInfo {
         let removed = report.removed.len();
         for &t in &report.removed {
             let slot = self.alive_slot[t] as usize;
@@ -152,7 +176,7 @@ impl TensorMass {
             topology_version: self.topology_version,
         };
         self.last_cut = report;
-        Ok(info)
+        info
     }
 
     /// Back to the uncut model at rest with zero velocity: removed tetrahedra, tensors,

@@ -1,0 +1,122 @@
+//! `Deformable` for `Hybrid`.
+
+use crate::error::SimError;
+use crate::interact::{Constraints, Loads};
+use crate::math::{Real, Vec3};
+use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+
+use super::CutRegion;
+use super::model::Hybrid;
+
+impl Deformable for Hybrid {
+    fn kind(&self) -> &'static str {
+        "hybrid"
+    }
+
+    /// Both parts' outer surface (the interface is inside), with the cut surfaces.
+    fn surface(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            positions: &self.surf_pos,
+            triangles: &self.triangles,
+        }
+    }
+
+    fn rest_surface(&self) -> &[Vec3] {
+        &self.surf_rest
+    }
+
+    /// Contacts and supports on either part; on the rest they are contacts of its
+    /// condensed response (a new node costs three sparse solves, once).
+    fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        self.apply_constraints(c)
+    }
+
+    fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
+        self.set_loads_checked(loads)
+    }
+
+    fn step(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        self.advance(dt)
+    }
+
+    fn reactions(&self) -> Reactions<'_> {
+        self.reactions.reactions()
+    }
+
+    fn cut(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
+        self.cut_along(blade)
+    }
+
+    fn reset(&mut self) {
+        self.reset_state();
+    }
+
+    /// In real time a region growth is built on its own thread while the old region
+    /// answers; otherwise each growth completes before the cut that asked for it.
+    fn set_real_time(&mut self, on: bool) {
+        self.real_time = on;
+        if !on {
+            let _ = self.finish_growth();
+        }
+    }
+
+    fn info(&self) -> ModelInfo {
+        let tm = self.tm.info();
+        let alive = self.alive.iter().filter(|&&a| a).count();
+        let mut details = vec![
+            (
+                "cut_region".to_string(),
+                match &self.mode {
+                    CutRegion::Auto => "auto".to_string(),
+                    given => given.describe(),
+                },
+            ),
+            ("region_tets".into(), self.region_tets().to_string()),
+            (
+                "region_volume_fraction".into(),
+                format!("{:.3}", self.region_fraction()),
+            ),
+            ("interface_nodes".into(), self.interface_nodes().to_string()),
+            ("rest_outer_nodes".into(), self.rest.outer.len().to_string()),
+            ("region_model".into(), tm.kind.to_string()),
+            (
+                "removed_tets".into(),
+                (self.alive.len() - alive).to_string(),
+            ),
+            ("growths".into(), self.growths.len().to_string()),
+            ("growth_pending".into(), self.growth_pending().to_string()),
+            (
+                "rest_build_s".into(),
+                format!("{:.4}", self.rest.build_seconds),
+            ),
+            (
+                "rest_column_solves".into(),
+                self.rest.column_solves.to_string(),
+            ),
+            ("border_removals".into(), self.border_removals.to_string()),
+        ];
+        if let Some(g) = self.growths.last() {
+            details.push(("last_growth_s".into(), format!("{:.4}", g.seconds)));
+            details.push((
+                "last_growth_steps_waited".into(),
+                g.steps_waited.to_string(),
+            ));
+        }
+        details.extend(
+            tm.details
+                .into_iter()
+                .filter(|(k, _)| k == "integrator" || k == "nonlinear_tets" || k == "steps"),
+        );
+        ModelInfo {
+            kind: "hybrid",
+            nodes: self.mesh.vertices.len(),
+            dofs: tm.dofs + 3 * self.rest.outer.len(),
+            elements: alive,
+            surface_vertices: self.surf_nodes.len(),
+            memory_bytes: self.memory_bytes(),
+            precompute_seconds: self.precompute_seconds,
+            is_static: false,
+            details,
+        }
+    }
+}

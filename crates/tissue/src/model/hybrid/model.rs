@@ -1,0 +1,709 @@
+//! `Hybrid`: the tensor-mass region, the pre-computed rest, the surface drawn over both,
+//! and the split of constraints and loads between them.
+
+use std::time::Instant;
+
+use faer::Mat;
+
+use crate::error::{Error, SimError};
+use crate::integrate::Scheme;
+use crate::interact::{Constraints, Loads, Prescribed};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::TET_FACES;
+use crate::mesh::TetMesh;
+use crate::mesh::topology::tet_neighbours;
+use crate::model::tensor_mass::{TensorMass, TensorMassParams};
+use crate::model::{ConstraintReactions, CutInfo, CutPath, Deformable, StepInfo};
+
+use super::CutRegion;
+use super::grow::{Built, Growth};
+use super::rest::RestPart;
+use super::split::{NONE, Split, centroids, segment_distance};
+
+/// What the model was built with, kept for region growths.
+#[derive(Clone, Debug)]
+pub(super) struct Recipe {
+    pub material: Material,
+    pub tm_params: TensorMassParams,
+    pub nonlinear: bool,
+    pub scheme: Scheme,
+}
+
+/// One region growth: when it was asked for, how long its build took, its size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GrowthRecord {
+    /// Build time (split, condensation, tensors), in s, off the interactive thread when the
+    /// model runs in real time.
+    pub seconds: Real,
+    /// Region tetrahedra after the growth.
+    pub region_tets: usize,
+    /// Steps the old region answered while the new one was built (0 when synchronous).
+    pub steps_waited: u64,
+}
+
+/// The survey's hybrid model (see the module doc of `hybrid`).
+pub struct Hybrid {
+    pub(super) recipe: Recipe,
+    pub(super) mode: CutRegion,
+    pub(super) auto_radius: Real,
+    pub(super) mesh: TetMesh,
+    neighbours: Vec<[Option<u32>; 4]>,
+    centroids: Vec<Vec3>,
+    /// Per global tetrahedron: not removed by a cut.
+    pub(super) alive: Vec<bool>,
+    pub(super) split: Split,
+    pub(super) tm: TensorMass,
+    pub(super) rest: RestPart,
+    /// Region node of each interface node.
+    region_iface: Vec<u32>,
+    /// Region node → the region model's surface vertex, or `NONE`.
+    tm_vertex: Vec<u32>,
+    /// The drawn surface: global node of each vertex (stable numbers, appended by cuts).
+    pub(super) surf_nodes: Vec<u32>,
+    surf_of_node: Vec<u32>,
+    pub(super) surf_rest: Vec<Vec3>,
+    pub(super) surf_pos: Vec<Vec3>,
+    pub(super) triangles: Vec<[u32; 3]>,
+    pub(super) constraints: Constraints,
+    pub(super) loads: Loads,
+    pub(super) reactions: ConstraintReactions,
+    /// Per surface vertex: the prescribed entry of the region model holding it, or `NONE`.
+    tm_entry: Vec<u32>,
+    /// Surface vertex of each contact of the rest.
+    rest_contact: Vec<u32>,
+    /// Forces applied to the rest at its contacts after the last step (3 per contact).
+    pub(super) contact_forces: Mat<Real>,
+    pub(super) interface_forces: Mat<Real>,
+    pub(super) topology_version: u32,
+    pub(super) real_time: bool,
+    pub(super) growth: Option<Growth>,
+    pub(super) growths: Vec<GrowthRecord>,
+    pub(super) steps: u64,
+    /// Cut tetrahedra that reached the region's border (through the sliver guard).
+    pub(super) border_removals: usize,
+    pub(super) precompute_seconds: Real,
+}
+
+impl Hybrid {
+    /// Builds the model on a validated mesh with the region's tetrahedra `in_region`.
+    pub(super) fn build(
+        mesh: TetMesh,
+        in_region: Vec<bool>,
+        mode: CutRegion,
+        auto_radius: Real,
+        recipe: Recipe,
+    ) -> Result<Self, Error> {
+        let start = Instant::now();
+        let built = Built::new(&mesh, in_region, &mode, &recipe)?;
+        let neighbours = tet_neighbours(&mesh.tets);
+        let mut surf_nodes: Vec<u32> = Vec::new();
+        for (t, tet) in mesh.tets.iter().enumerate() {
+            for k in 0..4 {
+                if neighbours[t][k].is_none() {
+                    surf_nodes.extend(TET_FACES[k].map(|c| tet[c]));
+                }
+            }
+        }
+        surf_nodes.sort_unstable();
+        surf_nodes.dedup();
+        let mut surf_of_node = vec![NONE; mesh.vertices.len()];
+        for (s, &n) in surf_nodes.iter().enumerate() {
+            surf_of_node[n as usize] = s as u32;
+        }
+        let surf_rest: Vec<Vec3> = surf_nodes
+            .iter()
+            .map(|&n| mesh.vertices[n as usize])
+            .collect();
+        let Built {
+            split, rest, tm, ..
+        } = built;
+        let mut m = Self {
+            recipe,
+            mode,
+            auto_radius,
+            centroids: centroids(&mesh),
+            alive: vec![true; mesh.tets.len()],
+            neighbours,
+            split,
+            tm,
+            rest,
+            region_iface: Vec::new(),
+            tm_vertex: Vec::new(),
+            surf_pos: surf_rest.clone(),
+            surf_rest,
+            surf_nodes,
+            surf_of_node,
+            triangles: Vec::new(),
+            constraints: Constraints::default(),
+            loads: Loads::default(),
+            reactions: ConstraintReactions::default(),
+            tm_entry: Vec::new(),
+            rest_contact: Vec::new(),
+            contact_forces: Mat::zeros(0, 1),
+            interface_forces: Mat::zeros(0, 1),
+            topology_version: 0,
+            real_time: false,
+            growth: None,
+            growths: Vec::new(),
+            steps: 0,
+            border_removals: 0,
+            precompute_seconds: 0.0,
+            mesh,
+        };
+        m.adopt_split();
+        m.set_loads_checked(&Loads::default())?;
+        m.update_state()?;
+        m.precompute_seconds = start.elapsed().as_secs_f64();
+        Ok(m)
+    }
+
+    /// Rebuilds the maps that follow the split and the region model's surface.
+    fn adopt_split(&mut self) {
+        self.region_iface = self
+            .split
+            .interface
+            .iter()
+            .map(|&g| self.split.region.local[g as usize])
+            .collect();
+        self.refresh_tm_vertices();
+        self.rebuild_triangles();
+        self.interface_forces = Mat::zeros(3 * self.region_iface.len(), 1);
+    }
+
+    fn refresh_tm_vertices(&mut self) {
+        self.tm_vertex = vec![NONE; self.split.region.global.len()];
+        for (s, &n) in self.tm.surface_nodes().iter().enumerate() {
+            self.tm_vertex[n as usize] = s as u32;
+        }
+    }
+
+    /// The boundary faces of the surviving tetrahedra, outward, over the surface vertices
+    /// (nodes a cut exposes get new vertex numbers at the end).
+    fn rebuild_triangles(&mut self) {
+        self.triangles.clear();
+        for (t, tet) in self.mesh.tets.iter().enumerate() {
+            if !self.alive[t] {
+                continue;
+            }
+            for k in 0..4 {
+                let open = match self.neighbours[t][k] {
+                    None => true,
+                    Some(n) => !self.alive[n as usize],
+                };
+                if !open {
+                    continue;
+                }
+                let tri = TET_FACES[k].map(|c| {
+                    let n = tet[c];
+                    let s = self.surf_of_node[n as usize];
+                    if s != NONE {
+                        return s;
+                    }
+                    let s = self.surf_nodes.len() as u32;
+                    self.surf_of_node[n as usize] = s;
+                    self.surf_nodes.push(n);
+                    self.surf_rest.push(self.mesh.vertices[n as usize]);
+                    self.surf_pos.push(self.mesh.vertices[n as usize]);
+                    s
+                });
+                self.triangles.push(tri);
+            }
+        }
+    }
+
+    /// Region tetrahedra count.
+    pub fn region_tets(&self) -> usize {
+        self.split.region.tets.len()
+    }
+
+    /// Fraction of the organ's volume in the cut region.
+    pub fn region_fraction(&self) -> Real {
+        self.split.volume_fraction
+    }
+
+    /// Interface nodes between the region and the rest.
+    pub fn interface_nodes(&self) -> usize {
+        self.split.interface.len()
+    }
+
+    /// Per global tetrahedron: in the cut region.
+    pub fn region_mask(&self) -> &[bool] {
+        &self.split.in_region
+    }
+
+    /// The region growths so far.
+    pub fn growths(&self) -> &[GrowthRecord] {
+        &self.growths
+    }
+
+    /// The region model (tensor-mass on the region's tetrahedra).
+    pub fn region_model(&self) -> &TensorMass {
+        &self.tm
+    }
+
+    /// Per surface vertex: 1 on the cut region (its node is a region node), 0 on the rest.
+    pub fn region_field(&self) -> Vec<Real> {
+        self.surf_nodes
+            .iter()
+            .map(|&n| {
+                if self.split.region.local[n as usize] != NONE {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// The forces the rest exerts on the interface nodes after the last step (global node,
+    /// force), and the forces the contacts on the rest apply to it.
+    pub fn interface_balance(&self) -> (Vec<(u32, Vec3)>, Vec<Vec3>) {
+        let f = &self.interface_forces;
+        let iface = self
+            .split
+            .interface
+            .iter()
+            .enumerate()
+            .map(|(a, &g)| {
+                (
+                    g,
+                    Vec3::new(f[(3 * a, 0)], f[(3 * a + 1, 0)], f[(3 * a + 2, 0)]),
+                )
+            })
+            .collect();
+        let z = &self.contact_forces;
+        let contacts = (0..z.nrows() / 3)
+            .map(|k| Vec3::new(z[(3 * k, 0)], z[(3 * k + 1, 0)], z[(3 * k + 2, 0)]))
+            .collect();
+        (iface, contacts)
+    }
+
+    /// The total load on the rest (its weight and point loads), in N.
+    pub fn rest_load(&self) -> Vec3 {
+        self.rest.total_load()
+    }
+
+    /// Current position of global node `g` (rest interior nodes: at rest; only the
+    /// blade test uses them).
+    fn node_position(&self, g: u32) -> Vec3 {
+        let r = self.split.region.local[g as usize];
+        if r != NONE {
+            return self.tm.positions()[r as usize];
+        }
+        let s = self.surf_of_node[g as usize];
+        if s != NONE {
+            return self.surf_pos[s as usize];
+        }
+        self.mesh.vertices[g as usize]
+    }
+
+    /// Checks and splits the constraints between the two parts; nothing changes on error.
+    pub(super) fn apply_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let disp = c.surface_displacements(&self.surf_rest)?;
+        let tm_rest = self.tm.rest_surface().to_vec();
+        let mut tm_c = Constraints::default();
+        let mut tm_entry = vec![NONE; self.surf_nodes.len()];
+        let (mut slots, mut targets, mut rest_contact) = (Vec::new(), Vec::new(), Vec::new());
+        for (v, d) in disp.iter().enumerate() {
+            let Some(d) = d else { continue };
+            let g = self.surf_nodes[v] as usize;
+            let r = self.split.region.local[g];
+            if r != NONE {
+                let sv = self.tm_vertex[r as usize];
+                if sv == NONE {
+                    continue; // a node no surviving region tetrahedron exposes
+                }
+                tm_entry[v] = tm_c.prescribed.len() as u32;
+                tm_c.prescribed.push(Prescribed {
+                    vertex: sv,
+                    position: tm_rest[sv as usize] + *d,
+                });
+            } else if let Some(slot) = self.rest.outer_slot(self.split.rest.local[g]) {
+                slots.push(slot);
+                targets.extend_from_slice(&d.to_array());
+                rest_contact.push(v as u32);
+            }
+        }
+        self.rest.set_contacts(&slots, &targets)?;
+        self.tm.set_constraints(&tm_c)?;
+        self.tm_entry = tm_entry;
+        self.rest_contact = rest_contact;
+        self.constraints = c.clone();
+        self.reactions.set(c);
+        Ok(())
+    }
+
+    /// Splits the loads: gravity on each part's own tetrahedra, point loads on the part of
+    /// their vertex's node. Nothing changes on error.
+    pub(super) fn set_loads_checked(&mut self, loads: &Loads) -> Result<(), SimError> {
+        if !loads.gravity.is_finite() {
+            return Err(SimError::BadParameter {
+                name: "gravity",
+                value: loads.gravity.to_string(),
+                reason: "must be finite".into(),
+            });
+        }
+        let mut tm_loads = Loads {
+            gravity: loads.gravity,
+            point_loads: Vec::new(),
+        };
+        let mut rest_points = Vec::new();
+        for &(v, f) in &loads.point_loads {
+            let g = *self
+                .surf_nodes
+                .get(v as usize)
+                .ok_or(SimError::BadConstraint {
+                    vertex: v as usize,
+                    count: self.surf_nodes.len(),
+                })? as usize;
+            if !f.is_finite() {
+                return Err(SimError::BadParameter {
+                    name: "point_loads",
+                    value: format!("surface vertex {v} -> {f}"),
+                    reason: "the force must be finite".into(),
+                });
+            }
+            let r = self.split.region.local[g];
+            if r != NONE {
+                if let Some(&sv) = self.tm_vertex.get(r as usize).filter(|&&s| s != NONE) {
+                    tm_loads.point_loads.push((sv, f));
+                }
+            } else {
+                rest_points.push((self.split.rest.local[g], f));
+            }
+        }
+        self.rest.set_loads(loads.gravity, &rest_points)?;
+        self.tm.set_loads(&tm_loads)?;
+        self.loads = loads.clone();
+        Ok(())
+    }
+
+    /// One step: the region integrates with the rest's interface forces in every force
+    /// evaluation; then the rest's outer surface and the reactions follow.
+    pub(super) fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        if self.real_time {
+            self.poll_growth()?;
+        }
+        let coupling = self
+            .rest
+            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+        let info = self.tm.advance_coupled(dt, Some(&coupling))?;
+        self.steps += 1;
+        if let Some(g) = self.growth.as_mut() {
+            g.steps_waited += 1;
+        }
+        self.update_state()?;
+        Ok(info)
+    }
+
+    /// Surface positions and reactions from the region's state.
+    fn update_state(&mut self) -> Result<(), SimError> {
+        let coupling = self
+            .rest
+            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+        let u = coupling.interface_displacements(self.tm.positions());
+        let mut fi = Mat::zeros(u.nrows(), 1);
+        let z = self.rest.interface_forces(&u, &mut fi);
+        let uo = self.rest.outer_displacements(&u, &z);
+        for (v, &g) in self.surf_nodes.iter().enumerate() {
+            let r = self.split.region.local[g as usize];
+            self.surf_pos[v] = if r != NONE {
+                self.tm.positions()[r as usize]
+            } else if let Some(slot) = self.rest.outer_slot(self.split.rest.local[g as usize]) {
+                let s = 3 * slot as usize;
+                self.surf_rest[v] + Vec3::new(uo[(s, 0)], uo[(s + 1, 0)], uo[(s + 2, 0)])
+            } else {
+                self.surf_rest[v]
+            };
+        }
+        let mut force = vec![Vec3::ZERO; self.surf_nodes.len()];
+        let tm_prescribed = self.tm.reactions().prescribed;
+        for (v, &e) in self.tm_entry.iter().enumerate() {
+            if e != NONE {
+                force[v] = tm_prescribed.get(e as usize).copied().unwrap_or(Vec3::ZERO);
+            }
+        }
+        for (k, &v) in self.rest_contact.iter().enumerate() {
+            // The rest pushes its contact with −λ.
+            force[v as usize] = -Vec3::new(z[(3 * k, 0)], z[(3 * k + 1, 0)], z[(3 * k + 2, 0)]);
+        }
+        self.reactions
+            .distribute(|v| force.get(v as usize).copied().unwrap_or(Vec3::ZERO));
+        self.contact_forces = z;
+        self.interface_forces = fi;
+        Ok(())
+    }
+
+    /// The global tetrahedra a blade touches, at the current positions.
+    fn touched(&self, blade: &CutPath) -> Vec<usize> {
+        let quads = blade.triangles();
+        let pts = [blade.start[0], blade.start[1], blade.end[0], blade.end[1]];
+        let lo = pts.iter().fold(pts[0], |a, &b| a.min(b));
+        let hi = pts.iter().fold(pts[0], |a, &b| a.max(b));
+        (0..self.mesh.tets.len())
+            .filter(|&t| {
+                if !self.alive[t] {
+                    return false;
+                }
+                let p = self.mesh.tets[t].map(|v| self.node_position(v));
+                let pl = p[0].min(p[1]).min(p[2]).min(p[3]);
+                let ph = p[0].max(p[1]).max(p[2]).max(p[3]);
+                pl.cmple(hi).all()
+                    && ph.cmpge(lo).all()
+                    && quads
+                        .iter()
+                        .any(|q| crate::model::tensor_mass::cut::tet_meets_triangle(&p, q))
+            })
+            .collect()
+    }
+
+    /// The tetrahedra whose rest centroid is within `radius` of the blade.
+    fn near_blade(&self, blade: &CutPath, radius: Real) -> Vec<usize> {
+        (0..self.mesh.tets.len())
+            .filter(|&t| {
+                let c = self.centroids[t];
+                self.alive[t]
+                    && (segment_distance(c, blade.start[0], blade.start[1]) <= radius
+                        || segment_distance(c, blade.end[0], blade.end[1]) <= radius
+                        || segment_distance(c, blade.start[0], blade.end[0]) <= radius)
+            })
+            .collect()
+    }
+
+    /// Cuts inside the region; a blade that reaches outside it grows the region (automatic
+    /// mode) or is refused, naming the region.
+    pub(super) fn cut_along(&mut self, blade: &CutPath) -> Result<CutInfo, SimError> {
+        blade.check()?;
+        let auto = matches!(self.mode, CutRegion::Auto);
+        if auto {
+            // Ahead of the blade: grow before it reaches the border.
+            let near = self.near_blade(blade, 0.5 * self.auto_radius);
+            if near
+                .iter()
+                .any(|&t| !self.split.cuttable(&self.mesh.tets, t))
+            {
+                self.request_growth(blade)?;
+            }
+        }
+        let touched = self.touched(blade);
+        if let Some(&t) = touched
+            .iter()
+            .find(|&&t| !self.split.cuttable(&self.mesh.tets, t))
+        {
+            if !auto {
+                return Err(self.refusal(t));
+            }
+            // The blade outran the growth: wait for it (the step waits, once).
+            self.finish_growth()?;
+            if let Some(&t) = self
+                .touched(blade)
+                .iter()
+                .find(|&&t| !self.split.cuttable(&self.mesh.tets, t))
+            {
+                return Err(self.refusal(t));
+            }
+        }
+        let tm_info = self.tm.cut(blade)?;
+        if tm_info.removed_elements == 0 {
+            return Ok(CutInfo {
+                removed_elements: 0,
+                added_vertices: 0,
+                topology_version: self.topology_version,
+            });
+        }
+        let removed: Vec<usize> = self.tm.last_cut().removed.clone();
+        Ok(self.after_region_removal(&removed))
+    }
+
+    /// Marks the region model's removed tetrahedra dead globally, redraws the surface.
+    fn after_region_removal(&mut self, removed: &[usize]) -> CutInfo {
+        for &t in removed {
+            let g = self.split.region.tets[t] as usize;
+            self.alive[g] = false;
+            if self.mesh.tets[g]
+                .iter()
+                .any(|&v| self.split.border[v as usize])
+            {
+                self.border_removals += 1;
+            }
+        }
+        let before = self.surf_nodes.len();
+        self.refresh_tm_vertices();
+        self.rebuild_triangles();
+        self.topology_version += 1;
+        // Constraints name surface vertices, which keep their numbers; the region model's
+        // surface grew, so its entries are re-derived.
+        let c = self.constraints.clone();
+        let _ = self.apply_constraints(&c);
+        let _ = self.update_state();
+        CutInfo {
+            removed_elements: removed.len(),
+            added_vertices: self.surf_nodes.len() - before,
+            topology_version: self.topology_version,
+        }
+    }
+
+    fn refusal(&self, t: usize) -> SimError {
+        let place = if self.split.in_region[t] {
+            "within one element of the region's border"
+        } else {
+            "outside the region"
+        };
+        SimError::Unsupported {
+            model: "hybrid",
+            operation: "cutting",
+            reason: format!(
+                "the blade reaches tetrahedron {t}, {place} (cut_region = {}); enlarge the \
+                 region or use cut_region = \"auto\"",
+                self.mode.describe()
+            ),
+        }
+    }
+
+    /// The region grown around the blade: the current one plus every tetrahedron whose
+    /// centroid is within `auto_radius` of it.
+    fn grown_mask(&self, blade: &CutPath) -> Vec<bool> {
+        let mut mask = self.split.in_region.clone();
+        if let Some(g) = &self.growth {
+            for (m, &p) in mask.iter_mut().zip(&g.mask) {
+                *m |= p;
+            }
+        }
+        for t in self.near_blade(blade, self.auto_radius) {
+            mask[t] = true;
+        }
+        mask
+    }
+
+    /// Starts a growth around the blade (in the background in real time, else now).
+    fn request_growth(&mut self, blade: &CutPath) -> Result<(), SimError> {
+        let mask = self.grown_mask(blade);
+        if mask == self.split.in_region {
+            return Ok(());
+        }
+        if let Some(g) = &self.growth
+            && g.mask == mask
+        {
+            return Ok(());
+        }
+        if self.growth.is_some() {
+            // One at a time: the next request (next step) asks again with the union.
+            return Ok(());
+        }
+        self.growth = Some(Growth::start(
+            self.mesh.clone(),
+            mask,
+            self.mode.clone(),
+            self.recipe.clone(),
+        ));
+        if !self.real_time {
+            self.finish_growth()?;
+        }
+        Ok(())
+    }
+
+    /// Installs a growth that finished; leaves one still running.
+    fn poll_growth(&mut self) -> Result<(), SimError> {
+        if let Some(g) = self.growth.as_mut()
+            && let Some(built) = g.try_take()
+        {
+            let waited = g.steps_waited;
+            self.growth = None;
+            self.install(built?, waited)?;
+        }
+        Ok(())
+    }
+
+    /// Waits for the growth under way, if any, and installs it.
+    pub(super) fn finish_growth(&mut self) -> Result<(), SimError> {
+        if let Some(g) = self.growth.take() {
+            let waited = g.steps_waited;
+            let built = g.wait()?;
+            self.install(built, waited)?;
+        }
+        Ok(())
+    }
+
+    /// Switches to a grown region: the new region model starts from the current positions
+    /// and velocities (nodes new to it from the rest's displacement field), the cuts made so
+    /// far are removed again, constraints and loads are re-split.
+    fn install(&mut self, built: Built, steps_waited: u64) -> Result<(), SimError> {
+        let coupling = self
+            .rest
+            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+        let u = coupling.interface_displacements(self.tm.positions());
+        let rest_u = self.rest.node_displacements(&u)?;
+        let n = self.mesh.vertices.len();
+        let mut x: Vec<Vec3> = self.mesh.vertices.clone();
+        let mut v = vec![Vec3::ZERO; n];
+        for (l, &g) in self.split.rest.global.iter().enumerate() {
+            x[g as usize] += rest_u[l];
+        }
+        for (l, &g) in self.split.region.global.iter().enumerate() {
+            x[g as usize] = self.tm.positions()[l];
+            v[g as usize] = self.tm.velocities()[l];
+        }
+        let Built {
+            split,
+            rest,
+            mut tm,
+            seconds,
+        } = built;
+        let dead: Vec<usize> = split
+            .region
+            .tets
+            .iter()
+            .enumerate()
+            .filter(|&(_, &g)| !self.alive[g as usize])
+            .map(|(l, _)| l)
+            .collect();
+        let xs: Vec<Vec3> = split.region.global.iter().map(|&g| x[g as usize]).collect();
+        let vs: Vec<Vec3> = split.region.global.iter().map(|&g| v[g as usize]).collect();
+        tm.set_state(&xs, &vs)?;
+        if !dead.is_empty() {
+            tm.remove_tets(&dead);
+        }
+        self.split = split;
+        self.rest = rest;
+        self.tm = tm;
+        self.precompute_seconds += seconds;
+        self.growths.push(GrowthRecord {
+            seconds,
+            region_tets: self.split.region.tets.len(),
+            steps_waited,
+        });
+        self.adopt_split();
+        self.topology_version += 1;
+        let loads = self.loads.clone();
+        self.set_loads_checked(&loads)?;
+        let c = self.constraints.clone();
+        self.apply_constraints(&c)?;
+        self.update_state()
+    }
+
+    /// Back to rest, uncut (the region stays as grown).
+    pub(super) fn reset_state(&mut self) {
+        self.finish_growth().ok();
+        self.tm.reset();
+        self.alive.iter_mut().for_each(|a| *a = true);
+        self.refresh_tm_vertices();
+        self.rebuild_triangles();
+        self.topology_version += 1;
+        let c = self.constraints.clone();
+        let _ = self.apply_constraints(&c);
+        let _ = self.update_state();
+    }
+
+    /// Whether a growth is being built.
+    pub fn growth_pending(&self) -> bool {
+        self.growth.is_some()
+    }
+
+    pub(super) fn memory_bytes(&self) -> usize {
+        self.tm.info().memory_bytes
+            + self.rest.memory_bytes()
+            + self.mesh.tets.len() * (16 + 16 + 24 + 1)
+            + self.surf_nodes.len() * (4 + 48)
+    }
+}

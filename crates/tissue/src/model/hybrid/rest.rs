@@ -1,0 +1,510 @@
+//! The rest of the organ: linear FEM on its tetrahedra, condensed onto the interface nodes
+//! and its outer surface nodes, as the survey's hybrid wants it (prescribed displacements
+//! in, forces out).
+//!
+//! With the interface nodes held, the rest is a linear elastic body whose state is fixed by
+//! three inputs: the interface displacements u_I (from the tensor-mass side), the forces λ
+//! at its contact nodes (the instruments' and the supports' on its outer surface) and the
+//! loads. Each gives a pre-computed response, one sparse solve per unit input with the
+//! Cholesky factor `FemStatic` keeps:
+//!
+//! - per interface dof: the reactions at the interface (−S, S the stiffness of the rest
+//!   condensed onto the interface, symmetric) and the outer surface displacements (G);
+//! - per contact node (cached the first time a node is touched): the outer surface
+//!   displacements under a unit force (the compliance columns W);
+//! - the loads: the interface reactions r₀ and outer displacements u₀.
+//!
+//! A contact set c with target displacements t fixes λ_c from W_cc λ_c = t − u₀_c − G_c u_I,
+//! and the force the rest exerts on the interface nodes is F_I = r₀ − S u_I + G_cᵀ λ_c
+//! (Maxwell–Betti: the interface reaction per unit contact force is G_cᵀ). F_I is minus the
+//! gradient of E(u_I) = ½ u_Iᵀ S u_I − r₀ᵀ u_I + ½ λ_cᵀ W_cc λ_c, so the coupling is
+//! conservative and the tensor-mass integrator's energy guard sees it.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::time::Instant;
+
+use faer::linalg::solvers::DenseSolveCore;
+use faer::{Accum, Mat, MatRef, Par, Side};
+
+use crate::error::{Error, SimError};
+use crate::integrate::coupling::NodeCoupling;
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::model::Deformable;
+use crate::model::fem::{DofProblem, FemStatic, Order};
+
+use super::split::{NONE, Split};
+
+/// y (+)= alpha · a · x for column vectors.
+fn gemv(y: &mut Mat<Real>, accum: Accum, a: MatRef<'_, Real>, x: MatRef<'_, Real>, alpha: Real) {
+    faer::linalg::matmul::matmul(y.as_mut(), accum, a, x, alpha, Par::Seq);
+}
+
+/// The contacts on the outer surface, as the coupling forces use them.
+#[derive(Clone, Debug)]
+struct Contacts {
+    /// Outer slots of the contact nodes.
+    slots: Vec<u32>,
+    /// t − u₀_c (3 per contact).
+    rhs: Mat<Real>,
+    /// G_c: rows of G at the contacts (3m × 3n_I).
+    g: Mat<Real>,
+    /// W_cc and its inverse (3m × 3m).
+    w: Mat<Real>,
+    w_inv: Mat<Real>,
+}
+
+/// The pre-computed rest (see the module doc).
+pub(super) struct RestPart {
+    fem: FemStatic,
+    density: Real,
+    /// Rest-local node of each interface node (in `Split::interface` order).
+    iface: Vec<u32>,
+    /// Rest-local nodes of the outer surface (boundary nodes that are not interface nodes).
+    pub outer: Vec<u32>,
+    /// Rest-local node → outer slot, or `NONE`.
+    outer_slot: Vec<u32>,
+    /// −(interface reactions) per unit interface displacement: 3n_I × 3n_I.
+    s: Mat<Real>,
+    /// Outer displacements per unit interface displacement: 3n_O × 3n_I.
+    g: Mat<Real>,
+    /// Interface reactions and outer displacements under the loads, interface at rest.
+    r0: Mat<Real>,
+    u0: Mat<Real>,
+    /// Outer displacements per unit force at an outer node (3n_O × 3), by outer slot.
+    columns: HashMap<u32, Mat<Real>>,
+    contacts: Contacts,
+    /// The forces on every dof of the rest from the loads.
+    forces: Vec<Real>,
+    pub build_seconds: Real,
+    pub column_solves: usize,
+}
+
+impl std::fmt::Debug for RestPart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RestPart")
+            .field("interface", &self.iface.len())
+            .field("outer", &self.outer.len())
+            .finish()
+    }
+}
+
+impl RestPart {
+    /// Assembles the rest's FEM and pre-computes its responses to the interface: 3n_I
+    /// sparse solves.
+    pub fn new(split: &Split, material: Material) -> Result<Self, Error> {
+        let start = Instant::now();
+        let mut fem = FemStatic::new(&split.rest.mesh, material, Order::Linear)?;
+        let iface: Vec<u32> = split
+            .interface
+            .iter()
+            .map(|&g| split.rest.local[g as usize])
+            .collect();
+        let nodes = split.rest.global.len();
+        let mut is_iface = vec![false; nodes];
+        for &n in &iface {
+            is_iface[n as usize] = true;
+        }
+        let mut outer: Vec<u32> = fem
+            .surface_nodes()
+            .iter()
+            .copied()
+            .filter(|&n| !is_iface[n as usize])
+            .collect();
+        outer.sort_unstable();
+        outer.dedup();
+        let mut outer_slot = vec![NONE; nodes];
+        for (k, &n) in outer.iter().enumerate() {
+            outer_slot[n as usize] = k as u32;
+        }
+        let (ni, no) = (3 * iface.len(), 3 * outer.len());
+        let mut dp = held(&iface, nodes)?;
+        let mut s = Mat::zeros(ni, ni);
+        let mut g = Mat::zeros(no, ni);
+        for (a, &n) in iface.iter().enumerate() {
+            for k in 0..3 {
+                let col = 3 * a + k;
+                dp.targets[3 * n as usize + k] = 1.0;
+                let sol = fem.solve_dofs(&dp)?;
+                dp.targets[3 * n as usize + k] = 0.0;
+                for (b, &m) in iface.iter().enumerate() {
+                    let r = sol.reactions[m as usize];
+                    for l in 0..3 {
+                        s[(3 * b + l, col)] = -r[l];
+                    }
+                }
+                for (b, &m) in outer.iter().enumerate() {
+                    let u = sol.displacements[m as usize];
+                    for l in 0..3 {
+                        g[(3 * b + l, col)] = u[l];
+                    }
+                }
+            }
+        }
+        // S is symmetric in exact arithmetic; the solves leave roundoff that would make the
+        // coupling slightly non-conservative.
+        for j in 0..ni {
+            for i in 0..j {
+                let m = 0.5 * (s[(i, j)] + s[(j, i)]);
+                s[(i, j)] = m;
+                s[(j, i)] = m;
+            }
+        }
+        let rest = Self {
+            density: material.density,
+            iface,
+            outer,
+            outer_slot,
+            s,
+            g,
+            r0: Mat::zeros(ni, 1),
+            u0: Mat::zeros(no, 1),
+            columns: HashMap::new(),
+            contacts: Contacts {
+                slots: Vec::new(),
+                rhs: Mat::zeros(0, 1),
+                g: Mat::zeros(0, ni),
+                w: Mat::zeros(0, 0),
+                w_inv: Mat::zeros(0, 0),
+            },
+            forces: vec![0.0; 3 * nodes],
+            build_seconds: 0.0,
+            column_solves: 0,
+            fem,
+        };
+        Ok(Self {
+            build_seconds: start.elapsed().as_secs_f64(),
+            ..rest
+        })
+    }
+
+    /// Outer slot of rest-local node `n`.
+    pub fn outer_slot(&self, n: u32) -> Option<u32> {
+        self.outer_slot
+            .get(n as usize)
+            .copied()
+            .filter(|&s| s != NONE)
+    }
+
+    /// Sets the loads: gravity over the rest's tetrahedra and point forces on rest-local
+    /// nodes; one sparse solve.
+    pub fn set_loads(&mut self, gravity: Vec3, point: &[(u32, Vec3)]) -> Result<(), SimError> {
+        let mut f = self.fem.body_load(gravity * self.density);
+        for &(n, p) in point {
+            for k in 0..3 {
+                f[3 * n as usize + k] += p[k];
+            }
+        }
+        let mut dp = held(&self.iface, self.outer_slot.len())?;
+        dp.forces.copy_from_slice(&f);
+        let sol = self.fem.solve_dofs(&dp)?;
+        for (b, &m) in self.iface.iter().enumerate() {
+            for l in 0..3 {
+                self.r0[(3 * b + l, 0)] = sol.reactions[m as usize][l];
+            }
+        }
+        for (b, &m) in self.outer.iter().enumerate() {
+            for l in 0..3 {
+                self.u0[(3 * b + l, 0)] = sol.displacements[m as usize][l];
+            }
+        }
+        self.forces = f;
+        // The contacts' right-hand sides hold u₀.
+        let targets = self.contact_targets();
+        let slots = self.contacts.slots.clone();
+        self.set_contacts(&slots, &targets)
+    }
+
+    /// The target displacements of the current contacts (3 per contact).
+    fn contact_targets(&self) -> Vec<Real> {
+        let c = &self.contacts;
+        (0..c.rhs.nrows())
+            .map(|i| {
+                let slot = c.slots[i / 3] as usize;
+                c.rhs[(i, 0)] + self.u0[(3 * slot + i % 3, 0)]
+            })
+            .collect()
+    }
+
+    /// The compliance columns of outer slot `slot` (3 sparse solves the first time).
+    fn ensure_column(&mut self, slot: u32) -> Result<(), SimError> {
+        if self.columns.contains_key(&slot) {
+            return Ok(());
+        }
+        let n = self.outer[slot as usize] as usize;
+        let mut dp = held(&self.iface, self.outer_slot.len())?;
+        let mut w = Mat::zeros(3 * self.outer.len(), 3);
+        for k in 0..3 {
+            dp.forces[3 * n + k] = 1.0;
+            let sol = self.fem.solve_dofs(&dp)?;
+            dp.forces[3 * n + k] = 0.0;
+            for (b, &m) in self.outer.iter().enumerate() {
+                for l in 0..3 {
+                    w[(3 * b + l, k)] = sol.displacements[m as usize][l];
+                }
+            }
+        }
+        self.column_solves += 3;
+        self.columns.insert(slot, w);
+        Ok(())
+    }
+
+    /// Sets the contacts: outer slots and their target displacements (3 each; a support is
+    /// a contact with target zero). Nothing changes on error.
+    pub fn set_contacts(&mut self, slots: &[u32], targets: &[Real]) -> Result<(), SimError> {
+        for &s in slots {
+            self.ensure_column(s)?;
+        }
+        let m3 = 3 * slots.len();
+        let ni = self.s.ncols();
+        let mut c = Contacts {
+            slots: slots.to_vec(),
+            rhs: Mat::zeros(m3, 1),
+            g: Mat::zeros(m3, ni),
+            w: Mat::zeros(m3, m3),
+            w_inv: Mat::zeros(m3, m3),
+        };
+        for (k, &s) in slots.iter().enumerate() {
+            let col = &self.columns[&s];
+            for l in 0..3 {
+                let row = 3 * s as usize + l;
+                c.rhs[(3 * k + l, 0)] = targets[3 * k + l] - self.u0[(row, 0)];
+                for j in 0..ni {
+                    c.g[(3 * k + l, j)] = self.g[(row, j)];
+                }
+                for (q, &s2) in slots.iter().enumerate() {
+                    for l2 in 0..3 {
+                        c.w[(3 * q + l2, 3 * k + l)] = col[(3 * s2 as usize + l2, l)];
+                    }
+                }
+            }
+        }
+        if m3 > 0 {
+            for j in 0..m3 {
+                for i in 0..j {
+                    let m = 0.5 * (c.w[(i, j)] + c.w[(j, i)]);
+                    c.w[(i, j)] = m;
+                    c.w[(j, i)] = m;
+                }
+            }
+            let llt =
+                c.w.llt(Side::Lower)
+                    .map_err(|_| SimError::NotPositiveDefinite {
+                        row: 0,
+                        hint: "the compliance of the rest's contact nodes is singular: two \
+                           contacts on the same node?"
+                            .into(),
+                    })?;
+            c.w_inv = llt.inverse();
+        }
+        self.contacts = c;
+        Ok(())
+    }
+
+    /// The contact forces λ_c (forces applied to the rest, 3 per contact) for interface
+    /// displacements `u_i` (a 3n_I column).
+    pub fn contact_forces(&self, u_i: &Mat<Real>) -> Mat<Real> {
+        let c = &self.contacts;
+        let mut y = c.rhs.clone();
+        gemv(&mut y, Accum::Add, c.g.as_ref(), u_i.as_ref(), -1.0);
+        let mut z = Mat::zeros(y.nrows(), 1);
+        gemv(&mut z, Accum::Replace, c.w_inv.as_ref(), y.as_ref(), 1.0);
+        z
+    }
+
+    /// The forces the rest exerts on the interface nodes (3n_I) and the contact forces.
+    pub fn interface_forces(&self, u_i: &Mat<Real>, out: &mut Mat<Real>) -> Mat<Real> {
+        let z = self.contact_forces(u_i);
+        out.as_mut().copy_from(self.r0.as_ref());
+        gemv(out, Accum::Add, self.s.as_ref(), u_i.as_ref(), -1.0);
+        if z.nrows() > 0 {
+            gemv(
+                out,
+                Accum::Add,
+                self.contacts.g.as_ref().transpose(),
+                z.as_ref(),
+                1.0,
+            );
+        }
+        z
+    }
+
+    /// Displacements of the outer nodes (3n_O) for `u_i` and contact forces `z`.
+    pub fn outer_displacements(&self, u_i: &Mat<Real>, z: &Mat<Real>) -> Mat<Real> {
+        let mut u = self.u0.clone();
+        gemv(&mut u, Accum::Add, self.g.as_ref(), u_i.as_ref(), 1.0);
+        for (k, &s) in self.contacts.slots.iter().enumerate() {
+            let col = &self.columns[&s];
+            for l in 0..3 {
+                let f = z[(3 * k + l, 0)];
+                if f != 0.0 {
+                    for i in 0..u.nrows() {
+                        u[(i, 0)] += col[(i, l)] * f;
+                    }
+                }
+            }
+        }
+        u
+    }
+
+    /// Displacements of every node of the rest (a sparse solve): for a region growth, whose
+    /// new region nodes start where the rest had them.
+    pub fn node_displacements(&mut self, u_i: &Mat<Real>) -> Result<Vec<Vec3>, SimError> {
+        let z = self.contact_forces(u_i);
+        let mut dp = held(&self.iface, self.outer_slot.len())?;
+        dp.forces.copy_from_slice(&self.forces);
+        for (a, &n) in self.iface.iter().enumerate() {
+            for k in 0..3 {
+                dp.targets[3 * n as usize + k] = u_i[(3 * a + k, 0)];
+            }
+        }
+        for (k, &s) in self.contacts.slots.iter().enumerate() {
+            let n = self.outer[s as usize] as usize;
+            for l in 0..3 {
+                dp.forces[3 * n + l] += z[(3 * k + l, 0)];
+            }
+        }
+        Ok(self.fem.solve_dofs(&dp)?.displacements)
+    }
+
+    /// The rest's total load (for balance checks): body and point forces.
+    pub fn total_load(&self) -> Vec3 {
+        let mut t = Vec3::ZERO;
+        for c in self.forces.chunks_exact(3) {
+            t += Vec3::new(c[0], c[1], c[2]);
+        }
+        t
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        self.fem.info().memory_bytes
+            + 8 * (self.s.nrows() * self.s.ncols()
+                + self.g.nrows() * self.g.ncols()
+                + self.columns.len() * 3 * self.g.nrows())
+    }
+
+    /// The coupling seen from the region: interface node `i` is region node `region_node[i]`,
+    /// at rest at `region_rest[region_node[i]]`.
+    pub fn coupling<'a>(&'a self, region_node: &'a [u32], region_rest: &'a [Vec3]) -> Coupling<'a> {
+        let n = 3 * self.iface.len();
+        Coupling {
+            rest: self,
+            region_node,
+            region_rest,
+            scratch: RefCell::new((Mat::zeros(n, 1), Mat::zeros(n, 1))),
+        }
+    }
+}
+
+/// The problem with the interface nodes held at zero (targets and forces to be filled).
+fn held(iface: &[u32], nodes: usize) -> Result<DofProblem, SimError> {
+    let mut dp = DofProblem::new(3 * nodes);
+    for &n in iface {
+        dp.hold_node(n as usize, Vec3::ZERO)?;
+    }
+    dp.finish();
+    Ok(dp)
+}
+
+/// The rest's forces on the region's interface nodes (`NodeCoupling`).
+pub(super) struct Coupling<'a> {
+    rest: &'a RestPart,
+    region_node: &'a [u32],
+    region_rest: &'a [Vec3],
+    scratch: RefCell<(Mat<Real>, Mat<Real>)>,
+}
+
+impl Coupling<'_> {
+    fn gather(&self, x: &[Vec3], u: &mut Mat<Real>) {
+        for (a, &n) in self.region_node.iter().enumerate() {
+            let d = x[n as usize] - self.region_rest[n as usize];
+            for k in 0..3 {
+                u[(3 * a + k, 0)] = d[k];
+            }
+        }
+    }
+
+    /// Interface displacements of region positions `x`.
+    pub fn interface_displacements(&self, x: &[Vec3]) -> Mat<Real> {
+        let mut u = Mat::zeros(3 * self.region_node.len(), 1);
+        self.gather(x, &mut u);
+        u
+    }
+}
+
+impl NodeCoupling for Coupling<'_> {
+    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) {
+        let mut guard = self.scratch.borrow_mut();
+        let (u, out) = &mut *guard;
+        self.gather(x, u);
+        self.rest.interface_forces(u, out);
+        for (a, &n) in self.region_node.iter().enumerate() {
+            f[n as usize] += Vec3::new(out[(3 * a, 0)], out[(3 * a + 1, 0)], out[(3 * a + 2, 0)]);
+        }
+    }
+
+    fn energy(&self, x: &[Vec3]) -> Real {
+        let mut guard = self.scratch.borrow_mut();
+        let (u, su) = &mut *guard;
+        self.gather(x, u);
+        gemv(su, Accum::Replace, self.rest.s.as_ref(), u.as_ref(), 1.0);
+        let mut e = 0.0;
+        for i in 0..u.nrows() {
+            e += u[(i, 0)] * (0.5 * su[(i, 0)] - self.rest.r0[(i, 0)]);
+        }
+        let z = self.rest.contact_forces(u);
+        if z.nrows() > 0 {
+            let mut wz = Mat::zeros(z.nrows(), 1);
+            gemv(
+                &mut wz,
+                Accum::Replace,
+                self.rest.contacts.w.as_ref(),
+                z.as_ref(),
+                1.0,
+            );
+            for i in 0..z.nrows() {
+                e += 0.5 * z[(i, 0)] * wz[(i, 0)];
+            }
+        }
+        e
+    }
+
+    /// K = S + G_cᵀ W_cc⁻¹ G_c on the interface nodes.
+    fn add_stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
+        let mut u = Mat::zeros(3 * self.region_node.len(), 1);
+        for (a, &n) in self.region_node.iter().enumerate() {
+            for k in 0..3 {
+                u[(3 * a + k, 0)] = dx[n as usize][k];
+            }
+        }
+        let rest = self.rest;
+        let mut k = Mat::zeros(u.nrows(), 1);
+        gemv(&mut k, Accum::Replace, rest.s.as_ref(), u.as_ref(), 1.0);
+        let c = &rest.contacts;
+        if c.g.nrows() > 0 {
+            let mut y = Mat::zeros(c.g.nrows(), 1);
+            gemv(&mut y, Accum::Replace, c.g.as_ref(), u.as_ref(), 1.0);
+            let mut z = Mat::zeros(y.nrows(), 1);
+            gemv(&mut z, Accum::Replace, c.w_inv.as_ref(), y.as_ref(), 1.0);
+            gemv(
+                &mut k,
+                Accum::Add,
+                c.g.as_ref().transpose(),
+                z.as_ref(),
+                1.0,
+            );
+        }
+        for (a, &n) in self.region_node.iter().enumerate() {
+            out[n as usize] += Vec3::new(k[(3 * a, 0)], k[(3 * a + 1, 0)], k[(3 * a + 2, 0)]);
+        }
+    }
+
+    fn add_stiffness_diagonal(&self, d: &mut [Vec3]) {
+        for (a, &n) in self.region_node.iter().enumerate() {
+            for k in 0..3 {
+                d[n as usize][k] += self.rest.s[(3 * a + k, 3 * a + k)];
+            }
+        }
+    }
+}
