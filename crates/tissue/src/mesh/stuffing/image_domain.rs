@@ -6,6 +6,7 @@
 use crate::error::MeshError;
 use crate::image::VoxelImage;
 use crate::math::{Real, Vec3};
+use crate::voxel::VoxelGrid;
 
 use super::domain::Domain;
 
@@ -39,6 +40,22 @@ impl ImageDomain {
     pub fn from_threshold(image: &VoxelImage, lo: f32, hi: f32) -> Result<Self, MeshError> {
         let mask = image.threshold(lo, hi);
         Self::from_mask(image, mask, Vec::new(), &format!("threshold {lo}..{hi}"))
+    }
+
+    /// The occupied voxels of a voxel grid (a scene's `[image]` after threshold, stride and
+    /// component selection), tagged by their material class.
+    pub fn from_grid(grid: &VoxelGrid) -> Result<Self, MeshError> {
+        let image = VoxelImage {
+            dims: grid.dims,
+            spacing: grid.spacing,
+            origin: grid.origin,
+            values: Vec::new(),
+            source_type: crate::image::SourceType::U8,
+            byte_order: crate::image::ByteOrder::Little,
+        };
+        let mask = grid.labels.iter().map(|&l| l > 0).collect();
+        let tags = grid.labels.iter().map(|&l| i32::from(l)).collect();
+        Self::from_mask(&image, mask, tags, "the grid")
     }
 
     fn from_mask(

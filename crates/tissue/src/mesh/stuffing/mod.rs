@@ -59,6 +59,27 @@ pub struct Stuffed {
     pub report: MeshingReport,
 }
 
+impl Stuffed {
+    /// The mesh as file contents: vertices, tetrahedra and their tags.
+    pub fn to_mesh_data(&self) -> crate::mesh::MeshData {
+        crate::mesh::MeshData {
+            vertices: self.mesh.vertices.clone(),
+            tets: self.mesh.tets.clone(),
+            tet_tags: self.tags.clone(),
+            ..Default::default()
+        }
+    }
+}
+
+/// The tetrahedron count a size is chosen for when none is given.
+pub const DEFAULT_TARGET_TETS: usize = 20_000;
+
+/// The lattice spacing that fills `volume` (m³) with about `tets` tetrahedra: a BCC
+/// tetrahedron has volume h³/12, so h = (12·V/N)^(1/3).
+pub fn size_for(volume: Real, tets: usize) -> Real {
+    (12.0 * volume.abs() / tets.max(1) as Real).cbrt()
+}
+
 /// A cut point: the lattice edge (a, b) it lies on and its position.
 struct Cut {
     a: u32,
@@ -189,27 +210,69 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
             cuts[(k - cut_base) as usize].at
         }
     };
+    // Quadrilaterals are split along their shorter diagonal (ties: the smallest key):
+    // both BCC tetrahedra sharing one see the same four points.
+    let split = |q: [Key; 4]| -> bool {
+        let d02 = (actual(q[0]) - actual(q[2])).length_squared();
+        let d13 = (actual(q[1]) - actual(q[3])).length_squared();
+        if d02 != d13 {
+            d02 < d13
+        } else {
+            (0..4).min_by_key(|&i| q[i]).unwrap_or(0) % 2 == 0
+        }
+    };
     let mut all_zero = Vec::new();
+    let mut steiner: Vec<[Key; 6]> = Vec::new();
+    let mut steiner_points = 0;
     lattice.for_each_tet(|t| {
         if t.iter().all(|&v| sign[v as usize] > 0) {
             return;
         }
         pieces.clear();
-        let fill = stencil::fill(t, |v| sign[v as usize], cut_key, &mut pieces);
+        steiner.clear();
+        let fill = stencil::fill(
+            t,
+            |v| sign[v as usize],
+            cut_key,
+            &split,
+            &mut pieces,
+            &mut steiner,
+        );
         if fill == Fill::AllZero {
             all_zero.push(t);
         }
+        // Steiner points of this tetrahedron's prisms: new vertices at the prism centres.
+        let extra: Vec<(u32, Vec3)> = steiner
+            .iter()
+            .map(|p| {
+                let id = vertices.len() as u32;
+                vertices.push(p.iter().map(|&k| actual(k)).sum::<Vec3>() / 6.0);
+                (id, p.iter().map(|&k| reference(k)).sum::<Vec3>() / 6.0)
+            })
+            .collect();
+        steiner_points += extra.len();
         for piece in &pieces {
+            let centroid = piece
+                .iter()
+                .map(|&k| match k.checked_sub(stencil::STEINER_BASE) {
+                    Some(s) => vertices[extra[s as usize].0 as usize],
+                    None => actual(k),
+                })
+                .sum::<Vec3>()
+                / 4.0;
             emit(
                 *piece,
-                &reference,
+                &|k| match k.checked_sub(stencil::STEINER_BASE) {
+                    Some(s) => extra[s as usize].1,
+                    None => reference(k),
+                },
                 &actual,
+                &extra,
                 cut_base,
                 (&mut out_of_lattice, &mut out_of_cut),
                 &mut vertices,
                 &mut tets,
             );
-            let centroid = piece.iter().map(|&k| actual(k)).sum::<Vec3>() / 4.0;
             tags.push(domain.tag_at(centroid));
         }
     });
@@ -222,6 +285,7 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
                 keys,
                 &reference,
                 &actual,
+                &[],
                 cut_base,
                 (&mut out_of_lattice, &mut out_of_cut),
                 &mut vertices,
@@ -240,6 +304,7 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     let mesh = TetMesh::new(vertices, tets);
     let mut report = measure(&mesh, domain, domain_index(domain), size);
     report.warped = warped;
+    report.steiner_points = steiner_points;
     report.cut_points = cuts.len();
     report.seconds = seconds;
     progress.report("report", 1.0);
@@ -279,16 +344,21 @@ fn signs(domain: &dyn Domain, points: &[Vec3], progress: &Progress) -> Vec<i8> {
 
 /// Adds one output tetrahedron: maps its keys to output vertices (made on first use) and
 /// orients it positively as measured on the reference geometry.
+#[allow(clippy::too_many_arguments)]
 fn emit(
     piece: [Key; 4],
-    reference: &impl Fn(Key) -> Vec3,
-    actual: &impl Fn(Key) -> Vec3,
+    reference: &dyn Fn(Key) -> Vec3,
+    actual: &dyn Fn(Key) -> Vec3,
+    steiner: &[(u32, Vec3)],
     cut_base: Key,
     (of_lattice, of_cut): (&mut [u32], &mut [u32]),
     vertices: &mut Vec<Vec3>,
     tets: &mut Vec<[u32; 4]>,
 ) {
     let mut tet = piece.map(|k| {
+        if let Some(s) = k.checked_sub(stencil::STEINER_BASE) {
+            return steiner[s as usize].0;
+        }
         let slot = if k < cut_base {
             &mut of_lattice[k as usize]
         } else {

@@ -31,6 +31,8 @@ pub struct MeshingReport {
     /// Lattice vertices moved onto the surface, and cut points made.
     pub warped: usize,
     pub cut_points: usize,
+    /// Prism centres added where the quadrilateral diagonals leave no 3-tetrahedron split.
+    pub steiner_points: usize,
     pub min_dihedral_deg: Real,
     pub median_dihedral_deg: Real,
     pub max_dihedral_deg: Real,
@@ -101,13 +103,14 @@ impl fmt::Display for MeshingReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "{} tetrahedra, {} vertices, {} boundary triangles (size h = {:.4e} m; {} cut points, {} warped vertices) in {:.2} s",
+            "{} tetrahedra, {} vertices, {} boundary triangles (size h = {:.4e} m; {} cut points, {} warped vertices, {} Steiner points) in {:.2} s",
             self.tets,
             self.vertices,
             self.boundary_triangles,
             self.size,
             self.cut_points,
             self.warped,
+            self.steiner_points,
             self.seconds
         )?;
         writeln!(
@@ -275,6 +278,7 @@ pub fn measure(
         boundary_triangles: boundary.triangles.len(),
         warped: 0,
         cut_points: 0,
+        steiner_points: 0,
         min_dihedral_deg: if mesh.tets.is_empty() {
             0.0
         } else {
