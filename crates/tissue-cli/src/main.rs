@@ -5,6 +5,7 @@ mod haptic_bench;
 mod mesh_cmd;
 mod out;
 mod run;
+mod tetrahedralize;
 mod view;
 
 use std::io::Write;
@@ -91,6 +92,34 @@ pub enum MeshCommand {
         /// Distance below which vertices are merged, relative to the bounding-box diagonal.
         #[arg(long, default_value_t = 1e-9)]
         tolerance: f64,
+    },
+    /// Tetrahedral mesh of a closed surface (.obj .stl .ply .off .vtk ...) or of a segmented
+    /// image (.nii .nii.gz .mhd .mha) by isosurface stuffing, with its quality report; refuses
+    /// to write a mesh that breaks a guarantee (min dihedral 10°, boundary within h/2,
+    /// volume within 1 %) unless --force.
+    Tetrahedralize {
+        input: PathBuf,
+        /// A volume format: .vtu .vtk .msh .mesh .ele (TetGen).
+        output: PathBuf,
+        /// Lattice spacing h in m (the longest tetrahedron edges); default: about 20,000
+        /// tetrahedra.
+        #[arg(long)]
+        size: Option<f64>,
+        /// Image voxel values to mesh (each tagged with its label), e.g. --labels 1,2.
+        #[arg(long, value_delimiter = ',')]
+        labels: Option<Vec<f32>>,
+        /// Image value window to mesh, --threshold lo,hi.
+        #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+        threshold: Option<Vec<f32>>,
+        /// Metres per header unit of a MetaImage (whose header states none).
+        #[arg(long, default_value_t = 0.001)]
+        scale: f64,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Write the mesh even when it breaks a guarantee.
+        #[arg(long)]
+        force: bool,
     },
 }
 

@@ -1,4 +1,4 @@
-//! `tissue mesh inspect | convert | repair`.
+//! `tissue mesh inspect | convert | repair | tetrahedralize`.
 
 use anyhow::Context;
 use std::path::Path;
@@ -75,6 +75,25 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             crate::outln!("{}", written(output, &mesh)?);
             Ok(())
         }
+        MeshCommand::Tetrahedralize {
+            input,
+            output,
+            size,
+            labels,
+            threshold,
+            scale,
+            json,
+            force,
+        } => crate::tetrahedralize::tetrahedralize(&crate::tetrahedralize::Request {
+            input,
+            output,
+            size: *size,
+            labels: labels.as_deref(),
+            threshold: threshold.as_deref(),
+            scale: *scale,
+            json: *json,
+            force: *force,
+        }),
     }
 }
 

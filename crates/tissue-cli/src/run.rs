@@ -33,6 +33,19 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             info.precompute_seconds,
             info.memory_bytes as Real / 1e6
         );
+        if let Some(r) = scene.meshing_report() {
+            eprintln!(
+                "body meshed by isosurface stuffing (tet_size {:.4e} m): {} tetrahedra in {:.2} s, \
+                 dihedral {:.1}°..{:.1}°, volume {:+.2} %, Hausdorff {:.3} h",
+                r.size,
+                r.tets,
+                r.seconds,
+                r.min_dihedral_deg,
+                r.max_dihedral_deg,
+                100.0 * r.volume_error.unwrap_or(0.0),
+                r.hausdorff / r.size
+            );
+        }
     }
     let outcome = execute(&scene, sim, Some(&args.out), args.quiet)?;
     if !args.quiet {
@@ -282,6 +295,7 @@ impl Writer {
                 "elements": info.elements,
                 "memory_bytes": info.memory_bytes,
                 "precompute_seconds": info.precompute_seconds,
+            "meshing": scene.meshing_report(),
                 "is_static": info.is_static,
                 "details": details,
             },

@@ -274,11 +274,9 @@ fn image_header_errors_name_the_place() {
         "{e}"
     );
 
+    // A missing .nii.gz is named like any missing file (gzip is read since issue 25).
     let e = read_image(tmp("x.nii.gz"), 1.0).unwrap_err().to_string();
-    assert!(
-        e.ends_with("compressed NIfTI is not supported; gunzip it first"),
-        "{e}"
-    );
+    assert!(e.contains("x.nii.gz"), "{e}");
     let e = read_image(asset("pelvis_f.mhd"), 0.0)
         .unwrap_err()
         .to_string();

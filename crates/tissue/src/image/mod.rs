@@ -3,7 +3,7 @@
 //!
 //! | format | ext | notes |
 //! |---|---|---|
-//! | NIfTI-1 | `.nii`, `.hdr` + `.img` | either byte order; units from the header; not gzipped |
+//! | NIfTI-1 | `.nii`, `.nii.gz`, `.hdr` + `.img` | either byte order; units from the header |
 //! | MetaImage | `.mhd` + raw, `.mha` | header has no unit: multiply by `scale` |
 //!
 //! Both keep the grid axis-aligned: spacing and origin are read, orientation is not.
@@ -21,7 +21,7 @@ pub use grid::{ByteOrder, ImageStats, SourceType, VoxelImage};
 /// An image file format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImageFormat {
-    /// `.nii`, `.hdr`, `.img` (and `.nii.gz`, which is refused with a clear message).
+    /// `.nii`, `.nii.gz`, `.hdr`, `.img`.
     Nifti,
     /// `.mhd`, `.mha`.
     MetaImage,
@@ -50,23 +50,42 @@ pub fn read_image(path: impl AsRef<Path>, scale: f64) -> Result<VoxelImage, IoEr
     let path = path.as_ref();
     match ImageFormat::from_path(path) {
         Some(ImageFormat::MetaImage) => metaimage::read(path, scale),
-        Some(ImageFormat::Nifti) => {
-            let gz = path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-            if gz {
-                return Err(IoError::new(
-                    path,
-                    Location::File,
-                    "compressed NIfTI is not supported; gunzip it first",
-                ));
-            }
-            nifti::read(path)
-        }
+        Some(ImageFormat::Nifti) => nifti::read(path),
         None => Err(IoError::new(
             path,
             Location::File,
             "unknown image format; supported: .nii .hdr/.img .mhd .mha",
         )),
+    }
+}
+
+#[cfg(test)]
+mod gzip_tests {
+    use super::*;
+
+    #[test]
+    fn gzipped_nifti_reads_as_the_plain_file() {
+        use std::io::Write;
+        let plain = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../assets/images/anatomical.nii"
+        );
+        let bytes = std::fs::read(plain).unwrap_or_else(|e| panic!("{e}"));
+        let dir = std::env::temp_dir().join(format!("tissue-niigz-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
+        let gz = dir.join("a.nii.gz");
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        enc.write_all(&bytes).unwrap_or_else(|e| panic!("{e}"));
+        std::fs::write(&gz, enc.finish().unwrap_or_default()).unwrap_or_else(|e| panic!("{e}"));
+        let a = read_image(plain, 1.0).unwrap_or_else(|e| panic!("{e}"));
+        let b = read_image(&gz, 1.0).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(a, b);
+        std::fs::write(&gz, b"\x1f\x8b not gzip").unwrap_or_else(|e| panic!("{e}"));
+        let e = read_image(&gz, 1.0)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains("a.nii.gz") && e.contains("gzip"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

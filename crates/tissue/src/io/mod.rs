@@ -12,14 +12,18 @@
 //! | VTK legacy unstructured grid / polydata | `.vtk` | yes | yes |
 //! | VTK XML unstructured grid: ascii, base64, appended raw/base64, zlib | `.vtu` | yes | ascii, base64; `vtu::encode_appended` |
 //! | MEDIT | `.mesh` | yes | yes |
+//! | Geomview OFF | `.off` | yes | yes |
+//! | TetGen `.node` + `.ele` + `.face` | `.node`, `.ele`, `.face` | yes (the set by stem) | yes |
 
 mod cursor;
 pub mod medit;
 pub mod msh;
 pub mod obj;
+pub mod off;
 pub mod ply;
 pub mod series;
 pub mod stl;
+pub mod tetgen;
 pub mod vtk;
 mod vtk_cells;
 pub mod vtu;
@@ -39,6 +43,9 @@ pub enum Format {
     Vtk,
     Vtu,
     Medit,
+    Off,
+    /// A TetGen set `.node` / `.ele` / `.face`, named by any of them.
+    TetGen,
 }
 
 /// Gmsh file version to write.
@@ -82,11 +89,13 @@ impl Format {
             Some("vtk") => Ok(Format::Vtk),
             Some("vtu") => Ok(Format::Vtu),
             Some("mesh") => Ok(Format::Medit),
+            Some("off") => Ok(Format::Off),
+            Some("node" | "ele" | "face") => Ok(Format::TetGen),
             other => Err(IoError::new(
                 path,
                 Location::File,
                 format!(
-                    "unknown mesh format `{}`; supported: .obj .stl .ply .msh .vtk .vtu .mesh",
+                    "unknown mesh format `{}`; supported: .obj .stl .ply .msh .vtk .vtu .mesh .off .node/.ele/.face",
                     other.unwrap_or("")
                 ),
             )),
@@ -102,6 +111,11 @@ impl Format {
 pub fn read(path: impl AsRef<Path>) -> Result<MeshData, IoError> {
     let path = path.as_ref();
     let format = Format::from_path(path)?;
+    if format == Format::TetGen {
+        let mesh = tetgen::read(path)?;
+        check_indices(&mesh, path)?;
+        return Ok(mesh);
+    }
     let bytes = std::fs::read(path).map_err(|e| IoError::os(path, "read the file", e))?;
     parse(format, &bytes, path)
 }
@@ -116,6 +130,14 @@ pub fn parse(format: Format, bytes: &[u8], path: &Path) -> Result<MeshData, IoEr
         Format::Vtk => vtk::parse(bytes, path)?,
         Format::Vtu => vtu::parse(bytes, path)?,
         Format::Medit => medit::parse(bytes, path)?,
+        Format::Off => off::parse(bytes, path)?,
+        Format::TetGen => {
+            return Err(IoError::new(
+                path,
+                Location::File,
+                "a TetGen set spans .node, .ele and .face files: read it with io::read",
+            ));
+        }
     };
     check_indices(&mesh, path)?;
     Ok(mesh)
@@ -133,8 +155,11 @@ pub fn write_with(
     options: &WriteOptions,
 ) -> Result<(), IoError> {
     let path = path.as_ref();
-    let bytes = encode(Format::from_path(path)?, mesh, options)
-        .map_err(|m| IoError::new(path, Location::File, m))?;
+    let format = Format::from_path(path)?;
+    if format == Format::TetGen {
+        return tetgen::write(path, mesh);
+    }
+    let bytes = encode(format, mesh, options).map_err(|m| IoError::new(path, Location::File, m))?;
     std::fs::write(path, bytes).map_err(|e| IoError::os(path, "write the file", e))
 }
 
@@ -148,6 +173,8 @@ pub fn encode(format: Format, mesh: &MeshData, options: &WriteOptions) -> Result
         Format::Vtk => vtk::encode(mesh),
         Format::Vtu => vtu::encode(mesh, options.binary),
         Format::Medit => medit::encode(mesh),
+        Format::Off => off::encode(&surface_for_writing(mesh)?),
+        Format::TetGen => Err("a TetGen set is three files: write it with io::write".into()),
     }
 }
 

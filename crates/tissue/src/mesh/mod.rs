@@ -11,6 +11,7 @@ pub mod quality;
 pub mod refine;
 pub mod repair;
 pub mod spatial_grid;
+pub mod stuffing;
 pub mod surface;
 pub mod tet;
 pub mod topology;

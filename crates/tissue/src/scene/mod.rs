@@ -10,6 +10,7 @@
 mod checks;
 mod image;
 mod spec;
+mod tets;
 
 use std::path::{Path, PathBuf};
 
@@ -71,7 +72,8 @@ pub enum BodySpec {
 }
 
 /// A scene's body, loaded: the scaled mesh, or for an `[image]` the voxel grid of the part
-/// kept and its marching surface (as a surface-only mesh, for sizes and drawing).
+/// kept and its marching surface (as a surface-only mesh, for sizes and drawing). With
+/// `tet_size`, the mesh is the tetrahedral mesh stuffed into the surface or the voxels.
 #[derive(Clone, Debug)]
 pub struct Body {
     pub mesh: MeshData,
@@ -156,14 +158,21 @@ impl Scene {
                         "[mesh] scale = {s}: must be finite and > 0"
                     )));
                 }
+                tets::check_tet_size(mesh.tet_size, &model_kind)
+                    .map_err(|m| invalid(format!("[mesh] {m}")))?;
                 BodySpec::Mesh(mesh)
             }
             (None, Some(image)) => {
                 let l = line(image.span());
                 let image = image.into_inner();
                 check_image(&image).map_err(|m| invalid(format!("line {l}: [image] {m}")))?;
-                check_model(&model_kind, &params)
-                    .map_err(|m| invalid(format!("line {model_line}: [model] {m}")))?;
+                if image.tet_size.is_some() {
+                    tets::check_tet_size(image.tet_size, &model_kind)
+                        .map_err(|m| invalid(format!("line {l}: [image] {m}")))?;
+                } else {
+                    check_model(&model_kind, &params)
+                        .map_err(|m| invalid(format!("line {model_line}: [model] {m}")))?;
+                }
                 if raw.material.is_none() {
                     return Err(invalid(format!(
                         "line {l}: an [image] body needs a [material] table (an image carries none)"
@@ -262,6 +271,27 @@ impl Scene {
         }
     }
 
+    /// The report of the tetrahedral mesh this scene's body was stuffed into (`tet_size`),
+    /// if it has been built in this process.
+    pub fn meshing_report(&self) -> Option<crate::mesh::stuffing::MeshingReport> {
+        let size = match &self.body {
+            BodySpec::Mesh(m) => m.tet_size?,
+            BodySpec::Image(i) => i.value.tet_size?,
+        };
+        let key = match &self.body {
+            BodySpec::Mesh(m) => tets::surface_key(&self.mesh_path(), m.scale, size),
+            BodySpec::Image(i) => tets::image_key(&self.mesh_path(), &i.value, size),
+        };
+        tets::cached(key?).map(|(_, r)| r)
+    }
+
+    fn tet_failure(&self, f: tets::TetFailure, table: &str, size: Real) -> Error {
+        match f {
+            tets::TetFailure::File(e) => e,
+            tets::TetFailure::Mesh(m) => self.invalid(format!("{table} tet_size = {size}: {m}")),
+        }
+    }
+
     fn invalid(&self, message: String) -> Error {
         SceneError::Invalid {
             path: self.path.clone(),
@@ -301,6 +331,15 @@ impl Scene {
         let source = resolved.display().to_string();
         match &self.body {
             BodySpec::Mesh(m) => {
+                if let Some(size) = m.tet_size {
+                    let mesh = tets::surface_tets(&resolved, m.scale, size)
+                        .map_err(|f| self.tet_failure(f, "[mesh]", size))?;
+                    return Ok(Body {
+                        mesh,
+                        grid: None,
+                        source,
+                    });
+                }
                 let mut mesh = crate::io::read(&resolved)?;
                 for v in &mut mesh.vertices {
                     *v *= m.scale;
@@ -316,6 +355,15 @@ impl Scene {
                     Failure::Key(m) => self.invalid(format!("{table} {m} (image {source})")),
                     Failure::File(e) => e,
                 })?;
+                if let Some(size) = i.value.tet_size {
+                    let mesh = tets::image_tets(&resolved, &i.value, &grid, size)
+                        .map_err(|f| self.tet_failure(f, &table, size))?;
+                    return Ok(Body {
+                        mesh,
+                        grid: None,
+                        source,
+                    });
+                }
                 Ok(Body {
                     mesh: MeshData::from_surface(&marching_surface(&grid)),
                     grid: Some(grid),

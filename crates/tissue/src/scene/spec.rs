@@ -15,6 +15,9 @@ pub struct MeshSpec {
     pub file: PathBuf,
     #[serde(default = "one")]
     pub scale: Real,
+    /// Lattice spacing (m, after `scale`) to mesh a surface-only file into tetrahedra by
+    /// isosurface stuffing, for the kinds that need a volume.
+    pub tet_size: Option<Real>,
 }
 
 fn one() -> Real {
@@ -45,6 +48,9 @@ pub struct ImageSpec {
     pub spacing: Option<[Real; 3]>,
     /// Centre of voxel (0, 0, 0) (m), replacing the header's origin.
     pub origin: Option<[Real; 3]>,
+    /// Lattice spacing (m) to mesh the selected voxels into tetrahedra by isosurface
+    /// stuffing, which makes the body fit for the tetrahedral kinds instead of the voxel ones.
+    pub tet_size: Option<Real>,
 }
 
 fn one_step() -> usize {

@@ -1,0 +1,159 @@
+//! A segmented volume image as a domain: the voxels selected (by labels or a threshold
+//! window) make a mask, and the boundary is the 1/2 level of the mask's trilinear
+//! interpolation, which passes half way between a selected voxel centre and an unselected
+//! one, so the meshed volume follows the selected voxels' volume.
+
+use crate::error::MeshError;
+use crate::image::VoxelImage;
+use crate::math::{Real, Vec3};
+use crate::voxel::VoxelGrid;
+
+use super::domain::Domain;
+
+#[derive(Clone, Debug)]
+pub struct ImageDomain {
+    dims: [usize; 3],
+    spacing: Vec3,
+    origin: Vec3,
+    /// 1 for a selected voxel, 0 otherwise.
+    mask: Vec<f32>,
+    /// The label of every voxel (its value, rounded), for tags; empty for a threshold.
+    labels: Vec<i32>,
+    lo: Vec3,
+    hi: Vec3,
+    selected: usize,
+}
+
+impl ImageDomain {
+    /// The voxels whose value is one of `labels`; every tetrahedron is tagged with the label
+    /// of the selected voxel nearest to its centre.
+    pub fn from_labels(image: &VoxelImage, labels: &[f32]) -> Result<Self, MeshError> {
+        if labels.is_empty() {
+            return Err(MeshError::Invalid("no label to mesh was given".into()));
+        }
+        let mask: Vec<bool> = image.values.iter().map(|v| labels.contains(v)).collect();
+        let tags = image.values.iter().map(|&v| v.round() as i32).collect();
+        Self::from_mask(image, mask, tags, &format!("labels {labels:?}"))
+    }
+
+    /// The voxels with `lo <= value <= hi`, all tagged 1.
+    pub fn from_threshold(image: &VoxelImage, lo: f32, hi: f32) -> Result<Self, MeshError> {
+        let mask = image.threshold(lo, hi);
+        Self::from_mask(image, mask, Vec::new(), &format!("threshold {lo}..{hi}"))
+    }
+
+    /// The occupied voxels of a voxel grid (a scene's `[image]` after threshold, stride and
+    /// component selection), tagged by their material class.
+    pub fn from_grid(grid: &VoxelGrid) -> Result<Self, MeshError> {
+        let image = VoxelImage {
+            dims: grid.dims,
+            spacing: grid.spacing,
+            origin: grid.origin,
+            values: Vec::new(),
+            source_type: crate::image::SourceType::U8,
+            byte_order: crate::image::ByteOrder::Little,
+        };
+        let mask = grid.labels.iter().map(|&l| l > 0).collect();
+        let tags = grid.labels.iter().map(|&l| i32::from(l)).collect();
+        Self::from_mask(&image, mask, tags, "the grid")
+    }
+
+    fn from_mask(
+        image: &VoxelImage,
+        mask: Vec<bool>,
+        labels: Vec<i32>,
+        what: &str,
+    ) -> Result<Self, MeshError> {
+        let [nx, ny, _] = image.dims;
+        let (mut lo, mut hi) = (Vec3::splat(Real::INFINITY), Vec3::splat(-Real::INFINITY));
+        let mut selected = 0;
+        for (n, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+            let p = image.position(n % nx, (n / nx) % ny, n / (nx * ny));
+            lo = lo.min(p);
+            hi = hi.max(p);
+            selected += 1;
+        }
+        if selected == 0 {
+            return Err(MeshError::Invalid(format!(
+                "no voxel of the image is selected by {what}"
+            )));
+        }
+        Ok(Self {
+            dims: image.dims,
+            spacing: image.spacing,
+            origin: image.origin,
+            mask: mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect(),
+            labels,
+            lo: lo - image.spacing,
+            hi: hi + image.spacing,
+            selected,
+        })
+    }
+
+    /// Number of selected voxels.
+    pub fn selected_voxels(&self) -> usize {
+        self.selected
+    }
+
+    fn at(&self, i: i64, j: i64, k: i64) -> f32 {
+        let [nx, ny, nz] = self.dims.map(|v| v as i64);
+        if i < 0 || j < 0 || k < 0 || i >= nx || j >= ny || k >= nz {
+            return 0.0;
+        }
+        self.mask[(i + nx * (j + ny * k)) as usize]
+    }
+}
+
+impl Domain for ImageDomain {
+    fn value(&self, p: Vec3) -> Real {
+        let u = (p - self.origin) / self.spacing;
+        let f = u.floor();
+        let (i, j, k) = (f.x as i64, f.y as i64, f.z as i64);
+        let t = u - f;
+        let mut m = 0.0;
+        for c in 0..8 {
+            let (di, dj, dk) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+            let w = (if di == 1 { t.x } else { 1.0 - t.x })
+                * (if dj == 1 { t.y } else { 1.0 - t.y })
+                * (if dk == 1 { t.z } else { 1.0 - t.z });
+            if w > 0.0 {
+                m += w * Real::from(self.at(i + di, j + dj, k + dk));
+            }
+        }
+        0.5 - m
+    }
+
+    fn bounds(&self) -> (Vec3, Vec3) {
+        (self.lo, self.hi)
+    }
+
+    fn reference_volume(&self) -> Option<Real> {
+        Some(self.selected as Real * self.spacing.x * self.spacing.y * self.spacing.z)
+    }
+
+    fn tag_at(&self, p: Vec3) -> i32 {
+        if self.labels.is_empty() {
+            return 1;
+        }
+        let u = ((p - self.origin) / self.spacing).round();
+        let c = [u.x as i64, u.y as i64, u.z as i64];
+        let [nx, ny, _] = self.dims.map(|v| v as i64);
+        let mut best: Option<(Real, i32)> = None;
+        for dk in -1..=1 {
+            for dj in -1..=1 {
+                for di in -1..=1 {
+                    let (i, j, k) = (c[0] + di, c[1] + dj, c[2] + dk);
+                    if self.at(i, j, k) == 0.0 {
+                        continue;
+                    }
+                    let q = self.origin + Vec3::new(i as Real, j as Real, k as Real) * self.spacing;
+                    let d = (q - p).length_squared();
+                    if best.is_none_or(|(b, _)| d < b) {
+                        best = Some((d, self.labels[(i + nx * (j + ny * k)) as usize]));
+                    }
+                }
+            }
+        }
+        best.map_or(0, |(_, l)| l)
+    }
+}

@@ -1,0 +1,341 @@
+//! The numbers every meshing run is checked against: element shape (dihedral angles, radius
+//! ratio), validity (inverted or degenerate elements), volume against the input's, and the
+//! distance between the mesh boundary and the input boundary.
+
+use std::fmt;
+
+use serde::Serialize;
+
+use crate::math::{Real, Vec3, tet_signed_volume};
+use crate::mesh::TetMesh;
+use crate::mesh::boundary::boundary_surface;
+
+use super::domain::Domain;
+use super::triangle_index::TriangleIndex;
+
+/// The guarantee checked on every uniform-size output (Labelle & Shewchuk prove 10.7°).
+pub const MIN_DIHEDRAL_DEG: Real = 10.0;
+/// Largest allowed relative volume error.
+pub const MAX_VOLUME_ERROR: Real = 0.01;
+/// A tetrahedron is degenerate below this volume, relative to h³.
+const DEGENERATE_VOLUME: Real = 1e-9;
+
+/// What a meshing run produced and how good it is.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MeshingReport {
+    /// Lattice spacing h (m): the long edge of the BCC tetrahedra.
+    pub size: Real,
+    pub vertices: usize,
+    pub tets: usize,
+    pub boundary_triangles: usize,
+    /// Lattice vertices moved onto the surface, and cut points made.
+    pub warped: usize,
+    pub cut_points: usize,
+    /// Prism centres added where the quadrilateral diagonals leave no 3-tetrahedron split.
+    pub steiner_points: usize,
+    pub min_dihedral_deg: Real,
+    pub median_dihedral_deg: Real,
+    pub max_dihedral_deg: Real,
+    /// Radius ratio 3·r_in/r_circ (1 for the regular tetrahedron).
+    pub min_radius_ratio: Real,
+    pub median_radius_ratio: Real,
+    pub inverted: usize,
+    pub degenerate: usize,
+    /// Mesh volume (m³), the input's (closed surface or voxel count), and the relative error.
+    pub volume: Real,
+    pub reference_volume: Option<Real>,
+    pub volume_error: Option<Real>,
+    /// Largest distance from a mesh boundary point (vertex, face centroid, edge midpoint) to
+    /// the input boundary (m).
+    pub mesh_to_input: Real,
+    /// Largest distance from an input boundary sample to the mesh boundary (m).
+    pub input_to_mesh: Real,
+    /// max of the two: the (sampled) Hausdorff distance.
+    pub hausdorff: Real,
+    /// How `mesh_to_input` was measured: "exact" (a surface) or "first-order" (|f|/|∇f|).
+    pub distance_method: &'static str,
+    /// Wall time of the meshing itself, in s.
+    pub seconds: Real,
+}
+
+impl MeshingReport {
+    /// The guarantees this mesh breaks, in words; empty when it keeps them all.
+    pub fn violations(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        if self.tets == 0 {
+            v.push(
+                "no tetrahedra: the shape is thinner than the size; use a smaller --size".into(),
+            );
+        }
+        if self.inverted > 0 {
+            v.push(format!("{} inverted tetrahedra", self.inverted));
+        }
+        if self.degenerate > 0 {
+            v.push(format!("{} degenerate tetrahedra", self.degenerate));
+        }
+        if self.tets > 0 && self.min_dihedral_deg < MIN_DIHEDRAL_DEG {
+            v.push(format!(
+                "minimum dihedral angle {:.2}° < {MIN_DIHEDRAL_DEG}°",
+                self.min_dihedral_deg
+            ));
+        }
+        if self.hausdorff > 0.5 * self.size {
+            v.push(format!(
+                "boundary {:.3e} m from the input, more than h/2 = {:.3e} m",
+                self.hausdorff,
+                0.5 * self.size
+            ));
+        }
+        if let Some(e) = self.volume_error
+            && e.abs() > MAX_VOLUME_ERROR
+        {
+            v.push(format!(
+                "volume {:+.2} % off the input's (more than {} %)",
+                100.0 * e,
+                100.0 * MAX_VOLUME_ERROR
+            ));
+        }
+        v
+    }
+}
+
+impl fmt::Display for MeshingReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{} tetrahedra, {} vertices, {} boundary triangles (size h = {:.4e} m; {} cut points, {} warped vertices, {} Steiner points) in {:.2} s",
+            self.tets,
+            self.vertices,
+            self.boundary_triangles,
+            self.size,
+            self.cut_points,
+            self.warped,
+            self.steiner_points,
+            self.seconds
+        )?;
+        writeln!(
+            f,
+            "dihedral angles: min {:.2}°, median {:.2}°, max {:.2}°",
+            self.min_dihedral_deg, self.median_dihedral_deg, self.max_dihedral_deg
+        )?;
+        writeln!(
+            f,
+            "radius ratio:    min {:.3}, median {:.3}; inverted {}, degenerate {}",
+            self.min_radius_ratio, self.median_radius_ratio, self.inverted, self.degenerate
+        )?;
+        match (self.reference_volume, self.volume_error) {
+            (Some(r), Some(e)) => writeln!(
+                f,
+                "volume:          {:.6e} m³ against the input's {:.6e} m³ ({:+.3} %)",
+                self.volume,
+                r,
+                100.0 * e
+            )?,
+            _ => writeln!(f, "volume:          {:.6e} m³", self.volume)?,
+        }
+        writeln!(
+            f,
+            "boundary:        mesh→input {:.3e} m ({}), input→mesh {:.3e} m; Hausdorff {:.3e} m = {:.3} h",
+            self.mesh_to_input,
+            self.distance_method,
+            self.input_to_mesh,
+            self.hausdorff,
+            self.hausdorff / self.size
+        )?;
+        let v = self.violations();
+        if v.is_empty() {
+            writeln!(
+                f,
+                "guarantees kept: no inverted or degenerate element, min dihedral ≥ {MIN_DIHEDRAL_DEG}°, boundary within h/2{}",
+                if self.volume_error.is_some() {
+                    ", volume within 1 %"
+                } else {
+                    ""
+                }
+            )
+        } else {
+            writeln!(f, "GUARANTEES BROKEN: {}", v.join("; "))
+        }
+    }
+}
+
+/// The six dihedral angles of a tetrahedron, in radians: the angle at edge (i, j) between
+/// the two faces through it, measured between the other two corners projected onto the
+/// plane normal to the edge.
+pub fn dihedral_angles(p: [Vec3; 4]) -> [Real; 6] {
+    const EDGES: [(usize, usize, usize, usize); 6] = [
+        (0, 1, 2, 3),
+        (0, 2, 1, 3),
+        (0, 3, 1, 2),
+        (1, 2, 0, 3),
+        (1, 3, 0, 2),
+        (2, 3, 0, 1),
+    ];
+    EDGES.map(|(i, j, k, l)| {
+        let e = (p[j] - p[i]).normalize_or_zero();
+        let u = p[k] - p[i];
+        let v = p[l] - p[i];
+        let u = u - e * e.dot(u);
+        let v = v - e * e.dot(v);
+        let c = u.dot(v) / (u.length() * v.length());
+        if c.is_finite() {
+            c.clamp(-1.0, 1.0).acos()
+        } else {
+            0.0
+        }
+    })
+}
+
+/// 3·r_in / r_circ: 1 for the regular tetrahedron, 0 when flat.
+pub fn radius_ratio(p: [Vec3; 4]) -> Real {
+    let v = tet_signed_volume(p[0], p[1], p[2], p[3]).abs();
+    let area = |a: Vec3, b: Vec3, c: Vec3| 0.5 * (b - a).cross(c - a).length();
+    let faces = area(p[1], p[2], p[3])
+        + area(p[0], p[2], p[3])
+        + area(p[0], p[1], p[3])
+        + area(p[0], p[1], p[2]);
+    let (a, b, c) = (p[0] - p[3], p[1] - p[3], p[2] - p[3]);
+    let num = a.length_squared() * b.cross(c)
+        + b.length_squared() * c.cross(a)
+        + c.length_squared() * a.cross(b);
+    let r_circ = num.length() / (12.0 * v);
+    let r_in = 3.0 * v / faces;
+    let q = 3.0 * r_in / r_circ;
+    if q.is_finite() { q } else { 0.0 }
+}
+
+fn median(mut v: Vec<Real>) -> Real {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_unstable_by(Real::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Measures a mesh against the domain it was made from. `size` is the lattice spacing.
+pub fn measure(
+    mesh: &TetMesh,
+    domain: &dyn Domain,
+    exact_distance: Option<&TriangleIndex>,
+    size: Real,
+) -> MeshingReport {
+    let mut angles = Vec::with_capacity(6 * mesh.tets.len());
+    let mut ratios = Vec::with_capacity(mesh.tets.len());
+    let (mut inverted, mut degenerate) = (0, 0);
+    let mut volume = 0.0;
+    let flat = DEGENERATE_VOLUME * size * size * size;
+    for t in 0..mesh.tets.len() {
+        let p = mesh.corners(t);
+        let v = tet_signed_volume(p[0], p[1], p[2], p[3]);
+        volume += v;
+        if v.abs() <= flat {
+            degenerate += 1;
+        } else if v < 0.0 {
+            inverted += 1;
+        }
+        angles.extend(dihedral_angles(p).map(Real::to_degrees));
+        ratios.push(radius_ratio(p));
+    }
+    let min_dihedral_deg = angles.iter().copied().fold(Real::INFINITY, Real::min);
+    let max_dihedral_deg = angles.iter().copied().fold(0.0, Real::max);
+    let min_radius_ratio = ratios.iter().copied().fold(Real::INFINITY, Real::min);
+    let boundary = if mesh.tets.is_empty() {
+        Default::default()
+    } else {
+        boundary_surface(mesh).surface
+    };
+    // Mesh → input: the boundary's vertices, face centroids and edge midpoints.
+    let mut probes = boundary.vertices.clone();
+    for t in 0..boundary.triangles.len() {
+        let [a, b, c] = boundary.corners(t);
+        probes.extend([
+            (a + b + c) / 3.0,
+            0.5 * (a + b),
+            0.5 * (b + c),
+            0.5 * (c + a),
+        ]);
+    }
+    let step = 1e-3 * size;
+    let mesh_to_input = probes
+        .iter()
+        .map(|&p| match exact_distance {
+            Some(index) => index.distance(p),
+            None => domain.boundary_distance(p, step),
+        })
+        .fold(0.0, Real::max);
+    // Input → mesh: boundary samples of the input, about h/4 apart.
+    let index = TriangleIndex::new(&boundary.vertices, &boundary.triangles);
+    let input_to_mesh = domain
+        .boundary_samples(0.25 * size)
+        .iter()
+        .map(|&p| index.distance(p))
+        .fold(0.0, Real::max);
+    let reference_volume = domain.reference_volume();
+    MeshingReport {
+        size,
+        vertices: mesh.vertices.len(),
+        tets: mesh.tets.len(),
+        boundary_triangles: boundary.triangles.len(),
+        warped: 0,
+        cut_points: 0,
+        steiner_points: 0,
+        min_dihedral_deg: if mesh.tets.is_empty() {
+            0.0
+        } else {
+            min_dihedral_deg
+        },
+        median_dihedral_deg: median(angles),
+        max_dihedral_deg,
+        min_radius_ratio: if mesh.tets.is_empty() {
+            0.0
+        } else {
+            min_radius_ratio
+        },
+        median_radius_ratio: median(ratios),
+        inverted,
+        degenerate,
+        volume,
+        reference_volume,
+        volume_error: reference_volume
+            .filter(|&r| r > 0.0)
+            .map(|r| (volume - r) / r),
+        mesh_to_input,
+        input_to_mesh,
+        hausdorff: mesh_to_input.max(input_to_mesh),
+        distance_method: if exact_distance.is_some() {
+            "exact"
+        } else {
+            "first-order"
+        },
+        seconds: 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regular_and_right_corner_tetrahedra() {
+        let reg = [
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(1.0, -1.0, -1.0),
+            Vec3::new(-1.0, 1.0, -1.0),
+            Vec3::new(-1.0, -1.0, 1.0),
+        ];
+        let want = (1.0f64 / 3.0).acos();
+        assert!(
+            dihedral_angles(reg)
+                .iter()
+                .all(|a| (a - want).abs() < 1e-12)
+        );
+        assert!((radius_ratio(reg) - 1.0).abs() < 1e-12);
+        let corner = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        let a = dihedral_angles(corner).map(Real::to_degrees);
+        // Three right angles at the corner edges, three of acos(1/√3) ≈ 54.74° elsewhere.
+        let mut s = a.to_vec();
+        s.sort_by(Real::total_cmp);
+        assert!((s[0] - 54.735_610_317).abs() < 1e-6 && (s[2] - 54.735_610_317).abs() < 1e-6);
+        assert!(s[3..].iter().all(|x| (x - 90.0).abs() < 1e-9));
+    }
+}
