@@ -1,5 +1,6 @@
 //! `tissue`: run, inspect and convert deformable tissue models from the command line.
 
+mod bench;
 mod demo;
 mod haptic_bench;
 mod mesh_cmd;
@@ -39,6 +40,9 @@ enum Command {
     View(view::ViewArgs),
     /// Drive the 1 kHz haptic loop with a scripted device over UDP and print its timing.
     HapticBench(haptic_bench::HapticBenchArgs),
+    /// Benchmarks of record: `tissue bench beam` runs the clamped beam for every dynamic kind.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 #[derive(Args, Debug)]
@@ -131,6 +135,7 @@ fn main() -> ExitCode {
         Command::Mesh(cmd) => mesh_cmd::mesh(&cmd),
         Command::View(args) => view::view(&args),
         Command::HapticBench(args) => haptic_bench::haptic_bench(&args),
+        Command::Bench(cmd) => bench::bench(&cmd),
         Command::Models => models(),
     };
     // What is still buffered fails here, not silently at exit.
