@@ -1,5 +1,6 @@
 //! `tissue`: run, inspect and convert deformable tissue models from the command line.
 
+mod compare;
 mod demo;
 mod haptic_bench;
 mod mesh_cmd;
@@ -36,6 +37,9 @@ enum Command {
     View(view::ViewArgs),
     /// Drive the 1 kHz haptic loop with a scripted device over UDP and print its timing.
     HapticBench(haptic_bench::HapticBenchArgs),
+    /// Measure every model kind on one organ and score them against the survey's Table 1:
+    /// compare.json, table1.md/html, radars and plots (SVG, PNG) in the output directory.
+    Compare(compare::CompareArgs),
 }
 
 #[derive(Args, Debug)]
@@ -100,6 +104,7 @@ fn main() -> ExitCode {
         Command::Mesh(cmd) => mesh_cmd::mesh(&cmd),
         Command::View(args) => view::view(&args),
         Command::HapticBench(args) => haptic_bench::haptic_bench(&args),
+        Command::Compare(args) => compare::compare(&args),
         Command::Models => {
             for k in tissue::model::KINDS {
                 println!("{:<26} {}", k.name, k.summary);

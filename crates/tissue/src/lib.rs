@@ -5,6 +5,7 @@
 //! drawing and the instrument force for a haptic device come out. Every model implements
 //! `model::Deformable`. SI units (m, kg, s, Pa, N) and `f64` throughout.
 
+pub mod compare;
 pub mod error;
 pub mod haptic;
 pub mod image;
