@@ -1,6 +1,7 @@
 //! `tissue`: run, inspect and convert deformable tissue models from the command line.
 
 mod bench;
+mod compare;
 mod demo;
 mod haptic_bench;
 mod mesh_cmd;
@@ -43,6 +44,9 @@ enum Command {
     /// Benchmarks of record: `tissue bench beam` runs the clamped beam for every dynamic kind.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
+    /// Measure every model kind on one organ and score them against the survey's Table 1:
+    /// compare.json, table1.md/html, radars and plots (SVG, PNG) in the output directory.
+    Compare(compare::CompareArgs),
 }
 
 #[derive(Args, Debug)]
@@ -137,6 +141,7 @@ fn main() -> ExitCode {
         Command::HapticBench(args) => haptic_bench::haptic_bench(&args),
         Command::Bench(cmd) => bench::bench(&cmd),
         Command::Models => models(),
+        Command::Compare(args) => compare::compare(&args),
     };
     // What is still buffered fails here, not silently at exit.
     let result = result.and_then(|()| {

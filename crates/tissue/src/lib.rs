@@ -6,6 +6,7 @@
 //! `model::Deformable`. SI units (m, kg, s, Pa, N) and `f64` throughout.
 
 pub mod benchmark;
+pub mod compare;
 pub mod error;
 pub mod haptic;
 pub mod image;

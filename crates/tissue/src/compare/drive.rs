@@ -1,0 +1,228 @@
+//! Driving a model through a scenario: ramps to a target and holds until it settles
+//! (quasi-static), with the probe through `Simulation` (contact as a user gets it) or with
+//! prescribed vertices directly (plate, rotation, bar).
+
+use std::time::Instant;
+
+use crate::error::{Error, SimError};
+use crate::interact::{
+    Constraints, Instrument, InstrumentKind, Keyframe, Loads, Prescribed, Trajectory,
+};
+use crate::math::{Real, Vec3, is_finite_vec};
+use crate::model::Deformable;
+use crate::sim::Simulation;
+
+use super::Settings;
+
+/// How a model is stepped through a quasi-static scenario.
+#[derive(Clone, Copy, Debug)]
+pub struct Stepping {
+    pub is_static: bool,
+    /// Step of dynamic models, s.
+    pub dt: Real,
+    /// Ramp time of dynamic models, s (static models take `increments` solves).
+    pub ramp: Real,
+    /// Longest simulated time of dynamic models, s.
+    pub max_time: Real,
+    pub increments: usize,
+}
+
+impl Stepping {
+    pub fn new(is_static: bool, dt: Real, s: &Settings) -> Self {
+        Self {
+            is_static,
+            dt,
+            ramp: s.ramp,
+            max_time: s.settle_time,
+            increments: s.increments,
+        }
+    }
+}
+
+/// The end of a quasi-static run.
+#[derive(Clone, Debug, Default)]
+pub struct Settled {
+    /// (load fraction, watched quantity) along the run.
+    pub curve: Vec<[Real; 2]>,
+    /// The watched quantity at the end.
+    pub value: Real,
+    /// False when a dynamic model was still moving at `max_time`.
+    pub settled: bool,
+    pub steps: usize,
+    pub seconds: Real,
+}
+
+/// Steps until the watched quantity is steady after the ramp; `apply(s)` sets the load
+/// at fraction s ∈ [0, 1], `watch` reads the quantity.
+fn run<M: ?Sized>(
+    m: &mut M,
+    st: &Stepping,
+    mut apply: impl FnMut(&mut M, Real) -> Result<(), Error>,
+    mut step: impl FnMut(&mut M, Real) -> Result<(), Error>,
+    watch: impl Fn(&M) -> Real,
+) -> Result<Settled, Error> {
+    let start = Instant::now();
+    let mut out = Settled::default();
+    if st.is_static {
+        for k in 1..=st.increments.max(1) {
+            let s = k as Real / st.increments.max(1) as Real;
+            apply(m, s)?;
+            step(m, st.dt)?;
+            out.steps += 1;
+            out.curve.push([s, watch(m)]);
+        }
+        out.value = watch(m);
+        out.settled = true;
+        out.seconds = start.elapsed().as_secs_f64();
+        return Ok(out);
+    }
+    let dt = st.dt;
+    let steps = (st.max_time / dt).ceil() as usize;
+    let record_every = ((st.ramp / dt) / 20.0).ceil().max(1.0) as usize;
+    // Steady: the quantity moved less than 0.5 % (of its size) over the last 5 % of the time
+    // limit.
+    let window = ((0.05 * st.max_time / dt).ceil() as usize).max(2);
+    let mut history: Vec<Real> = Vec::new();
+    for k in 1..=steps {
+        let t = k as Real * dt;
+        let s = (t / st.ramp).min(1.0);
+        apply(m, s)?;
+        step(m, dt)?;
+        out.steps = k;
+        let q = watch(m);
+        if !q.is_finite() {
+            return Err(SimError::Diverged {
+                step: k as u64,
+                node: 0,
+                reason: "the measured quantity is not finite".into(),
+            }
+            .into());
+        }
+        if k % record_every == 0 || k == steps {
+            out.curve.push([s, q]);
+        }
+        if s >= 1.0 {
+            history.push(q);
+            if history.len() > window {
+                let old = history[history.len() - 1 - window];
+                let scale = q.abs().max(old.abs()).max(1e-12);
+                if (q - old).abs() <= 5e-3 * scale {
+                    out.settled = true;
+                    break;
+                }
+            }
+        }
+    }
+    out.value = watch(m);
+    out.seconds = start.elapsed().as_secs_f64();
+    Ok(out)
+}
+
+/// The probe pressing `depth` m straight down at `point` (touching at the start).
+pub fn probe_instrument(point: Vec3, radius: Real, depth: Real, ramp: Real) -> Result<Instrument, Error> {
+    let top = point + Vec3::Y * radius;
+    let bottom = top - Vec3::Y * depth;
+    let key = |t: Real, p: Vec3| Keyframe {
+        t,
+        position: p.into(),
+    };
+    let path = Trajectory::new(vec![key(0.0, top), key(ramp, bottom)]).map_err(|e| {
+        SimError::BadParameter {
+            name: "path",
+            value: "probe".into(),
+            reason: e.to_string(),
+        }
+    })?;
+    Ok(Instrument::new("probe", InstrumentKind::Probe, radius, path)?)
+}
+
+/// Quasi-static indentation with the probe through `Simulation`; watches the probe force
+/// (up, N). Returns the simulation for the displacement field.
+pub fn indent(
+    model: Box<dyn Deformable>,
+    fixed: Vec<u32>,
+    point: Vec3,
+    radius: Real,
+    depth: Real,
+    st: &Stepping,
+) -> Result<(Settled, Simulation), Error> {
+    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    // Static models: `increments` solves over a unit ramp; dynamic ones follow the ramp.
+    let (ramp, dt) = if st.is_static {
+        (1.0, 1.0 / st.increments.max(1) as Real)
+    } else {
+        (st.ramp, st.dt)
+    };
+    sim.add_instrument(probe_instrument(point, radius, depth, ramp)?);
+    let st = Stepping { dt, ..*st };
+    let settled = run(
+        &mut sim,
+        &st,
+        |_, _| Ok(()),
+        |sim, dt| {
+            sim.step(dt)?;
+            check_finite(sim.model())
+        },
+        |sim| sim.instrument_forces().first().map_or(0.0, |f| f.y),
+    )?;
+    Ok((settled, sim))
+}
+
+/// Quasi-static run with prescribed surface vertices: `targets(s)` gives each prescribed
+/// vertex's position at load fraction s; `fixed` stay at rest. Watches `watch`.
+pub fn prescribe(
+    model: &mut dyn Deformable,
+    fixed: &[u32],
+    moved: &[u32],
+    target: impl Fn(Vec3, Real) -> Vec3,
+    st: &Stepping,
+    watch: impl Fn(&dyn Deformable) -> Real,
+) -> Result<Settled, Error> {
+    let rest: Vec<Vec3> = model.rest_surface().to_vec();
+    let mut last = -1.0;
+    run(
+        model,
+        st,
+        |m, s| {
+            if s == last {
+                return Ok(());
+            }
+            last = s;
+            let c = Constraints {
+                fixed: fixed.to_vec(),
+                prescribed: moved
+                    .iter()
+                    .map(|&v| Prescribed {
+                        vertex: v,
+                        position: target(rest[v as usize], s),
+                    })
+                    .collect(),
+            };
+            Ok(m.set_constraints(&c)?)
+        },
+        |m, dt| {
+            m.step(dt)?;
+            check_finite(m)
+        },
+        |m| watch(m),
+    )
+}
+
+/// An error when the surface holds a non-finite position.
+pub fn check_finite(m: &dyn Deformable) -> Result<(), Error> {
+    match m.surface().positions.iter().position(|p| !is_finite_vec(*p)) {
+        None => Ok(()),
+        Some(v) => Err(SimError::Diverged {
+            step: 0,
+            node: v,
+            reason: "a surface position is not finite".into(),
+        }
+        .into()),
+    }
+}
+
+/// Signed volume enclosed by the model's current surface, m³.
+pub fn volume(m: &dyn Deformable) -> Real {
+    let s = m.surface();
+    crate::mesh::surface::signed_volume_of(s.positions, s.triangles)
+}

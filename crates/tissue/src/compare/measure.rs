@@ -1,0 +1,882 @@
+//! The measurements of one model kind on the organ, each criterion by something real
+//! (see `docs/compare.md` for what each one means and how it is scored).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use crate::error::Error;
+use crate::interact::{Constraints, Instrument, InstrumentKind, Keyframe, Loads, Trajectory};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::MeshData;
+use crate::model::{CutPath, Deformable};
+use crate::sim::Simulation;
+
+use super::drive::{Stepping, check_finite, indent, prescribe, volume};
+use super::record::{Curve, KindRecord, Measure};
+use super::setup::{Organ, Scenario, build_on, guarded, nearest};
+use super::{Reference, Settings, survey};
+
+/// The material of the quasi-static scenarios: the organ's, with mass damping near critical
+/// for the organ's first mode so dynamic models settle sooner (equilibria do not depend on it).
+pub fn settling(m: Material, scenario: &Scenario) -> Material {
+    let c = (m.young_modulus / m.density).sqrt();
+    let omega = std::f64::consts::PI * c / (2.0 * scenario.height.max(1e-6));
+    Material {
+        damping: 2.0 * omega,
+        ..m
+    }
+}
+
+fn err(e: &Error) -> String {
+    e.to_string()
+}
+
+/// Measures everything on `kind`; never fails: what cannot be done is a measure with its
+/// reason.
+pub fn measure_kind(
+    kind: &str,
+    organ: &Organ,
+    scenario: &Scenario,
+    reference: &Reference,
+    settings: &Settings,
+    progress: &dyn Fn(&str),
+) -> KindRecord {
+    let start = Instant::now();
+    let column = survey::survey_column(kind)
+        .map(|c| c.name)
+        .unwrap_or_else(|| survey::column_note(kind));
+    let mut rec = KindRecord {
+        kind: kind.into(),
+        column: column.into(),
+        ..KindRecord::default()
+    };
+    let mat = organ.material;
+    let qs_mat = settling(mat, scenario);
+    // Build (pre-computations, memory, unknowns, mesh data acquisition).
+    progress("build");
+    let t0 = Instant::now();
+    let built = organ.build(kind, qs_mat);
+    let build_s = t0.elapsed().as_secs_f64();
+    let model = match built {
+        Ok(m) => m,
+        Err(e) => {
+            rec.build_error = Some(err(&e));
+            rec.wall_seconds = start.elapsed().as_secs_f64();
+            return rec;
+        }
+    };
+    let info = model.info();
+    let m = &mut rec.measures;
+    m.insert("build_seconds".into(), Measure::of(build_s, "s"));
+    m.insert(
+        "precompute_seconds".into(),
+        Measure::of(info.precompute_seconds, "s"),
+    );
+    m.insert(
+        "memory_bytes".into(),
+        Measure::of(info.memory_bytes as Real, "B"),
+    );
+    m.insert("dofs".into(), Measure::of(info.dofs as Real, "unknowns"));
+    m.insert(
+        "elements".into(),
+        Measure::of(info.elements as Real, "elements"),
+    );
+    m.insert("nodes".into(), Measure::of(info.nodes as Real, "nodes"));
+    m.insert(
+        "acquisition_seconds".into(),
+        Measure::of(organ.read_seconds + build_s, "s")
+            .noted("file read + conversion + build"),
+    );
+    // Which input it needs: tetrahedra if it refuses the organ's surface alone.
+    let surface_only = organ.mesh.surface_mesh().map(|s| MeshData::from_surface(&s));
+    let needs_tets = match &surface_only {
+        Ok(s) => match build_on(kind, s, &organ.name, mat, &toml::Table::new()) {
+            Ok(_) => 0.0,
+            Err(Error::Mesh(crate::error::MeshError::NeedsVolume { .. })) => 1.0,
+            Err(Error::Sim(crate::error::SimError::Mesh(
+                crate::error::MeshError::NeedsVolume { .. },
+            ))) => 1.0,
+            Err(_) => 1.0,
+        },
+        Err(_) => 1.0,
+    };
+    m.insert(
+        "needs_tetrahedra".into(),
+        Measure::of(needs_tets, "bool").noted(if needs_tets > 0.0 {
+            "needs a tetrahedral mesh"
+        } else {
+            "builds from the surface alone"
+        }),
+    );
+    // Rendering: is the drawn surface made of mechanical nodes?
+    let direct = surface_is_mechanical(model.as_ref());
+    m.insert(
+        "surface_is_mechanical".into(),
+        Measure::of(if direct { 1.0 } else { 0.0 }, "bool").noted(if direct {
+            "draws its mechanical nodes"
+        } else {
+            "the drawn surface is mapped from the mechanical nodes"
+        }),
+    );
+    let is_static = info.is_static;
+    m.insert(
+        "is_static".into(),
+        Measure::of(if is_static { 1.0 } else { 0.0 }, "bool"),
+    );
+    drop(model);
+
+    // Robustness 1: the largest stable step.
+    progress("stable step");
+    let stable = stable_step(kind, organ, scenario, qs_mat, settings);
+    let dt_run = match &stable {
+        Ok(dt) => {
+            let mut meas = Measure::of(*dt, "s");
+            if is_static {
+                meas = meas.noted("static: the step plays no role");
+            } else if *dt >= settings.dt_max {
+                meas = meas.noted(format!("stable at the largest tried, {} s", settings.dt_max));
+            }
+            rec.measures.insert("stable_dt".into(), meas);
+            (0.5 * dt).min(1e-3)
+        }
+        Err(e) => {
+            rec.measures
+                .insert("stable_dt".into(), Measure::failed("s", e.clone()));
+            1e-5
+        }
+    };
+    let stable_dt = stable.as_ref().ok().copied();
+    let st = Stepping::new(is_static, dt_run, settings);
+    rec.measures
+        .insert("run_dt".into(), Measure::of(if is_static { 1.0 } else { dt_run }, "s"));
+
+    // Velocity: cost of a simulated millisecond at the haptic and the visual step.
+    progress("velocity");
+    for (name, dt, steps) in [("haptic", 1e-3, settings.cost_steps), ("visual", 1.0 / 60.0, 12)] {
+        let r = guarded(|| cost_per_ms(kind, organ, scenario, qs_mat, dt, steps)).and_then(|r| r);
+        let m = match r {
+            Ok((per_ms, latency)) => {
+                if name == "haptic" {
+                    rec.measures
+                        .insert("contact_latency".into(), Measure::of(latency, "s"));
+                }
+                Measure::of(per_ms, "s per simulated ms")
+            }
+            Err(e) => Measure::failed(
+                "s per simulated ms",
+                match stable_dt {
+                    Some(s) => format!("failed at dt = {dt:.3e} s (stable step {s:.2e} s): {e}"),
+                    None => format!("failed at dt = {dt:.3e} s: {e}"),
+                },
+            ),
+        };
+        rec.measures.insert(format!("cost_{name}"), m);
+    }
+
+    // Robustness 2: randomized probe and grasp paths.
+    progress("random paths");
+    let (ok, total, first) = random_paths(kind, organ, scenario, qs_mat, &st, settings);
+    let mut rm = Measure::of(ok as Real / total.max(1) as Real, "share");
+    if let Some(f) = first {
+        rm = rm.noted(format!("{ok}/{total}; first failure: {f}"));
+    }
+    rec.measures.insert("random_success".into(), rm);
+    // Robustness 3: one inverted element in the input.
+    rec.measures.insert(
+        "inverted_element".into(),
+        inverted_element(kind, organ, scenario, qs_mat, &st),
+    );
+
+    // Deformational behaviour and mesh dimension: the shallow indentation.
+    progress("indentation");
+    match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.shallow)).and_then(|r| r) {
+        Ok((f, field, curve, settled)) => {
+            let fe = (f - reference.force_shallow).abs() / reference.force_shallow.abs().max(1e-12);
+            let mut fm = Measure::of(f, "N");
+            let mut em = Measure::of(fe, "relative");
+            if !settled {
+                fm = fm.noted("not settled at the time limit");
+                em = em.noted("not settled at the time limit");
+            }
+            rec.measures.insert("force_shallow".into(), fm);
+            rec.measures.insert("force_error".into(), em);
+            let de = reference.displacement_error(&field);
+            rec.measures
+                .insert("displacement_error".into(), Measure::of(de, "relative"));
+            rec.curves.insert(
+                "indentation".into(),
+                Curve {
+                    x_unit: "m".into(),
+                    y_unit: "N".into(),
+                    points: curve.iter().map(|p| [p[0] * scenario.shallow, p[1]]).collect(),
+                },
+            );
+        }
+        Err(e) => {
+            for k in ["force_shallow", "force_error", "displacement_error"] {
+                rec.measures.insert(k.into(), Measure::failed("", err(&e)));
+            }
+        }
+    }
+    // Great deformations: deep indentation, rigid rotation.
+    progress("deep");
+    match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.deep)).and_then(|r| r) {
+        Ok((f, _, _, settled)) => {
+            let fe = (f - reference.force_deep).abs() / reference.force_deep.abs().max(1e-12);
+            let mut em = Measure::of(fe, "relative");
+            if !settled {
+                em = em.noted("not settled at the time limit");
+            }
+            rec.measures.insert("force_deep".into(), Measure::of(f, "N"));
+            rec.measures.insert("deep_error".into(), em);
+        }
+        Err(e) => {
+            rec.measures
+                .insert("deep_error".into(), Measure::failed("relative", err(&e)));
+        }
+    }
+    progress("rotation");
+    match guarded(|| rotation(kind, organ, scenario, qs_mat, &st)).and_then(|r| r) {
+        Ok((force, dv, settled)) => {
+            let rel = force / reference.force_shallow.abs().max(1e-12);
+            let mut fm = Measure::of(rel, "× reference probe force");
+            if !settled {
+                fm = fm.noted("not settled at the time limit");
+            }
+            rec.measures.insert("rotation_force".into(), fm);
+            rec.measures
+                .insert("rotation_volume".into(), Measure::of(dv, "relative"));
+        }
+        Err(e) => {
+            for k in ["rotation_force", "rotation_volume"] {
+                rec.measures.insert(k.into(), Measure::failed("", err(&e)));
+            }
+        }
+    }
+    // Volumetric constancy: plate compression at nu = 0.45.
+    progress("compression");
+    let incompressible = Material {
+        poisson_ratio: 0.45,
+        ..qs_mat
+    };
+    match guarded(|| compression(kind, organ, scenario, incompressible, &st)).and_then(|r| r) {
+        Ok((dv, curve, settled)) => {
+            let mut vm = Measure::of(dv, "relative");
+            if !settled {
+                vm = vm.noted("not settled at the time limit");
+            }
+            rec.measures.insert("compression_volume".into(), vm);
+            rec.measures.insert(
+                "compression_volume_error".into(),
+                Measure::of((dv - reference.compression_volume).abs(), "relative"),
+            );
+            rec.curves.insert(
+                "compression".into(),
+                Curve {
+                    x_unit: "m".into(),
+                    y_unit: "relative volume change".into(),
+                    points: curve
+                        .iter()
+                        .map(|p| [p[0] * scenario.compression, p[1]])
+                        .collect(),
+                },
+            );
+        }
+        Err(e) => {
+            rec.measures.insert(
+                "compression_volume_error".into(),
+                Measure::failed("relative", err(&e)),
+            );
+        }
+    }
+    // Dynamics: step response (first peak, far-side delay).
+    progress("dynamics");
+    if is_static {
+        rec.measures.insert(
+            "frequency".into(),
+            Measure::failed("Hz", "static: no inertia, no oscillation"),
+        );
+        rec.measures
+            .insert("delay".into(), Measure::of(0.0, "s").noted("static: immediate"));
+    } else {
+        match guarded(|| step_response(kind, organ, scenario, mat, dt_run, reference, settings))
+            .and_then(|r| r)
+        {
+            Ok((freq, delay)) => {
+                rec.measures.insert("frequency".into(), freq);
+                rec.measures.insert("delay".into(), delay);
+            }
+            Err(e) => {
+                rec.measures
+                    .insert("frequency".into(), Measure::failed("Hz", err(&e)));
+                rec.measures.insert("delay".into(), Measure::failed("s", err(&e)));
+            }
+        }
+    }
+    // Parameters: effective E and nu on a bar.
+    progress("bar");
+    match guarded(|| bar(kind, qs_mat, &st, settings)).and_then(|r| r) {
+        Ok((force, nu)) => {
+            let e_eff = qs_mat.young_modulus * force / reference.bar_force;
+            rec.measures.insert(
+                "effective_E".into(),
+                Measure::of(e_eff / qs_mat.young_modulus, "× input E")
+                    .noted("bar force against the reference's on the same bar"),
+            );
+            rec.measures.insert(
+                "effective_nu".into(),
+                Measure::of(nu, "").noted(format!("reference on the same bar: {:.3}", reference.bar_nu)),
+            );
+        }
+        Err(e) => {
+            rec.measures
+                .insert("effective_E".into(), Measure::failed("× input E", err(&e)));
+        }
+    }
+    // Flexibility: five cuts.
+    progress("cuts");
+    cuts(kind, organ, scenario, qs_mat, &st, &mut rec.measures);
+    // Rendering: cost of the surface to draw (positions and normals) per frame.
+    if let Ok(model) = organ.build(kind, qs_mat) {
+        let t = Instant::now();
+        let n = 50;
+        let mut acc = 0.0;
+        for _ in 0..n {
+            let s = model.surface();
+            let normals = crate::mesh::SurfaceMesh::new(s.positions.to_vec(), s.triangles.to_vec())
+                .vertex_normals();
+            acc += normals.len() as Real;
+        }
+        std::hint::black_box(acc);
+        rec.measures.insert(
+            "render_seconds".into(),
+            Measure::of(t.elapsed().as_secs_f64() / n as Real, "s per frame"),
+        );
+        rec.measures.insert(
+            "surface_vertices".into(),
+            Measure::of(model.surface().positions.len() as Real, "vertices"),
+        );
+    }
+    rec.wall_seconds = start.elapsed().as_secs_f64();
+    rec
+}
+
+/// True when every drawn vertex is a mechanical node: the volume mesh holds it, or the
+/// model's nodes are its surface vertices.
+fn surface_is_mechanical(m: &dyn Deformable) -> bool {
+    let s = m.surface();
+    if let Some(v) = m.volume() {
+        let keys: std::collections::HashSet<[u64; 3]> = v
+            .positions
+            .iter()
+            .map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+            .collect();
+        return s
+            .positions
+            .iter()
+            .all(|p| keys.contains(&[p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]));
+    }
+    m.info().nodes == s.positions.len()
+}
+
+/// Bisection (in log dt) of the largest step at which `steps` steps of a sudden shallow
+/// probe contact stay finite, error-free and bounded.
+pub(super) fn stable_step(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    s: &Settings,
+) -> Result<Real, String> {
+    let ok = |dt: Real| -> Result<(), String> {
+        let r = guarded(|| -> Result<(), Error> {
+            let model = organ.build(kind, mat)?;
+            let fixed = sc.fixed(model.rest_surface());
+            let mut sim = Simulation::new(model, fixed, Loads::default())?;
+            // Already pressed in at the first step: the harshest contact.
+            let inst = super::drive::probe_instrument(sc.probe() - Vec3::Y * sc.shallow, sc.probe_radius, 0.0, 1.0)?;
+            sim.add_instrument(inst);
+            for _ in 0..s.stability_steps {
+                sim.step(dt)?;
+                check_finite(sim.model())?;
+            }
+            let m = sim.model();
+            let rest = m.rest_surface();
+            let worst = m
+                .surface()
+                .positions
+                .iter()
+                .zip(rest)
+                .map(|(p, q)| p.distance(*q))
+                .fold(0.0, Real::max);
+            if worst > sc.size {
+                return Err(crate::error::SimError::Diverged {
+                    step: s.stability_steps as u64,
+                    node: 0,
+                    reason: format!("displacement {worst:.3e} m beyond the organ's size"),
+                }
+                .into());
+            }
+            Ok(())
+        });
+        match r {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) | Err(e) => Err(e.to_string()),
+        }
+    };
+    let (mut lo, mut hi) = (s.dt_min, s.dt_max);
+    if ok(hi).is_ok() {
+        return Ok(hi);
+    }
+    if let Err(e) = ok(lo) {
+        return Err(format!("unstable even at dt = {lo:.1e} s: {e}"));
+    }
+    for _ in 0..s.bisections {
+        let mid = (lo * hi).sqrt();
+        if ok(mid).is_ok() {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Ok(lo)
+}
+
+/// Wall time per simulated millisecond of the probe pressing at step `dt`, and the mean
+/// wall time of one step in contact (the latency of a contact update).
+fn cost_per_ms(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    dt: Real,
+    steps: usize,
+) -> Result<(Real, Real), Error> {
+    let model = organ.build(kind, mat)?;
+    let fixed = sc.fixed(model.rest_surface());
+    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    let total = dt * steps as Real;
+    sim.add_instrument(super::drive::probe_instrument(sc.probe(), sc.probe_radius, sc.shallow, total)?);
+    // One step first: lazy factorisations belong to pre-computation, not to every step.
+    sim.step(dt)?;
+    let t = Instant::now();
+    let mut in_contact = 0.0;
+    let mut contact_steps = 0usize;
+    for _ in 0..steps {
+        let ts = Instant::now();
+        let r = sim.step(dt)?;
+        check_finite(sim.model())?;
+        if r.contacts.first().copied().unwrap_or(0) > 0 {
+            in_contact += ts.elapsed().as_secs_f64();
+            contact_steps += 1;
+        }
+    }
+    let wall = t.elapsed().as_secs_f64();
+    let per_ms = wall / (total * 1e3);
+    let latency = if contact_steps > 0 {
+        in_contact / contact_steps as Real
+    } else {
+        wall / steps as Real
+    };
+    Ok((per_ms, latency))
+}
+
+/// A small deterministic generator (SplitMix64): the random paths are the same every run.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> Real {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as Real / (1u64 << 53) as Real
+    }
+}
+
+/// Randomized probe and grasp paths (fast and deep ones included): how many finish with no
+/// error and no non-finite value.
+fn random_paths(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+    s: &Settings,
+) -> (usize, usize, Option<String>) {
+    let Ok(surface) = organ.mesh.surface_mesh() else {
+        return (0, s.random_paths, Some("no surface".into()));
+    };
+    let centre = 0.5 * (Vec3::from(sc.lo) + Vec3::from(sc.hi));
+    let upper: Vec<Vec3> = surface
+        .vertices
+        .iter()
+        .copied()
+        .filter(|p| p.y > centre.y)
+        .collect();
+    let mut rng = Rng(0x5EED);
+    let (mut ok, mut first) = (0, None);
+    for i in 0..s.random_paths {
+        let p = upper[((rng.next() * upper.len() as Real) as usize).min(upper.len().saturating_sub(1))];
+        let depth = sc.height * (0.05 + 0.3 * rng.next());
+        let duration = 0.02 + 0.3 * rng.next();
+        let grasp = i % 2 == 1;
+        let inward = (centre - p).normalize_or_zero();
+        let r = guarded(|| -> Result<(), Error> {
+            let model = organ.build(kind, mat)?;
+            let fixed = sc.fixed(model.rest_surface());
+            let mut sim = Simulation::new(model, fixed, Loads::default())?;
+            let (kindi, start, end) = if grasp {
+                (
+                    InstrumentKind::Grasper {
+                        grasp_at: 0.0,
+                        release_at: Some(duration),
+                    },
+                    p,
+                    p - inward * depth,
+                )
+            } else {
+                (InstrumentKind::Probe, p - inward * sc.probe_radius, p + inward * depth)
+            };
+            let key = |t: Real, q: Vec3| Keyframe {
+                t,
+                position: q.into(),
+            };
+            let path = Trajectory::new(vec![key(0.0, start), key(duration, end)]).map_err(|e| {
+                crate::error::SimError::BadParameter {
+                    name: "path",
+                    value: "random".into(),
+                    reason: e.to_string(),
+                }
+            })?;
+            sim.add_instrument(Instrument::new("random", kindi, sc.probe_radius, path)?);
+            let dt = if st.is_static { duration / 8.0 } else { st.dt };
+            let steps = (((duration * 1.25) / dt).ceil() as usize).min(s.random_step_cap);
+            for _ in 0..steps {
+                sim.step(dt)?;
+                check_finite(sim.model())?;
+            }
+            Ok(())
+        });
+        match r {
+            Ok(Ok(())) => ok += 1,
+            Ok(Err(e)) | Err(e) => {
+                if first.is_none() {
+                    first = Some(format!(
+                        "{} {i}: {e}",
+                        if grasp { "grasp" } else { "probe" }
+                    ));
+                }
+            }
+        }
+    }
+    (ok, s.random_paths, first)
+}
+
+/// One element of the input turned inside out (its first two nodes swapped): a clear
+/// refusal (1), or runs finite (1); an error while stepping (0.5); a panic (0).
+fn inverted_element(kind: &str, organ: &Organ, sc: &Scenario, mat: Material, st: &Stepping) -> Measure {
+    let mut mesh = organ.mesh.clone();
+    let p = sc.probe();
+    if let Some(t) = (0..mesh.tets.len()).min_by(|&a, &b| {
+        let c = |t: usize| mesh.tets[t].iter().map(|&v| mesh.vertices[v as usize]).sum::<Vec3>() / 4.0;
+        c(a).distance(p).total_cmp(&c(b).distance(p))
+    }) {
+        mesh.tets[t].swap(0, 1);
+    } else if let Some(t) = mesh.triangles.first_mut() {
+        t.swap(0, 1);
+    }
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let model = match build_on(kind, &mesh, &organ.name, mat, &toml::Table::new()) {
+            Ok(m) => m,
+            Err(e) => return (1.0, format!("refused: {e}")),
+        };
+        let stepping = Stepping { increments: 2, max_time: 0.05_f64.max(10.0 * st.dt), ..*st };
+        let fixed = sc.fixed(model.rest_surface());
+        match indent(model, fixed, sc.probe(), sc.probe_radius, sc.shallow, &stepping) {
+            Ok(_) => (1.0, "accepted, ran finite".into()),
+            Err(e) => (0.5, format!("accepted, then failed: {e}")),
+        }
+    }));
+    match r {
+        Ok((v, note)) => Measure::of(v, "score share").noted(note),
+        Err(_) => Measure::of(0.0, "score share").noted("panicked"),
+    }
+}
+
+/// Quasi-static probe indentation to `depth`: force (N), the surface displacement field
+/// (rest position, displacement), the force curve, settled.
+#[allow(clippy::type_complexity)]
+fn indentation(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+    depth: Real,
+) -> Result<(Real, Vec<(Vec3, Vec3)>, Vec<[Real; 2]>, bool), Error> {
+    let model = organ.build(kind, mat)?;
+    let fixed = sc.fixed(model.rest_surface());
+    let (settled, sim) = indent(model, fixed, sc.probe(), sc.probe_radius, depth, st)?;
+    let m = sim.model();
+    let field = m
+        .rest_surface()
+        .iter()
+        .zip(m.surface().positions)
+        .map(|(r, p)| (*r, *p - *r))
+        .collect();
+    Ok((settled.value, field, settled.curve, settled.settled))
+}
+
+/// The bottom slab turned rigidly by 90° about z through its centre, the rest free: the
+/// sum of reaction magnitudes (N) and the relative volume change; settled.
+fn rotation(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+) -> Result<(Real, Real, bool), Error> {
+    let mut model = organ.build(kind, mat)?;
+    let rest = model.rest_surface().to_vec();
+    let held = sc.fixed(&rest);
+    let c = held.iter().map(|&v| rest[v as usize]).sum::<Vec3>() / held.len().max(1) as Real;
+    let v0 = volume(model.as_ref());
+    let st = Stepping { increments: st.increments.max(9), ..*st };
+    let settled = prescribe(
+        model.as_mut(),
+        &[],
+        &held,
+        |p, s| {
+            let a = s * std::f64::consts::FRAC_PI_2;
+            let d = p - c;
+            c + Vec3::new(a.cos() * d.x - a.sin() * d.y, a.sin() * d.x + a.cos() * d.y, d.z)
+        },
+        &st,
+        |m| m.reactions().prescribed.iter().map(|f| f.length()).sum(),
+    )?;
+    let dv = (volume(model.as_ref()) - v0) / v0;
+    Ok((settled.value, dv, settled.settled))
+}
+
+/// The plate compression by 10 % of the height: relative volume change, its curve, settled.
+fn compression(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+) -> Result<(Real, Vec<[Real; 2]>, bool), Error> {
+    let mut model = organ.build(kind, mat)?;
+    let rest = model.rest_surface().to_vec();
+    let fixed = sc.fixed(&rest);
+    let plate = sc.plate(&rest);
+    let v0 = volume(model.as_ref());
+    let travel = sc.compression;
+    let settled = prescribe(
+        model.as_mut(),
+        &fixed,
+        &plate,
+        |p, s| p - Vec3::Y * (s * travel),
+        st,
+        |m| (volume(m) - v0) / v0,
+    )?;
+    Ok((settled.value, settled.curve, settled.settled))
+}
+
+/// Step response to a sudden load on the top patch with the organ's own (light) damping:
+/// the first eigenfrequency from the first peak of the patch motion, and the time the far
+/// side takes to reach a tenth of its largest motion.
+pub(super) fn step_response(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    dt: Real,
+    reference: &Reference,
+    s: &Settings,
+) -> Result<(Measure, Measure), Error> {
+    let mut model = organ.build(kind, mat)?;
+    let rest = model.rest_surface().to_vec();
+    let fixed = sc.fixed(&rest);
+    let patch = sc.patch(&rest, 2.0 * sc.probe_radius);
+    let far = nearest(&rest, Vec3::from(sc.far_point)).unwrap_or(0) as usize;
+    model.set_constraints(&Constraints::fixed(fixed))?;
+    let total = reference.force_shallow.abs().max(1e-6);
+    let each = Vec3::NEG_Y * (total / patch.len() as Real);
+    model.set_loads(&Loads {
+        gravity: Vec3::ZERO,
+        point_loads: patch.iter().map(|&v| (v, each)).collect(),
+    })?;
+    let steps = (s.dynamics_time / dt).ceil() as usize;
+    let mut top = Vec::with_capacity(steps);
+    let mut side = Vec::with_capacity(steps);
+    for _ in 0..steps {
+        model.step(dt)?;
+        check_finite(model.as_ref())?;
+        let p = model.surface().positions;
+        let d: Real = patch.iter().map(|&v| rest[v as usize].y - p[v as usize].y).sum::<Real>()
+            / patch.len() as Real;
+        top.push(d);
+        side.push(p[far].distance(rest[far]));
+    }
+    // First peak: a maximum followed by a drop of at least 2 % of it.
+    let mut peak = None;
+    let mut best = (0usize, Real::MIN);
+    for (k, &d) in top.iter().enumerate() {
+        if d > best.1 {
+            best = (k, d);
+        } else if best.1 > 0.0 && d < 0.98 * best.1 {
+            peak = Some(best.0);
+            break;
+        }
+    }
+    let freq = match peak {
+        Some(k) => Measure::of(1.0 / (2.0 * (k + 1) as Real * dt), "Hz"),
+        None => Measure::failed("Hz", "no oscillation within the run (overdamped)"),
+    };
+    let max_side = side.iter().copied().fold(0.0, Real::max);
+    let delay = match side.iter().position(|&d| d >= 0.1 * max_side && max_side > 0.0) {
+        Some(k) => Measure::of((k + 1) as Real * dt, "s"),
+        None => Measure::failed("s", "the far side did not move"),
+    };
+    Ok((freq, delay))
+}
+
+/// The bar (4:1:1) held at x = 0 and pulled 1 % at x = L: the pull force (N) and the lateral
+/// contraction ratio at mid-length.
+pub(super) fn bar(kind: &str, mat: Material, st: &Stepping, s: &Settings) -> Result<(Real, Real), Error> {
+    let mesh = super::bar_mesh(s);
+    bar_on(kind, &mesh, mat, st, &toml::Table::new())
+}
+
+pub(super) fn bar_on(
+    kind: &str,
+    mesh: &MeshData,
+    mat: Material,
+    st: &Stepping,
+    params: &toml::Table,
+) -> Result<(Real, Real), Error> {
+    let mut model = build_on(kind, mesh, "bar", mat, params)?;
+    let rest = model.rest_surface().to_vec();
+    let len = super::BAR[0];
+    let tol = 1e-3 * len;
+    let fixed: Vec<u32> = (0..rest.len() as u32).filter(|&i| rest[i as usize].x <= tol).collect();
+    let end: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&i| rest[i as usize].x >= len - tol)
+        .collect();
+    let strain = 0.01;
+    let settled = prescribe(
+        model.as_mut(),
+        &fixed,
+        &end,
+        |p, s| p + Vec3::X * (s * strain * len),
+        st,
+        |m| m.reactions().prescribed.iter().map(|f| -f.x).sum(),
+    )?;
+    // Lateral strain at mid-length: the mean change of |y - yc| and |z - zc| over
+    // the surface vertices near x = L/2.
+    let mid: Vec<usize> = (0..rest.len())
+        .filter(|&i| (rest[i].x - 0.5 * len).abs() <= 0.15 * len)
+        .collect();
+    let p = model.surface().positions;
+    let (yc, zc) = (0.5 * super::BAR[1], 0.5 * super::BAR[2]);
+    let mut lat = 0.0;
+    let mut n = 0.0;
+    for &i in &mid {
+        for (r, q, c) in [(rest[i].y, p[i].y, yc), (rest[i].z, p[i].z, zc)] {
+            let d0 = (r - c).abs();
+            if d0 > 0.25 * super::BAR[1] {
+                lat += ((q - c).abs() - d0) / d0;
+                n += 1.0;
+            }
+        }
+    }
+    let nu = if n > 0.0 { -(lat / n) / strain } else { Real::NAN };
+    Ok((settled.value, nu))
+}
+
+/// Five scalpel sweeps across the top: can it cut, the cost of a cut, the surface closed
+/// and oriented after them, and still stable.
+fn cuts(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+    out: &mut BTreeMap<String, Measure>,
+) {
+    let r = guarded(|| -> Result<(Real, bool, Result<(), String>), Error> {
+        let mut model = organ.build(kind, mat)?;
+        let fixed = sc.fixed(model.rest_surface());
+        model.set_constraints(&Constraints::fixed(fixed))?;
+        let (lo, hi) = (Vec3::from(sc.lo), Vec3::from(sc.hi));
+        let top = sc.hi[1];
+        let mut time = 0.0;
+        for k in 0..5 {
+            let z = lo.z + (hi.z - lo.z) * (0.3 + 0.1 * k as Real);
+            let tip = top - 0.3 * sc.height;
+            let heel = top + 0.1 * sc.height;
+            let (x0, x1) = (lo.x + 0.3 * (hi.x - lo.x), lo.x + 0.6 * (hi.x - lo.x));
+            let blade = CutPath {
+                start: [Vec3::new(x0, tip, z), Vec3::new(x0, heel, z)],
+                end: [Vec3::new(x1, tip, z), Vec3::new(x1, heel, z)],
+            };
+            let t = Instant::now();
+            model.cut(&blade)?;
+            time += t.elapsed().as_secs_f64();
+        }
+        let s = model.surface();
+        let closed = closed_and_oriented(s.triangles);
+        let fixed = sc.fixed(model.rest_surface());
+        let stable = indent(model, fixed, sc.probe(), sc.probe_radius, sc.shallow, &Stepping {
+            max_time: 0.5 * st.max_time,
+            ..*st
+        })
+        .map(|_| ())
+        .map_err(|e| e.to_string());
+        Ok((time / 5.0, closed, stable))
+    });
+    match r {
+        Ok(Ok((cost, closed, stable))) => {
+            out.insert("can_cut".into(), Measure::of(1.0, "bool"));
+            out.insert("cut_seconds".into(), Measure::of(cost, "s per cut"));
+            out.insert(
+                "cut_closed".into(),
+                Measure::of(if closed { 1.0 } else { 0.0 }, "bool"),
+            );
+            out.insert(
+                "cut_stable".into(),
+                match stable {
+                    Ok(()) => Measure::of(1.0, "bool"),
+                    Err(e) => Measure::of(0.0, "bool").noted(e),
+                },
+            );
+        }
+        Ok(Err(e)) | Err(e) => {
+            let reason = match &e {
+                Error::Sim(crate::error::SimError::Unsupported { .. }) => format!("cannot cut: {e}"),
+                _ => format!("cut failed: {e}"),
+            };
+            out.insert("can_cut".into(), Measure::of(0.0, "bool").noted(reason));
+        }
+    }
+}
+
+/// Every directed edge once and its reverse once: a closed, consistently oriented surface.
+pub fn closed_and_oriented(triangles: &[[u32; 3]]) -> bool {
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    for t in triangles {
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+            continue;
+        }
+        for k in 0..3 {
+            *edges.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    !edges.is_empty()
+        && edges
+            .iter()
+            .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1))
+}

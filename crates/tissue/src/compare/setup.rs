@@ -1,0 +1,193 @@
+//! The organ and the shared scenario geometry: where it is held, where the probe presses,
+//! the plate that compresses it, the axis it is turned about. Everything is chosen from the
+//! organ's bounding box, so any organ gets the same scenarios; every model selects its own
+//! surface vertices from these regions (models draw different surfaces).
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, SimError};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::MeshData;
+use crate::model::{BuildInput, Deformable, build};
+
+/// The scenario geometry derived from the organ (SI units). "Up" is +y, as in the scenes.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Scenario {
+    pub lo: [Real; 3],
+    pub hi: [Real; 3],
+    /// Organ height along y, m.
+    pub height: Real,
+    /// Bounding-box diagonal, m.
+    pub size: Real,
+    /// Surface vertices with y below this are held (the bottom slab).
+    pub fixed_below: Real,
+    /// The probe's contact point on top of the organ and its radius, m.
+    pub probe_point: [Real; 3],
+    pub probe_radius: Real,
+    /// Quasi-static indentation depths, m (5 % and 20 % of the height).
+    pub shallow: Real,
+    pub deep: Real,
+    /// Surface vertices with y above this are carried by the compression plate.
+    pub plate_above: Real,
+    /// The plate's travel, m (10 % of the height).
+    pub compression: Real,
+    /// The far-side point whose response time is the survey's "delay".
+    pub far_point: [Real; 3],
+    /// Volume of the organ's surface, m³.
+    pub volume: Real,
+    /// Vertices of the organ's surface (the unit of "dimension of the system").
+    pub surface_vertices: usize,
+}
+
+impl Scenario {
+    /// The scenarios for an organ (its surface from `mesh`).
+    pub fn of(mesh: &MeshData) -> Result<Self, Error> {
+        let surface = mesh.surface_mesh()?;
+        let (lo, hi) = surface.bounds().ok_or(crate::error::MeshError::Empty {
+            what: "surface vertices",
+        })?;
+        let height = hi.y - lo.y;
+        let size = (hi - lo).length();
+        let centre = 0.5 * (lo + hi);
+        // The top point nearest the middle: the highest vertex within a quarter of the
+        // horizontal extent of the box centre.
+        let reach = 0.25 * Vec3::new(hi.x - lo.x, 0.0, hi.z - lo.z).length();
+        let top = surface
+            .vertices
+            .iter()
+            .filter(|p| Vec3::new(p.x - centre.x, 0.0, p.z - centre.z).length() <= reach)
+            .copied()
+            .max_by(|a, b| a.y.total_cmp(&b.y))
+            .unwrap_or(Vec3::new(centre.x, hi.y, centre.z));
+        let radius = 0.05 * height.max(1e-9);
+        let far = surface
+            .vertices
+            .iter()
+            .filter(|p| p.y > lo.y + 0.3 * height)
+            .copied()
+            .max_by(|a, b| {
+                let d = |p: &Vec3| Vec3::new(p.x - top.x, 0.0, p.z - top.z).length();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap_or(hi);
+        Ok(Self {
+            lo: lo.into(),
+            hi: hi.into(),
+            height,
+            size,
+            fixed_below: lo.y + 0.1 * height,
+            probe_point: top.into(),
+            probe_radius: radius,
+            shallow: 0.05 * height,
+            deep: 0.2 * height,
+            plate_above: hi.y - 0.1 * height,
+            compression: 0.1 * height,
+            far_point: far.into(),
+            volume: surface.signed_volume().abs(),
+            surface_vertices: surface.vertices.len(),
+        })
+    }
+
+    pub fn probe(&self) -> Vec3 {
+        Vec3::from(self.probe_point)
+    }
+
+    /// The fixed surface vertices of a model (the bottom slab), at least one.
+    pub fn fixed(&self, rest: &[Vec3]) -> Vec<u32> {
+        let mut v: Vec<u32> = (0..rest.len() as u32)
+            .filter(|&i| rest[i as usize].y <= self.fixed_below)
+            .collect();
+        if v.is_empty()
+            && let Some(i) = lowest(rest)
+        {
+            v.push(i);
+        }
+        v
+    }
+
+    /// The surface vertices the plate carries.
+    pub fn plate(&self, rest: &[Vec3]) -> Vec<u32> {
+        (0..rest.len() as u32)
+            .filter(|&i| rest[i as usize].y >= self.plate_above)
+            .collect()
+    }
+
+    /// The surface vertices within `r` of the probe point (a patch on top).
+    pub fn patch(&self, rest: &[Vec3], r: Real) -> Vec<u32> {
+        let p = self.probe();
+        let mut v: Vec<u32> = (0..rest.len() as u32)
+            .filter(|&i| rest[i as usize].distance(p) <= r)
+            .collect();
+        if v.is_empty()
+            && let Some(i) = nearest(rest, p)
+        {
+            v.push(i);
+        }
+        v
+    }
+}
+
+fn lowest(rest: &[Vec3]) -> Option<u32> {
+    (0..rest.len() as u32).min_by(|&a, &b| rest[a as usize].y.total_cmp(&rest[b as usize].y))
+}
+
+/// The vertex of `points` nearest to `p`.
+pub fn nearest(points: &[Vec3], p: Vec3) -> Option<u32> {
+    (0..points.len() as u32).min_by(|&a, &b| {
+        points[a as usize]
+            .distance_squared(p)
+            .total_cmp(&points[b as usize].distance_squared(p))
+    })
+}
+
+/// The organ as the comparison uses it: a loaded mesh and the material.
+#[derive(Clone, Debug)]
+pub struct Organ {
+    pub mesh: MeshData,
+    /// Names the organ in messages and in the record.
+    pub name: String,
+    pub material: Material,
+    /// Seconds it took to read the file (counted in every model's mesh acquisition).
+    pub read_seconds: Real,
+}
+
+impl Organ {
+    /// Builds `kind` on this organ with the model's default settings and `material`.
+    pub fn build(&self, kind: &str, material: Material) -> Result<Box<dyn Deformable>, Error> {
+        build_on(kind, &self.mesh, &self.name, material, &toml::Table::new())
+    }
+}
+
+/// Builds `kind` on `mesh`; a panic inside the model becomes an error naming it.
+pub fn build_on(
+    kind: &str,
+    mesh: &MeshData,
+    source: &str,
+    material: Material,
+    params: &toml::Table,
+) -> Result<Box<dyn Deformable>, Error> {
+    let input = BuildInput {
+        mesh,
+        source,
+        material,
+        params,
+    };
+    guarded(|| build(kind, &input)).and_then(|r| r)
+}
+
+/// Runs `f`, turning a panic into an error (a model's bug must not stop the comparison).
+pub fn guarded<T>(f: impl FnOnce() -> T) -> Result<T, Error> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|p| {
+        let msg = p
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_else(|| "unknown panic".into());
+        Error::from(SimError::BadParameter {
+            name: "model",
+            value: "panicked".into(),
+            reason: msg,
+        })
+    })
+}
