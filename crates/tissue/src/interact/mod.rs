@@ -6,6 +6,8 @@ pub mod constraints;
 pub mod contact;
 pub mod instrument;
 pub mod region;
+pub mod shape;
+pub mod sliding;
 pub mod trajectory;
 
 pub use bvh::Bvh;
@@ -13,4 +15,5 @@ pub use constraints::{Constraints, Loads, Prescribed};
 pub use contact::Contact;
 pub use instrument::{Instrument, InstrumentKind};
 pub use region::Region;
+pub use shape::Shape;
 pub use trajectory::{Keyframe, Trajectory, TrajectoryError};
