@@ -7,6 +7,8 @@ pub mod contact;
 pub mod instrument;
 pub mod plausibility;
 pub mod region;
+pub mod shape;
+pub mod sliding;
 pub mod trajectory;
 
 pub use bvh::Bvh;
@@ -14,4 +16,5 @@ pub use constraints::{Constraints, Loads, Prescribed};
 pub use contact::Contact;
 pub use instrument::{Instrument, InstrumentKind};
 pub use region::Region;
+pub use shape::Shape;
 pub use trajectory::{Keyframe, Trajectory, TrajectoryError};
