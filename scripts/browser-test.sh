@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# The viewer in a real browser: installs Debian's chromium if missing and the viewer's npm
-# packages (three, playwright-core), starts `tissue view` on the demo scene, and runs
-# viewer/tests/browser.test.mjs in headless Chromium (WebGL 2 through SwiftShader).
+# The viewer in a real browser: installs Debian's chromium if missing and the test's npm
+# package (playwright-core), installs `tissue` with `cargo install` into target/ and starts
+# the installed binary's `tissue view` from an empty folder (the page and three.js come from
+# the binary), and runs viewer/tests/browser.test.mjs in headless Chromium (WebGL 2 through
+# SwiftShader) on the printed URL with its session token.
 # Finally checks that closing the page left the server running. Well under 3 minutes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,21 +15,24 @@ if ! command -v chromium >/dev/null 2>&1 && [ ! -x /usr/bin/chromium ]; then
     apt-get install -y -q chromium >/dev/null 2>&1 \
         || { apt-get update -q >/dev/null && apt-get install -y -q chromium >/dev/null; }
 fi
-if [ ! -f viewer/node_modules/three/build/three.module.js ] \
-    || [ ! -d viewer/node_modules/playwright-core ]; then
+if [ ! -d viewer/node_modules/playwright-core ]; then
     bash scripts/setup-viewer.sh >/dev/null
 fi
 SECONDS=0
-cargo build --release --locked -q -p tissue-cli
-echo "browser-test: build ${SECONDS} s"
+OUT="$ROOT/target/browser-test"
+# --target-dir reuses the release build; --force replaces an earlier install.
+cargo install --quiet --locked --force --path crates/tissue-cli --root "$OUT/install" \
+    --target-dir "$ROOT/target"
+echo "browser-test: build and install ${SECONDS} s"
 SECONDS=0
 
-OUT="$ROOT/target/browser-test"
 mkdir -p "$OUT"
 LOG="$OUT/server.log"
-./target/release/tissue view scenes/liver-probe.toml --port 0 >"$LOG" 2>&1 &
+EMPTY=$(mktemp -d)
+(cd "$EMPTY" && exec env -u TISSUE_VIEWER_DIR "$OUT/install/bin/tissue" view \
+    "$ROOT/scenes/liver-probe.toml" --port 0) >"$LOG" 2>&1 &
 SERVER=$!
-trap 'kill "$SERVER" 2>/dev/null || true; wait "$SERVER" 2>/dev/null || true' EXIT
+trap 'kill "$SERVER" 2>/dev/null || true; wait "$SERVER" 2>/dev/null || true; rmdir "$EMPTY" 2>/dev/null || true' EXIT
 
 URL=""
 for _ in $(seq 1 300); do

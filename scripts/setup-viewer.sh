@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs the browser viewer's JavaScript dependencies (three.js) into viewer/node_modules
-# from the npm registry, so that `tissue view` can serve them locally (no CDN).
+# Installs the browser test's JavaScript dependencies (playwright-core) into
+# viewer/node_modules from the npm registry. `tissue view` itself needs none of this: the page
+# and three.js (vendored in viewer/vendor/three) are built into the binary.
 set -euo pipefail
 cd "$(dirname "$0")/../viewer"
 if ! command -v npm >/dev/null; then
@@ -12,5 +13,5 @@ if [ -f package-lock.json ]; then
 else
     npm install --no-audit --no-fund
 fi
-test -f node_modules/three/build/three.module.js
-echo "setup-viewer: three.js installed in viewer/node_modules"
+test -d node_modules/playwright-core
+echo "setup-viewer: playwright-core installed in viewer/node_modules"

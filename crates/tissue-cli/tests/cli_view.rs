@@ -1,5 +1,6 @@
-//! `tissue view` and `tissue haptic-bench` as a user runs them: a missing page says which
-//! script to run; the bench prints the loop's figures as JSON.
+//! `tissue view` and `tissue haptic-bench` as a user runs them: a `--viewer-dir` missing
+//! its page says what is missing; the built-in page is served from any folder with the
+//! token; the bench prints the loop's figures as JSON.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -13,7 +14,7 @@ fn repo(rel: &str) -> PathBuf {
 }
 
 #[test]
-fn view_without_three_names_the_setup_script() {
+fn a_viewer_dir_without_three_says_what_is_missing() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("view_no_three");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
@@ -32,7 +33,7 @@ fn view_without_three_names_the_setup_script() {
         .unwrap_or_else(|e| panic!("{e}"));
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("scripts/setup-viewer.sh"), "{err}");
+    assert!(err.contains("vendor/three"), "{err}");
 
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap_or_else(|e| panic!("{e}"));
@@ -44,6 +45,68 @@ fn view_without_three_names_the_setup_script() {
         .unwrap_or_else(|e| panic!("{e}"));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("index.html"), "{err}");
+}
+
+/// A GET with the given Host; the status line and the body's length.
+fn get(port: u16, path: &str) -> (String, usize) {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap_or_else(|e| panic!("{e}"));
+    write!(s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n")
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    let text = String::from_utf8_lossy(&out);
+    let status = text.lines().next().unwrap_or("").to_string();
+    let body = text.split_once("\r\n\r\n").map_or(0, |(_, b)| b.len());
+    (status, body)
+}
+
+#[test]
+fn the_built_in_page_is_served_from_an_empty_folder() {
+    use std::io::BufRead;
+    let empty = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("view_empty_folder");
+    let _ = std::fs::remove_dir_all(&empty);
+    std::fs::create_dir_all(&empty).unwrap_or_else(|e| panic!("{e}"));
+    let mut child = tissue()
+        .arg("view")
+        .arg(repo("scenes/liver-probe.toml"))
+        .args(["--port", "0"])
+        .env_remove("TISSUE_VIEWER_DIR")
+        .current_dir(&empty)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut line = String::new();
+    if let Some(out) = child.stdout.take() {
+        let _ = std::io::BufReader::new(out).read_line(&mut line);
+    }
+    // "tissue view: http://127.0.0.1:PORT/?token=HEX  (Ctrl-C stops)"
+    let url = line.split_whitespace().nth(2).unwrap_or("").to_string();
+    let port: u16 = url
+        .split(':')
+        .nth(2)
+        .and_then(|p| p.split('/').next())
+        .and_then(|p| p.parse().ok())
+        .unwrap_or(0);
+    let token = url.split("?token=").nth(1).unwrap_or("").to_string();
+    let results = [
+        get(port, &format!("/?token={token}")),
+        get(port, &format!("/vendor/three/three.core.js?token={token}")),
+        get(port, "/"),
+    ];
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(token.len(), 64, "{line}");
+    assert!(
+        results[0].0.contains("200") && results[0].1 > 1000,
+        "{results:?}"
+    );
+    assert!(
+        results[1].0.contains("200") && results[1].1 > 100_000,
+        "{results:?}"
+    );
+    assert!(results[2].0.contains("403"), "{results:?}");
 }
 
 #[test]

@@ -108,9 +108,33 @@ pub fn refuse(mut stream: TcpStream, head: &str, reason: &str) {
     );
 }
 
+/// Where the page's files come from.
+#[derive(Clone, Debug)]
+pub enum Pages {
+    /// Built into the binary (`assets`).
+    Embedded,
+    /// A folder (`--viewer-dir`): edit the page without rebuilding.
+    Dir(PathBuf),
+}
+
+impl Pages {
+    /// The file at a URL path and its name (for its content type).
+    fn get(&self, url_path: &str) -> Option<(Vec<u8>, PathBuf)> {
+        match self {
+            Pages::Embedded => {
+                super::assets::find(url_path).map(|a| (a.bytes.to_vec(), PathBuf::from(a.path)))
+            }
+            Pages::Dir(root) => {
+                let file = resolve(root, url_path).filter(|p| p.is_file())?;
+                std::fs::read(&file).ok().map(|b| (b, file))
+            }
+        }
+    }
+}
+
 /// Reads the rest of the head (already peeked) and answers it; `cookie` is set on the
 /// response when there is one.
-pub fn serve(mut stream: TcpStream, head: &str, root: &Path, cookie: Extra) {
+pub fn serve(mut stream: TcpStream, head: &str, pages: &Pages, cookie: Extra) {
     consume(&mut stream, head);
     let Some((method, path)) = request_line(head) else {
         return respond(
@@ -133,9 +157,8 @@ pub fn serve(mut stream: TcpStream, head: &str, root: &Path, cookie: Extra) {
             None,
         );
     }
-    let file = resolve(root, path).filter(|p| p.is_file());
-    match file.map(|f| (std::fs::read(&f), f)) {
-        Some((Ok(body), f)) => respond(
+    match pages.get(path) {
+        Some((body, f)) => respond(
             &mut stream,
             "200 OK",
             content_type(&f),
@@ -143,7 +166,7 @@ pub fn serve(mut stream: TcpStream, head: &str, root: &Path, cookie: Extra) {
             head_only,
             cookie,
         ),
-        _ => respond(
+        None => respond(
             &mut stream,
             "404 Not Found",
             "text/plain",

@@ -1,9 +1,12 @@
 //! `tissue view SCENE`: the interactive browser viewer. The simulation runs in this process
-//! (`session`); a std `TcpListener` serves the page from the repository's `viewer/`
-//! directory (`http`) and upgrades `/ws` to a WebSocket (`ws`) that carries JSON messages
-//! (`messages`). One thread per connection, one for the simulation, one for the haptic loop.
+//! (`session`); a std `TcpListener` serves the page built into the binary (`assets`, or a
+//! folder given by `--viewer-dir`) over HTTP (`http`) and upgrades `/ws` to a WebSocket
+//! (`ws`) that carries JSON messages (`messages`); every request passes the session's
+//! access rule first (`access`, docs/security.md). One thread per connection, one for the
+//! simulation, one for the haptic loop.
 
 mod access;
+mod assets;
 mod http;
 mod hub;
 mod messages;
@@ -16,7 +19,7 @@ mod ws;
 mod tests;
 
 use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::Sender;
@@ -27,6 +30,7 @@ use clap::Args;
 use tissue::scene::Scene;
 
 use access::{Access, Grant};
+use http::Pages;
 use hub::Hub;
 use session::Session;
 use setup::Setup;
@@ -43,8 +47,8 @@ pub struct ViewArgs {
     /// (the session token in the printed URL is then all that guards it).
     #[arg(long, default_value = "127.0.0.1")]
     pub host: IpAddr,
-    /// The page's directory (default: $TISSUE_VIEWER_DIR, else the `viewer/` of the
-    /// repository the binary was built from).
+    /// Serve the page from this directory instead of the copy built into the binary
+    /// (default: $TISSUE_VIEWER_DIR if set, else the built-in page).
     #[arg(long)]
     pub viewer_dir: Option<PathBuf>,
     /// Also listen for a haptic device on this UDP port (docs/haptic-protocol.md); it drives
@@ -56,30 +60,28 @@ pub struct ViewArgs {
 /// Connections served at once; more are refused (a page needs one or two).
 const MAX_CONNECTIONS: usize = 32;
 
-fn viewer_dir(args: &ViewArgs) -> anyhow::Result<PathBuf> {
+fn pages(args: &ViewArgs) -> anyhow::Result<Pages> {
     let dir = match &args.viewer_dir {
         Some(d) => d.clone(),
-        None => std::env::var_os("TISSUE_VIEWER_DIR")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../viewer")),
+        None => match std::env::var_os("TISSUE_VIEWER_DIR") {
+            Some(d) => PathBuf::from(d),
+            None => return Ok(Pages::Embedded),
+        },
     };
     if !dir.join("index.html").is_file() {
         bail!(
-            "the viewer's page is missing: no {} (pass --viewer-dir, or run from a checkout \
-             of the repository)",
+            "the viewer's page is missing: no {} (leave --viewer-dir and $TISSUE_VIEWER_DIR \
+             unset to serve the page built into tissue)",
             dir.join("index.html").display()
         );
     }
-    if !dir
-        .join("node_modules/three/build/three.module.js")
-        .is_file()
-    {
+    if !dir.join("vendor/three/three.module.js").is_file() {
         bail!(
-            "three.js is not installed in {}: run scripts/setup-viewer.sh first",
-            dir.join("node_modules").display()
+            "three.js is missing from {}: copy viewer/vendor/ of the repository there",
+            dir.join("vendor/three").display()
         );
     }
-    Ok(dir)
+    Ok(Pages::Dir(dir))
 }
 
 /// Reads the request head without consuming it: `ws` needs it intact for its handshake.
@@ -105,7 +107,7 @@ fn peek_head(stream: &TcpStream) -> Option<String> {
 }
 
 pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
-    let root = viewer_dir(args)?;
+    let root = pages(args)?;
     let scene = Scene::load(&args.scene)?;
     let (setup, material) = Setup::load(&scene)?;
     let hub = Arc::new(Hub::default());
@@ -148,7 +150,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
 /// Serves connections until the listener fails: static files, or `/ws` upgrades.
 fn accept_loop(
     listener: TcpListener,
-    root: PathBuf,
+    root: Pages,
     hub: Arc<Hub>,
     tx: Sender<messages::Command>,
     bounds: messages::Bounds,

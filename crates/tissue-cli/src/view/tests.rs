@@ -16,6 +16,7 @@ use tungstenite::{Message, WebSocket};
 
 use super::accept_loop;
 use super::access::Access;
+use super::http::Pages;
 use super::hub::Hub;
 use super::messages::{Bounds, Command, MAX_MESSAGE_BYTES};
 
@@ -37,7 +38,7 @@ fn server() -> (u16, Arc<Hub>, Receiver<Command>) {
     };
     let h = Arc::clone(&hub);
     let access = Arc::new(Access::new(TOKEN.into(), [127, 0, 0, 1].into(), port));
-    std::thread::spawn(move || accept_loop(listener, root, h, tx, bounds, access));
+    std::thread::spawn(move || accept_loop(listener, Pages::Dir(root), h, tx, bounds, access));
     (port, hub, rx)
 }
 

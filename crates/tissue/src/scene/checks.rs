@@ -37,7 +37,7 @@ pub(super) fn check_run(run: &RunSpec) -> Result<(), String> {
     // Compared as a float: the step count of dt = 1e-300 overflows an integer. 1e9 steps
     // or more is days of computing for any model: a typo, not a plan.
     let steps = (run.duration / run.dt).ceil();
-    if !(steps < MAX_STEPS) {
+    if steps.is_nan() || steps >= MAX_STEPS {
         return Err(format!(
             "dt = {} s gives {steps:e} steps over duration = {} s, and {MAX_STEPS:e} or more \
              would run for days: raise dt or shorten duration",
