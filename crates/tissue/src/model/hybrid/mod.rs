@@ -75,8 +75,10 @@ struct HybridKeys {
     #[serde(default = "yes")]
     nonlinear: bool,
     /// Automatic mode: tetrahedra within this distance of the blade join the region, in m
-    /// (default: a tenth of the organ's bounding-box diagonal). The region grows when the
-    /// blade comes within half of it of the region's border.
+    /// (default: a tenth of the organ's bounding-box diagonal, at least three mean edge
+    /// lengths). The region grows when a tetrahedron within half of it from the blade is
+    /// outside the region or on its border; it then takes in everything within this
+    /// distance plus the border's depth (2.5 mean edge lengths).
     auto_radius: Option<Real>,
     /// Automatic mode: the starting region's centres (the scene fills them in from the
     /// scalpels' first blade positions).
@@ -136,7 +138,10 @@ impl Hybrid {
         mesh.validate_for_simulation()?;
         let mesh = mesh.compacted();
         let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
-        let auto_radius = keys.auto_radius.unwrap_or(0.1 * (hi - lo).length());
+        let h = mean_edge(&mesh);
+        let auto_radius = keys
+            .auto_radius
+            .unwrap_or((0.1 * (hi - lo).length()).max(3.0 * h));
         if !(auto_radius.is_finite() && auto_radius > 0.0) {
             return Err(SimError::BadParameter {
                 name: "auto_radius",
@@ -195,6 +200,18 @@ impl Hybrid {
         };
         Self::build(mesh, in_region, mode, auto_radius, recipe)
     }
+}
+
+/// Mean edge length of the tetrahedra (each edge counted once per tetrahedron).
+fn mean_edge(mesh: &crate::mesh::TetMesh) -> Real {
+    let mut sum = 0.0;
+    for t in 0..mesh.tets.len() {
+        let c = mesh.corners(t);
+        for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+            sum += c[a].distance(c[b]);
+        }
+    }
+    sum / (6 * mesh.tets.len()).max(1) as Real
 }
 
 #[cfg(test)]

@@ -47,6 +47,8 @@ pub struct Hybrid {
     pub(super) recipe: Recipe,
     pub(super) mode: CutRegion,
     pub(super) auto_radius: Real,
+    /// Mean edge length: the depth of the region's border is about two of them.
+    edge: Real,
     pub(super) mesh: TetMesh,
     neighbours: Vec<[Option<u32>; 4]>,
     centroids: Vec<Vec3>,
@@ -123,6 +125,7 @@ impl Hybrid {
             mode,
             auto_radius,
             centroids: centroids(&mesh),
+            edge: super::mean_edge(&mesh),
             alive: vec![true; mesh.tets.len()],
             neighbours,
             split,
@@ -550,12 +553,15 @@ impl Hybrid {
         } else {
             "outside the region"
         };
+        let advice = match self.mode {
+            CutRegion::Auto => "the region grows by auto_radius around the blade: raise it",
+            CutRegion::Given(_) => "enlarge the region or use cut_region = \"auto\"",
+        };
         SimError::Unsupported {
             model: "hybrid",
             operation: "cutting",
             reason: format!(
-                "the blade reaches tetrahedron {t}, {place} (cut_region = {}); enlarge the \
-                 region or use cut_region = \"auto\"",
+                "the blade reaches tetrahedron {t}, {place} (cut_region = {}); {advice}",
                 self.mode.describe()
             ),
         }
@@ -570,7 +576,7 @@ impl Hybrid {
                 *m |= p;
             }
         }
-        for t in self.near_blade(blade, self.auto_radius) {
+        for t in self.near_blade(blade, self.auto_radius + 2.5 * self.edge) {
             mask[t] = true;
         }
         mask
@@ -693,6 +699,22 @@ impl Hybrid {
         let c = self.constraints.clone();
         let _ = self.apply_constraints(&c);
         let _ = self.update_state();
+    }
+
+    /// The moment about the origin of the rest's loads and contact forces (rest positions).
+    #[cfg(test)]
+    pub(super) fn rest_moment_of_loads_and_contacts(&self) -> Vec3 {
+        self.rest.moment(&self.contact_forces)
+    }
+
+    #[cfg(test)]
+    pub(super) fn rest_contacts(&self) -> usize {
+        self.rest_contact.len()
+    }
+
+    #[cfg(test)]
+    pub(super) fn region_iface_nodes(&self) -> Vec<u32> {
+        self.region_iface.clone()
     }
 
     /// Whether a growth is being built.

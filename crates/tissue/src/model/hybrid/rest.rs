@@ -377,6 +377,25 @@ impl RestPart {
         t
     }
 
+    /// The moment about the origin of the loads and the contact forces `z`, at rest.
+    #[cfg(test)]
+    pub fn moment(&self, z: &Mat<Real>) -> Vec3 {
+        let x = self.fem.rest_nodes();
+        let mut m = Vec3::ZERO;
+        for (n, f) in self.forces.chunks_exact(3).enumerate() {
+            m += x[n].cross(Vec3::new(f[0], f[1], f[2]));
+        }
+        for (k, &s) in self.contacts.slots.iter().enumerate() {
+            let n = self.outer[s as usize] as usize;
+            m += x[n].cross(Vec3::new(
+                z[(3 * k, 0)],
+                z[(3 * k + 1, 0)],
+                z[(3 * k + 2, 0)],
+            ));
+        }
+        m
+    }
+
     pub fn memory_bytes(&self) -> usize {
         self.fem.info().memory_bytes
             + 8 * (self.s.nrows() * self.s.ncols()
