@@ -51,9 +51,7 @@ impl CutRegion {
     /// For error messages.
     pub fn describe(&self) -> String {
         match self {
-            CutRegion::Given(r) => toml::to_string(r)
-                .map(|s| s.trim().replace('\n', ", "))
-                .unwrap_or_else(|_| format!("{r:?}")),
+            CutRegion::Given(r) => format!("{r:?}"),
             CutRegion::Auto => "\"auto\"".into(),
         }
     }

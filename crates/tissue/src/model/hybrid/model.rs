@@ -328,7 +328,11 @@ impl Hybrid {
                 rest_contact.push(v as u32);
             }
         }
-        self.rest.set_contacts(&slots, &targets)?;
+        if !self.rest.same_contacts(&slots, &targets) {
+            self.rest.set_contacts(&slots, &targets)?;
+            // The coupling's forces and energy changed under the integrator's feet.
+            self.tm.invalidate_forces();
+        }
         self.tm.set_constraints(&tm_c)?;
         self.tm_entry = tm_entry;
         self.rest_contact = rest_contact;
