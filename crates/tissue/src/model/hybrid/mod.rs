@@ -214,3 +214,5 @@ fn mean_edge(mesh: &crate::mesh::TetMesh) -> Real {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_speed;

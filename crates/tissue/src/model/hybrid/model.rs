@@ -63,7 +63,7 @@ pub struct Hybrid {
     tm_vertex: Vec<u32>,
     /// The drawn surface: global node of each vertex (stable numbers, appended by cuts).
     pub(super) surf_nodes: Vec<u32>,
-    surf_of_node: Vec<u32>,
+    pub(super) surf_of_node: Vec<u32>,
     pub(super) surf_rest: Vec<Vec3>,
     pub(super) surf_pos: Vec<Vec3>,
     pub(super) triangles: Vec<[u32; 3]>,
@@ -709,6 +709,11 @@ impl Hybrid {
     #[cfg(test)]
     pub(super) fn rest_moment_of_loads_and_contacts(&self) -> Vec3 {
         self.rest.moment(&self.contact_forces)
+    }
+
+    #[cfg(test)]
+    pub(super) fn surf_of_node_for_tests(&self, g: u32) -> usize {
+        self.surf_of_node[g as usize] as usize
     }
 
     #[cfg(test)]

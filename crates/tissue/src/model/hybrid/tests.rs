@@ -411,7 +411,7 @@ fn cuts_inside_the_region_close_the_surface_and_stay_stable_outside_are_refused(
     let before = h.info().elements;
     for x in [0.025, 0.11] {
         let e = h.cut(&slice(x, 0.02, 0.04)).unwrap_err().to_string();
-        assert!(e.contains("cut_region") && e.contains("box"), "{e}");
+        assert!(e.contains("cut_region") && e.contains("Box"), "{e}");
     }
     assert_eq!(h.info().elements, before);
     // Reset: uncut, closed.
