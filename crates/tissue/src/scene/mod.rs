@@ -406,16 +406,58 @@ impl Scene {
                 check_model(kind, params).map_err(|m| self.invalid(format!("[model] {m}")))?;
                 voxel_model(kind, grid.clone(), material, params)
             }
-            None => model::build(
-                kind,
-                &BuildInput {
-                    mesh: &body.mesh,
-                    source: &body.source,
-                    material,
-                    params,
-                },
-            ),
+            None => {
+                let params = if kind == "hybrid" {
+                    self.hybrid_params(params)
+                } else {
+                    params.clone()
+                };
+                model::build(
+                    kind,
+                    &BuildInput {
+                        mesh: &body.mesh,
+                        source: &body.source,
+                        material,
+                        params: &params,
+                    },
+                )
+            }
         }
+    }
+
+    /// `hybrid`'s automatic region starts around the scalpels: their blades at the first
+    /// keyframe (tip, middle, heel) become `auto_seeds`; with scalpels and no `cut_region`,
+    /// the region is automatic.
+    fn hybrid_params(&self, params: &toml::Table) -> toml::Table {
+        let mut params = params.clone();
+        let mut seeds = toml::value::Array::new();
+        for i in &self.instruments {
+            let i = &i.value;
+            let (Some(first), "scalpel") = (i.path.first(), i.kind.as_str()) else {
+                continue;
+            };
+            let tip = Vec3::from(first.position);
+            let dir = Vec3::from(i.direction.unwrap_or([0.0, -1.0, 0.0])).normalize_or_zero();
+            let heel = tip + dir * i.length.unwrap_or(0.0);
+            for p in [tip, (tip + heel) * 0.5, heel] {
+                seeds.push(toml::Value::Array(
+                    p.to_array()
+                        .iter()
+                        .map(|&c| toml::Value::Float(c))
+                        .collect(),
+                ));
+            }
+        }
+        if seeds.is_empty() {
+            return params;
+        }
+        params
+            .entry("cut_region")
+            .or_insert_with(|| toml::Value::String("auto".into()));
+        params
+            .entry("auto_seeds")
+            .or_insert(toml::Value::Array(seeds));
+        params
     }
 
     /// Builds the simulation from a mesh already loaded (unscaled, scaled here by `[mesh]`

@@ -42,6 +42,16 @@ impl Built {
             recipe.nonlinear,
             recipe.scheme,
         )?;
+        // The rest is massless (static): the interface nodes, which the region integrates,
+        // carry its lumped share, so their frequency is not raised by the rest's stiffness
+        // on the region's share alone (the weight follows the mass).
+        let shares: Vec<(usize, Real)> = split
+            .interface
+            .iter()
+            .zip(rest.interface_masses())
+            .map(|(&g, m)| (split.region.local[g as usize] as usize, m))
+            .collect();
+        tm.add_node_masses(&shares);
         tm.prepare_cutting();
         Ok(Self {
             split,

@@ -51,9 +51,7 @@ impl CutRegion {
     /// For error messages.
     pub fn describe(&self) -> String {
         match self {
-            CutRegion::Given(r) => toml::to_string(r)
-                .map(|s| s.trim().replace('\n', ", "))
-                .unwrap_or_else(|_| format!("{r:?}")),
+            CutRegion::Given(r) => format!("{r:?}"),
             CutRegion::Auto => "\"auto\"".into(),
         }
     }
@@ -75,8 +73,10 @@ struct HybridKeys {
     #[serde(default = "yes")]
     nonlinear: bool,
     /// Automatic mode: tetrahedra within this distance of the blade join the region, in m
-    /// (default: a tenth of the organ's bounding-box diagonal). The region grows when the
-    /// blade comes within half of it of the region's border.
+    /// (default: a tenth of the organ's bounding-box diagonal, at least three mean edge
+    /// lengths). The region grows when a tetrahedron within half of it from the blade is
+    /// outside the region or on its border; it then takes in everything within this
+    /// distance plus the border's depth (2.5 mean edge lengths).
     auto_radius: Option<Real>,
     /// Automatic mode: the starting region's centres (the scene fills them in from the
     /// scalpels' first blade positions).
@@ -136,7 +136,10 @@ impl Hybrid {
         mesh.validate_for_simulation()?;
         let mesh = mesh.compacted();
         let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
-        let auto_radius = keys.auto_radius.unwrap_or(0.1 * (hi - lo).length());
+        let h = mean_edge(&mesh);
+        let auto_radius = keys
+            .auto_radius
+            .unwrap_or((0.1 * (hi - lo).length()).max(3.0 * h));
         if !(auto_radius.is_finite() && auto_radius > 0.0) {
             return Err(SimError::BadParameter {
                 name: "auto_radius",
@@ -197,5 +200,19 @@ impl Hybrid {
     }
 }
 
+/// Mean edge length of the tetrahedra (each edge counted once per tetrahedron).
+fn mean_edge(mesh: &crate::mesh::TetMesh) -> Real {
+    let mut sum = 0.0;
+    for t in 0..mesh.tets.len() {
+        let c = mesh.corners(t);
+        for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+            sum += c[a].distance(c[b]);
+        }
+    }
+    sum / (6 * mesh.tets.len()).max(1) as Real
+}
+
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_speed;

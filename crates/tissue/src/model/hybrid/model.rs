@@ -47,6 +47,8 @@ pub struct Hybrid {
     pub(super) recipe: Recipe,
     pub(super) mode: CutRegion,
     pub(super) auto_radius: Real,
+    /// Mean edge length: the depth of the region's border is about two of them.
+    edge: Real,
     pub(super) mesh: TetMesh,
     neighbours: Vec<[Option<u32>; 4]>,
     centroids: Vec<Vec3>,
@@ -61,7 +63,7 @@ pub struct Hybrid {
     tm_vertex: Vec<u32>,
     /// The drawn surface: global node of each vertex (stable numbers, appended by cuts).
     pub(super) surf_nodes: Vec<u32>,
-    surf_of_node: Vec<u32>,
+    pub(super) surf_of_node: Vec<u32>,
     pub(super) surf_rest: Vec<Vec3>,
     pub(super) surf_pos: Vec<Vec3>,
     pub(super) triangles: Vec<[u32; 3]>,
@@ -123,6 +125,7 @@ impl Hybrid {
             mode,
             auto_radius,
             centroids: centroids(&mesh),
+            edge: super::mean_edge(&mesh),
             alive: vec![true; mesh.tets.len()],
             neighbours,
             split,
@@ -325,7 +328,11 @@ impl Hybrid {
                 rest_contact.push(v as u32);
             }
         }
-        self.rest.set_contacts(&slots, &targets)?;
+        if !self.rest.same_contacts(&slots, &targets) {
+            self.rest.set_contacts(&slots, &targets)?;
+            // The coupling's forces and energy changed under the integrator's feet.
+            self.tm.invalidate_forces();
+        }
         self.tm.set_constraints(&tm_c)?;
         self.tm_entry = tm_entry;
         self.rest_contact = rest_contact;
@@ -550,12 +557,15 @@ impl Hybrid {
         } else {
             "outside the region"
         };
+        let advice = match self.mode {
+            CutRegion::Auto => "the region grows by auto_radius around the blade: raise it",
+            CutRegion::Given(_) => "enlarge the region or use cut_region = \"auto\"",
+        };
         SimError::Unsupported {
             model: "hybrid",
             operation: "cutting",
             reason: format!(
-                "the blade reaches tetrahedron {t}, {place} (cut_region = {}); enlarge the \
-                 region or use cut_region = \"auto\"",
+                "the blade reaches tetrahedron {t}, {place} (cut_region = {}); {advice}",
                 self.mode.describe()
             ),
         }
@@ -570,7 +580,7 @@ impl Hybrid {
                 *m |= p;
             }
         }
-        for t in self.near_blade(blade, self.auto_radius) {
+        for t in self.near_blade(blade, self.auto_radius + 2.5 * self.edge) {
             mask[t] = true;
         }
         mask
@@ -693,6 +703,27 @@ impl Hybrid {
         let c = self.constraints.clone();
         let _ = self.apply_constraints(&c);
         let _ = self.update_state();
+    }
+
+    /// The moment about the origin of the rest's loads and contact forces (rest positions).
+    #[cfg(test)]
+    pub(super) fn rest_moment_of_loads_and_contacts(&self) -> Vec3 {
+        self.rest.moment(&self.contact_forces)
+    }
+
+    #[cfg(test)]
+    pub(super) fn surf_of_node_for_tests(&self, g: u32) -> usize {
+        self.surf_of_node[g as usize] as usize
+    }
+
+    #[cfg(test)]
+    pub(super) fn rest_contacts(&self) -> usize {
+        self.rest_contact.len()
+    }
+
+    #[cfg(test)]
+    pub(super) fn region_iface_nodes(&self) -> Vec<u32> {
+        self.region_iface.clone()
     }
 
     /// Whether a growth is being built.

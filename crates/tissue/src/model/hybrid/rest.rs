@@ -191,6 +191,12 @@ impl RestPart {
     /// nodes; one sparse solve.
     pub fn set_loads(&mut self, gravity: Vec3, point: &[(u32, Vec3)]) -> Result<(), SimError> {
         let mut f = self.fem.body_load(gravity * self.density);
+        // The region carries the rest's mass share at the interface nodes, and its weight.
+        for &n in &self.iface {
+            for k in 0..3 {
+                f[3 * n as usize + k] = 0.0;
+            }
+        }
         for &(n, p) in point {
             for k in 0..3 {
                 f[3 * n as usize + k] += p[k];
@@ -248,6 +254,11 @@ impl RestPart {
         self.column_solves += 3;
         self.columns.insert(slot, w);
         Ok(())
+    }
+
+    /// Are these the contacts and targets already set?
+    pub fn same_contacts(&self, slots: &[u32], targets: &[Real]) -> bool {
+        self.contacts.slots == slots && self.contact_targets() == targets
     }
 
     /// Sets the contacts: outer slots and their target displacements (3 each; a support is
@@ -368,13 +379,39 @@ impl RestPart {
         Ok(self.fem.solve_dofs(&dp)?.displacements)
     }
 
-    /// The rest's total load (for balance checks): body and point forces.
+    /// The rest's total load (for balance checks): body and point forces, without the
+    /// weight at the interface nodes (the region carries it).
     pub fn total_load(&self) -> Vec3 {
         let mut t = Vec3::ZERO;
         for c in self.forces.chunks_exact(3) {
             t += Vec3::new(c[0], c[1], c[2]);
         }
         t
+    }
+
+    /// The rest's lumped mass at each interface node, in kg.
+    pub fn interface_masses(&self) -> Vec<Real> {
+        let m = crate::model::fem::mass::lumped_masses(self.fem.linear_mesh(), self.density);
+        self.iface.iter().map(|&n| m[n as usize]).collect()
+    }
+
+    /// The moment about the origin of the loads and the contact forces `z`, at rest.
+    #[cfg(test)]
+    pub fn moment(&self, z: &Mat<Real>) -> Vec3 {
+        let x = self.fem.rest_nodes();
+        let mut m = Vec3::ZERO;
+        for (n, f) in self.forces.chunks_exact(3).enumerate() {
+            m += x[n].cross(Vec3::new(f[0], f[1], f[2]));
+        }
+        for (k, &s) in self.contacts.slots.iter().enumerate() {
+            let n = self.outer[s as usize] as usize;
+            m += x[n].cross(Vec3::new(
+                z[(3 * k, 0)],
+                z[(3 * k + 1, 0)],
+                z[(3 * k + 2, 0)],
+            ));
+        }
+        m
     }
 
     pub fn memory_bytes(&self) -> usize {

@@ -51,6 +51,8 @@ pub struct TensorMass {
     pub(super) alive_owner: Vec<u32>,
     pub(super) switched: usize,
     pub(super) precompute_seconds: Real,
+    /// Mass added at nodes by a coupled model (kept across a reset).
+    pub(super) extra_masses: Vec<(usize, Real)>,
 }
 
 impl TensorMass {
@@ -108,6 +110,7 @@ impl TensorMass {
             alive_owner: (0..mesh.tets.len() as u32).collect(),
             switched: 0,
             precompute_seconds: 0.0,
+            extra_masses: Vec::new(),
             params,
             mesh,
             system,
@@ -132,6 +135,22 @@ impl TensorMass {
     }
     pub fn integrator(&self) -> &Integrator {
         &self.integrator
+    }
+    /// Adds mass at nodes (the `hybrid` model puts the rest's share on the interface nodes,
+    /// which the region integrates): kept across resets; loads are re-applied.
+    pub fn add_node_masses(&mut self, masses: &[(usize, Real)]) {
+        for &(n, m) in masses {
+            self.system.add_node_mass(n, m);
+        }
+        self.extra_masses.extend_from_slice(masses);
+        let loads = self.loads.clone();
+        let _ = self.apply_loads(&loads);
+    }
+
+    /// Forgets the integrator's end-of-step forces and energy: for a caller that changed
+    /// forces the system does not know of (the `hybrid` model's coupling).
+    pub fn invalidate_forces(&mut self) {
+        self.integrator.invalidate();
     }
     /// Chooses the integration scheme.
     pub fn set_scheme(&mut self, scheme: Scheme) {

@@ -60,6 +60,9 @@ impl TensorMass {
             self.system
                 .switch_hybrid(&self.mesh.vertices, Real::INFINITY);
         }
+        for &(n, m) in &self.extra_masses {
+            self.system.add_node_mass(n, m);
+        }
         self.surface
             .restore(&self.mesh.tets, &self.mesh.vertices, &self.mesh.vertices);
         self.alive_tets = self.mesh.tets.clone();

@@ -466,6 +466,14 @@ impl TensorSystem {
         linear + nonlinear + n * (36 * 24 + 4 * 8)
     }
 
+    /// Adds mass at node `n` (a coupled model's share at shared nodes); its weight follows at
+    /// the next `set_node_loads`.
+    pub fn add_node_mass(&mut self, n: usize, m: Real) {
+        if let Some(x) = self.masses.get_mut(n) {
+            *x += m;
+        }
+    }
+
     /// Sets the loads: gravity as the lumped share m g, plus point forces per node.
     pub fn set_node_loads(&mut self, gravity: Vec3, forces: &[(usize, Vec3)]) {
         self.gravity = gravity;
