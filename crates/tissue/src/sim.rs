@@ -482,12 +482,16 @@ impl Simulation {
             for k in &fresh {
                 returned.take(k.vertex);
             }
-            changed |= kept.len() != before || !fresh.is_empty();
+            let same = kept.len() == before && fresh.is_empty();
+            changed |= !same;
             mark(taken, &fresh);
             kept.extend(fresh);
             kept.sort_unstable_by_key(|k| k.vertex);
-            inst.contacts = kept;
-            inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
+            if !same {
+                // The reactions belong to the solved set: kept when the set stays.
+                inst.contacts = kept;
+                inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
+            }
         }
         changed
     }
@@ -522,7 +526,11 @@ fn keep_and_find(
         .filter_map(|(k, _)| {
             let p = *positions.get(k.vertex as usize)?;
             let fallback = k.target - old.position;
-            (shape.closest(c, p, fallback).depth <= slack).then(|| {
+            // A contact that may stick is carried along and let go by its force (when it
+            // pulls), not by where its vertex is: the instrument's motion just moved its
+            // trailing side away from the vertices it drags.
+            let touching = shape.closest(c, p, fallback).depth <= slack;
+            (touching || inst.friction() > 0.0).then(|| {
                 // The target, where the last solve (or sliding) left it, carried along with
                 // the instrument when the contact may stick.
                 let base = if inst.friction() > 0.0 {

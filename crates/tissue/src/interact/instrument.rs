@@ -93,7 +93,11 @@ impl Instrument {
             if crate::math::is_finite_vec(v) && v.length() > 0.0 {
                 Ok(())
             } else {
-                Err(bad(name, format!("{v:?}"), "must be a finite non-zero vector"))
+                Err(bad(
+                    name,
+                    format!("{v:?}"),
+                    "must be a finite non-zero vector",
+                ))
             }
         };
         let kind = match kind {

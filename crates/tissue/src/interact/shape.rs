@@ -165,7 +165,13 @@ mod tests {
         // Beside the shaft, past its far end, behind its tip.
         check(capsule, at, at + Vec3::new(1.0, 0.05, 0.0), -0.05, Vec3::Y);
         check(capsule, at, at + Vec3::new(2.3, 0.0, 0.0), 0.2, Vec3::X);
-        check(capsule, at, at + Vec3::new(-0.05, 0.0, 0.0), -0.05, -Vec3::X);
+        check(
+            capsule,
+            at,
+            at + Vec3::new(-0.05, 0.0, 0.0),
+            -0.05,
+            -Vec3::X,
+        );
         let plane = Shape::Plane { normal: Vec3::Y };
         check(plane, at, at + Vec3::new(5.0, -0.25, 1.0), -0.25, Vec3::Y);
         check(plane, at, at + Vec3::new(-5.0, 0.25, 1.0), 0.25, Vec3::Y);

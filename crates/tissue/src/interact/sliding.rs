@@ -79,6 +79,9 @@ pub struct Slider {
     stiffness: Real,
     /// (vertex, target, excess) at the last relaxation of this step.
     last: Vec<(u32, Vec3, Vec3)>,
+    /// (vertex, target) at the step's first relaxation: the slip of this step is measured
+    /// from there.
+    start: Vec<(u32, Vec3)>,
 }
 
 impl Slider {
@@ -87,6 +90,7 @@ impl Slider {
     pub fn begin_step(&mut self) {
         self.stiffness = 0.0;
         self.last.clear();
+        self.start.clear();
     }
 
     /// One relaxation: moves the targets of sliding contacts along the instrument's surface
@@ -109,10 +113,36 @@ impl Slider {
         let mut excesses = Vec::with_capacity(contacts.len());
         let mut normals = Vec::with_capacity(contacts.len());
         let mut pushes = Vec::with_capacity(contacts.len());
+        if self.start.is_empty() {
+            self.start
+                .extend(contacts.iter().map(|k| (k.vertex, k.target)));
+        }
+        let mut backs = Vec::with_capacity(contacts.len());
         for (k, f) in contacts.iter().zip(reactions) {
             let n = shape.closest(at, k.target, Vec3::ZERO).normal;
             let (push, tangential) = split(*f, n);
-            let e = excess(tangential, push, friction);
+            // Coulomb in a step: a contact that has slipped by s since the step began has
+            // the tangential force μN along s (maximal dissipation); one that has not may
+            // hold anything up to μN. Jacobi moves of coupled contacts can leave a slipped
+            // contact inside the cone or turned: it moves on toward f_t = μN ŝ, and back
+            // at most to where the step began it (then it sticks).
+            let slip = self
+                .start
+                .iter()
+                .find(|(v, _)| *v == k.vertex)
+                .map_or(Vec3::ZERO, |(_, x0)| k.target - *x0);
+            let slip = slip - slip.dot(n) * n;
+            let mut back = Real::INFINITY;
+            let e = if friction > 0.0 && slip.length() > 1e-12 * shape.size() {
+                let e = tangential - friction * push.max(0.0) * slip.normalize();
+                if e.dot(slip) < 0.0 {
+                    back = slip.length();
+                }
+                e
+            } else {
+                excess(tangential, push, friction)
+            };
+            backs.push(back);
             residual.excess += e.length();
             residual.push += push.max(0.0);
             excesses.push(e);
@@ -137,15 +167,16 @@ impl Slider {
             return residual;
         }
         let max_move = MAX_MOVE * shape.size();
-        for ((c, e), n) in contacts.iter_mut().zip(&excesses).zip(&normals) {
+        for (((c, e), n), back) in contacts.iter_mut().zip(&excesses).zip(&normals).zip(&backs) {
             self.last.push((c.vertex, c.target, *e));
             if *e == Vec3::ZERO {
                 continue;
             }
             let mut step = *e / k;
             let len = step.length();
-            if len > max_move {
-                step *= max_move / len;
+            let cap = max_move.min(*back);
+            if len > cap {
+                step *= cap / len;
             }
             c.target = shape.closest(at, c.target + step, *n).point;
         }

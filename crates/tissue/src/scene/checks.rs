@@ -222,7 +222,9 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
         }
         "capsule" => {
             only(&["friction", "axis", "length"])?;
-            let axis = i.axis.ok_or("a capsule needs `axis` (its shaft direction)")?;
+            let axis = i
+                .axis
+                .ok_or("a capsule needs `axis` (its shaft direction)")?;
             let length = i.length.ok_or("a capsule needs `length` (m)")?;
             (
                 InstrumentKind::Capsule {
