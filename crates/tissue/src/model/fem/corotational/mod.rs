@@ -147,6 +147,8 @@ struct Workspace {
     v: Vec<Vec3>,
     rotations: Vec<Mat3>,
     elastic: Vec<Real>,
+    /// Per-element node forces of the parallel force loop.
+    element_forces: Vec<[Vec3; 4]>,
 }
 
 /// The corotational implicit model (see the module doc).
@@ -259,6 +261,7 @@ impl FemCorotational {
                 v: vec![Vec3::ZERO; n],
                 rotations: vec![Mat3::IDENTITY; ne],
                 elastic: vec![0.0; 3 * n],
+                element_forces: Vec::new(),
             },
             precompute_seconds: start.elapsed().as_secs_f64(),
             last_cg: Default::default(),
@@ -461,6 +464,7 @@ impl FemCorotational {
                 crate::math::flatten(&self.x),
                 &mut self.rotations,
                 &mut self.elastic,
+                &mut self.ws.element_forces,
             );
             self.elastic_valid = true;
         }

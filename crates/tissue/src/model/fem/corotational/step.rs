@@ -128,6 +128,7 @@ impl FemCorotational {
             flatten(&ws.x),
             &mut ws.rotations,
             &mut ws.elastic,
+            &mut ws.element_forces,
         );
         if let Some(j) = ws.elastic.iter().position(|f| !f.is_finite()) {
             return Err(bad(j / 3, "elastic force is not finite"));
