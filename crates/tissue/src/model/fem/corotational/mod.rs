@@ -23,6 +23,7 @@
 //!   needs ~300;
 //! - `jacobi-pcg`: the diagonal, nothing to factorise;
 //! - `auto` (default): warp unless its factor would exceed `MAX_FACTOR_NNZ` values.
+//!
 //! Constrained dofs are projected out: fixed nodes get zero velocity, prescribed
 //! ones the velocity that reaches their target in this step.
 //!
