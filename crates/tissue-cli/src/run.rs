@@ -56,6 +56,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             outcome.steps as Real / outcome.wall_seconds.max(1e-12),
             args.out.display()
         );
+        if outcome.capped_steps > 0 {
+            eprintln!(
+                "{} steps stopped at their iteration cap before their tolerance \
+                 (worst residual {:.2e}): raise the model's iteration cap or loosen its tolerance",
+                outcome.capped_steps, outcome.worst_residual
+            );
+        }
     }
     match outcome.error {
         Some(e) => anyhow::bail!(e),
@@ -106,6 +113,10 @@ pub struct Outcome {
     pub surface_vertices: usize,
     pub nodes: usize,
     pub elements: usize,
+    /// Steps whose iterative solver stopped at its cap before its tolerance
+    /// (`StepInfo::capped`), and the largest residual any step reported.
+    pub capped_steps: u64,
+    pub worst_residual: Real,
     pub error: Option<String>,
 }
 
@@ -142,11 +153,18 @@ pub fn execute(
     let mut max_displacement: Real = 0.0;
     let mut max_force: Real = 0.0;
     let mut error = None;
+    let (mut capped_steps, mut worst_residual) = (0u64, 0.0 as Real);
     for k in 1..=total {
         let t = sim.time();
-        if let Err(e) = sim.step(scene.run.dt) {
-            error = Some(format!("step {k} (from t = {t} s) failed: {e}"));
-            break;
+        match sim.step(scene.run.dt) {
+            Ok(report) => {
+                capped_steps += u64::from(report.info.capped);
+                worst_residual = worst_residual.max(report.info.residual);
+            }
+            Err(e) => {
+                error = Some(format!("step {k} (from t = {t} s) failed: {e}"));
+                break;
+            }
         }
         max_displacement = max_displacement.max(tissue::metrics::max_displacement(sim.model()));
         for f in sim.instrument_forces() {
@@ -177,6 +195,8 @@ pub fn execute(
         surface_vertices: sim.model().surface().positions.len(),
         nodes: info.nodes,
         elements: info.elements,
+        capped_steps,
+        worst_residual,
         error,
     };
     if let Some(w) = &writer {
@@ -287,6 +307,8 @@ impl Writer {
             "max_instrument_force": o.max_instrument_force,
             "final_instrument_forces": sim.instrument_forces().iter().map(|f| f.to_array()).collect::<Vec<_>>(),
             "fixed_vertices": sim.fixed().len(),
+            "capped_steps": o.capped_steps,
+            "worst_residual": o.worst_residual,
             "frames": self.frames.len(),
             "model_info": {
                 "kind": info.kind,

@@ -39,6 +39,7 @@ fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let params = CorotationalParams {
         cg_iterations: 25,
         cg_tolerance: 1e-10,
+        ..CorotationalParams::default()
     };
     let mut m = FemCorotational::new(&liver(), material, params).expect("liver model");
     m.set_node_constraints(&[3, 39, 64], &[]).expect("fixed");
@@ -57,6 +58,7 @@ fn bench(c: &mut Criterion<cpu_time::ThreadCpuTime>) {
     let params = CorotationalParams {
         cg_iterations: 20,
         cg_tolerance: 1e-10,
+        ..CorotationalParams::default()
     };
     let mut m = FemCorotational::new(&mesh, material, params).expect("beam model");
     m.set_node_constraints(&clamped, &[]).expect("clamp");

@@ -43,7 +43,7 @@ pub const KINDS: &[KindInfo] = &[
     },
     KindInfo {
         name: "fem-corotational",
-        summary: "corotated linear tetrahedra (polar), implicit Euler, matrix-free Jacobi-PCG",
+        summary: "corotated linear tetrahedra (polar), implicit Euler, CG preconditioned by the rotated rest factor",
     },
     KindInfo {
         name: "spring-mass",

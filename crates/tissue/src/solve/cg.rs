@@ -1,5 +1,5 @@
-//! Jacobi-preconditioned conjugate gradients over a matrix-free operator, for the implicit
-//! dynamic models: the operator is a closure `apply(x, y)` writing y = A x, so a model can
+//! Preconditioned conjugate gradients over a matrix-free operator, for the implicit dynamic
+//! models (Jacobi by default, or any SPD preconditioner given as a closure): the operator is a closure `apply(x, y)` writing y = A x, so a model can
 //! apply its stiffness element by element without assembling it. The scratch vectors live
 //! in a `CgWorkspace` sized once, so a solve allocates nothing.
 
@@ -51,13 +51,37 @@ impl CgWorkspace {
     /// truncated to the shortest rather than panicking).
     pub fn solve(
         &mut self,
-        mut apply: impl FnMut(&[Real], &mut [Real]),
+        apply: impl FnMut(&[Real], &mut [Real]),
         inv_diag: &[Real],
         b: &[Real],
         x: &mut [Real],
         max_iterations: usize,
         tolerance: Real,
     ) -> CgResult {
+        let jacobi = |r: &[Real], z: &mut [Real]| {
+            for ((zi, ri), d) in z.iter_mut().zip(r).zip(inv_diag) {
+                *zi = d * ri;
+            }
+        };
+        self.solve_preconditioned(apply, jacobi, inv_diag, b, x, max_iterations, tolerance)
+    }
+
+    /// Like `solve`, with any symmetric positive definite preconditioner:
+    /// `precondition(r, z)` writes z = P⁻¹ r. Unknowns where `free` is zero are held as in
+    /// `solve` (their entries of z are zeroed after `precondition`, which must not couple
+    /// them into the free ones: a P⁻¹ that is block-diagonal in (free, held) does that).
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_preconditioned(
+        &mut self,
+        mut apply: impl FnMut(&[Real], &mut [Real]),
+        mut precondition: impl FnMut(&[Real], &mut [Real]),
+        free: &[Real],
+        b: &[Real],
+        x: &mut [Real],
+        max_iterations: usize,
+        tolerance: Real,
+    ) -> CgResult {
+        let inv_diag = free;
         let n = self.r.len().min(inv_diag.len()).min(b.len()).min(x.len());
         let (r, z, p, q) = (
             &mut self.r[..n],
@@ -105,7 +129,12 @@ impl CgWorkspace {
         }
         for i in 0..n {
             r[i] = if inv_diag[i] != 0.0 { b[i] - q[i] } else { 0.0 };
-            z[i] = inv_diag[i] * r[i];
+        }
+        precondition(r, z);
+        for i in 0..n {
+            if inv_diag[i] == 0.0 {
+                z[i] = 0.0;
+            }
             p[i] = z[i];
         }
         let mut rz: Real = r.iter().zip(z.iter()).map(|(a, b)| a * b).sum();
@@ -129,8 +158,13 @@ impl CgWorkspace {
             for i in 0..n {
                 x[i] += alpha * p[i];
                 r[i] -= alpha * q[i];
-                z[i] = inv_diag[i] * r[i];
                 rr += r[i] * r[i];
+            }
+            precondition(r, z);
+            for i in 0..n {
+                if inv_diag[i] == 0.0 {
+                    z[i] = 0.0;
+                }
             }
             it += 1;
             res = rr.sqrt() / b_norm;

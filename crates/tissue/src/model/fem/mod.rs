@@ -41,7 +41,7 @@ mod system;
 
 pub use assembly::Assembler;
 pub use condensed::FemCondensed;
-pub use corotational::{CorotationalParams, FemCorotational};
+pub use corotational::{CorotationalParams, CorotationalSolver, FemCorotational};
 pub use dynamic::{FemExplicit, FemSemiImplicit};
 pub use precomputed::FemPrecomputedTensors;
 pub use quadratic_mesh::QuadraticMesh;

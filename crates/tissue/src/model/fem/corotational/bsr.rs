@@ -10,6 +10,7 @@
 //! V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (g_a·g_b) I), the product rule of `force::add_stiffness_product`.
 
 use crate::math::{Mat3, Real};
+use crate::solve::BlockPattern;
 
 use super::force::{ElementRest, Lame};
 
@@ -112,6 +113,35 @@ impl BlockStiffness {
                 }
             }
         }
+    }
+
+    /// The stored blocks as a full symmetric matrix on `pattern` (both triangles; the pattern
+    /// must be the node adjacency of the same elements, 3 unknowns per node). Blocks of
+    /// `held` nodes (rows and columns) are left out.
+    pub fn to_pattern_values(&self, pattern: &BlockPattern, held: &[bool]) -> Vec<Real> {
+        let mut values = vec![0.0; pattern.nnz()];
+        for (a, w) in self.row_start.windows(2).enumerate() {
+            for (blk, &b) in self.blocks[w[0]..w[1]].iter().zip(&self.cols[w[0]..w[1]]) {
+                let b = b as usize;
+                if held[a] || held[b] {
+                    continue;
+                }
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let v = blk[3 * i + j];
+                        if let Some(s) = pattern.slot(3 * a + i, 3 * b + j) {
+                            values[s] = v;
+                        }
+                        if a != b
+                            && let Some(s) = pattern.slot(3 * b + j, 3 * a + i)
+                        {
+                            values[s] = v;
+                        }
+                    }
+                }
+            }
+        }
+        values
     }
 
     /// diag += the diagonal of K (flat).

@@ -28,6 +28,25 @@ impl FemCorotational {
     }
 }
 
+impl FemCorotational {
+    /// The solver in use, with its factorisation counts, for `info`.
+    fn solver_description(&self) -> String {
+        match (self.resolved, &self.warp) {
+            (Some(super::Resolved::Warp), Some(w)) => format!(
+                "warp-pcg (factor {} values, {} factorisations in {:.3} s)",
+                w.factor_nnz(),
+                w.factorizations,
+                w.factor_seconds
+            ),
+            (Some(super::Resolved::Jacobi), _) => match &self.fallback_reason {
+                Some(why) => format!("jacobi-pcg ({why})"),
+                None => "jacobi-pcg".into(),
+            },
+            _ => "chosen at the next step".into(),
+        }
+    }
+}
+
 impl Deformable for FemCorotational {
     fn kind(&self) -> &'static str {
         "fem-corotational"
@@ -99,7 +118,8 @@ impl Deformable for FemCorotational {
         let ne = self.elements.len();
         let memory_bytes = ne * (std::mem::size_of::<super::ElementRest>() + 2 * 72)
             + n * (8 + 24 * 8 + 8 * 3 * 10)
-            + self.ws.stiffness.memory_bytes();
+            + self.ws.stiffness.memory_bytes()
+            + self.warp.as_ref().map_or(0, |w| 8 * w.factor_nnz());
         ModelInfo {
             kind: self.kind(),
             nodes: n,
@@ -110,6 +130,7 @@ impl Deformable for FemCorotational {
             precompute_seconds: self.precompute_seconds,
             is_static: false,
             details: vec![
+                ("solver".into(), self.solver_description()),
                 (
                     "cg_iterations".into(),
                     self.params.cg_iterations.to_string(),

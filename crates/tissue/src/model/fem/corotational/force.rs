@@ -105,25 +105,70 @@ fn scatter(e: &ElementRest, p: &Mat3, sign: Real, out: &mut [Real]) {
     }
 }
 
+/// Below this many elements the force loop stays on the calling thread: handing work to
+/// rayon costs more than it saves on small meshes.
+pub const PARALLEL_MIN_ELEMENTS: usize = 4096;
+
+/// The element's rotation updated from `x` (kept where F is singular: returns 1) and its
+/// first Piola-like stress R σ(sym(RᵀF) − I) V.
+#[inline]
+fn element_stress(e: &ElementRest, lame: Lame, x: &[Real], r: &mut Mat3) -> (usize, Mat3) {
+    let f = e.gradient_flat(x);
+    let kept = match polar_rotation_near(&f, r) {
+        Some(new) => {
+            *r = new;
+            0
+        }
+        None => 1,
+    };
+    let h = r.transpose() * f - Mat3::IDENTITY;
+    (kept, *r * lame.stress(&h) * e.volume)
+}
+
 /// Updates each element's rotation from the positions `x` (keeping the previous one where F
 /// is singular or not finite) and adds the elastic forces into `forces` (flat). Returns the
-/// number of elements that kept their previous rotation.
+/// number of elements that kept their previous rotation. On large meshes (and the `parallel`
+/// feature) the elements run on rayon's threads, each writing its four node forces into
+/// `scratch`, which is then summed into `forces` in element order: the result does not
+/// depend on the number of threads.
 pub fn elastic_forces(
     elements: &[ElementRest],
     lame: Lame,
     x: &[Real],
     rotations: &mut [Mat3],
     forces: &mut [Real],
+    scratch: &mut Vec<[Vec3; 4]>,
 ) -> usize {
+    #[cfg(feature = "parallel")]
+    if elements.len() >= PARALLEL_MIN_ELEMENTS && rayon::current_num_threads() > 1 {
+        use rayon::prelude::*;
+        scratch.resize(elements.len(), [Vec3::ZERO; 4]);
+        let kept: usize = elements
+            .par_iter()
+            .zip(rotations.par_iter_mut())
+            .zip(scratch.par_iter_mut())
+            .with_min_len(256)
+            .map(|((e, r), out)| {
+                let (kept, p) = element_stress(e, lame, x, r);
+                *out = per_node(p * e.dm_inv.transpose() * -1.0);
+                kept
+            })
+            .sum();
+        for (e, f) in elements.iter().zip(scratch.iter()) {
+            for (n, fa) in e.nodes.iter().zip(f) {
+                let i = 3 * *n as usize;
+                forces[i] += fa.x;
+                forces[i + 1] += fa.y;
+                forces[i + 2] += fa.z;
+            }
+        }
+        return kept;
+    }
+    let _ = scratch;
     let mut kept = 0;
     for (e, r) in elements.iter().zip(rotations.iter_mut()) {
-        let f = e.gradient_flat(x);
-        match polar_rotation_near(&f, r) {
-            Some(new) => *r = new,
-            None => kept += 1,
-        }
-        let h = r.transpose() * f - Mat3::IDENTITY;
-        let p = *r * lame.stress(&h) * e.volume;
+        let (k, p) = element_stress(e, lame, x, r);
+        kept += k;
         scatter(e, &p, -1.0, forces);
     }
     kept

@@ -6,7 +6,7 @@ use crate::math::{Real, Vec3, flatten};
 use crate::model::StepInfo;
 
 use super::force;
-use super::{FemCorotational, Hold};
+use super::{FemCorotational, Hold, Resolved};
 
 impl FemCorotational {
     /// Advances by `dt` seconds. On a non-finite result the state is left as it was.
@@ -15,6 +15,9 @@ impl FemCorotational {
             return Err(SimError::BadTimeStep { dt });
         }
         self.ensure_elastic();
+        if self.resolved.is_none() {
+            self.resolve_solver()?;
+        }
         let h = dt;
         let (alpha, beta) = (self.material.damping, self.material.stiffness_damping);
         let (elements, lame, rotations) = (&self.elements, self.lame, &self.rotations);
@@ -68,14 +71,27 @@ impl FemCorotational {
         let masses = &self.masses;
         let stiffness = &ws.stiffness;
         let apply = |z: &[Real], y: &mut [Real]| stiffness.apply(cm, ck, masses, z, y);
-        let cg = ws.cg.solve(
-            apply,
-            &ws.inv_diag,
-            &ws.rhs,
-            &mut ws.dv,
-            self.params.cg_iterations,
-            self.params.cg_tolerance,
-        );
+        let (cap, tol) = (self.params.cg_iterations, self.params.cg_tolerance);
+        let cg = match (&self.resolved, self.warp.as_mut()) {
+            (Some(Resolved::Warp), Some(w)) => {
+                let held = self.holds.iter().map(|h| *h != Hold::Free);
+                w.ensure_factored(cm, ck, masses, held)?;
+                w.update_rotations(elements, rotations);
+                let precondition = |r: &[Real], z: &mut [Real]| w.apply(r, z);
+                ws.cg.solve_preconditioned(
+                    apply,
+                    precondition,
+                    &ws.inv_diag,
+                    &ws.rhs,
+                    &mut ws.dv,
+                    cap,
+                    tol,
+                )
+            }
+            _ => ws
+                .cg
+                .solve(apply, &ws.inv_diag, &ws.rhs, &mut ws.dv, cap, tol),
+        };
 
         if !cg.relative_residual.is_finite() {
             return Err(SimError::Diverged {
@@ -112,6 +128,7 @@ impl FemCorotational {
             flatten(&ws.x),
             &mut ws.rotations,
             &mut ws.elastic,
+            &mut ws.element_forces,
         );
         if let Some(j) = ws.elastic.iter().position(|f| !f.is_finite()) {
             return Err(bad(j / 3, "elastic force is not finite"));
@@ -130,7 +147,8 @@ impl FemCorotational {
         Ok(StepInfo {
             iterations: cg.iterations,
             residual: cg.relative_residual,
-            ..StepInfo::default()
+            capped: cg.iterations >= cap && cg.relative_residual > tol,
+            substeps: 1,
         })
     }
 
@@ -174,6 +192,9 @@ impl FemCorotational {
         self.elastic.iter_mut().for_each(|f| *f = 0.0);
         self.elastic_valid = true;
         self.steps = 0;
+        if let Some(w) = self.warp.as_mut() {
+            w.reset();
+        }
         self.update_reactions();
         self.update_surface();
     }
