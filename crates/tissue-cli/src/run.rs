@@ -43,6 +43,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             outcome.steps as Real / outcome.wall_seconds.max(1e-12),
             args.out.display()
         );
+        if outcome.substeps.1 > 1 {
+            eprintln!(
+                "substeps per step: {} to {} (the model's stability limit)",
+                outcome.substeps.0, outcome.substeps.1
+            );
+        }
     }
     match outcome.error {
         Some(e) => anyhow::bail!(e),
@@ -94,6 +100,8 @@ pub struct Outcome {
     pub nodes: usize,
     pub elements: usize,
     pub error: Option<String>,
+    /// Internal steps per step the model took (fewest, most; 0 when it does not say).
+    pub substeps: (u32, u32),
 }
 
 /// Steps the scene to its end, writing outputs into `out` when given.
@@ -129,11 +137,18 @@ pub fn execute(
     let mut max_displacement: Real = 0.0;
     let mut max_force: Real = 0.0;
     let mut error = None;
+    let mut substeps = (u32::MAX, 0);
     for k in 1..=total {
         let t = sim.time();
-        if let Err(e) = sim.step(scene.run.dt) {
-            error = Some(format!("step {k} (from t = {t} s) failed: {e}"));
-            break;
+        match sim.step(scene.run.dt) {
+            Ok(r) => {
+                let s = r.info.substeps;
+                substeps = (substeps.0.min(s), substeps.1.max(s));
+            }
+            Err(e) => {
+                error = Some(format!("step {k} (from t = {t} s) failed: {e}"));
+                break;
+            }
         }
         max_displacement = max_displacement.max(displacement_max(sim.model()));
         for f in sim.instrument_forces() {
@@ -165,6 +180,7 @@ pub fn execute(
         nodes: info.nodes,
         elements: info.elements,
         error,
+        substeps: (substeps.0.min(substeps.1), substeps.1),
     };
     if let Some(w) = &writer {
         w.finish(scene, &sim, &outcome)?;
@@ -304,6 +320,8 @@ impl Writer {
             "final_instrument_forces": sim.instrument_forces().iter().map(|f| f.to_array()).collect::<Vec<_>>(),
             "fixed_vertices": sim.fixed().len(),
             "frames": self.frames.len(),
+            "substeps_min": o.substeps.0,
+            "substeps_max": o.substeps.1,
             "model_info": {
                 "kind": info.kind,
                 "nodes": info.nodes,
