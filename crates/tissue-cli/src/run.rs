@@ -63,6 +63,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 outcome.capped_steps, outcome.worst_residual
             );
         }
+        if outcome.substeps.1 > 1 {
+            eprintln!(
+                "substeps per step: {} to {} (the model's stability limit)",
+                outcome.substeps.0, outcome.substeps.1
+            );
+        }
     }
     match outcome.error {
         Some(e) => anyhow::bail!(e),
@@ -118,6 +124,8 @@ pub struct Outcome {
     pub capped_steps: u64,
     pub worst_residual: Real,
     pub error: Option<String>,
+    /// Internal steps per step the model took (fewest, most; 0 when it does not say).
+    pub substeps: (u32, u32),
 }
 
 /// Steps the scene to its end, writing outputs into `out` when given.
@@ -154,12 +162,15 @@ pub fn execute(
     let mut max_force: Real = 0.0;
     let mut error = None;
     let (mut capped_steps, mut worst_residual) = (0u64, 0.0 as Real);
+    let mut substeps = (u32::MAX, 0);
     for k in 1..=total {
         let t = sim.time();
         match sim.step(scene.run.dt) {
             Ok(report) => {
                 capped_steps += u64::from(report.info.capped);
                 worst_residual = worst_residual.max(report.info.residual);
+                let s = report.info.substeps;
+                substeps = (substeps.0.min(s), substeps.1.max(s));
             }
             Err(e) => {
                 error = Some(format!("step {k} (from t = {t} s) failed: {e}"));
@@ -198,6 +209,7 @@ pub fn execute(
         capped_steps,
         worst_residual,
         error,
+        substeps: (substeps.0.min(substeps.1), substeps.1),
     };
     if let Some(w) = &writer {
         w.finish(scene, &sim, &outcome)?;
@@ -310,6 +322,8 @@ impl Writer {
             "capped_steps": o.capped_steps,
             "worst_residual": o.worst_residual,
             "frames": self.frames.len(),
+            "substeps_min": o.substeps.0,
+            "substeps_max": o.substeps.1,
             "model_info": {
                 "kind": info.kind,
                 "nodes": info.nodes,

@@ -18,14 +18,20 @@
 pub mod coupling;
 mod implicit;
 mod schemes;
+pub mod stable_step;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_substeps;
 
 use serde::Deserialize;
 
 use crate::error::SimError;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::StepInfo;
+
+pub use stable_step::Substeps;
+use stable_step::{RateEstimate, substeps_for};
 
 /// A mechanical system of point masses in 3D, as the integrators see it.
 pub trait ParticleSystem {
@@ -126,9 +132,17 @@ pub struct IntegratorSettings {
     pub cg_max_iterations: usize,
     /// Implicit Euler: CG stops when ‖r‖ ≤ tolerance·‖b‖.
     pub cg_tolerance: Real,
-    /// The largest relative energy gain a step may show beyond the work the held particles
-    /// did (explicit schemes gain a little energy each step when stable, a lot when not).
+    /// The largest relative energy gain one step may show beyond the work the held particles
+    /// did. Default 8: a stable mode's measured energy ½mv² + U swings by up to (1 + hω/2) /
+    /// (1 − hω/2) = 9 between two steps at the automatic substeps' hω ≤ 1.6, while a step far
+    /// above the limit multiplies it by far more; slower growth is the growth watch's.
     pub energy_growth: Real,
+    /// Internal steps per step: `Auto` (default) takes as many as the measured stability
+    /// limit needs (see `stable_step`), `Fixed(n)` exactly n.
+    pub substeps: Substeps,
+    /// Refuse slow energy growth over several steps (`GrowthWatch`); off only to study a
+    /// scheme that gains energy by design (explicit Euler).
+    pub watch_growth: bool,
 }
 
 impl Default for IntegratorSettings {
@@ -136,7 +150,9 @@ impl Default for IntegratorSettings {
         Self {
             cg_max_iterations: 100,
             cg_tolerance: 1e-6,
-            energy_growth: 0.5,
+            energy_growth: 8.0,
+            substeps: Substeps::Auto,
+            watch_growth: true,
         }
     }
 }
@@ -233,6 +249,86 @@ pub(crate) fn eval_forces<S: ParticleSystem + ?Sized>(
     system.forces(x, v, f);
 }
 
+/// Watches the energy ledger L = E − (work the held particles put in) for slow growth: a
+/// stable, passive system never raises L for long (damping lowers it, an undamped one
+/// oscillates about a constant), while an unstable mode raises it at every step. A run of
+/// `GROWTH_RUN` or more consecutive rises whose total exceeds the kinetic energy the body had
+/// before the run (its recent peak, times `PEAK_ALLOWANCE`: what a stable oscillation can
+/// move about), plus half the work of the run, is refused. (The one-step kick allowance of
+/// the one-step test is given only to explicit Euler, which gains it every step by design:
+/// under the other schemes a velocity mode flipping sign under damping would earn one every
+/// step while it grows.) (The
+/// symplectic schemes' modified energy would swing less, but it stays conserved by an
+/// unstable linear step too, so it cannot show a blow-up.)
+#[derive(Clone, Copy, Debug, Default)]
+struct GrowthWatch {
+    /// Ledger after the last accepted step.
+    last: Option<Real>,
+    /// Signed work the held particles did since the watch started, J.
+    work: Real,
+    /// Recent peak of the kinetic energy (decays by `PEAK_DECAY` per step), J.
+    kinetic_peak: Real,
+    /// Consecutive rises so far, the ledger before them and what they may add.
+    run: u32,
+    run_start: Real,
+    allowance: Real,
+}
+
+/// Times a refused step is measured again and retried under `Substeps::Auto`.
+const RETRIES: usize = 3;
+/// Consecutive rises of the ledger before it is compared with its allowance.
+const GROWTH_RUN: u32 = 8;
+/// The rise a run may show, in recent kinetic-energy peaks: a stable mode's measured energy
+/// ½mv² + U swings between H/(1 + hω/2) and H/(1 − hω/2) about its conserved (modified)
+/// energy H, a factor 9 at the automatic substeps' hω ≤ 1.6.
+const PEAK_ALLOWANCE: Real = 8.0;
+/// Per-step decay of the kinetic-energy peak.
+const PEAK_DECAY: Real = 1.0 - 1.0 / 2000.0;
+
+impl GrowthWatch {
+    /// The watch after a trial step, or the excess over the allowance when it is refused.
+    fn next(
+        &self,
+        energy: Real,
+        kinetic: Real,
+        work: Real,
+        work_abs: Real,
+        kick: Real,
+    ) -> Result<Self, (Real, u32)> {
+        let mut w = *self;
+        w.work += work;
+        let ledger = energy - w.work;
+        let floor = 1e-9 * energy.abs() + 1e-300;
+        match self.last {
+            Some(last) if ledger > last + floor => {
+                if w.run == 0 {
+                    w.run_start = last;
+                    w.allowance = PEAK_ALLOWANCE * self.kinetic_peak + floor;
+                }
+                w.run += 1;
+                w.allowance += 0.5 * work_abs + kick;
+                let rise = ledger - w.run_start;
+                if w.run >= GROWTH_RUN && rise > w.allowance {
+                    return Err((rise, w.run));
+                }
+            }
+            _ => w.run = 0,
+        }
+        w.last = Some(ledger);
+        w.kinetic_peak = (self.kinetic_peak * PEAK_DECAY).max(kinetic);
+        Ok(w)
+    }
+}
+
+/// The state at the start of a step split into substeps, restored if one of them fails.
+#[derive(Clone, Debug, Default)]
+struct Saved {
+    state: ParticleState,
+    held_forces: Vec<Vec3>,
+    end: Option<EndOfStep>,
+    watch: GrowthWatch,
+}
+
 /// Steps a particle system in time with one scheme; see the module documentation.
 #[derive(Clone, Debug, Default)]
 pub struct Integrator {
@@ -243,27 +339,77 @@ pub struct Integrator {
     end: Option<EndOfStep>,
     held_forces: Vec<Vec3>,
     implicit: implicit::ImplicitSolver,
+    watch: GrowthWatch,
+    /// Stiffness and damping rates of the system, for automatic substeps.
+    rates: RateEstimate,
+    /// Whether `rates` describes the system as it is (false after `invalidate`).
+    measured: bool,
+    /// Extra factor on the measured ω² after a refused step (1 until then).
+    margin: Real,
+    last_substeps: u32,
+    saved: Saved,
+    sub_holds: Vec<Hold>,
+    scratch_inv_mass: Vec<Real>,
 }
 
 impl Integrator {
     pub fn new(scheme: Scheme) -> Self {
-        Self {
-            scheme,
-            ..Self::default()
-        }
+        Self::with_settings(scheme, IntegratorSettings::default())
     }
 
     pub fn with_settings(scheme: Scheme, settings: IntegratorSettings) -> Self {
         Self {
             scheme,
             settings,
+            margin: 1.0,
             ..Self::default()
         }
     }
 
-    /// Steps taken successfully.
+    /// Steps taken successfully (each made of `last_substeps` internal steps).
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Internal steps the last step took (0 before the first).
+    pub fn last_substeps(&self) -> u32 {
+        self.last_substeps
+    }
+
+    /// The largest step the scheme takes by itself under `substeps = "auto"`: the measured
+    /// stability bound times `stable_step::SAFETY` (infinite for implicit Euler; None before
+    /// the first measurement).
+    pub fn stable_dt(&self) -> Option<Real> {
+        if self.scheme == Scheme::ImplicitEuler {
+            return Some(Real::INFINITY);
+        }
+        self.measured.then(|| {
+            stable_step::SAFETY
+                * stable_step::stable_step(
+                    self.scheme,
+                    self.rates.omega_sq * self.margin.max(1.0),
+                    self.rates.damping_rate,
+                )
+        })
+    }
+
+    /// (ω²_max of M⁻¹K in 1/s², largest rate of M⁻¹C in 1/s) as last measured.
+    pub fn measured_rates(&self) -> (Real, Real) {
+        (self.rates.omega_sq, self.rates.damping_rate)
+    }
+
+    /// `ModelInfo::details` entries: the substep setting, the stable step and the substeps
+    /// the last step took.
+    pub fn details(&self) -> Vec<(String, String)> {
+        let mut d = vec![(
+            "substeps_setting".to_string(),
+            self.settings.substeps.describe(),
+        )];
+        if let Some(h) = self.stable_dt() {
+            d.push(("stable_dt".into(), format!("{h:.6e}")));
+        }
+        d.push(("substeps".into(), self.last_substeps.to_string()));
+        d
     }
 
     /// Forces the system exerts on each held particle at the end of the last step, in the
@@ -273,13 +419,107 @@ impl Integrator {
     }
 
     /// Forgets the forces kept from the last step: call it after changing the system itself
-    /// (a cut, new rest lengths, new material), since the state alone cannot show that.
+    /// (a cut, new rest lengths, new material), since the state alone cannot show that. The
+    /// stability limit is measured again at the next step.
     pub fn invalidate(&mut self) {
         self.end = None;
         self.implicit.forget_warm_start();
+        self.measured = false;
+        self.watch = GrowthWatch::default();
     }
 
-    /// Advances `state` by `dt`. On error the state is untouched and the model stays usable.
+    /// Measures the stability limit now at `state` (the models call it when built, so that
+    /// their info shows it before the first step).
+    pub fn measure<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &ParticleState,
+        holds: &[Hold],
+    ) {
+        if self.scheme == Scheme::ImplicitEuler || state.x.len() != system.masses().len() {
+            return;
+        }
+        self.fill_inv_mass(system, holds);
+        self.rates.measure(
+            system,
+            &state.x,
+            &state.v,
+            &self.scratch_inv_mass,
+            stable_step::ITERATIONS,
+            true,
+        );
+        self.measured = true;
+        self.margin = 1.0;
+    }
+
+    fn fill_inv_mass<S: ParticleSystem + ?Sized>(&mut self, system: &S, holds: &[Hold]) {
+        let inv = &mut self.scratch_inv_mass;
+        inv.clear();
+        inv.extend(system.masses().iter().map(|&m| {
+            if m > 0.0 && m.is_finite() {
+                1.0 / m
+            } else {
+                0.0
+            }
+        }));
+        for h in holds {
+            if let Some(i) = inv.get_mut(h.particle) {
+                *i = 0.0;
+            }
+        }
+    }
+
+    /// How many substeps `dt` takes: the forced count, or under `Auto` the measured limit's
+    /// (measured now if the system changed, re-checked every `RECHECK_STEPS` steps).
+    fn substep_count<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &ParticleState,
+        holds: &[Hold],
+        dt: Real,
+    ) -> Result<u32, SimError> {
+        match self.settings.substeps {
+            Substeps::Fixed(n) => return Ok(n.max(1)),
+            Substeps::Auto if self.scheme == Scheme::ImplicitEuler => return Ok(1),
+            Substeps::Auto => {}
+        }
+        if state.x.len() != system.masses().len() {
+            return Ok(1); // `begin` reports the mismatch
+        }
+        if !self.measured {
+            self.measure(system, state, holds);
+        } else if self.steps > 0 && self.steps.is_multiple_of(stable_step::RECHECK_STEPS) {
+            self.fill_inv_mass(system, holds);
+            self.rates.measure(
+                system,
+                &state.x,
+                &state.v,
+                &self.scratch_inv_mass,
+                stable_step::RECHECK_ITERATIONS,
+                false,
+            );
+        }
+        let stable = self.stable_dt().unwrap_or(Real::INFINITY);
+        substeps_for(dt, stable).ok_or_else(|| SimError::BadParameter {
+            name: "dt",
+            value: format!("{dt:e}"),
+            reason: format!(
+                "{} is stable only below {stable:.3e} s on this model (ω_max = {:.3e} rad/s, \
+                 damping rate {:.3e} 1/s): that is more than {} substeps per step; use \
+                 integrator = \"implicit-euler\", less stiffness damping or a smaller dt",
+                self.scheme,
+                self.rates.omega_sq.sqrt(),
+                self.rates.damping_rate,
+                stable_step::MAX_SUBSTEPS
+            ),
+        })
+    }
+
+    /// Advances `state` by `dt`, in as many substeps as the setting asks (held particles
+    /// move in a straight line to their targets across them). On error the state, the held
+    /// forces and the energy watch are those of the last good step and the model stays
+    /// usable. Under `Auto`, a step the divergence guard refuses is measured again at the
+    /// start state and retried (up to `RETRIES` times) with twice the stiffness margin.
     pub fn step<S: ParticleSystem + ?Sized>(
         &mut self,
         system: &mut S,
@@ -290,6 +530,113 @@ impl Integrator {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(SimError::BadTimeStep { dt });
         }
+        let mut n = self.substep_count(system, state, holds, dt)?;
+        let mut result = self.substepped(system, state, holds, dt, n);
+        let auto = self.settings.substeps == Substeps::Auto && self.scheme != Scheme::ImplicitEuler;
+        for _ in 0..RETRIES {
+            if !(auto && matches!(result, Err(SimError::Diverged { .. }))) {
+                break;
+            }
+            // The system stiffened beyond the last measurement: measure where the step
+            // starts, double the margin, and retry only if that asks for more substeps.
+            self.fill_inv_mass(system, holds);
+            self.rates.measure(
+                system,
+                &state.x,
+                &state.v,
+                &self.scratch_inv_mass,
+                stable_step::ITERATIONS,
+                false,
+            );
+            self.margin = self.margin.max(1.0) * 2.0;
+            let stable = self.stable_dt().unwrap_or(Real::INFINITY);
+            match substeps_for(dt, stable) {
+                Some(m) if m > n => {
+                    n = m;
+                    result = self.substepped(system, state, holds, dt, n);
+                }
+                _ => break,
+            }
+        }
+        result
+    }
+
+    fn substepped<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &mut ParticleState,
+        holds: &[Hold],
+        dt: Real,
+        n: u32,
+    ) -> Result<StepInfo, SimError> {
+        if n <= 1 {
+            let mut info = self.single(system, state, holds, dt)?;
+            self.steps += 1;
+            self.last_substeps = 1;
+            info.substeps = 1;
+            return Ok(info);
+        }
+        let saved = &mut self.saved;
+        saved.state.clone_from(state);
+        saved.held_forces.clone_from(&self.held_forces);
+        saved.end.clone_from(&self.end);
+        saved.watch = self.watch;
+        let mut sub = std::mem::take(&mut self.sub_holds);
+        let h = dt / Real::from(n);
+        let mut info = StepInfo::default();
+        let mut result = Ok(());
+        for k in 1..=n {
+            let f = Real::from(k) / Real::from(n);
+            sub.clear();
+            for hold in holds {
+                // From where the step started (`begin` reports a bad index).
+                let from = self
+                    .saved
+                    .state
+                    .x
+                    .get(hold.particle)
+                    .copied()
+                    .unwrap_or(hold.target);
+                sub.push(Hold {
+                    particle: hold.particle,
+                    target: from + (hold.target - from) * f,
+                });
+            }
+            match self.single(system, state, &sub, h) {
+                Ok(i) => {
+                    info.iterations += i.iterations;
+                    info.residual = info.residual.max(i.residual);
+                    info.capped |= i.capped;
+                }
+                Err(e) => {
+                    result = Err(e);
+                    break;
+                }
+            }
+        }
+        self.sub_holds = sub;
+        if let Err(e) = result {
+            let saved = &self.saved;
+            state.clone_from(&saved.state);
+            self.held_forces.clone_from(&saved.held_forces);
+            self.end.clone_from(&saved.end);
+            self.watch = saved.watch;
+            return Err(e);
+        }
+        self.steps += 1;
+        self.last_substeps = n;
+        info.substeps = n;
+        Ok(info)
+    }
+
+    /// One step of the scheme over `dt` with the given holds; on error nothing changed.
+    fn single<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &mut ParticleState,
+        holds: &[Hold],
+        dt: Real,
+    ) -> Result<StepInfo, SimError> {
         self.begin(system, state, holds, dt)?;
         let info = match self.scheme {
             Scheme::ExplicitEuler => schemes::explicit_euler(&mut self.work, dt),
@@ -309,8 +656,9 @@ impl Integrator {
             return Err(self.diverged(node, "its position or velocity is not finite".into()));
         }
         eval_forces(system, &w.x1, &w.v1, &mut w.f1);
-        let energy = self.check_energy(system, holds, dt)?;
+        let (energy, watch) = self.check_energy(system, holds, dt)?;
         self.commit(state, holds, energy);
+        self.watch = watch;
         Ok(info)
     }
 
@@ -385,17 +733,19 @@ impl Integrator {
         Ok(())
     }
 
-    /// The energy after the trial step, or an error if it grew more than the held particles
-    /// can explain. Energy = kinetic energy of free particles + the system's potential.
+    /// The energy after the trial step and the growth watch after it, or an error if the
+    /// energy grew in one step more than the held particles can explain, or has been rising
+    /// for several steps without work put in (`GrowthWatch`). Energy = kinetic energy of
+    /// free particles + the system's potential.
     fn check_energy<S: ParticleSystem + ?Sized>(
         &self,
         system: &S,
         holds: &[Hold],
         dt: Real,
-    ) -> Result<Option<Real>, SimError> {
+    ) -> Result<(Option<Real>, GrowthWatch), SimError> {
         let w = &self.work;
         let Some(potential1) = system.potential_energy(&w.x1) else {
-            return Ok(None);
+            return Ok((None, self.watch));
         };
         let kinetic = |v: &[Vec3]| -> Real {
             v.iter()
@@ -404,13 +754,21 @@ impl Integrator {
                 .map(|(v, inv)| 0.5 * v.length_squared() / inv)
                 .sum()
         };
-        let e1 = kinetic(&w.v1) + potential1;
+        let k1 = kinetic(&w.v1);
+        let e1 = k1 + potential1;
         let e0 = match self.end.as_ref().and_then(|e| e.energy) {
             Some(e) => e,
             None => kinetic(&w.v0) + system.potential_energy(&w.x0).unwrap_or(potential1),
         };
         // Work the held particles did on the rest: −∫ f·dx along their straight path, by the
         // trapezoid rule (exact for linear forces).
+        let work: Real = holds
+            .iter()
+            .map(|h| {
+                let i = h.particle;
+                -0.5 * (w.f0[i] + w.f1[i]).dot(w.x1[i] - w.x0[i])
+            })
+            .sum();
         let work_in: Real = holds
             .iter()
             .map(|h| {
@@ -429,18 +787,50 @@ impl Integrator {
             + 2.0 * work_in
             + kick
             + 1e-12 * (scale + kick);
+        let hint = || {
+            if self.settings.substeps == Substeps::Auto {
+                format!(
+                    "{} stiffened beyond its measured limit {:.3e} s?",
+                    self.scheme,
+                    self.stable_dt().unwrap_or(Real::INFINITY)
+                )
+            } else {
+                format!("time step too large for {}?", self.scheme)
+            }
+        };
         if !e1.is_finite() || e1 > allowed {
             let node = self.fastest_free_particle();
             return Err(self.diverged(
                 node,
                 format!(
                     "the energy grew from {e0:.3e} J to {e1:.3e} J in one step while the held \
-                     particles put in {work_in:.3e} J (time step too large for {}?)",
-                    self.scheme
+                     particles put in {work_in:.3e} J ({})",
+                    hint()
                 ),
             ));
         }
-        Ok(Some(e1))
+        match self.watch.next(
+            e1,
+            k1,
+            work,
+            work_in,
+            if self.scheme == Scheme::ExplicitEuler {
+                kick
+            } else {
+                0.0
+            },
+        ) {
+            Ok(watch) => Ok((Some(e1), watch)),
+            Err(_) if !self.settings.watch_growth => Ok((Some(e1), self.watch)),
+            Err((rise, run)) => Err(self.diverged(
+                self.fastest_free_particle(),
+                format!(
+                    "the energy rose {rise:.3e} J over {run} steps beyond the work put in \
+                     ({})",
+                    hint()
+                ),
+            )),
+        }
     }
 
     fn commit(&mut self, state: &mut ParticleState, holds: &[Hold], energy: Option<Real>) {
@@ -455,7 +845,6 @@ impl Integrator {
         end.v.clone_from(&w.v1);
         end.f.clone_from(&w.f1);
         end.energy = energy;
-        self.steps += 1;
     }
 
     /// The free particle moving fastest in the trial state: where a blow-up shows first.

@@ -4,22 +4,22 @@
 use super::*;
 
 /// Springs between particles, dashpots along them, and gravity.
-struct Springs {
-    masses: Vec<Real>,
+pub(super) struct Springs {
+    pub(super) masses: Vec<Real>,
     /// (a, b, stiffness N/m, rest length m, damping N·s/m)
-    springs: Vec<(usize, usize, Real, Real, Real)>,
-    gravity: Vec3,
+    pub(super) springs: Vec<(usize, usize, Real, Real, Real)>,
+    pub(super) gravity: Vec3,
     /// Per-spring 3x3 stiffness at the linearisation point.
-    jacobians: Vec<Mat3>,
+    pub(super) jacobians: Vec<Mat3>,
     /// Forces become NaN after this many evaluations (to test the guard).
-    poison_after: Option<usize>,
-    evaluations: usize,
+    pub(super) poison_after: Option<usize>,
+    pub(super) evaluations: usize,
 }
 
 use crate::math::Mat3;
 
 impl Springs {
-    fn new(masses: Vec<Real>, springs: Vec<(usize, usize, Real, Real, Real)>) -> Self {
+    pub(super) fn new(masses: Vec<Real>, springs: Vec<(usize, usize, Real, Real, Real)>) -> Self {
         Self {
             masses,
             springs,
@@ -131,7 +131,7 @@ impl ParticleSystem for Springs {
 
 /// Particle 1 on a zero-length spring to particle 0, which is held at the origin: a 3D
 /// harmonic oscillator with ω = sqrt(k/m).
-fn oscillator(damping: Real) -> (Springs, ParticleState, [Hold; 1]) {
+pub(super) fn oscillator(damping: Real) -> (Springs, ParticleState, [Hold; 1]) {
     let system = Springs::new(vec![1.0, 2.0], vec![(0, 1, 8.0, 0.0, damping)]);
     let state = ParticleState {
         x: vec![Vec3::ZERO, Vec3::new(0.1, 0.0, 0.0)],
@@ -204,9 +204,23 @@ fn symplectic_euler_keeps_the_energy_of_an_undamped_oscillator_bounded() {
     // 1000 s, about 225 periods: the energy error stays of order ω·dt, with no drift.
     assert!(worst < 0.1, "energy wandered by {worst}");
 
-    // Explicit Euler gains (1 + ω²dt²) per step and implicit Euler loses about as much.
+    // Explicit Euler gains (1 + ω²dt²) per step and implicit Euler loses about as much. The
+    // growth watch refuses that steady gain without work, so it is switched off to measure it.
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let mut watched = Integrator::new(Scheme::ExplicitEuler);
+    let refused = (0..1000).find_map(|_| watched.step(&mut system, &mut state, &holds, dt).err());
+    assert!(
+        matches!(refused, Some(SimError::Diverged { .. })),
+        "explicit Euler's steady gain was not refused: {refused:?}"
+    );
+    assert!(
+        energy(&system, &state) / e0 < 20.0,
+        "refused only after a {}× gain",
+        energy(&system, &state) / e0
+    );
     let (mut system, mut state, holds) = oscillator(0.0);
     let mut explicit = Integrator::new(Scheme::ExplicitEuler);
+    explicit.settings.watch_growth = false;
     for _ in 0..1000 {
         explicit.step(&mut system, &mut state, &holds, dt).unwrap();
     }
@@ -327,7 +341,9 @@ fn a_step_past_the_stability_limit_is_refused_and_the_state_kept() {
         Scheme::Rk4,
     ] {
         let (mut system, mut state, holds) = oscillator(0.0);
+        // A forced single substep: `auto` would split the step (see the substep tests).
         let mut integrator = Integrator::new(scheme);
+        integrator.settings.substeps = Substeps::Fixed(1);
         integrator
             .step(&mut system, &mut state, &holds, 0.01)
             .unwrap();

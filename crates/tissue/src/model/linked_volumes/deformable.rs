@@ -193,7 +193,10 @@ impl Deformable for LinkedVolumes {
         );
         targets.sort_unstable_by_key(|t| t.0);
         let start: Vec<Vec3> = targets.iter().map(|t| self.state.x[t.0 as usize]).collect();
-        let n = self.params.substeps;
+        let n = match self.params.substeps {
+            crate::integrate::Substeps::Fixed(n) => n as usize,
+            crate::integrate::Substeps::Auto => 1,
+        };
         let h = dt / n as Real;
         let saved = self.state.clone();
         let mut info = StepInfo::default();
@@ -214,6 +217,8 @@ impl Deformable for LinkedVolumes {
                 Ok(i) => {
                     info.iterations += i.iterations;
                     info.residual = info.residual.max(i.residual);
+                    info.capped |= i.capped;
+                    info.substeps += i.substeps;
                 }
                 Err(e) => {
                     self.state = saved;
@@ -269,7 +274,21 @@ impl Deformable for LinkedVolumes {
                 ("neighbours".into(), self.params.neighbours.to_string()),
                 ("voxel_size".into(), format!("{:.4e}", self.spacing.x)),
                 ("integrator".into(), self.params.integrator.to_string()),
-                ("substeps".into(), self.params.substeps.to_string()),
+                ("substeps_setting".into(), self.params.substeps.describe()),
+                (
+                    "substeps".into(),
+                    match self.params.substeps {
+                        crate::integrate::Substeps::Fixed(n) => n,
+                        crate::integrate::Substeps::Auto => self.integrator.last_substeps(),
+                    }
+                    .to_string(),
+                ),
+                (
+                    "stable_dt".into(),
+                    self.integrator
+                        .stable_dt()
+                        .map_or("not measured".into(), |h| format!("{h:.6e}")),
+                ),
                 (
                     "effective_poisson_ratio".into(),
                     super::lattice_moduli(&self.material, self.params.neighbours)

@@ -60,9 +60,10 @@ pub struct LinkedVolumesParams {
     /// Integration scheme (default "implicit-euler").
     #[serde(default = "default_scheme")]
     pub integrator: Scheme,
-    /// Integrator steps per model step (default 1).
-    #[serde(default = "one")]
-    pub substeps: usize,
+    /// Integrator steps per model step: `"auto"` (default: as many as the measured stability
+    /// limit needs; 1 for implicit Euler) or a forced count (the key's original meaning).
+    #[serde(default)]
+    pub substeps: crate::integrate::Substeps,
 }
 
 fn default_resolution() -> usize {
@@ -74,9 +75,6 @@ fn default_neighbours() -> usize {
 fn default_scheme() -> Scheme {
     Scheme::ImplicitEuler
 }
-fn one() -> usize {
-    1
-}
 
 impl Default for LinkedVolumesParams {
     fn default() -> Self {
@@ -85,7 +83,7 @@ impl Default for LinkedVolumesParams {
             resolution: default_resolution(),
             neighbours: default_neighbours(),
             integrator: default_scheme(),
-            substeps: 1,
+            substeps: crate::integrate::Substeps::Auto,
         }
     }
 }
@@ -195,7 +193,15 @@ impl LinkedVolumes {
             system,
             state: ParticleState::at_rest(rest.clone()),
             rest,
-            integrator: Integrator::new(params.integrator),
+            integrator: {
+                // A forced count is the model's own loop (held targets interpolated there);
+                // under auto the shared integrator splits the step itself.
+                let mut i = Integrator::new(params.integrator);
+                if let crate::integrate::Substeps::Fixed(_) = params.substeps {
+                    i.settings.substeps = crate::integrate::Substeps::Fixed(1);
+                }
+                i
+            },
             embedding,
             triangles: surface.triangles,
             surface: surface.vertices,
@@ -279,8 +285,10 @@ fn check_size(p: &LinkedVolumesParams) -> Result<(), SimError> {
             "must be in 1..=1000",
         );
     }
-    if p.substeps == 0 || p.substeps > 10_000 {
-        return bad("substeps", p.substeps.to_string(), "must be in 1..=10000");
+    if let crate::integrate::Substeps::Fixed(n) = p.substeps
+        && !(1..=10_000).contains(&n)
+    {
+        return bad("substeps", n.to_string(), "must be in 1..=10000");
     }
     if let Some(h) = p.voxel_size.filter(|h| !(h.is_finite() && *h > 0.0)) {
         return bad("voxel_size", h.to_string(), "must be finite and > 0");

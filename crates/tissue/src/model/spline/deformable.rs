@@ -130,6 +130,7 @@ impl SplineModel {
             stiffness,
         )?;
         let mut integrator = Integrator::new(params.integrator);
+        integrator.settings.substeps = params.substeps;
         if let Some(n) = params.cg_iterations {
             integrator.settings.cg_max_iterations = n.max(1);
         }
@@ -442,6 +443,7 @@ impl Deformable for SplineModel {
         if let Some(r) = self.fit_rms {
             details.push(("fit_rms_error".into(), format!("{r:.3e}")));
         }
+        details.extend(self.integrator.details());
         ModelInfo {
             kind: self.kind(),
             nodes: n,

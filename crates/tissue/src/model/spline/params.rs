@@ -33,6 +33,10 @@ pub struct SplineParams {
     /// Implicit Euler: CG iteration cap and relative tolerance (integrator defaults if unset).
     pub cg_iterations: Option<usize>,
     pub cg_tolerance: Option<Real>,
+    /// `"auto"` (default: as many integrator steps per step as the measured stability limit
+    /// needs) or a forced count.
+    #[serde(default)]
+    pub substeps: crate::integrate::Substeps,
 }
 
 fn default_thickness() -> Real {
@@ -60,6 +64,7 @@ impl Default for SplineParams {
             clamp_ends: false,
             cg_iterations: None,
             cg_tolerance: None,
+            substeps: crate::integrate::Substeps::Auto,
         }
     }
 }

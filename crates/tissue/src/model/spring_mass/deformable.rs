@@ -223,6 +223,7 @@ impl Deformable for SpringModel {
         if let Some(dt) = self.explicit_time_step_estimate() {
             details.push(("explicit_dt_estimate_s".into(), format!("{dt:.3e}")));
         }
+        details.extend(self.integrator.details());
         ModelInfo {
             kind: self.kind(),
             nodes: n,

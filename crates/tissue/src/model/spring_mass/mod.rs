@@ -89,6 +89,10 @@ pub struct SpringParams {
     pub cg_iterations: usize,
     #[serde(default = "default_cg_tolerance")]
     pub cg_tolerance: Real,
+    /// `"auto"` (default: as many integrator steps per step as the measured stability limit
+    /// needs) or a forced count.
+    #[serde(default)]
+    pub substeps: crate::integrate::Substeps,
 }
 
 fn default_thickness() -> Real {
@@ -115,6 +119,7 @@ impl Default for SpringParams {
             parent_depth: default_depth(),
             cg_iterations: default_cg_iterations(),
             cg_tolerance: default_cg_tolerance(),
+            substeps: crate::integrate::Substeps::Auto,
         }
     }
 }
@@ -228,6 +233,7 @@ impl SpringModel {
         let settings = IntegratorSettings {
             cg_max_iterations: params.cg_iterations,
             cg_tolerance: params.cg_tolerance,
+            substeps: params.substeps,
             ..IntegratorSettings::default()
         };
         let mut m = Self {

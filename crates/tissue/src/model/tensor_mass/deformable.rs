@@ -102,7 +102,10 @@ impl Deformable for TensorMass {
                 ("fragments".into(), self.fragments_seen.to_string()),
                 ("topology_version".into(), self.topology_version.to_string()),
                 ("steps".into(), self.integrator.steps().to_string()),
-            ],
+            ]
+            .into_iter()
+            .chain(self.integrator.details())
+            .collect(),
         }
     }
 }

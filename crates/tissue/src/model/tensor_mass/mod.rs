@@ -95,6 +95,10 @@ pub struct TensorMassParams {
     /// `remove` (default) or `keep` the pieces a cut separates.
     #[serde(default)]
     pub fragments: Fragments,
+    /// `"auto"` (default: as many integrator steps per step as the measured stability limit
+    /// needs) or a forced count.
+    #[serde(default)]
+    pub substeps: crate::integrate::Substeps,
 }
 
 fn default_interval() -> u32 {
@@ -112,6 +116,7 @@ impl Default for TensorMassParams {
             fibre_lambda: 0.0,
             fibre_mu: 0.0,
             fragments: Fragments::Remove,
+            substeps: crate::integrate::Substeps::Auto,
         }
     }
 }

@@ -7,7 +7,7 @@ use serde::Deserialize;
 
 use crate::error::{Error, SimError};
 use crate::integrate::coupling::{Coupled, NodeCoupling};
-use crate::integrate::{Hold, Integrator, ParticleState, Scheme};
+use crate::integrate::{Hold, Integrator, IntegratorSettings, ParticleState, Scheme};
 use crate::interact::{Constraints, Loads};
 use crate::material::Material;
 use crate::math::{Real, Vec3};
@@ -92,7 +92,13 @@ impl TensorMass {
             nonlinear,
             material,
             state: ParticleState::at_rest(mesh.vertices.clone()),
-            integrator: Integrator::new(scheme),
+            integrator: Integrator::with_settings(
+                scheme,
+                IntegratorSettings {
+                    substeps: params.substeps,
+                    ..IntegratorSettings::default()
+                },
+            ),
             surface,
             holds: Vec::new(),
             step_holds: Vec::new(),
@@ -120,6 +126,8 @@ impl TensorMass {
             m.system.switch_hybrid(&m.mesh.vertices, Real::INFINITY);
             m.switched = 0;
         }
+        // The stability limit, measured at build so the model info shows it.
+        m.integrator.measure(&mut m.system, &m.state, &[]);
         m.precompute_seconds = start.elapsed().as_secs_f64();
         Ok(m)
     }

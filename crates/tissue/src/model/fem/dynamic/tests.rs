@@ -334,6 +334,8 @@ fn explicit_above_the_limit_diverges_and_keeps_the_last_good_state() {
     let mesh = beam([10, 1, 1]);
     let m = beam_material();
     let mut ex = FemExplicit::new(&mesh, m).unwrap();
+    // One forced substep: `auto` would split the step and stay stable.
+    ex.set_substeps(crate::integrate::Substeps::Fixed(1));
     let c = clamp(&ex);
     ex.set_constraints(&c).unwrap();
     assert!(ex.critical_dt_bound() <= ex.critical_dt());
@@ -437,6 +439,8 @@ fn prescribed_vertices_reach_their_target_and_nan_targets_change_nothing() {
 fn critical_dt_estimate_is_sharp_to_five_percent() {
     let mesh = beam([10, 1, 1]);
     let mut ex = FemExplicit::new(&mesh, beam_material()).unwrap();
+    // One forced substep: `auto` would split the step and stay stable.
+    ex.set_substeps(crate::integrate::Substeps::Fixed(1));
     let c = clamp(&ex);
     ex.set_constraints(&c).unwrap();
     let shown: Real = ex
@@ -490,4 +494,52 @@ fn rigid_translation_is_exact_with_changing_dt() {
             assert!((x - v[d % 3] * t).abs() < 1e-12, "{x} vs {}", v[d % 3] * t);
         }
     }
+}
+
+#[test]
+fn explicit_auto_substeps_cover_a_step_above_the_limit_like_small_steps_do() {
+    // dt = 3× the critical step: auto takes ⌈3/0.9⌉ = 4 substeps and matches 4 steps of dt/4
+    // taken by hand with the prescribed vertex moved a quarter of the way each time.
+    let mesh = beam([6, 1, 1]);
+    let mut auto = FemExplicit::new(&mesh, beam_material()).unwrap();
+    let mut by_hand = FemExplicit::new(&mesh, beam_material()).unwrap();
+    by_hand.set_substeps(crate::integrate::Substeps::Fixed(1));
+    let dt = 3.0 * auto.critical_dt();
+    let v = 0;
+    let target = auto.surface().positions[v] + Vec3::new(0.0, 0.0, -1e-3);
+    let press = |t: Vec3| Constraints {
+        prescribed: vec![Prescribed {
+            vertex: v as u32,
+            position: t,
+        }],
+        ..Constraints::default()
+    };
+    auto.set_constraints(&press(target)).unwrap();
+    let info = auto.step(dt).unwrap();
+    assert_eq!(info.substeps, 4);
+    let start = by_hand.surface().positions[v];
+    for k in 1..=4 {
+        let t = start + (target - start) * (k as Real / 4.0);
+        by_hand.set_constraints(&press(t)).unwrap();
+        by_hand.step(dt / 4.0).unwrap();
+    }
+    for (a, b) in auto.displacements().iter().zip(by_hand.displacements()) {
+        assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+    }
+    let ra = auto.reactions().prescribed[0];
+    let rb = by_hand.reactions().prescribed[0];
+    assert!(
+        (ra - rb).length() <= 1e-9 * rb.length().max(1e-30),
+        "{ra} vs {rb}"
+    );
+    // And it keeps going stably for many steps (energy bounded, no divergence).
+    for _ in 0..200 {
+        auto.step(dt).unwrap();
+    }
+    assert!(auto.energy().is_finite());
+    let details = auto.info().details;
+    assert!(
+        details.iter().any(|(k, v)| k == "substeps" && v == "4"),
+        "{details:?}"
+    );
 }

@@ -1,0 +1,241 @@
+//! Automatic substeps and the slow-growth guard: the measured stability limit against the
+//! analytical one, substeps equal to steps taken by hand, and refusals that keep the state.
+
+use super::tests::{Springs, oscillator};
+use super::*;
+
+fn integrator(scheme: Scheme, substeps: Substeps) -> Integrator {
+    let mut i = Integrator::new(scheme);
+    i.settings.substeps = substeps;
+    i
+}
+
+#[test]
+fn measured_rates_match_the_analytical_ones() {
+    // Particle 1 (2 kg) on a k = 8 N/m spring with a 0.4 N·s/m dashpot to the held particle
+    // 0: ω² = k/m = 4 /s², damping rate c/m = 0.2 /s.
+    let (mut system, state, holds) = oscillator(0.4);
+    let mut i = integrator(Scheme::SymplecticEuler, Substeps::Auto);
+    i.measure(&mut system, &state, &holds);
+    let (w2, c) = i.measured_rates();
+    assert!((w2 / 4.0 - 1.0).abs() < 1e-6, "ω² = {w2}");
+    assert!((c / 0.2 - 1.0).abs() < 1e-6, "c = {c}");
+    let bound = 4.0 / (0.2 + (0.04_f64 + 16.0).sqrt());
+    let h = i.stable_dt().unwrap();
+    assert!(
+        (h / (stable_step::SAFETY * bound) - 1.0).abs() < 1e-6,
+        "{h} vs {bound}"
+    );
+    // Two free masses (1 and 2 kg) on one spring: the top mode is k(1/m1 + 1/m2) = 12 /s²,
+    // not either particle's own k/m (the power iteration finds the coupled mode).
+    let mut pair = Springs::new(vec![1.0, 2.0], vec![(0, 1, 8.0, 0.0, 0.0)]);
+    let state = ParticleState::at_rest(vec![Vec3::ZERO, Vec3::X]);
+    let mut i = integrator(Scheme::SymplecticEuler, Substeps::Auto);
+    i.measure(&mut pair, &state, &[]);
+    assert!(
+        (i.measured_rates().0 / 12.0 - 1.0).abs() < 1e-6,
+        "{:?}",
+        i.measured_rates()
+    );
+    // RK4's larger stability region gives it 1.3 times the step; implicit Euler has no limit.
+    assert!((stable_step::stable_step(Scheme::Rk4, 4.0, 0.0) - 1.3).abs() < 1e-12);
+    assert!(stable_step::stable_step(Scheme::ImplicitEuler, 4.0, 0.0).is_infinite());
+}
+
+#[test]
+fn auto_substeps_equal_the_same_steps_taken_by_hand() {
+    // ω = 2 rad/s: symplectic Euler is stable below 1 s, auto takes 0.8 s at most, so a 5 s
+    // step is 7 substeps. The held particle is dragged 1 m during the step; the substeps
+    // move it in a straight line, as 7 steps of 5/7 s with targets at k/7 do.
+    let (mut system, mut state, _) = oscillator(0.0);
+    let target = Vec3::new(1.0, 0.0, 0.0);
+    let holds = [Hold {
+        particle: 0,
+        target,
+    }];
+    let mut auto = integrator(Scheme::SymplecticEuler, Substeps::Auto);
+    let info = auto.step(&mut system, &mut state, &holds, 5.0).unwrap();
+    assert_eq!(info.substeps, 7);
+    assert_eq!(auto.last_substeps(), 7);
+    assert_eq!(auto.steps(), 1);
+    assert!(
+        auto.details()
+            .iter()
+            .any(|(k, v)| k == "substeps" && v == "7")
+    );
+
+    let (mut system2, mut by_hand, _) = oscillator(0.0);
+    let mut single = integrator(Scheme::SymplecticEuler, Substeps::Fixed(1));
+    for k in 1..=7 {
+        let h = [Hold {
+            particle: 0,
+            target: target * (k as Real / 7.0),
+        }];
+        single
+            .step(&mut system2, &mut by_hand, &h, 5.0 / 7.0)
+            .unwrap();
+    }
+    for (a, b) in state.x.iter().zip(&by_hand.x) {
+        assert!((*a - *b).length() < 1e-12, "{a} vs {b}");
+    }
+    assert_eq!(state.x[0], target);
+    // A forced count is obeyed.
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let mut fixed = integrator(Scheme::SymplecticEuler, Substeps::Fixed(3));
+    assert_eq!(
+        fixed
+            .step(&mut system, &mut state, &holds, 0.1)
+            .unwrap()
+            .substeps,
+        3
+    );
+}
+
+#[test]
+fn auto_substeps_keep_every_explicit_scheme_stable_far_above_its_limit() {
+    for scheme in [Scheme::SymplecticEuler, Scheme::VelocityVerlet, Scheme::Rk4] {
+        let (mut system, mut state, holds) = oscillator(0.0);
+        let e = |s: &Springs, st: &ParticleState| {
+            0.5 * s.masses[1] * st.v[1].length_squared() + s.potential_energy(&st.x).unwrap()
+        };
+        let e0 = e(&system, &state);
+        let mut i = integrator(scheme, Substeps::Auto);
+        let mut worst: Real = 0.0;
+        for _ in 0..200 {
+            // 5 s steps: 2.5 times the explicit limit of every scheme.
+            let info = i.step(&mut system, &mut state, &holds, 5.0).unwrap();
+            assert!(info.substeps >= 5, "{scheme}: {info:?}");
+            worst = worst.max(e(&system, &state) / e0);
+        }
+        // Stable: no drift over 1000 s; the measured energy of symplectic Euler at ωh = 1.4
+        // swings by (1 − ωh/2)⁻¹ at most.
+        assert!(worst < 3.5, "{scheme}: energy grew {worst}×");
+    }
+}
+
+#[test]
+fn slow_growth_is_refused_long_before_blow_up_and_keeps_the_last_good_state() {
+    // Particle 1 (2 kg) on a soft spring (ω² = 0.01 /s²) and a strong dashpot (rate 2 /s)
+    // to the held particle 0. Symplectic Euler needs h²ω² + 2hc ≤ 4, h ≤ 0.9995 s; at
+    // h = 1.01 s the velocity mode flips sign and grows 2.5% a step (5% in energy), which
+    // the one-step test (50%) lets through: only the growth watch can refuse it.
+    let make = || {
+        let system = Springs::new(vec![1.0, 2.0], vec![(0, 1, 0.02, 0.0, 4.0)]);
+        let state = ParticleState {
+            x: vec![Vec3::ZERO, Vec3::new(0.1, 0.0, 0.0)],
+            v: vec![Vec3::ZERO, Vec3::new(0.0, 0.3, 0.0)],
+        };
+        let holds = [Hold {
+            particle: 0,
+            target: Vec3::ZERO,
+        }];
+        (system, state, holds)
+    };
+    let (mut system, mut state, holds) = make();
+    let e = |s: &Springs, st: &ParticleState| {
+        0.5 * s.masses[1] * st.v[1].length_squared() + s.potential_energy(&st.x).unwrap()
+    };
+    let e0 = e(&system, &state);
+    let mut i = integrator(Scheme::SymplecticEuler, Substeps::Fixed(1));
+    let mut good = state.clone();
+    let mut forces = Vec::new();
+    let mut refused = None;
+    for _ in 0..2000 {
+        match i.step(&mut system, &mut state, &holds, 1.01) {
+            Ok(_) => {
+                good = state.clone();
+                forces = i.held_forces().to_vec();
+            }
+            Err(err) => {
+                refused = Some(err);
+                break;
+            }
+        }
+    }
+    let err = refused.expect("the growing oscillation was never refused");
+    assert!(
+        matches!(&err, SimError::Diverged { reason, .. } if reason.contains("rose")),
+        "{err}"
+    );
+    assert_eq!(state, good);
+    assert_eq!(i.held_forces(), &forces[..]);
+    let grown = e(&system, &state) / e0;
+    assert!(grown < 20.0, "refused only after a {grown}× gain");
+    // The same run with auto substeps is stable.
+    let (mut system, mut state, holds) = oscillator(0.0);
+    let mut auto = integrator(Scheme::SymplecticEuler, Substeps::Auto);
+    for _ in 0..2000 {
+        assert_eq!(
+            auto.step(&mut system, &mut state, &holds, 1.0005)
+                .unwrap()
+                .substeps,
+            2
+        );
+    }
+}
+
+/// Particle 1 (1 kg) on a hardening spring k d + k₃|d|² d to particle 0, which is held and
+/// pulled at constant speed, and on a dashpot c to the ground: the spring stretches until
+/// k s + k₃ s³ = c V, where its tangent stiffness k + 3k₃s² is hundreds of times the rest one.
+struct Hardening {
+    masses: Vec<Real>,
+}
+
+const K: Real = 1.0;
+const K3: Real = 1e4;
+const C: Real = 10.0;
+const SPEED: Real = 5.0;
+
+impl ParticleSystem for Hardening {
+    fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+    fn forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
+        let d = x[1] - x[0];
+        let s = (K + K3 * d.length_squared()) * d;
+        f[1] += -s - C * v[1];
+        f[0] += s;
+    }
+    fn potential_energy(&self, x: &[Vec3]) -> Option<Real> {
+        let d2 = (x[1] - x[0]).length_squared();
+        Some(0.5 * K * d2 + 0.25 * K3 * d2 * d2)
+    }
+}
+
+#[test]
+fn a_hardening_spring_is_measured_again_as_it_stiffens() {
+    let mut system = Hardening {
+        masses: vec![0.0, 1.0],
+    };
+    let mut state = ParticleState::at_rest(vec![Vec3::ZERO, Vec3::new(0.01, 0.0, 0.0)]);
+    let mut i = integrator(Scheme::SymplecticEuler, Substeps::Auto);
+    let dt = 0.1;
+    let mut rest_dt = None;
+    for step in 1..=100 {
+        let holds = [Hold {
+            particle: 0,
+            target: Vec3::new(SPEED * dt * step as Real, 0.0, 0.0),
+        }];
+        i.step(&mut system, &mut state, &holds, dt)
+            .unwrap_or_else(|e| panic!("step {step}: {e}"));
+        rest_dt.get_or_insert(i.stable_dt().unwrap());
+    }
+    // Steady state: the dashpot's drag c·V balances the spring.
+    let s = (state.x[0] - state.x[1]).length();
+    let balance = K * s + K3 * s * s * s;
+    assert!(
+        (balance / (C * SPEED) - 1.0).abs() < 0.01,
+        "stretch {s}: {balance} N"
+    );
+    let stiff_dt = i.stable_dt().unwrap();
+    assert!(
+        stiff_dt < 0.5 * rest_dt.unwrap(),
+        "{stiff_dt} vs {rest_dt:?}"
+    );
+    // The tangent stiffness at the stretch the model measured, against k + 3k₃s².
+    let w2 = i.measured_rates().0;
+    assert!(
+        (w2 / (K + 3.0 * K3 * s * s) - 1.0).abs() < 0.05,
+        "ω² = {w2}"
+    );
+}
