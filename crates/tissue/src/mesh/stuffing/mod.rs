@@ -71,6 +71,9 @@ impl Stuffed {
     }
 }
 
+/// Gaussian σ of an image mask's blur, relative to the lattice spacing, by default.
+pub const DEFAULT_IMAGE_SMOOTHING: Real = 0.5;
+
 /// The tetrahedron count a size is chosen for when none is given.
 pub const DEFAULT_TARGET_TETS: usize = 20_000;
 
