@@ -122,6 +122,10 @@ pub enum MeshCommand {
         /// Metres per header unit of a MetaImage (whose header states none).
         #[arg(long, default_value_t = 0.001)]
         scale: f64,
+        /// Gaussian σ (m) blurring an image's mask before meshing, so that features much
+        /// smaller than the tetrahedra do not count; default: size/2 (0 for none).
+        #[arg(long)]
+        smooth: Option<f64>,
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,

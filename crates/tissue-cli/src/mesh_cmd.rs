@@ -82,6 +82,7 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             labels,
             threshold,
             scale,
+            smooth,
             json,
             force,
         } => crate::tetrahedralize::tetrahedralize(&crate::tetrahedralize::Request {
@@ -91,6 +92,7 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             labels: labels.as_deref(),
             threshold: threshold.as_deref(),
             scale: *scale,
+            smooth: *smooth,
             json: *json,
             force: *force,
         }),

@@ -22,6 +22,7 @@ pub struct Request<'a> {
     pub labels: Option<&'a [f32]>,
     pub threshold: Option<&'a [f32]>,
     pub scale: f64,
+    pub smooth: Option<f64>,
     pub json: bool,
     pub force: bool,
 }
@@ -33,21 +34,27 @@ pub fn tetrahedralize(r: &Request) -> anyhow::Result<()> {
         "{}: write the tetrahedra to a volume format (.vtu .vtk .msh .mesh .ele)",
         r.output.display()
     );
-    let domain: Box<dyn Domain> = if ImageFormat::from_path(r.input).is_some() {
+    let is_image = ImageFormat::from_path(r.input).is_some();
+    let size_given = r.size;
+    let domain: Box<dyn Domain> = if is_image {
         let image = read_image(r.input, r.scale)?;
         let range = image
             .min_max()
             .map_or("no numbers".to_string(), |(a, b)| format!("{a} .. {b}"));
         match (r.labels, r.threshold) {
             (Some(_), Some(_)) => anyhow::bail!("give --labels or --threshold, not both"),
-            (Some(l), None) => Box::new(
+            (Some(l), None) => Box::new(smooth_image(
                 ImageDomain::from_labels(&image, l)
                     .with_context(|| format!("{}: values span {range}", r.input.display()))?,
-            ),
-            (None, Some(&[lo, hi])) => Box::new(
+                r.smooth,
+                size_given,
+            )),
+            (None, Some(&[lo, hi])) => Box::new(smooth_image(
                 ImageDomain::from_threshold(&image, lo, hi)
                     .with_context(|| format!("{}: values span {range}", r.input.display()))?,
-            ),
+                r.smooth,
+                size_given,
+            )),
             (None, Some(t)) => anyhow::bail!("--threshold takes lo,hi; got {} values", t.len()),
             (None, None) => anyhow::bail!(
                 "{} is an image: say which voxels to mesh with --labels 1,2 or --threshold lo,hi \
@@ -113,4 +120,16 @@ pub fn tetrahedralize(r: &Request) -> anyhow::Result<()> {
         stuffed.mesh.tets.len()
     );
     Ok(())
+}
+
+/// The image's mask blurred by `--smooth` (default: h/2 when --size is given, else none).
+fn smooth_image(d: ImageDomain, smooth: Option<f64>, size: Option<f64>) -> ImageDomain {
+    let sigma = smooth.or(size.map(|h| tissue::mesh::stuffing::DEFAULT_IMAGE_SMOOTHING * h));
+    match sigma {
+        Some(s) if s > 0.0 => {
+            eprintln!("mask smoothed with a Gaussian of σ = {s:.3e} m");
+            d.smoothed(s)
+        }
+        _ => d,
+    }
 }

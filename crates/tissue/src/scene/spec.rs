@@ -51,6 +51,9 @@ pub struct ImageSpec {
     /// Lattice spacing (m) to mesh the selected voxels into tetrahedra by isosurface
     /// stuffing, which makes the body fit for the tetrahedral kinds instead of the voxel ones.
     pub tet_size: Option<Real>,
+    /// Gaussian σ (m) blurring the selected voxels before meshing, so that features much
+    /// smaller than the tetrahedra do not count; default tet_size / 2, 0 for none.
+    pub tet_smooth: Option<Real>,
 }
 
 fn one_step() -> usize {

@@ -157,7 +157,12 @@ pub(super) fn image_tets(
     if let Some((mesh, _)) = key.and_then(cached) {
         return Ok(mesh);
     }
-    let domain = ImageDomain::from_grid(grid).map_err(|e| TetFailure::Mesh(e.to_string()))?;
+    let sigma = spec
+        .tet_smooth
+        .unwrap_or(crate::mesh::stuffing::DEFAULT_IMAGE_SMOOTHING * size);
+    let domain = ImageDomain::from_grid(grid)
+        .map_err(|e| TetFailure::Mesh(e.to_string()))?
+        .smoothed(sigma);
     let (mesh, report) = mesh_domain(&domain, size)?;
     if let Some(k) = key {
         remember(k, &mesh, &report);

@@ -15,10 +15,14 @@ pub struct ImageDomain {
     dims: [usize; 3],
     spacing: Vec3,
     origin: Vec3,
-    /// 1 for a selected voxel, 0 otherwise.
+    /// 1 for a selected voxel, 0 otherwise (between after `smoothed`).
     mask: Vec<f32>,
     /// The label of every voxel (its value, rounded), for tags; empty for a threshold.
     labels: Vec<i32>,
+    /// The level of the (blurred) mask that is the boundary: 1/2. (Choosing instead the
+    /// level that keeps the voxel count after a blur was tried: on the brain image it brought
+    /// back sub-lattice features and did not bring the volume closer.)
+    level: f32,
     lo: Vec3,
     hi: Vec3,
     selected: usize,
@@ -84,10 +88,67 @@ impl ImageDomain {
             origin: image.origin,
             mask: mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect(),
             labels,
+            level: 0.5,
             lo: lo - image.spacing,
             hi: hi + image.spacing,
             selected,
         })
+    }
+
+    /// Blurs the mask with a Gaussian of standard deviation `sigma` (m) along each axis, so
+    /// that the 1/2 level no longer follows features much smaller than `sigma` (single-voxel
+    /// bumps and holes of a noisy segmentation, which a lattice of spacing h cannot follow
+    /// anyway). The reference volume stays the selected voxels' volume. 0 leaves the mask
+    /// as it is.
+    pub fn smoothed(mut self, sigma: Real) -> Self {
+        if !(sigma.is_finite() && sigma > 0.0) {
+            return self;
+        }
+        for axis in 0..3 {
+            let s = sigma / self.spacing[axis];
+            let radius = (3.0 * s).ceil() as usize;
+            if radius == 0 {
+                continue;
+            }
+            let kernel: Vec<f32> = {
+                let k: Vec<Real> = (0..=2 * radius)
+                    .map(|i| {
+                        let x = i as Real - radius as Real;
+                        (-0.5 * x * x / (s * s)).exp()
+                    })
+                    .collect();
+                let sum: Real = k.iter().sum();
+                k.iter().map(|v| (v / sum) as f32).collect()
+            };
+            let [nx, ny, _] = self.dims;
+            let stride = [1, nx, nx * ny][axis];
+            let n = self.dims[axis];
+            let mut line = vec![0f32; n];
+            let src = self.mask.clone();
+            for start in 0..src.len() {
+                // Each line along `axis` once, from its first voxel.
+                if (start / stride) % n != 0 {
+                    continue;
+                }
+                for (i, l) in line.iter_mut().enumerate() {
+                    *l = src[start + i * stride];
+                }
+                for i in 0..n {
+                    let mut acc = 0.0f32;
+                    for (j, &w) in kernel.iter().enumerate() {
+                        let k = i as i64 + j as i64 - radius as i64;
+                        if k >= 0 && (k as usize) < n {
+                            acc += w * line[k as usize];
+                        }
+                    }
+                    self.mask[start + i * stride] = acc;
+                }
+            }
+        }
+        let grow = Vec3::splat(3.0 * sigma);
+        self.lo -= grow;
+        self.hi += grow;
+        self
     }
 
     /// Number of selected voxels.
@@ -120,7 +181,7 @@ impl Domain for ImageDomain {
                 m += w * Real::from(self.at(i + di, j + dj, k + dk));
             }
         }
-        0.5 - m
+        Real::from(self.level) - m
     }
 
     fn bounds(&self) -> (Vec3, Vec3) {
@@ -143,7 +204,7 @@ impl Domain for ImageDomain {
             for dj in -1..=1 {
                 for di in -1..=1 {
                     let (i, j, k) = (c[0] + di, c[1] + dj, c[2] + dk);
-                    if self.at(i, j, k) == 0.0 {
+                    if self.at(i, j, k) < self.level {
                         continue;
                     }
                     let q = self.origin + Vec3::new(i as Real, j as Real, k as Real) * self.spacing;

@@ -47,8 +47,8 @@ pub const ALPHA_LONG: Real = 0.24999;
 pub const ALPHA_SHORT: Real = 0.41189;
 /// The paper's proven dihedral bounds for uniform sizing with these α, in degrees.
 pub const PROVEN_DIHEDRAL_DEG: (Real, Real) = (10.7, 164.8);
-/// Lattices beyond this many vertices are refused (memory: ~40 bytes each).
-pub const MAX_LATTICE_VERTICES: usize = 40_000_000;
+/// Lattices beyond this many vertices are refused (memory: ~30 bytes each).
+pub const MAX_LATTICE_VERTICES: usize = 16_000_000;
 
 /// A tetrahedral mesh made by stuffing, its tags (one per tetrahedron, from
 /// `Domain::tag_at`) and its report.
@@ -70,6 +70,9 @@ impl Stuffed {
         }
     }
 }
+
+/// Gaussian σ of an image mask's blur, relative to the lattice spacing, by default.
+pub const DEFAULT_IMAGE_SMOOTHING: Real = 0.5;
 
 /// The tetrahedron count a size is chosen for when none is given.
 pub const DEFAULT_TARGET_TETS: usize = 20_000;

@@ -255,20 +255,28 @@ pub fn measure(
             0.5 * (c + a),
         ]);
     }
+    // Input → mesh: boundary samples of the input, about h/4 apart.
+    let samples = domain.boundary_samples(0.25 * size);
+    let index = TriangleIndex::new(&boundary.vertices, &boundary.triangles);
+    let input_to_mesh = samples
+        .iter()
+        .map(|&p| index.distance(p))
+        .fold(0.0, Real::max);
+    // Without the exact surface, the first-order estimate, bounded above by the distance to
+    // the nearest boundary sample (which is on the boundary, so never an underestimate);
+    // the samples are indexed as one-point triangles.
+    let nearest_sample = (exact_distance.is_none() && !samples.is_empty()).then(|| {
+        let points: Vec<[u32; 3]> = (0..samples.len() as u32).map(|i| [i, i, i]).collect();
+        TriangleIndex::new(&samples, &points)
+    });
     let step = 1e-3 * size;
     let mesh_to_input = probes
         .iter()
-        .map(|&p| match exact_distance {
-            Some(index) => index.distance(p),
-            None => domain.boundary_distance(p, step),
+        .map(|&p| match (exact_distance, &nearest_sample) {
+            (Some(index), _) => index.distance(p),
+            (None, Some(near)) => domain.boundary_distance(p, step).min(near.distance(p)),
+            (None, None) => domain.boundary_distance(p, step),
         })
-        .fold(0.0, Real::max);
-    // Input → mesh: boundary samples of the input, about h/4 apart.
-    let index = TriangleIndex::new(&boundary.vertices, &boundary.triangles);
-    let input_to_mesh = domain
-        .boundary_samples(0.25 * size)
-        .iter()
-        .map(|&p| index.distance(p))
         .fold(0.0, Real::max);
     let reference_volume = domain.reference_volume();
     MeshingReport {

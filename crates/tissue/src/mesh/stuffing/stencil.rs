@@ -147,9 +147,9 @@ fn prism(
     let Some(m) = (0..6).find(|&v| ends(v) == 2) else {
         let s = STEINER_BASE + steiner.len() as Key;
         steiner.push(p);
-        for i in 0..3 {
+        for (i, &up) in rising.iter().enumerate() {
             let q = quad(i);
-            let d = if rising[i] { 0 } else { 1 };
+            let d = if up { 0 } else { 1 };
             let r = |j: usize| q[(d + j) % 4];
             out.push([r(0), r(1), r(2), s]);
             out.push([r(0), r(2), r(3), s]);

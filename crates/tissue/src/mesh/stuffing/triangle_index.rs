@@ -94,11 +94,11 @@ impl TriangleIndex {
         c[0] + self.n[0] * (c[1] + self.n[1] * c[2])
     }
 
-    fn for_cells_of(&self, t: usize, mut f: impl FnMut(usize)) {
+    fn for_cells_of(&self, t: usize, f: impl FnMut(usize)) {
         let p = self.triangles[t].map(|v| self.vertices[v as usize]);
         let a = self.cell_of(p[0].min(p[1]).min(p[2]));
         let b = self.cell_of(p[0].max(p[1]).max(p[2]));
-        self.for_box(a, b, |c| f(c));
+        self.for_box(a, b, f);
     }
 
     fn for_box(&self, a: [usize; 3], b: [usize; 3], mut f: impl FnMut(usize)) {
