@@ -765,57 +765,42 @@ fn compression(
     Ok((settled.value, settled.curve, settled.settled))
 }
 
-/// Step response to a sudden load on the top patch with the organ's own (light) damping:
-/// the first eigenfrequency from the first peak of the patch motion, and the time the far
-/// side takes to reach a tenth of its largest motion.
+/// Step response to the probe pressed in suddenly (the shallow depth at the first step) with
+/// the organ's own damping: the far side's motion gives the first eigenfrequency (its first
+/// peak is half a period) and the survey's "delay" (the time to reach a tenth of its largest
+/// motion).
 pub(super) fn step_response(
     kind: &str,
     organ: &Organ,
     sc: &Scenario,
     mat: Material,
     dt: Real,
-    reference: &Reference,
+    _reference: &Reference,
     s: &Settings,
 ) -> Result<(Measure, Measure), Error> {
-    let mut model = organ.build(kind, mat)?;
+    let model = organ.build(kind, mat)?;
     let rest = model.rest_surface().to_vec();
     let fixed = sc.fixed(&rest);
-    let patch = sc.patch(&rest, sc.probe_radius);
     let far = nearest(&rest, Vec3::from(sc.far_point)).unwrap_or(0) as usize;
-    model.set_constraints(&Constraints::fixed(fixed))?;
-    let total = reference.force_shallow.abs().max(1e-6);
-    let each = Vec3::NEG_Y * (total / patch.len() as Real);
-    model.set_loads(&Loads {
-        gravity: Vec3::ZERO,
-        point_loads: patch.iter().map(|&v| (v, each)).collect(),
-    })?;
+    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    let pressed = sc.probe() - Vec3::Y * sc.shallow;
+    sim.add_instrument(super::drive::probe_instrument(
+        pressed,
+        sc.probe_radius,
+        0.0,
+        1.0,
+    )?);
     let steps = (s.dynamics_time / dt).ceil() as usize;
-    let mut top = Vec::with_capacity(steps);
     let mut side = Vec::with_capacity(steps);
     for _ in 0..steps {
-        model.step(dt)?;
-        check_finite(model.as_ref())?;
-        let p = model.surface().positions;
-        let d: Real = patch
-            .iter()
-            .map(|&v| rest[v as usize].y - p[v as usize].y)
-            .sum::<Real>()
-            / patch.len() as Real;
-        top.push(d);
-        side.push(p[far].distance(rest[far]));
-    }
-    if std::env::var_os("TISSUE_COMPARE_DEBUG").is_some() {
-        eprintln!(
-            "{kind} top {:?}",
-            top.iter()
-                .step_by((top.len() / 40).max(1))
-                .collect::<Vec<_>>()
-        );
+        sim.step(dt)?;
+        check_finite(sim.model())?;
+        side.push(sim.model().surface().positions[far].distance(rest[far]));
     }
     // First peak: a maximum followed by a drop of at least 2 % of it.
     let mut peak = None;
     let mut best = (0usize, Real::MIN);
-    for (k, &d) in top.iter().enumerate() {
+    for (k, &d) in side.iter().enumerate() {
         if d > best.1 {
             best = (k, d);
         } else if best.1 > 0.0 && d < 0.98 * best.1 {
