@@ -114,7 +114,10 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
             }
             m.clone()
         }
-        None => tissue::model::KINDS.iter().map(|k| k.name.to_string()).collect(),
+        None => tissue::model::KINDS
+            .iter()
+            .map(|k| k.name.to_string())
+            .collect(),
     };
     std::fs::create_dir_all(args.out.join("cache"))
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -136,8 +139,10 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
     rbar.set_style(style.clone());
     rbar.set_prefix("reference");
     rbar.enable_steady_tick(std::time::Duration::from_millis(200));
-    let reference = reference(&organ, &scenario, &settings, &|s| rbar.set_message(s.to_string()))
-        .context("computing the reference (quadratic fem-static)")?;
+    let reference = reference(&organ, &scenario, &settings, &|s| {
+        rbar.set_message(s.to_string())
+    })
+    .context("computing the reference (quadratic fem-static)")?;
     rbar.finish_with_message(format!(
         "done: probe force {:.4} N, convergence {:.2} %",
         reference.force_shallow,
@@ -150,7 +155,10 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
         h = fnv(serde_json::to_string(&settings)?.as_bytes(), h);
         h = fnv(serde_json::to_string(&scenario)?.as_bytes(), h);
         h = fnv(format!("{:?}", organ.material).as_bytes(), h);
-        h = fnv(format!("{:?}{:?}", organ.mesh.vertices, organ.mesh.tets).as_bytes(), h);
+        h = fnv(
+            format!("{:?}{:?}", organ.mesh.vertices, organ.mesh.tets).as_bytes(),
+            h,
+        );
         h = fnv(serde_json::to_string(&reference.record)?.as_bytes(), h);
         h
     };
@@ -176,9 +184,14 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
                             bar.set_style(style.clone());
                             bar.set_prefix(kind.clone());
                             bar.enable_steady_tick(std::time::Duration::from_millis(200));
-                            let r = measure_kind(kind, &organ, &scenario, &reference, &settings, &|m| {
-                                bar.set_message(m.to_string())
-                            });
+                            let r = measure_kind(
+                                kind,
+                                &organ,
+                                &scenario,
+                                &reference,
+                                &settings,
+                                &|m| bar.set_message(m.to_string()),
+                            );
                             bar.finish_and_clear();
                             multi.remove(&bar);
                             if let Ok(t) = serde_json::to_string_pretty(&r) {

@@ -84,7 +84,11 @@ where
     a.fill(&WHITE)?;
     let (w, h) = a.dim_in_pixel();
     let (plot, legend) = a.split_horizontally((w as f64 * 0.68) as u32);
-    plot.draw(&Text::new(title.to_string(), (10, 10), ("sans-serif", 18).into_font()))?;
+    plot.draw(&Text::new(
+        title.to_string(),
+        (10, 10),
+        ("sans-serif", 18).into_font(),
+    ))?;
     let (pw, _) = plot.dim_in_pixel();
     let cx = pw as f64 / 2.0;
     let cy = h as f64 / 2.0 + 10.0;
@@ -92,7 +96,10 @@ where
     let n = labels.len();
     let at = |i: usize, f: f64| {
         let ang = -std::f64::consts::FRAC_PI_2 + 2.0 * std::f64::consts::PI * i as f64 / n as f64;
-        ((cx + rad * f * ang.cos()) as i32, (cy + rad * f * ang.sin()) as i32)
+        (
+            (cx + rad * f * ang.cos()) as i32,
+            (cy + rad * f * ang.sin()) as i32,
+        )
     };
     for ring in [0.25, 0.5, 0.75, 1.0] {
         let mut pts: Vec<(i32, i32)> = (0..n).map(|i| at(i, ring)).collect();
@@ -100,11 +107,18 @@ where
         plot.draw(&PathElement::new(pts, RGBColor(200, 200, 200)))?;
     }
     for (i, l) in labels.iter().enumerate() {
-        plot.draw(&PathElement::new(vec![at(i, 0.0), at(i, 1.0)], RGBColor(200, 200, 200)))?;
+        plot.draw(&PathElement::new(
+            vec![at(i, 0.0), at(i, 1.0)],
+            RGBColor(200, 200, 200),
+        ))?;
         let (x, y) = at(i, 1.12);
         let text = format!("{l} ({})", max[i]);
         let width = 6 * text.chars().count() as i32;
-        plot.draw(&Text::new(text, (x - width / 2, y - 6), ("sans-serif", 12).into_font()))?;
+        plot.draw(&Text::new(
+            text,
+            (x - width / 2, y - 6),
+            ("sans-serif", 12).into_font(),
+        ))?;
     }
     for (k, (name, vals)) in series.iter().enumerate() {
         let c = colour(k);
@@ -117,12 +131,19 @@ where
         plot.draw(&PathElement::new(pts, c.stroke_width(2)))?;
         let y = 40 + 20 * k as i32;
         legend.draw(&Rectangle::new([(5, y), (20, y + 10)], c.filled()))?;
-        legend.draw(&Text::new(name.clone(), (26, y - 2), ("sans-serif", 13).into_font()))?;
+        legend.draw(&Text::new(
+            name.clone(),
+            (26, y - 2),
+            ("sans-serif", 13).into_font(),
+        ))?;
     }
     Ok(())
 }
 
-fn radar_groups<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> Result<(), Err>
+fn radar_groups<DB: DrawingBackend>(
+    r: &CompareRecord,
+    a: &DrawingArea<DB, Shift>,
+) -> Result<(), Err>
 where
     DB::ErrorType: 'static,
 {
@@ -132,10 +153,19 @@ where
         .iter()
         .map(|s| (format!("{} ({:.1})", s.kind, s.total), s.groups.to_vec()))
         .collect();
-    radar(a, "Fig. 7, measured: group totals", &labels, &[15.0; 3], &series)
+    radar(
+        a,
+        "Fig. 7, measured: group totals",
+        &labels,
+        &[15.0; 3],
+        &series,
+    )
 }
 
-fn radar_criteria<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> Result<(), Err>
+fn radar_criteria<DB: DrawingBackend>(
+    r: &CompareRecord,
+    a: &DrawingArea<DB, Shift>,
+) -> Result<(), Err>
 where
     DB::ErrorType: 'static,
 {
@@ -146,7 +176,13 @@ where
         .iter()
         .map(|s| (s.kind.clone(), s.cells.iter().map(|c| c.score).collect()))
         .collect();
-    radar(a, "Scores per criterion (fraction of the weight)", &labels, &max, &series)
+    radar(
+        a,
+        "Scores per criterion (fraction of the weight)",
+        &labels,
+        &max,
+        &series,
+    )
 }
 
 /// Line plot of named curves (x, y) with the reference in black.
@@ -183,7 +219,10 @@ where
     chart.configure_mesh().x_desc(xl).y_desc(yl).draw()?;
     if let Some(rf) = reference {
         chart
-            .draw_series(LineSeries::new(rf.iter().map(|p| (p[0], p[1])), BLACK.stroke_width(3)))?
+            .draw_series(LineSeries::new(
+                rf.iter().map(|p| (p[0], p[1])),
+                BLACK.stroke_width(3),
+            ))?
             .label("reference")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 15, y)], BLACK.stroke_width(3)));
     }
@@ -191,7 +230,9 @@ where
         let c = colour(k);
         chart
             .draw_series(LineSeries::new(
-                pts.iter().filter(|p| p[1].is_finite()).map(|p| (p[0], p[1])),
+                pts.iter()
+                    .filter(|p| p[1].is_finite())
+                    .map(|p| (p[0], p[1])),
                 c.stroke_width(2),
             ))?
             .label(name.clone())
@@ -206,38 +247,76 @@ where
     Ok(())
 }
 
-fn force_indentation<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> Result<(), Err>
+fn force_indentation<DB: DrawingBackend>(
+    r: &CompareRecord,
+    a: &DrawingArea<DB, Shift>,
+) -> Result<(), Err>
 where
     DB::ErrorType: 'static,
 {
     let series: Vec<(String, Vec<[f64; 2]>)> = r
         .kinds
         .iter()
-        .filter_map(|k| k.curves.get("indentation").map(|c| (k.kind.clone(), c.points.iter().map(|p| [1e3 * p[0], p[1]]).collect())))
+        .filter_map(|k| {
+            k.curves.get("indentation").map(|c| {
+                (
+                    k.kind.clone(),
+                    c.points.iter().map(|p| [1e3 * p[0], p[1]]).collect(),
+                )
+            })
+        })
         .collect();
     let rf: Option<Vec<[f64; 2]>> = r
         .reference
         .curves
         .get("indentation")
         .map(|c| c.points.iter().map(|p| [1e3 * p[0], p[1]]).collect());
-    curves(a, "Probe force against indentation", "indentation (mm)", "force (N)", rf.as_deref(), &series)
+    curves(
+        a,
+        "Probe force against indentation",
+        "indentation (mm)",
+        "force (N)",
+        rf.as_deref(),
+        &series,
+    )
 }
 
-fn volume_compression<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> Result<(), Err>
+fn volume_compression<DB: DrawingBackend>(
+    r: &CompareRecord,
+    a: &DrawingArea<DB, Shift>,
+) -> Result<(), Err>
 where
     DB::ErrorType: 'static,
 {
     let series: Vec<(String, Vec<[f64; 2]>)> = r
         .kinds
         .iter()
-        .filter_map(|k| k.curves.get("compression").map(|c| (k.kind.clone(), c.points.iter().map(|p| [1e3 * p[0], 100.0 * p[1]]).collect())))
+        .filter_map(|k| {
+            k.curves.get("compression").map(|c| {
+                (
+                    k.kind.clone(),
+                    c.points
+                        .iter()
+                        .map(|p| [1e3 * p[0], 100.0 * p[1]])
+                        .collect(),
+                )
+            })
+        })
         .collect();
-    let rf: Option<Vec<[f64; 2]>> = r
-        .reference
-        .curves
-        .get("compression")
-        .map(|c| c.points.iter().map(|p| [1e3 * p[0], 100.0 * p[1]]).collect());
-    curves(a, "Volume change under compression (ν = 0.45)", "plate travel (mm)", "ΔV/V (%)", rf.as_deref(), &series)
+    let rf: Option<Vec<[f64; 2]>> = r.reference.curves.get("compression").map(|c| {
+        c.points
+            .iter()
+            .map(|p| [1e3 * p[0], 100.0 * p[1]])
+            .collect()
+    });
+    curves(
+        a,
+        "Volume change under compression (ν = 0.45)",
+        "plate travel (mm)",
+        "ΔV/V (%)",
+        rf.as_deref(),
+        &series,
+    )
 }
 
 /// Labelled points on log-log axes.
@@ -253,7 +332,10 @@ where
     DB::ErrorType: 'static,
 {
     a.fill(&WHITE)?;
-    let pts: Vec<&(String, f64, f64)> = points.iter().filter(|p| p.1 > 0.0 && p.2 > 0.0 && p.1.is_finite() && p.2.is_finite()).collect();
+    let pts: Vec<&(String, f64, f64)> = points
+        .iter()
+        .filter(|p| p.1 > 0.0 && p.2 > 0.0 && p.1.is_finite() && p.2.is_finite())
+        .collect();
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for p in &pts {
         x0 = x0.min(p.1);
@@ -269,18 +351,28 @@ where
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d((x0 / 2.0..x1 * 2.0).log_scale(), (y0 / 2.0..y1 * 2.0).log_scale())?;
+        .build_cartesian_2d(
+            (x0 / 2.0..x1 * 2.0).log_scale(),
+            (y0 / 2.0..y1 * 2.0).log_scale(),
+        )?;
     chart.configure_mesh().x_desc(xl).y_desc(yl).draw()?;
     for (k, p) in pts.iter().enumerate() {
         let c = colour(k);
         chart.draw_series(std::iter::once(Circle::new((p.1, p.2), 5, c.filled())))?;
-        chart.draw_series(std::iter::once(Text::new(p.0.clone(), (p.1, p.2), ("sans-serif", 11).into_font())))?;
+        chart.draw_series(std::iter::once(Text::new(
+            p.0.clone(),
+            (p.1, p.2),
+            ("sans-serif", 11).into_font(),
+        )))?;
     }
     if front {
         // The Pareto front: no other point is both cheaper and more accurate.
         let mut f: Vec<(f64, f64)> = pts
             .iter()
-            .filter(|p| !pts.iter().any(|q| q.1 <= p.1 && q.2 <= p.2 && (q.1 < p.1 || q.2 < p.2)))
+            .filter(|p| {
+                !pts.iter()
+                    .any(|q| q.1 <= p.1 && q.2 <= p.2 && (q.1 < p.1 || q.2 < p.2))
+            })
             .map(|p| (p.1, p.2))
             .collect();
         f.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -302,7 +394,14 @@ where
             Some((k.kind.clone(), e, c))
         })
         .collect();
-    scatter(a, "Cost of a simulated ms (1 ms steps) against mesh size", "elements", "wall s per simulated ms", &pts, false)
+    scatter(
+        a,
+        "Cost of a simulated ms (1 ms steps) against mesh size",
+        "elements",
+        "wall s per simulated ms",
+        &pts,
+        false,
+    )
 }
 
 fn pareto<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> Result<(), Err>
@@ -318,5 +417,12 @@ where
             Some((k.kind.clone(), c, e.max(1e-4)))
         })
         .collect();
-    scatter(a, "Error against cost: the Pareto front", "wall s per simulated ms (1 ms steps)", "surface displacement error (relative)", &pts, true)
+    scatter(
+        a,
+        "Error against cost: the Pareto front",
+        "wall s per simulated ms (1 ms steps)",
+        "surface displacement error (relative)",
+        &pts,
+        true,
+    )
 }

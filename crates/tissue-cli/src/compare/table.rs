@@ -29,7 +29,9 @@ pub fn markdown(r: &CompareRecord) -> String {
         r.version
     ));
     s.push_str("Each cell: **our score** (the survey's score for the kind's column) — the measured values. ");
-    s.push_str("Scores run from 0 to the criterion's weight; the rules are in `docs/compare.md`.\n\n");
+    s.push_str(
+        "Scores run from 0 to the criterion's weight; the rules are in `docs/compare.md`.\n\n",
+    );
     let levels: Vec<String> = r
         .reference
         .levels
@@ -89,7 +91,9 @@ pub fn markdown(r: &CompareRecord) -> String {
 }
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// The HTML table: criteria as rows, kinds as columns, as in the survey.
@@ -111,13 +115,25 @@ pub fn html(r: &CompareRecord) -> String {
     ));
     s.push_str("<table><tr><th>criterion</th><th>weight</th>");
     for k in &r.kinds {
-        s.push_str(&format!("<th>{}<br><span class=v>{}</span></th>", esc(&k.kind), esc(&k.column)));
+        s.push_str(&format!(
+            "<th>{}<br><span class=v>{}</span></th>",
+            esc(&k.kind),
+            esc(&k.column)
+        ));
     }
     s.push_str("</tr>\n");
     for (g, group) in GROUPS.iter().enumerate() {
-        s.push_str(&format!("<tr class=g><th colspan={}>{}</th></tr>\n", r.kinds.len() + 2, group));
+        s.push_str(&format!(
+            "<tr class=g><th colspan={}>{}</th></tr>\n",
+            r.kinds.len() + 2,
+            group
+        ));
         for (i, c) in CRITERIA.iter().enumerate().filter(|(_, c)| c.group == g) {
-            s.push_str(&format!("<tr><td>{}</td><td>{}</td>", esc(c.name), num(c.weight)));
+            s.push_str(&format!(
+                "<tr><td>{}</td><td>{}</td>",
+                esc(c.name),
+                num(c.weight)
+            ));
             for sc in &r.scores {
                 let cell = &sc.cells[i];
                 s.push_str(&format!(

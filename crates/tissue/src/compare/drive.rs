@@ -119,7 +119,12 @@ fn run<M: ?Sized>(
 }
 
 /// The probe pressing `depth` m straight down at `point` (touching at the start).
-pub fn probe_instrument(point: Vec3, radius: Real, depth: Real, ramp: Real) -> Result<Instrument, Error> {
+pub fn probe_instrument(
+    point: Vec3,
+    radius: Real,
+    depth: Real,
+    ramp: Real,
+) -> Result<Instrument, Error> {
     let top = point + Vec3::Y * radius;
     let bottom = top - Vec3::Y * depth;
     let key = |t: Real, p: Vec3| Keyframe {
@@ -133,7 +138,12 @@ pub fn probe_instrument(point: Vec3, radius: Real, depth: Real, ramp: Real) -> R
             reason: e.to_string(),
         }
     })?;
-    Ok(Instrument::new("probe", InstrumentKind::Probe, radius, path)?)
+    Ok(Instrument::new(
+        "probe",
+        InstrumentKind::Probe,
+        radius,
+        path,
+    )?)
 }
 
 /// Quasi-static indentation with the probe through `Simulation`; watches the probe force
@@ -210,7 +220,12 @@ pub fn prescribe(
 
 /// An error when the surface holds a non-finite position.
 pub fn check_finite(m: &dyn Deformable) -> Result<(), Error> {
-    match m.surface().positions.iter().position(|p| !is_finite_vec(*p)) {
+    match m
+        .surface()
+        .positions
+        .iter()
+        .position(|p| !is_finite_vec(*p))
+    {
         None => Ok(()),
         Some(v) => Err(SimError::Diverged {
             step: 0,

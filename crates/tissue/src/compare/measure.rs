@@ -85,11 +85,13 @@ pub fn measure_kind(
     m.insert("nodes".into(), Measure::of(info.nodes as Real, "nodes"));
     m.insert(
         "acquisition_seconds".into(),
-        Measure::of(organ.read_seconds + build_s, "s")
-            .noted("file read + conversion + build"),
+        Measure::of(organ.read_seconds + build_s, "s").noted("file read + conversion + build"),
     );
     // Which input it needs: tetrahedra if it refuses the organ's surface alone.
-    let surface_only = organ.mesh.surface_mesh().map(|s| MeshData::from_surface(&s));
+    let surface_only = organ
+        .mesh
+        .surface_mesh()
+        .map(|s| MeshData::from_surface(&s));
     let needs_tets = match &surface_only {
         Ok(s) => match build_on(kind, s, &organ.name, mat, &toml::Table::new()) {
             Ok(_) => 0.0,
@@ -135,10 +137,13 @@ pub fn measure_kind(
             if is_static {
                 meas = meas.noted("static: the step plays no role");
             } else if *dt >= settings.dt_max {
-                meas = meas.noted(format!("stable at the largest tried, {} s", settings.dt_max));
+                meas = meas.noted(format!(
+                    "stable at the largest tried, {} s",
+                    settings.dt_max
+                ));
             }
             rec.measures.insert("stable_dt".into(), meas);
-            (0.5 * dt).min(1e-3)
+            (0.5 * dt).min(settings.run_dt_max)
         }
         Err(e) => {
             rec.measures
@@ -148,12 +153,17 @@ pub fn measure_kind(
     };
     let stable_dt = stable.as_ref().ok().copied();
     let st = Stepping::new(is_static, dt_run, settings);
-    rec.measures
-        .insert("run_dt".into(), Measure::of(if is_static { 1.0 } else { dt_run }, "s"));
+    rec.measures.insert(
+        "run_dt".into(),
+        Measure::of(if is_static { 1.0 } else { dt_run }, "s"),
+    );
 
     // Velocity: cost of a simulated millisecond at the haptic and the visual step.
     progress("velocity");
-    for (name, dt, steps) in [("haptic", 1e-3, settings.cost_steps), ("visual", 1.0 / 60.0, 12)] {
+    for (name, dt, steps) in [
+        ("haptic", 1e-3, settings.cost_steps),
+        ("visual", 1.0 / 60.0, 12),
+    ] {
         let r = guarded(|| cost_per_ms(kind, organ, scenario, qs_mat, dt, steps)).and_then(|r| r);
         let m = match r {
             Ok((per_ms, latency)) => {
@@ -190,7 +200,9 @@ pub fn measure_kind(
 
     // Deformational behaviour and mesh dimension: the shallow indentation.
     progress("indentation");
-    match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.shallow)).and_then(|r| r) {
+    match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.shallow))
+        .and_then(|r| r)
+    {
         Ok((f, field, curve, settled)) => {
             let fe = (f - reference.force_shallow).abs() / reference.force_shallow.abs().max(1e-12);
             let mut fm = Measure::of(f, "N");
@@ -209,7 +221,10 @@ pub fn measure_kind(
                 Curve {
                     x_unit: "m".into(),
                     y_unit: "N".into(),
-                    points: curve.iter().map(|p| [p[0] * scenario.shallow, p[1]]).collect(),
+                    points: curve
+                        .iter()
+                        .map(|p| [p[0] * scenario.shallow, p[1]])
+                        .collect(),
                 },
             );
         }
@@ -221,14 +236,16 @@ pub fn measure_kind(
     }
     // Great deformations: deep indentation, rigid rotation.
     progress("deep");
-    match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.deep)).and_then(|r| r) {
+    match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.deep)).and_then(|r| r)
+    {
         Ok((f, _, _, settled)) => {
             let fe = (f - reference.force_deep).abs() / reference.force_deep.abs().max(1e-12);
             let mut em = Measure::of(fe, "relative");
             if !settled {
                 em = em.noted("not settled at the time limit");
             }
-            rec.measures.insert("force_deep".into(), Measure::of(f, "N"));
+            rec.measures
+                .insert("force_deep".into(), Measure::of(f, "N"));
             rec.measures.insert("deep_error".into(), em);
         }
         Err(e) => {
@@ -245,8 +262,14 @@ pub fn measure_kind(
                 fm = fm.noted("not settled at the time limit");
             }
             rec.measures.insert("rotation_force".into(), fm);
-            rec.measures
-                .insert("rotation_volume".into(), Measure::of(dv, "relative"));
+            rec.measures.insert(
+                "rotation_volume".into(),
+                if dv.is_finite() {
+                    Measure::of(dv, "relative")
+                } else {
+                    Measure::failed("relative", "refuses the support turned with the rest free")
+                },
+            );
         }
         Err(e) => {
             for k in ["rotation_force", "rotation_volume"] {
@@ -297,8 +320,10 @@ pub fn measure_kind(
             "frequency".into(),
             Measure::failed("Hz", "static: no inertia, no oscillation"),
         );
-        rec.measures
-            .insert("delay".into(), Measure::of(0.0, "s").noted("static: immediate"));
+        rec.measures.insert(
+            "delay".into(),
+            Measure::of(0.0, "s").noted("static: immediate"),
+        );
     } else {
         match guarded(|| step_response(kind, organ, scenario, mat, dt_run, reference, settings))
             .and_then(|r| r)
@@ -310,7 +335,8 @@ pub fn measure_kind(
             Err(e) => {
                 rec.measures
                     .insert("frequency".into(), Measure::failed("Hz", err(&e)));
-                rec.measures.insert("delay".into(), Measure::failed("s", err(&e)));
+                rec.measures
+                    .insert("delay".into(), Measure::failed("s", err(&e)));
             }
         }
     }
@@ -326,7 +352,10 @@ pub fn measure_kind(
             );
             rec.measures.insert(
                 "effective_nu".into(),
-                Measure::of(nu, "").noted(format!("reference on the same bar: {:.3}", reference.bar_nu)),
+                Measure::of(nu, "").noted(format!(
+                    "reference on the same bar: {:.3}",
+                    reference.bar_nu
+                )),
             );
         }
         Err(e) => {
@@ -395,7 +424,12 @@ pub(super) fn stable_step(
             let fixed = sc.fixed(model.rest_surface());
             let mut sim = Simulation::new(model, fixed, Loads::default())?;
             // Already pressed in at the first step: the harshest contact.
-            let inst = super::drive::probe_instrument(sc.probe() - Vec3::Y * sc.shallow, sc.probe_radius, 0.0, 1.0)?;
+            let inst = super::drive::probe_instrument(
+                sc.probe() - Vec3::Y * sc.shallow,
+                sc.probe_radius,
+                0.0,
+                1.0,
+            )?;
             sim.add_instrument(inst);
             for _ in 0..s.stability_steps {
                 sim.step(dt)?;
@@ -457,7 +491,12 @@ fn cost_per_ms(
     let fixed = sc.fixed(model.rest_surface());
     let mut sim = Simulation::new(model, fixed, Loads::default())?;
     let total = dt * steps as Real;
-    sim.add_instrument(super::drive::probe_instrument(sc.probe(), sc.probe_radius, sc.shallow, total)?);
+    sim.add_instrument(super::drive::probe_instrument(
+        sc.probe(),
+        sc.probe_radius,
+        sc.shallow,
+        total,
+    )?);
     // One step first: lazy factorisations belong to pre-computation, not to every step.
     sim.step(dt)?;
     let t = Instant::now();
@@ -518,7 +557,8 @@ fn random_paths(
     let mut rng = Rng(0x5EED);
     let (mut ok, mut first) = (0, None);
     for i in 0..s.random_paths {
-        let p = upper[((rng.next() * upper.len() as Real) as usize).min(upper.len().saturating_sub(1))];
+        let p =
+            upper[((rng.next() * upper.len() as Real) as usize).min(upper.len().saturating_sub(1))];
         let depth = sc.height * (0.05 + 0.3 * rng.next());
         let duration = 0.02 + 0.3 * rng.next();
         let grasp = i % 2 == 1;
@@ -537,7 +577,11 @@ fn random_paths(
                     p - inward * depth,
                 )
             } else {
-                (InstrumentKind::Probe, p - inward * sc.probe_radius, p + inward * depth)
+                (
+                    InstrumentKind::Probe,
+                    p - inward * sc.probe_radius,
+                    p + inward * depth,
+                )
             };
             let key = |t: Real, q: Vec3| Keyframe {
                 t,
@@ -576,11 +620,23 @@ fn random_paths(
 
 /// One element of the input turned inside out (its first two nodes swapped): a clear
 /// refusal (1), or runs finite (1); an error while stepping (0.5); a panic (0).
-fn inverted_element(kind: &str, organ: &Organ, sc: &Scenario, mat: Material, st: &Stepping) -> Measure {
+fn inverted_element(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+) -> Measure {
     let mut mesh = organ.mesh.clone();
     let p = sc.probe();
     if let Some(t) = (0..mesh.tets.len()).min_by(|&a, &b| {
-        let c = |t: usize| mesh.tets[t].iter().map(|&v| mesh.vertices[v as usize]).sum::<Vec3>() / 4.0;
+        let c = |t: usize| {
+            mesh.tets[t]
+                .iter()
+                .map(|&v| mesh.vertices[v as usize])
+                .sum::<Vec3>()
+                / 4.0
+        };
         c(a).distance(p).total_cmp(&c(b).distance(p))
     }) {
         mesh.tets[t].swap(0, 1);
@@ -592,9 +648,20 @@ fn inverted_element(kind: &str, organ: &Organ, sc: &Scenario, mat: Material, st:
             Ok(m) => m,
             Err(e) => return (1.0, format!("refused: {e}")),
         };
-        let stepping = Stepping { increments: 2, max_time: 0.05_f64.max(10.0 * st.dt), ..*st };
+        let stepping = Stepping {
+            increments: 2,
+            max_time: 0.05_f64.max(10.0 * st.dt),
+            ..*st
+        };
         let fixed = sc.fixed(model.rest_surface());
-        match indent(model, fixed, sc.probe(), sc.probe_radius, sc.shallow, &stepping) {
+        match indent(
+            model,
+            fixed,
+            sc.probe(),
+            sc.probe_radius,
+            sc.shallow,
+            &stepping,
+        ) {
             Ok(_) => (1.0, "accepted, ran finite".into()),
             Err(e) => (0.5, format!("accepted, then failed: {e}")),
         }
@@ -629,8 +696,9 @@ fn indentation(
     Ok((settled.value, field, settled.curve, settled.settled))
 }
 
-/// The bottom slab turned rigidly by 90° about z through its centre, the rest free: the
-/// sum of reaction magnitudes (N) and the relative volume change; settled.
+/// Rigid 90° rotation about z through the organ's centre. First the whole surface is carried
+/// (a rotation-invariant model then holds no force): the sum of reaction magnitudes, N. Then
+/// only the bottom slab is turned, the rest free: the relative volume change. Settled (both).
 fn rotation(
     kind: &str,
     organ: &Organ,
@@ -638,26 +706,38 @@ fn rotation(
     mat: Material,
     st: &Stepping,
 ) -> Result<(Real, Real, bool), Error> {
+    let turn = |c: Vec3| {
+        move |p: Vec3, s: Real| {
+            let a = s * std::f64::consts::FRAC_PI_2;
+            let d = p - c;
+            c + Vec3::new(
+                a.cos() * d.x - a.sin() * d.y,
+                a.sin() * d.x + a.cos() * d.y,
+                d.z,
+            )
+        }
+    };
+    let st = Stepping {
+        increments: st.increments.max(9),
+        ..*st
+    };
     let mut model = organ.build(kind, mat)?;
     let rest = model.rest_surface().to_vec();
+    let all: Vec<u32> = (0..rest.len() as u32).collect();
+    let centre = 0.5 * (Vec3::from(sc.lo) + Vec3::from(sc.hi));
+    let whole = prescribe(model.as_mut(), &[], &all, turn(centre), &st, |m| {
+        m.reactions().prescribed.iter().map(|f| f.length()).sum()
+    })?;
+    let mut model = organ.build(kind, mat)?;
     let held = sc.fixed(&rest);
     let c = held.iter().map(|&v| rest[v as usize]).sum::<Vec3>() / held.len().max(1) as Real;
     let v0 = volume(model.as_ref());
-    let st = Stepping { increments: st.increments.max(9), ..*st };
-    let settled = prescribe(
-        model.as_mut(),
-        &[],
-        &held,
-        |p, s| {
-            let a = s * std::f64::consts::FRAC_PI_2;
-            let d = p - c;
-            c + Vec3::new(a.cos() * d.x - a.sin() * d.y, a.sin() * d.x + a.cos() * d.y, d.z)
-        },
-        &st,
-        |m| m.reactions().prescribed.iter().map(|f| f.length()).sum(),
-    )?;
-    let dv = (volume(model.as_ref()) - v0) / v0;
-    Ok((settled.value, dv, settled.settled))
+    let part = prescribe(model.as_mut(), &[], &held, turn(c), &st, |m| volume(m));
+    let dv = match part {
+        Ok(p) => (p.value - v0) / v0,
+        Err(_) => Real::NAN,
+    };
+    Ok((whole.value, dv, whole.settled))
 }
 
 /// The plate compression by 10 % of the height: relative volume change, its curve, settled.
@@ -685,46 +765,42 @@ fn compression(
     Ok((settled.value, settled.curve, settled.settled))
 }
 
-/// Step response to a sudden load on the top patch with the organ's own (light) damping:
-/// the first eigenfrequency from the first peak of the patch motion, and the time the far
-/// side takes to reach a tenth of its largest motion.
+/// Step response to the probe pressed in suddenly (the shallow depth at the first step) with
+/// the organ's own damping: the far side's motion gives the first eigenfrequency (its first
+/// peak is half a period) and the survey's "delay" (the time to reach a tenth of its largest
+/// motion).
 pub(super) fn step_response(
     kind: &str,
     organ: &Organ,
     sc: &Scenario,
     mat: Material,
     dt: Real,
-    reference: &Reference,
+    _reference: &Reference,
     s: &Settings,
 ) -> Result<(Measure, Measure), Error> {
-    let mut model = organ.build(kind, mat)?;
+    let model = organ.build(kind, mat)?;
     let rest = model.rest_surface().to_vec();
     let fixed = sc.fixed(&rest);
-    let patch = sc.patch(&rest, 2.0 * sc.probe_radius);
     let far = nearest(&rest, Vec3::from(sc.far_point)).unwrap_or(0) as usize;
-    model.set_constraints(&Constraints::fixed(fixed))?;
-    let total = reference.force_shallow.abs().max(1e-6);
-    let each = Vec3::NEG_Y * (total / patch.len() as Real);
-    model.set_loads(&Loads {
-        gravity: Vec3::ZERO,
-        point_loads: patch.iter().map(|&v| (v, each)).collect(),
-    })?;
+    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    let pressed = sc.probe() - Vec3::Y * sc.shallow;
+    sim.add_instrument(super::drive::probe_instrument(
+        pressed,
+        sc.probe_radius,
+        0.0,
+        1.0,
+    )?);
     let steps = (s.dynamics_time / dt).ceil() as usize;
-    let mut top = Vec::with_capacity(steps);
     let mut side = Vec::with_capacity(steps);
     for _ in 0..steps {
-        model.step(dt)?;
-        check_finite(model.as_ref())?;
-        let p = model.surface().positions;
-        let d: Real = patch.iter().map(|&v| rest[v as usize].y - p[v as usize].y).sum::<Real>()
-            / patch.len() as Real;
-        top.push(d);
-        side.push(p[far].distance(rest[far]));
+        sim.step(dt)?;
+        check_finite(sim.model())?;
+        side.push(sim.model().surface().positions[far].distance(rest[far]));
     }
     // First peak: a maximum followed by a drop of at least 2 % of it.
     let mut peak = None;
     let mut best = (0usize, Real::MIN);
-    for (k, &d) in top.iter().enumerate() {
+    for (k, &d) in side.iter().enumerate() {
         if d > best.1 {
             best = (k, d);
         } else if best.1 > 0.0 && d < 0.98 * best.1 {
@@ -737,7 +813,10 @@ pub(super) fn step_response(
         None => Measure::failed("Hz", "no oscillation within the run (overdamped)"),
     };
     let max_side = side.iter().copied().fold(0.0, Real::max);
-    let delay = match side.iter().position(|&d| d >= 0.1 * max_side && max_side > 0.0) {
+    let delay = match side
+        .iter()
+        .position(|&d| d >= 0.1 * max_side && max_side > 0.0)
+    {
         Some(k) => Measure::of((k + 1) as Real * dt, "s"),
         None => Measure::failed("s", "the far side did not move"),
     };
@@ -746,7 +825,12 @@ pub(super) fn step_response(
 
 /// The bar (4:1:1) held at x = 0 and pulled 1 % at x = L: the pull force (N) and the lateral
 /// contraction ratio at mid-length.
-pub(super) fn bar(kind: &str, mat: Material, st: &Stepping, s: &Settings) -> Result<(Real, Real), Error> {
+pub(super) fn bar(
+    kind: &str,
+    mat: Material,
+    st: &Stepping,
+    s: &Settings,
+) -> Result<(Real, Real), Error> {
     let mesh = super::bar_mesh(s);
     bar_on(kind, &mesh, mat, st, &toml::Table::new())
 }
@@ -762,7 +846,9 @@ pub(super) fn bar_on(
     let rest = model.rest_surface().to_vec();
     let len = super::BAR[0];
     let tol = 1e-3 * len;
-    let fixed: Vec<u32> = (0..rest.len() as u32).filter(|&i| rest[i as usize].x <= tol).collect();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&i| rest[i as usize].x <= tol)
+        .collect();
     let end: Vec<u32> = (0..rest.len() as u32)
         .filter(|&i| rest[i as usize].x >= len - tol)
         .collect();
@@ -793,7 +879,11 @@ pub(super) fn bar_on(
             }
         }
     }
-    let nu = if n > 0.0 { -(lat / n) / strain } else { Real::NAN };
+    let nu = if n > 0.0 {
+        -(lat / n) / strain
+    } else {
+        Real::NAN
+    };
     Ok((settled.value, nu))
 }
 
@@ -830,10 +920,17 @@ fn cuts(
         let s = model.surface();
         let closed = closed_and_oriented(s.triangles);
         let fixed = sc.fixed(model.rest_surface());
-        let stable = indent(model, fixed, sc.probe(), sc.probe_radius, sc.shallow, &Stepping {
-            max_time: 0.5 * st.max_time,
-            ..*st
-        })
+        let stable = indent(
+            model,
+            fixed,
+            sc.probe(),
+            sc.probe_radius,
+            sc.shallow,
+            &Stepping {
+                max_time: 0.5 * st.max_time,
+                ..*st
+            },
+        )
         .map(|_| ())
         .map_err(|e| e.to_string());
         Ok((time / 5.0, closed, stable))
@@ -856,7 +953,9 @@ fn cuts(
         }
         Ok(Err(e)) | Err(e) => {
             let reason = match &e {
-                Error::Sim(crate::error::SimError::Unsupported { .. }) => format!("cannot cut: {e}"),
+                Error::Sim(crate::error::SimError::Unsupported { .. }) => {
+                    format!("cannot cut: {e}")
+                }
                 _ => format!("cut failed: {e}"),
             };
             out.insert("can_cut".into(), Measure::of(0.0, "bool").noted(reason));

@@ -40,6 +40,9 @@ pub struct Settings {
     pub bisections: usize,
     pub dt_min: Real,
     pub dt_max: Real,
+    /// Largest step of dynamic models in the quasi-static scenarios, s (half the stable step
+    /// below it).
+    pub run_dt_max: Real,
     /// Haptic steps timed for the cost of a simulated millisecond.
     pub cost_steps: usize,
     pub random_paths: usize,
@@ -71,6 +74,7 @@ impl Settings {
             bisections: 4,
             dt_min: 1e-6,
             dt_max: 0.05,
+            run_dt_max: 4e-3,
             cost_steps: 50,
             random_paths: 4,
             random_step_cap: 300,
@@ -90,6 +94,7 @@ impl Settings {
             bisections: 7,
             dt_min: 1e-6,
             dt_max: 0.05,
+            run_dt_max: 1e-3,
             cost_steps: 200,
             random_paths: 12,
             random_step_cap: 2000,

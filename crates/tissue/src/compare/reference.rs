@@ -57,7 +57,12 @@ fn quadratic() -> toml::Table {
 }
 
 /// Computes the reference on `organ` (it must have tetrahedra).
-pub fn reference(organ: &Organ, sc: &Scenario, s: &Settings, progress: &dyn Fn(&str)) -> Result<Reference, Error> {
+pub fn reference(
+    organ: &Organ,
+    sc: &Scenario,
+    s: &Settings,
+    progress: &dyn Fn(&str),
+) -> Result<Reference, Error> {
     let mat = settling(organ.material, sc);
     let st = Stepping::new(true, 1.0, s);
     let mut meshes = vec![organ.mesh.clone()];
@@ -101,7 +106,11 @@ pub fn reference(organ: &Organ, sc: &Scenario, s: &Settings, progress: &dyn Fn(&
                 Curve {
                     x_unit: "m".into(),
                     y_unit: "N".into(),
-                    points: settled.curve.iter().map(|p| [p[0] * sc.shallow, p[1]]).collect(),
+                    points: settled
+                        .curve
+                        .iter()
+                        .map(|p| [p[0] * sc.shallow, p[1]])
+                        .collect(),
                 },
             );
         }
@@ -124,7 +133,13 @@ pub fn reference(organ: &Organ, sc: &Scenario, s: &Settings, progress: &dyn Fn(&
         poisson_ratio: 0.45,
         ..mat
     };
-    let mut model = build_on("fem-static", &finest, &organ.name, incompressible, &quadratic())?;
+    let mut model = build_on(
+        "fem-static",
+        &finest,
+        &organ.name,
+        incompressible,
+        &quadratic(),
+    )?;
     let rest = model.rest_surface().to_vec();
     let v0 = volume(model.as_ref());
     let travel = sc.compression;
@@ -147,13 +162,20 @@ pub fn reference(organ: &Organ, sc: &Scenario, s: &Settings, progress: &dyn Fn(&
     );
     progress("reference bar");
     let bar = split_tets(&bar_mesh(s).tet_mesh("bar")?)?;
-    let (f, nu) = bar_on("fem-static", &MeshData::from_tets(&bar), mat, &st, &quadratic())?;
+    let (f, nu) = bar_on(
+        "fem-static",
+        &MeshData::from_tets(&bar),
+        mat,
+        &st,
+        &quadratic(),
+    )?;
     out.bar_force = f;
     out.bar_nu = nu;
     progress("reference dynamics");
     let dyn_kind = "fem-explicit";
     if let Ok(dt) = stable_step(dyn_kind, organ, sc, mat, s)
-        && let Ok((freq, delay)) = step_response(dyn_kind, organ, sc, organ.material, 0.25 * dt, &out, s)
+        && let Ok((freq, delay)) =
+            step_response(dyn_kind, organ, sc, organ.material, 0.25 * dt, &out, s)
     {
         out.frequency = freq.value;
         out.delay = delay.value;
@@ -181,7 +203,10 @@ pub fn reference(organ: &Organ, sc: &Scenario, s: &Settings, progress: &dyn Fn(&
             None => Measure::failed("s", "fem-explicit's far side did not move"),
         },
     );
-    m.insert("convergence".into(), Measure::of(rec.convergence, "relative"));
+    m.insert(
+        "convergence".into(),
+        Measure::of(rec.convergence, "relative"),
+    );
     let _: &BTreeMap<String, Measure> = m;
     out.record = rec;
     Ok(out)

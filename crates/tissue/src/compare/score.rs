@@ -141,7 +141,9 @@ fn rule(key: &str, r: &KindRecord, sc: &Scenario, rf: &Reference) -> (Real, Stri
             let unit = 3.0 * sc.surface_vertices.max(1) as Real;
             (
                 v("dofs").map_or(0.0, |d| logs(d / unit, 1.0, 30.0)),
-                show(r, "dofs", |d| format!("{d:.0} unknowns ({:.2}× surface dofs)", d / unit)),
+                show(r, "dofs", |d| {
+                    format!("{d:.0} unknowns ({:.2}× surface dofs)", d / unit)
+                }),
             )
         }
         // Cannot cut: 0. Can: 0.5, + 0.2 surface closed and oriented after five cuts, + 0.2
@@ -181,7 +183,11 @@ fn rule(key: &str, r: &KindRecord, sc: &Scenario, rf: &Reference) -> (Real, Stri
                 0.6 * direct + 0.4 * cost,
                 format!(
                     "{} · {} per frame",
-                    if direct > 0.0 { "mechanical surface drawn" } else { "mapped surface" },
+                    if direct > 0.0 {
+                        "mechanical surface drawn"
+                    } else {
+                        "mapped surface"
+                    },
                     show(r, "render_seconds", |x| format!("{:.3} ms", 1e3 * x))
                 ),
             )

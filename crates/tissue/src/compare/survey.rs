@@ -56,31 +56,45 @@ pub struct SurveyColumn {
 pub const SURVEY: [SurveyColumn; 7] = [
     SurveyColumn {
         name: "Deformable splines",
-        scores: [3.0, 3.0, 2.0, 0.0, 3.0, 3.0, 1.0, 1.0, 1.5, 3.0, 0.0, 1.0, 0.0],
+        scores: [
+            3.0, 3.0, 2.0, 0.0, 3.0, 3.0, 1.0, 1.0, 1.5, 3.0, 0.0, 1.0, 0.0,
+        ],
     },
     SurveyColumn {
         name: "Spring-mass model",
-        scores: [6.0, 2.0, 2.0, 1.0, 5.0, 5.0, 2.0, 2.0, 3.0, 4.0, 0.0, 2.0, 0.0],
+        scores: [
+            6.0, 2.0, 2.0, 1.0, 5.0, 5.0, 2.0, 2.0, 3.0, 4.0, 0.0, 2.0, 0.0,
+        ],
     },
     SurveyColumn {
         name: "Linked volumes",
-        scores: [0.0, 4.0, 2.0, 0.0, 6.0, 2.0, 0.0, 1.5, 3.0, 4.0, 3.0, 2.0, 0.0],
+        scores: [
+            0.0, 4.0, 2.0, 0.0, 6.0, 2.0, 0.0, 1.5, 3.0, 4.0, 3.0, 2.0, 0.0,
+        ],
     },
     SurveyColumn {
         name: "Tensor-mass model",
-        scores: [4.0, 4.0, 1.0, 0.5, 3.0, 5.0, 1.0, 0.5, 3.0, 4.0, 4.0, 2.0, 1.0],
+        scores: [
+            4.0, 4.0, 1.0, 0.5, 3.0, 5.0, 1.0, 0.5, 3.0, 4.0, 4.0, 2.0, 1.0,
+        ],
     },
     SurveyColumn {
         name: "Hybrid model",
-        scores: [5.0, 4.0, 1.0, 0.5, 2.0, 5.0, 1.0, 0.5, 3.0, 3.0, 3.0, 1.0, 1.0],
+        scores: [
+            5.0, 4.0, 1.0, 0.5, 2.0, 5.0, 1.0, 0.5, 3.0, 3.0, 3.0, 1.0, 1.0,
+        ],
     },
     SurveyColumn {
         name: "Tensor pre-computation",
-        scores: [7.0, 5.0, 0.0, 1.0, 0.0, 5.0, 1.0, 0.5, 3.0, 0.0, 2.0, 0.0, 2.0],
+        scores: [
+            7.0, 5.0, 0.0, 1.0, 0.0, 5.0, 1.0, 0.5, 3.0, 0.0, 2.0, 0.0, 2.0,
+        ],
     },
     SurveyColumn {
         name: "BEM",
-        scores: [7.0, 5.0, 0.0, 1.0, 4.0, 5.0, 2.0, 2.0, 4.0, 0.0, 2.0, 1.0, 1.0],
+        scores: [
+            7.0, 5.0, 0.0, 1.0, 4.0, 5.0, 2.0, 2.0, 4.0, 0.0, 2.0, 1.0, 1.0,
+        ],
     },
 ];
 
@@ -119,7 +133,11 @@ mod tests {
     #[test]
     fn weights_and_survey_totals_match_table_1() {
         for g in 0..3 {
-            let w: f64 = CRITERIA.iter().filter(|c| c.group == g).map(|c| c.weight).sum();
+            let w: f64 = CRITERIA
+                .iter()
+                .filter(|c| c.group == g)
+                .map(|c| c.weight)
+                .sum();
             assert_eq!(w, 15.0, "group {g}");
         }
         // Table 1's "Total" row.
