@@ -145,7 +145,11 @@ mod tests {
         for (col, t) in SURVEY.iter().zip(totals) {
             assert_eq!(col.scores.iter().sum::<f64>(), t, "{}", col.name);
             for (s, c) in col.scores.iter().zip(&CRITERIA) {
-                assert!(*s >= 0.0 && *s <= c.weight, "{} {}", col.name, c.name);
+                // Table 1 as printed gives the tensor-mass model 4 for "Great deformations",
+                // whose weight is 3: the survey's own slip, kept as printed (its totals use it).
+                let slip = col.name == "Tensor-mass model" && c.name == "Great deformations";
+                let cap = if slip { 4.0 } else { c.weight };
+                assert!(*s >= 0.0 && *s <= cap, "{} {}", col.name, c.name);
             }
         }
         for k in crate::model::KINDS {
