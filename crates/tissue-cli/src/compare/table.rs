@@ -145,7 +145,7 @@ pub fn html(r: &CompareRecord) -> String {
             }
             s.push_str("</tr>\n");
         }
-        s.push_str(&format!("<tr class=g><td>Total</td><td>15</td>"));
+        s.push_str("<tr class=g><td>Total</td><td>15</td>");
         for sc in &r.scores {
             s.push_str(&format!(
                 "<td><span class=s>{}</span> ({})</td>",

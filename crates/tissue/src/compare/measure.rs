@@ -93,12 +93,9 @@ pub fn measure_kind(
         .surface_mesh()
         .map(|s| MeshData::from_surface(&s));
     let needs_tets = match &surface_only {
+        // Any refusal of the surface alone (NeedsVolume, typically) means it needs more.
         Ok(s) => match build_on(kind, s, &organ.name, mat, &toml::Table::new()) {
             Ok(_) => 0.0,
-            Err(Error::Mesh(crate::error::MeshError::NeedsVolume { .. })) => 1.0,
-            Err(Error::Sim(crate::error::SimError::Mesh(
-                crate::error::MeshError::NeedsVolume { .. },
-            ))) => 1.0,
             Err(_) => 1.0,
         },
         Err(_) => 1.0,

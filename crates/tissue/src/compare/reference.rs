@@ -3,7 +3,6 @@
 //! reported; the finest level gives the reference values. The dynamics reference is
 //! `fem-explicit` (central differences add no numerical damping) on the organ itself.
 
-use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::error::Error;
@@ -207,7 +206,6 @@ pub fn reference(
         "convergence".into(),
         Measure::of(rec.convergence, "relative"),
     );
-    let _: &BTreeMap<String, Measure> = m;
     out.record = rec;
     Ok(out)
 }

@@ -16,7 +16,7 @@ pub fn lin(x: Real, good: Real, bad: Real) -> Real {
 
 /// `lin` on log10 scales (`good` and `bad` > 0; either order).
 pub fn logs(x: Real, good: Real, bad: Real) -> Real {
-    if !(x > 0.0) {
+    if x.is_nan() || x <= 0.0 {
         return if good < bad { 1.0 } else { 0.0 };
     }
     lin(x.log10(), good.log10(), bad.log10())
