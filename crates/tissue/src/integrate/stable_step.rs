@@ -106,7 +106,7 @@ pub fn stable_step(scheme: Scheme, omega_sq: Real, c: Real) -> Real {
 
 /// Substeps of length ≤ `stable` covering `dt` (at least 1), or None above `MAX_SUBSTEPS`.
 pub fn substeps_for(dt: Real, stable: Real) -> Option<u32> {
-    if !(stable > 0.0) {
+    if stable.is_nan() || stable <= 0.0 {
         return None;
     }
     let n = (dt / stable * (1.0 - 1e-12)).ceil().max(1.0);
@@ -251,7 +251,7 @@ impl RateEstimate {
                 den += u[i].length_squared() / inv_mass[i];
                 u[i] = au * inv_mass[i];
             }
-            if !(den > 0.0) || !num.is_finite() {
+            if den.is_nan() || den <= 0.0 || !num.is_finite() {
                 return quotient;
             }
             quotient = num / den;
