@@ -24,7 +24,11 @@ use super::messages::{Bounds, Command, MAX_MESSAGE_BYTES};
 const TOKEN: &str = "0123abcd";
 
 fn server() -> (u16, Arc<Hub>, Receiver<Command>) {
-    let root = std::env::temp_dir().join(format!("tissue-view-test-{}", std::process::id()));
+    // A folder per server: tests run in parallel, and one rewriting another's index.html
+    // while it is served gave an empty page.
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let root = std::env::temp_dir().join(format!("tissue-view-test-{}-{n}", std::process::id()));
     std::fs::create_dir_all(&root).unwrap_or_else(|e| panic!("{e}"));
     std::fs::write(root.join("index.html"), "<p>hello</p>").unwrap_or_else(|e| panic!("{e}"));
     let listener = TcpListener::bind("127.0.0.1:0").unwrap_or_else(|e| panic!("{e}"));
