@@ -10,12 +10,10 @@
 use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
-    Contact, PENETRATION_TOLERANCE, pulls, vertices_in_ball, vertices_in_shape,
+    Contact, PENETRATION_TOLERANCE, is_adhesive, project_to_sphere, vertices_in_ball,
 };
 use crate::interact::instrument::{Instrument, InstrumentKind};
 use crate::interact::plausibility::Plausibility;
-use crate::interact::shape::Shape;
-use crate::interact::sliding::SlideResidual;
 use crate::interact::{Constraints, Loads, Prescribed};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{Deformable, StepInfo};
@@ -38,10 +36,6 @@ pub struct StepReport {
     pub contact_iterations: usize,
     /// False when the static contact loop hit its cap with the contact set still changing.
     pub contact_converged: bool,
-    /// The sliding contacts' tangential force beyond Coulomb's bound (all of it when
-    /// frictionless) after the last solve, relative to the normal force, worst instrument:
-    /// below `SLIDE_TOLERANCE` when a static model's contact loop converged.
-    pub slide_residual: Real,
     /// The last inner solve.
     pub info: StepInfo,
 }
@@ -283,7 +277,6 @@ impl Simulation {
         };
         let mut iterations = 0;
         let mut converged = true;
-        let mut slide;
         let info = loop {
             iterations += 1;
             let constraints = self.constraints_for(next);
@@ -294,17 +287,15 @@ impl Simulation {
             self.held.extend(next.iter().map(|i| i.contacts.len()));
             self.refresh_bvh();
             self.collect_forces(next);
-            // Sliding moves the targets for the next solve (a dynamic model's next step).
-            slide = self.relax_sliding(next);
             if !self.is_static {
                 break info;
             }
             let changed = self.update_active_set(next, &mut taken, &mut returned);
-            if !changed && slide.converged() {
+            if !changed {
                 break info;
             }
             if iterations >= cap {
-                converged = !changed;
+                converged = false;
                 break info;
             }
         };
@@ -316,7 +307,6 @@ impl Simulation {
             forces: next.iter().map(|i| i.force).collect(),
             contact_iterations: iterations,
             contact_converged: converged,
-            slide_residual: slide.relative(),
             info,
         })
     }
@@ -339,15 +329,35 @@ impl Simulation {
         let (positions, triangles) = (s.positions, s.triangles);
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             let (c, r) = (inst.position, inst.radius());
-            inst.slider.begin_step();
             match *inst.kind() {
-                InstrumentKind::Probe
-                | InstrumentKind::Capsule { .. }
-                | InstrumentKind::Plane { .. }
-                | InstrumentKind::Box { .. } => {
-                    let Some(shape) = inst.shape() else { continue };
-                    inst.contacts =
-                        keep_and_find(&self.bvh, positions, triangles, inst, old, &shape, taken);
+                InstrumentKind::Probe => {
+                    // Keep the previous contacts still on the sphere that did not stick, so a
+                    // resting probe does not let go and grab again every step.
+                    let scale = force_scale(&old.reactions);
+                    let mut contacts: Vec<Contact> = old
+                        .contacts
+                        .iter()
+                        .zip(&old.reactions)
+                        .filter(|(k, f)| {
+                            !is_taken(taken, k.vertex)
+                                && !is_adhesive(**f, k.target, old.position, scale)
+                        })
+                        .filter_map(|(k, _)| {
+                            let p = *positions.get(k.vertex as usize)?;
+                            (p.distance(c) <= r * (1.0 + PENETRATION_TOLERANCE)).then(|| Contact {
+                                vertex: k.vertex,
+                                target: project_to_sphere(p, c, r, k.target - old.position),
+                            })
+                        })
+                        .collect();
+                    mark(taken, &contacts);
+                    let fresh = vertices_in_ball(&self.bvh, positions, triangles, c, r, &|v| {
+                        is_taken(taken, v)
+                    });
+                    mark(taken, &fresh);
+                    contacts.extend(fresh);
+                    contacts.sort_unstable_by_key(|k| k.vertex);
+                    inst.contacts = contacts;
                 }
                 InstrumentKind::Grasper {
                     grasp_at,
@@ -413,35 +423,6 @@ impl Simulation {
         }
     }
 
-    /// One relaxation of every pushing instrument's sliding contacts (`interact::sliding`);
-    /// the worst residual, relative to its instrument's push.
-    fn relax_sliding(&self, next: &mut [Instrument]) -> SlideResidual {
-        let rest = self.model.rest_surface();
-        let mut worst = SlideResidual::default();
-        let mut start = 0;
-        for inst in next.iter_mut() {
-            let count = inst.contacts.len();
-            let range = start..start + count;
-            start += count;
-            let Some(shape) = inst.shape() else { continue };
-            let model = &self.model;
-            let (at, friction) = (inst.position, inst.friction());
-            let r = inst.slider.relax(
-                &mut inst.contacts,
-                &inst.reactions,
-                &shape,
-                at,
-                friction,
-                rest,
-                || model.prescribed_stiffness(range),
-            );
-            if r.relative() >= worst.relative() {
-                worst = r;
-            }
-        }
-        worst
-    }
-
     /// One round of the static active set: release adhesive probe contacts, add vertices
     /// that now penetrate a probe. Returns whether anything changed.
     ///
@@ -460,14 +441,15 @@ impl Simulation {
         let s = self.model.surface();
         let mut changed = false;
         for inst in next.iter_mut() {
-            let Some(shape) = inst.shape() else { continue };
-            let c = inst.position;
+            if *inst.kind() != InstrumentKind::Probe {
+                continue;
+            }
+            let (c, r) = (inst.position, inst.radius());
             let scale = force_scale(&inst.reactions);
             let before = inst.contacts.len();
             let mut kept = Vec::with_capacity(before);
             for (k, f) in inst.contacts.iter().zip(&inst.reactions) {
-                let normal = shape.closest(c, k.target, Vec3::ZERO).normal;
-                if pulls(*f, normal, scale) && !returned.is_back(k.vertex) {
+                if is_adhesive(*f, k.target, c, scale) && !returned.is_back(k.vertex) {
                     returned.release(k.vertex);
                     if let Some(t) = taken.get_mut(k.vertex as usize) {
                         *t = false;
@@ -476,81 +458,21 @@ impl Simulation {
                     kept.push(*k);
                 }
             }
-            let fresh = vertices_in_shape(&self.bvh, s.positions, s.triangles, &shape, c, &|v| {
+            let fresh = vertices_in_ball(&self.bvh, s.positions, s.triangles, c, r, &|v| {
                 is_taken(taken, v)
             });
             for k in &fresh {
                 returned.take(k.vertex);
             }
-            let same = kept.len() == before && fresh.is_empty();
-            changed |= !same;
+            changed |= kept.len() != before || !fresh.is_empty();
             mark(taken, &fresh);
             kept.extend(fresh);
             kept.sort_unstable_by_key(|k| k.vertex);
-            if !same {
-                // The reactions belong to the solved set: kept when the set stays.
-                inst.contacts = kept;
-                inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
-            }
+            inst.contacts = kept;
+            inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
         }
         changed
     }
-}
-
-/// A pushing instrument's contacts at the start of a step: the previous ones that still touch
-/// and did not pull, moved with the instrument (sticking, μ > 0) or projected onto it
-/// (frictionless), then the vertices newly inside it.
-fn keep_and_find(
-    bvh: &Bvh,
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    inst: &Instrument,
-    old: &Instrument,
-    shape: &Shape,
-    taken: &mut [bool],
-) -> Vec<Contact> {
-    let c = inst.position;
-    let slack = PENETRATION_TOLERANCE * shape.size();
-    let shift = c - old.position;
-    // Keep the previous contacts still on the shape that did not stick, so a resting probe
-    // does not let go and grab again every step.
-    let scale = force_scale(&old.reactions);
-    let mut contacts: Vec<Contact> = old
-        .contacts
-        .iter()
-        .zip(&old.reactions)
-        .filter(|(k, f)| {
-            let normal = shape.closest(old.position, k.target, Vec3::ZERO).normal;
-            !is_taken(taken, k.vertex) && !pulls(**f, normal, scale)
-        })
-        .filter_map(|(k, _)| {
-            let p = *positions.get(k.vertex as usize)?;
-            let fallback = k.target - old.position;
-            // A contact that may stick is carried along and let go by its force (when it
-            // pulls), not by where its vertex is: the instrument's motion just moved its
-            // trailing side away from the vertices it drags.
-            let touching = shape.closest(c, p, fallback).depth <= slack;
-            (touching || inst.friction() > 0.0).then(|| {
-                // The target, where the last solve (or sliding) left it, carried along with
-                // the instrument when the contact may stick.
-                let base = if inst.friction() > 0.0 {
-                    k.target + shift
-                } else {
-                    k.target
-                };
-                Contact {
-                    vertex: k.vertex,
-                    target: shape.closest(c, base, fallback).point,
-                }
-            })
-        })
-        .collect();
-    mark(taken, &contacts);
-    let fresh = vertices_in_shape(bvh, positions, triangles, shape, c, &|v| is_taken(taken, v));
-    mark(taken, &fresh);
-    contacts.extend(fresh);
-    contacts.sort_unstable_by_key(|k| k.vertex);
-    contacts
 }
 
 /// Per surface vertex, within one step's contact loop: released as adhesive, and taken

@@ -289,21 +289,14 @@ fn assert_no_penetration_nor_adhesion(sim: &Simulation) {
         .iter()
         .map(|f| f.length())
         .fold(0.0, f64::max);
-    // A vertex released as adhesive and found inside again in the same step is held to the
-    // end of the step (`Simulation`'s `Returned`, which stops the loop from cycling): it may
-    // keep a small pull. The reactions used to be cleared after the loop, which hid it.
-    let total = inst.force().length();
     for (k, f) in inst.contacts().iter().zip(inst.contact_reactions()) {
         let n = (k.target - c).normalize();
-        let pull = f.dot(n);
-        if pull > 1e-9 * scale {
-            eprintln!(
-                "vertex {} pulls {:.2e} of the force",
-                k.vertex,
-                pull / total
-            );
-        }
-        assert!(pull <= 0.05 * total, "vertex {} sticks: {pull}", k.vertex);
+        assert!(
+            f.dot(n) <= 1e-9 * scale,
+            "vertex {} sticks: {}",
+            k.vertex,
+            f.dot(n)
+        );
     }
 }
 
@@ -730,8 +723,6 @@ fn rim_vertices_that_pull_when_held_do_not_make_the_contact_loop_cycle() {
         assert_no_penetration_nor_adhesion(&sim);
     }
     eprintln!("{solves} solves in 20 steps");
-    // Sliding contact relaxes the tangential reactions inside the loop: measured 155 solves
-    // over the 20 steps (60 while contacts were pinned).
-    assert!(solves <= 10 * 20, "{solves}");
+    assert!(solves <= 3 * 20, "{solves}");
     assert!(sim.instruments()[0].contacts().len() >= 10);
 }

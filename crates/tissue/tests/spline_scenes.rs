@@ -9,8 +9,6 @@ fn repo(rel: &str) -> String {
 }
 
 #[test]
-#[ignore = "sliding contact (issue 20) broke the balance: supports carry 39% less than the probe \
-            feels on the sheet; to fix with the fine contact surface"]
 fn sheet_scene_supports_balance_the_probe() {
     let s = Scene::load(repo("scenes/sheet-spline.toml")).unwrap();
     let mut sim = s.build().unwrap();

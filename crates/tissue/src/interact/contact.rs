@@ -5,7 +5,6 @@
 //! becomes a prescribed vertex, and the model returns the force it needs there.
 
 use crate::interact::bvh::Bvh;
-use crate::interact::shape::Shape;
 use crate::math::{Real, Vec3, triangle_area_vector};
 
 /// Relative slack of "inside": a vertex counts as penetrating when it is deeper than
@@ -72,58 +71,6 @@ pub fn vertices_in_ball(
             }
         })
         .collect()
-}
-
-/// Surface vertices deeper than the tolerance inside `shape` placed at `at`, ascending, with
-/// their targets on its surface (the sphere keeps `vertices_in_ball`'s rule for a centre that
-/// went past a vertex). `skip(v)` leaves out vertices that are taken.
-pub fn vertices_in_shape(
-    bvh: &Bvh,
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    shape: &Shape,
-    at: Vec3,
-    skip: &dyn Fn(u32) -> bool,
-) -> Vec<Contact> {
-    if let Shape::Sphere { radius } = *shape {
-        return vertices_in_ball(bvh, positions, triangles, at, radius, skip);
-    }
-    let candidates: Vec<u32> = match shape.bounds(at) {
-        Some((c, r)) => bvh.query_sphere(c, r),
-        None => (0..triangles.len() as u32).collect(),
-    };
-    let limit = -PENETRATION_TOLERANCE * shape.size();
-    let mut inside: Vec<u32> = candidates
-        .iter()
-        .filter_map(|&t| triangles.get(t as usize))
-        .flatten()
-        .copied()
-        .filter(|&v| {
-            positions
-                .get(v as usize)
-                .is_some_and(|p| shape.closest(at, *p, Vec3::ZERO).depth < limit)
-        })
-        .collect();
-    inside.sort_unstable();
-    inside.dedup();
-    inside.retain(|&v| !skip(v));
-    inside
-        .into_iter()
-        .map(|v| {
-            let normal = vertex_normal(v, &candidates, positions, triangles);
-            Contact {
-                vertex: v,
-                target: shape.closest(at, positions[v as usize], normal).point,
-            }
-        })
-        .collect()
-}
-
-/// True when the force the tissue exerts on the instrument at a contact on its surface (with
-/// outward `normal` there) pulls the instrument toward the tissue: adhesion. Forces below
-/// `1e-9 · scale` (the instrument's largest contact force) in that direction are rounding.
-pub fn pulls(reaction: Vec3, normal: Vec3, scale: Real) -> bool {
-    reaction.dot(normal) > 1e-9 * scale
 }
 
 /// Where a vertex inside the ball goes. Radially out while the tool is on the outer side of

@@ -7,8 +7,6 @@ pub mod contact;
 pub mod instrument;
 pub mod plausibility;
 pub mod region;
-pub mod shape;
-pub mod sliding;
 pub mod trajectory;
 
 pub use bvh::Bvh;
@@ -16,5 +14,4 @@ pub use constraints::{Constraints, Loads, Prescribed};
 pub use contact::Contact;
 pub use instrument::{Instrument, InstrumentKind};
 pub use region::Region;
-pub use shape::Shape;
 pub use trajectory::{Keyframe, Trajectory, TrajectoryError};

@@ -113,25 +113,16 @@ pub struct GravitySpec {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InstrumentSpec {
-    /// probe | capsule | plane | box | grasper | scalpel
+    /// probe | grasper | scalpel
     pub kind: String,
     pub name: Option<String>,
-    /// Tip radius (probe), shaft radius (capsule), grasp radius (grasper), in m.
+    /// Tip radius (probe), grasp radius (grasper), in m.
     pub radius: Option<Real>,
-    /// Coulomb friction coefficient of a probe, capsule, plane or box (default 0:
-    /// frictionless sliding).
-    pub friction: Option<Real>,
-    /// Capsule: the shaft's direction from the tip (the path point).
-    pub axis: Option<[Real; 3]>,
-    /// Plane: the normal pointing out of the instrument, toward the tissue.
-    pub normal: Option<[Real; 3]>,
-    /// Box: edge lengths along x, y, z, in m.
-    pub size: Option<[Real; 3]>,
     pub path: Vec<Keyframe>,
     /// Grasper: when it closes and opens, in s.
     pub grasp_at: Option<Real>,
     pub release_at: Option<Real>,
-    /// Scalpel: blade direction from the tip and blade length, in m; capsule: shaft length.
+    /// Scalpel: blade direction from the tip and blade length, in m.
     pub direction: Option<[Real; 3]>,
     pub length: Option<Real>,
 }
