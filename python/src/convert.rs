@@ -221,3 +221,8 @@ pub fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound
     let json = py.import("json")?;
     json.call_method1("loads", (v.to_string(),))
 }
+
+/// An (n, 3) float64 numpy array of points or forces.
+pub type Points<'py> = Bound<'py, PyArray2<f64>>;
+/// An (n, K) uint32 numpy array of index rows.
+pub type Rows<'py> = Bound<'py, PyArray2<u32>>;

@@ -12,7 +12,7 @@ use tissue::interact::{Constraints, Loads, Prescribed};
 use tissue::model::{BuildInput, CutPath, Deformable, StepInfo, build};
 use tissue::{Material, Vec3};
 
-use crate::convert::{err, indices, point, points, points_array, rows_u32, table};
+use crate::convert::{Points, Rows, err, indices, point, points, points_array, rows_u32, table};
 use crate::mesh::Mesh;
 
 /// A deformable model of one kind (see `tissue.kinds()`).
@@ -209,20 +209,14 @@ impl Model {
 
     /// Forces the tissue exerts on its constraints (N): (fixed, prescribed), one row per
     /// constrained vertex in the order given.
-    fn reactions<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    fn reactions<'py>(&self, py: Python<'py>) -> PyResult<(Points<'py>, Points<'py>)> {
         let model = self.lock()?;
         let r = model.reactions();
         Ok((points_array(py, r.fixed)?, points_array(py, r.prescribed)?))
     }
 
     /// The surface now: (positions (n, 3), triangles (m, 3)).
-    fn surface<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>)> {
+    fn surface<'py>(&self, py: Python<'py>) -> PyResult<(Points<'py>, Rows<'py>)> {
         let model = self.lock()?;
         let s = model.surface();
         Ok((points_array(py, s.positions)?, rows_u32(py, s.triangles)?))

@@ -15,7 +15,7 @@ use tissue::metrics;
 use tissue::scene::Scene as SceneFile;
 use tissue::sim::{Simulation as Sim, StepReport};
 
-use crate::convert::{err, point, points_array, rows_u32};
+use crate::convert::{Points, Rows, err, point, points_array, rows_u32};
 use crate::model::info_dict;
 
 /// The demo's scene and mesh, as `tissue demo` has them.
@@ -313,10 +313,7 @@ impl Simulation {
     }
 
     /// The surface now: (positions (n, 3), triangles (m, 3)).
-    fn surface<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>)> {
+    fn surface<'py>(&self, py: Python<'py>) -> PyResult<(Points<'py>, Rows<'py>)> {
         let sim = self.lock()?;
         let s = sim.model().surface();
         Ok((points_array(py, s.positions)?, rows_u32(py, s.triangles)?))

@@ -59,7 +59,10 @@ fn an_explicit_run_far_above_its_critical_step_stops_plausible() {
         "liver-fem-explicit.toml",
         &[
             ("dt = 2e-4", "dt = 1e-2"),
-            ("kind = \"fem-explicit\"", "kind = \"fem-explicit\"\nsubsteps = 1"),
+            (
+                "kind = \"fem-explicit\"",
+                "kind = \"fem-explicit\"\nsubsteps = 1",
+            ),
         ],
     )
     .unwrap_or_else(|e| panic!("{e}"));

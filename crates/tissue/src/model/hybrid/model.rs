@@ -189,7 +189,7 @@ impl Hybrid {
             if !self.alive[t] {
                 continue;
             }
-            for k in 0..4 {
+            for (k, face) in TET_FACES.iter().enumerate() {
                 let open = match self.neighbours[t][k] {
                     None => true,
                     Some(n) => !self.alive[n as usize],
@@ -197,7 +197,7 @@ impl Hybrid {
                 if !open {
                     continue;
                 }
-                let tri = TET_FACES[k].map(|c| {
+                let tri = face.map(|c| {
                     let n = tet[c];
                     let s = self.surf_of_node[n as usize];
                     if s != NONE {

@@ -539,8 +539,13 @@ impl NodeCoupling for Coupling<'_> {
 
     fn add_stiffness_diagonal(&self, d: &mut [Vec3]) {
         for (a, &n) in self.region_node.iter().enumerate() {
-            for k in 0..3 {
-                d[n as usize][k] += self.rest.s[(3 * a + k, 3 * a + k)];
+            let diagonal = Vec3::new(
+                self.rest.s[(3 * a, 3 * a)],
+                self.rest.s[(3 * a + 1, 3 * a + 1)],
+                self.rest.s[(3 * a + 2, 3 * a + 2)],
+            );
+            if let Some(di) = d.get_mut(n as usize) {
+                *di += diagonal;
             }
         }
     }
