@@ -105,7 +105,8 @@ try {
   const kinds = await page.evaluate(() => window.__tissue.init.kinds.map((k) => k.name));
   await page.keyboard.press('1');
   // Kinds that cannot represent a closed organ must refuse it with the reason on the page.
-  const refusesClosedOrgan = { spline: 'genus' };
+  // hybrid needs its cut region from a scene (or scalpels to grow it around); a live switch has neither.
+  const refusesClosedOrgan = { spline: 'genus', hybrid: 'cut_region' };
   for (const kind of kinds) {
     const t0 = Date.now();
     const n0 = await page.evaluate(() => window.__tissue.notices.length);
