@@ -16,7 +16,8 @@ use clap::Args;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use tissue::Material;
 use tissue::compare::{
-    CompareRecord, KindRecord, Organ, Scenario, Settings, measure_kind, reference, score_kind,
+    CompareRecord, KindRecord, Organ, Reference, Scenario, Settings, measure_kind, reference,
+    score_kind,
 };
 use tissue::io::{Format, parse};
 use tissue::scene::Scene;
@@ -53,7 +54,7 @@ pub struct CompareArgs {
 
 const LIVER: &[u8] = include_bytes!("../../../../assets/meshes/liver.msh");
 
-fn load_organ(args: &CompareArgs) -> anyhow::Result<Organ> {
+fn load_organ(args: &CompareArgs, settings: &Settings) -> anyhow::Result<Organ> {
     let t = Instant::now();
     let material = Material::new(args.young_modulus, args.poisson_ratio)?;
     let (mesh, name, material) = match &args.organ {
@@ -78,12 +79,14 @@ fn load_organ(args: &CompareArgs) -> anyhow::Result<Organ> {
             (mesh, p.display().to_string(), material)
         }
     };
-    Ok(Organ {
+    let read_seconds = t.elapsed().as_secs_f64();
+    Ok(Organ::new(
         mesh,
         name,
         material,
-        read_seconds: t.elapsed().as_secs_f64(),
-    })
+        read_seconds,
+        settings.surface_tets,
+    )?)
 }
 
 /// FNV-1a: a stable hash of a kind's inputs for the cache.
@@ -102,7 +105,7 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
     } else {
         Settings::full()
     };
-    let organ = load_organ(args)?;
+    let organ = load_organ(args, &settings)?;
     let scenario = Scenario::of(&organ.mesh)?;
     let kinds: Vec<String> = match &args.models {
         Some(m) => {
@@ -135,21 +138,8 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
     );
     overall.set_prefix("tissue compare");
 
-    let rbar = multi.add(ProgressBar::new_spinner());
-    rbar.set_style(style.clone());
-    rbar.set_prefix("reference");
-    rbar.enable_steady_tick(std::time::Duration::from_millis(200));
-    let reference = reference(&organ, &scenario, &settings, &|s| {
-        rbar.set_message(s.to_string())
-    })
-    .context("computing the reference (quadratic fem-static)")?;
-    rbar.finish_with_message(format!(
-        "done: probe force {:.4} N, convergence {:.2} %",
-        reference.force_shallow,
-        100.0 * reference.record.convergence
-    ));
-
-    // The cache key: everything a kind's measurements depend on.
+    // The cache key: everything the reference and a kind's measurements depend on. The
+    // reference is a function of these too, so it is cached under the same key.
     let base = {
         let mut h = fnv(env!("CARGO_PKG_VERSION").as_bytes(), 0xcbf2_9ce4_8422_2325);
         h = fnv(serde_json::to_string(&settings)?.as_bytes(), h);
@@ -159,13 +149,39 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
             format!("{:?}{:?}", organ.mesh.vertices, organ.mesh.tets).as_bytes(),
             h,
         );
-        // The reference's values, not its timings (they differ run to run).
-        h = fnv(
-            serde_json::to_string(&reference.record.measures)?.as_bytes(),
-            h,
-        );
         h
     };
+
+    let rbar = multi.add(ProgressBar::new_spinner());
+    rbar.set_style(style.clone());
+    rbar.set_prefix("reference");
+    rbar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let ref_file = args
+        .out
+        .join("cache")
+        .join(format!("reference-{base:016x}.json"));
+    let cached = std::fs::read_to_string(&ref_file)
+        .ok()
+        .and_then(|t| Reference::from_json(&t).ok());
+    let reference = match cached {
+        Some(r) => r,
+        None => {
+            let r = reference(&organ, &scenario, &settings, &|s| {
+                rbar.set_message(s.to_string())
+            })
+            .context("computing the reference (quadratic fem-static)")?;
+            if let Ok(t) = r.to_json() {
+                let _ = std::fs::write(&ref_file, t);
+            }
+            r
+        }
+    };
+    rbar.finish_with_message(format!(
+        "done: probe force {:.4} N, convergence {:.2} %",
+        reference.force_shallow,
+        100.0 * reference.record.convergence
+    ));
+
     let next = AtomicUsize::new(0);
     let results: Mutex<Vec<Option<KindRecord>>> = Mutex::new(vec![None; kinds.len()]);
     std::thread::scope(|s| {
@@ -235,14 +251,14 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
         wall_seconds: start.elapsed().as_secs_f64(),
     };
     write_outputs(&record, &args.out)?;
-    println!(
+    crate::outln!(
         "tissue compare: {} kinds on {} in {:.1} s; outputs in {}",
         record.kinds.len(),
         record.organ,
         record.wall_seconds,
         args.out.display()
     );
-    println!("{}", table::summary(&record));
+    crate::outln!("{}", table::summary(&record));
     Ok(())
 }
 

@@ -66,6 +66,7 @@ pub fn all(r: &CompareRecord, out: &Path) -> anyhow::Result<()> {
     draw!("force-indentation", (900, 600), force_indentation);
     draw!("volume-compression", (900, 600), volume_compression);
     draw!("cost-size", (900, 600), cost_size);
+    draw!("mesh-convergence", (900, 600), mesh_convergence);
     draw!("pareto", (900, 600), pareto);
     Ok(())
 }
@@ -319,31 +320,42 @@ where
     )
 }
 
-/// Labelled points on log-log axes.
+/// Labelled point series on log-log axes: one colour per series, its points joined (a
+/// mesh-size ladder) and labelled at the last; with `front`, the Pareto front of the last
+/// points; with `level`, a dashed horizontal line there.
 fn scatter<DB: DrawingBackend>(
     a: &DrawingArea<DB, Shift>,
     title: &str,
     xl: &str,
     yl: &str,
-    points: &[(String, f64, f64)],
+    series: &[(String, Vec<(f64, f64)>)],
     front: bool,
+    level: Option<f64>,
 ) -> Result<(), Err>
 where
     DB::ErrorType: 'static,
 {
     a.fill(&WHITE)?;
-    let pts: Vec<&(String, f64, f64)> = points
+    let good = |p: &&(f64, f64)| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite();
+    let series: Vec<(&String, Vec<(f64, f64)>)> = series
         .iter()
-        .filter(|p| p.1 > 0.0 && p.2 > 0.0 && p.1.is_finite() && p.2.is_finite())
+        .map(|(n, p)| (n, p.iter().filter(good).copied().collect::<Vec<_>>()))
+        .filter(|(_, p)| !p.is_empty())
         .collect();
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for p in &pts {
-        x0 = x0.min(p.1);
-        x1 = x1.max(p.1);
-        y0 = y0.min(p.2);
-        y1 = y1.max(p.2);
+    for p in series
+        .iter()
+        .flat_map(|(_, p)| p)
+        .chain(level.map(|l| (f64::NAN, l)).iter().filter(|p| p.1 > 0.0))
+    {
+        if p.0.is_finite() {
+            x0 = x0.min(p.0);
+            x1 = x1.max(p.0);
+        }
+        y0 = y0.min(p.1);
+        y1 = y1.max(p.1);
     }
-    if pts.is_empty() {
+    if series.is_empty() {
         (x0, x1, y0, y1) = (1e-6, 1.0, 1e-6, 1.0);
     }
     let mut chart = ChartBuilder::on(a)
@@ -356,24 +368,42 @@ where
             (y0 / 2.0..y1 * 2.0).log_scale(),
         )?;
     chart.configure_mesh().x_desc(xl).y_desc(yl).draw()?;
-    for (k, p) in pts.iter().enumerate() {
+    if let Some(l) = level {
+        chart.draw_series(DashedLineSeries::new(
+            [(x0 / 2.0, l), (x1 * 2.0, l)],
+            6,
+            4,
+            BLACK.stroke_width(1),
+        ))?;
+    }
+    for (k, (name, pts)) in series.iter().enumerate() {
         let c = colour(k);
-        chart.draw_series(std::iter::once(Circle::new((p.1, p.2), 5, c.filled())))?;
-        chart.draw_series(std::iter::once(Text::new(
-            p.0.clone(),
-            (p.1, p.2),
-            ("sans-serif", 11).into_font(),
-        )))?;
+        if pts.len() > 1 {
+            chart.draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2)))?;
+        }
+        chart.draw_series(pts.iter().map(|p| Circle::new(*p, 5, c.filled())))?;
+        if let Some(last) = pts.last() {
+            chart.draw_series(std::iter::once(Text::new(
+                (*name).clone(),
+                *last,
+                ("sans-serif", 11).into_font(),
+            )))?;
+        }
     }
     if front {
         // The Pareto front: no other point is both cheaper and more accurate.
-        let mut f: Vec<(f64, f64)> = pts
+        let last: Vec<(f64, f64)> = series
+            .iter()
+            .filter_map(|(_, p)| p.last().copied())
+            .collect();
+        let mut f: Vec<(f64, f64)> = last
             .iter()
             .filter(|p| {
-                !pts.iter()
-                    .any(|q| q.1 <= p.1 && q.2 <= p.2 && (q.1 < p.1 || q.2 < p.2))
+                !last
+                    .iter()
+                    .any(|q| q.0 <= p.0 && q.1 <= p.1 && (q.0 < p.0 || q.1 < p.1))
             })
-            .map(|p| (p.1, p.2))
+            .copied()
             .collect();
         f.sort_by(|a, b| a.0.total_cmp(&b.0));
         chart.draw_series(LineSeries::new(f, BLACK.stroke_width(1)))?;
@@ -381,26 +411,60 @@ where
     Ok(())
 }
 
+/// Each kind's curve `name` as (x, y) points, or its single point (`x`, `y` measures).
+fn ladder_series(
+    r: &CompareRecord,
+    name: &str,
+    x: &str,
+    y: &str,
+) -> Vec<(String, Vec<(f64, f64)>)> {
+    r.kinds
+        .iter()
+        .filter_map(|k| {
+            let pts: Vec<(f64, f64)> = match k.curves.get(name) {
+                Some(c) if !c.points.is_empty() => c.points.iter().map(|p| (p[0], p[1])).collect(),
+                _ => vec![(k.measures.get(x)?.value?, k.measures.get(y)?.value?)],
+            };
+            Some((k.kind.clone(), pts))
+        })
+        .collect()
+}
+
 fn cost_size<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> Result<(), Err>
 where
     DB::ErrorType: 'static,
 {
-    let pts: Vec<(String, f64, f64)> = r
-        .kinds
-        .iter()
-        .filter_map(|k| {
-            let e = k.measures.get("elements")?.value?;
-            let c = k.measures.get("cost_haptic")?.value?;
-            Some((k.kind.clone(), e, c))
-        })
-        .collect();
     scatter(
         a,
-        "Cost of a simulated ms (1 ms steps) against mesh size",
+        "Cost of a simulated ms (1 ms steps) against mesh size (dashed: real time)",
         "elements",
         "wall s per simulated ms",
-        &pts,
+        &ladder_series(r, "cost", "elements", "cost_haptic"),
         false,
+        Some(1e-3),
+    )
+}
+
+fn mesh_convergence<DB: DrawingBackend>(
+    r: &CompareRecord,
+    a: &DrawingArea<DB, Shift>,
+) -> Result<(), Err>
+where
+    DB::ErrorType: 'static,
+{
+    let series: Vec<(String, Vec<(f64, f64)>)> =
+        ladder_series(r, "ladder_error", "elements", "force_error")
+            .into_iter()
+            .map(|(n, p)| (n, p.into_iter().map(|(x, y)| (x, y.max(1e-4))).collect()))
+            .collect();
+    scatter(
+        a,
+        "Probe force error against mesh size (dashed: 5 %)",
+        "elements",
+        "relative force error",
+        &series,
+        false,
+        Some(tissue::compare::measure::LADDER_TARGET),
     )
 }
 
@@ -408,13 +472,13 @@ fn pareto<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> 
 where
     DB::ErrorType: 'static,
 {
-    let pts: Vec<(String, f64, f64)> = r
+    let pts: Vec<(String, Vec<(f64, f64)>)> = r
         .kinds
         .iter()
         .filter_map(|k| {
             let c = k.measures.get("cost_haptic")?.value?;
             let e = k.measures.get("displacement_error")?.value?;
-            Some((k.kind.clone(), c, e.max(1e-4)))
+            Some((k.kind.clone(), vec![(c, e.max(1e-4))]))
         })
         .collect();
     scatter(
@@ -424,5 +488,6 @@ where
         "surface displacement error (relative)",
         &pts,
         true,
+        None,
     )
 }

@@ -83,10 +83,6 @@ pub fn measure_kind(
         Measure::of(info.elements as Real, "elements"),
     );
     m.insert("nodes".into(), Measure::of(info.nodes as Real, "nodes"));
-    m.insert(
-        "acquisition_seconds".into(),
-        Measure::of(organ.read_seconds + build_s, "s").noted("file read + conversion + build"),
-    );
     // Which input it needs: tetrahedra if it refuses the organ's surface alone.
     let surface_only = organ
         .mesh
@@ -107,6 +103,28 @@ pub fn measure_kind(
         } else {
             "builds from the surface alone"
         }),
+    );
+    // From the organ's file to a runnable model: reading, the project's own tetrahedra when
+    // the organ came as a surface and the kind needs a volume, and the model's build.
+    let (stuffing, how) = match &organ.stuffed {
+        Some(st) if needs_tets > 0.0 => (
+            st.seconds,
+            format!(
+                "file read + tetrahedralisation ({} tetrahedra, {:.2} s{}) + build",
+                st.mesh.tets.len(),
+                st.seconds,
+                if st.issues.is_empty() {
+                    String::new()
+                } else {
+                    format!("; they miss the surface: {}", st.issues.join("; "))
+                }
+            ),
+        ),
+        _ => (0.0, "file read + conversion + build".to_string()),
+    };
+    m.insert(
+        "acquisition_seconds".into(),
+        Measure::of(organ.read_seconds + stuffing + build_s, "s").noted(how),
     );
     // Rendering: is the drawn surface made of mechanical nodes?
     let direct = surface_is_mechanical(model.as_ref());
@@ -231,6 +249,13 @@ pub fn measure_kind(
             }
         }
     }
+    // Mesh dimension: the same indentation, and the haptic cost, on the organ refined.
+    if settings.ladder_refinements > 0 {
+        progress("mesh ladder");
+    }
+    ladder(
+        kind, organ, scenario, qs_mat, &st, reference, settings, &mut rec,
+    );
     // Great deformations: deep indentation, rigid rotation.
     progress("deep");
     match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.deep)).and_then(|r| r)
@@ -388,8 +413,129 @@ pub fn measure_kind(
     rec
 }
 
-/// True when every drawn vertex is a mechanical node: the volume mesh holds it, or the
-/// model's nodes are its surface vertices.
+/// The largest probe force error that counts as converged for "mesh dimension".
+pub const LADDER_TARGET: Real = 0.05;
+
+/// The mesh-size ladder: the shallow indentation's force error and the haptic cost on the
+/// organ and on it refined `ladder_refinements` times (each tetrahedron into eight), as the
+/// curves "ladder_error" and "cost" against elements; and "elements_for_5pct", the elements
+/// at which the force error reaches `LADDER_TARGET` (reached on the ladder, or extrapolated
+/// from its last two sizes with the observed order, or why neither).
+#[allow(clippy::too_many_arguments)]
+fn ladder(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+    reference: &Reference,
+    s: &Settings,
+    rec: &mut KindRecord,
+) {
+    let value = |rec: &KindRecord, k: &str| rec.measures.get(k).and_then(|m| m.value);
+    let mut errors: Vec<[Real; 2]> = Vec::new();
+    let mut costs: Vec<[Real; 2]> = Vec::new();
+    if let Some(n) = value(rec, "elements") {
+        if let Some(e) = value(rec, "force_error") {
+            errors.push([n, e]);
+        }
+        if let Some(c) = value(rec, "cost_haptic") {
+            costs.push([n, c]);
+        }
+    }
+    let mut level = organ.clone();
+    let mut failure = None;
+    for l in 1..=s.ladder_refinements {
+        let step = guarded(|| -> Result<(Organ, Real, Real, Real), Error> {
+            let finer = level.refined()?;
+            let n = finer.build(kind, mat)?.info().elements as Real;
+            let (f, _, _, _) = indentation(kind, &finer, sc, mat, st, sc.shallow)?;
+            let e = (f - reference.force_shallow).abs() / reference.force_shallow.abs().max(1e-12);
+            let (c, _) = cost_per_ms(kind, &finer, sc, mat, 1e-3, s.cost_steps)?;
+            Ok((finer, n, e, c))
+        })
+        .and_then(|r| r);
+        match step {
+            Ok((finer, n, e, c)) => {
+                errors.push([n, e]);
+                costs.push([n, c]);
+                level = finer;
+            }
+            Err(e) => {
+                failure = Some(format!("refinement {l}: {e}"));
+                break;
+            }
+        }
+    }
+    let curve = |points: Vec<[Real; 2]>, y: &str| Curve {
+        x_unit: "elements".into(),
+        y_unit: y.into(),
+        points,
+    };
+    rec.measures.insert(
+        "elements_for_5pct".into(),
+        elements_for_target(&errors, failure.as_deref()),
+    );
+    rec.curves
+        .insert("ladder_error".into(), curve(errors, "relative force error"));
+    rec.curves
+        .insert("cost".into(), curve(costs, "s per simulated ms"));
+}
+
+/// The elements at which the force error reaches `LADDER_TARGET` on a ladder of
+/// (elements, error) points in refinement order.
+fn elements_for_target(points: &[[Real; 2]], failure: Option<&str>) -> Measure {
+    let unit = "elements";
+    if let Some(p) = points.iter().find(|p| p[1] <= LADDER_TARGET) {
+        return Measure::of(p[0], unit).noted(format!(
+            "force error {:.1} % at {:.0} elements",
+            100.0 * p[1],
+            p[0]
+        ));
+    }
+    let why = |what: String| match failure {
+        Some(f) => format!("{what}; {f}"),
+        None => what,
+    };
+    match points {
+        [.., a, b] if b[0] > a[0] => {
+            let order = (a[1] / b[1]).ln() / (b[0] / a[0]).ln();
+            if order > 0.05 {
+                let n = b[0] * (b[1] / LADDER_TARGET).powf(1.0 / order);
+                Measure::of(n, unit).noted(why(format!(
+                    "extrapolated: error {:.1} % at {:.0}, {:.1} % at {:.0} elements (order {order:.2} in elements)",
+                    100.0 * a[1],
+                    a[0],
+                    100.0 * b[1],
+                    b[0]
+                )))
+            } else {
+                Measure::failed(
+                    unit,
+                    why(format!(
+                        "the force error does not fall with refinement: {:.1} % at {:.0}, {:.1} % at {:.0} elements",
+                        100.0 * a[1],
+                        a[0],
+                        100.0 * b[1],
+                        b[0]
+                    )),
+                )
+            }
+        }
+        [.., p] => Measure::failed(
+            unit,
+            why(format!(
+                "force error {:.1} % at {:.0} elements, the only size measured",
+                100.0 * p[1],
+                p[0]
+            )),
+        ),
+        [] => Measure::failed(unit, why("no indentation measured".into())),
+    }
+}
+
+/// True when every drawn vertex is a mechanical node: the volume mesh holds it, the model's
+/// nodes are its surface vertices, or its unknowns are exactly theirs (a condensed model).
 fn surface_is_mechanical(m: &dyn Deformable) -> bool {
     let s = m.surface();
     if let Some(v) = m.volume() {
@@ -403,7 +549,10 @@ fn surface_is_mechanical(m: &dyn Deformable) -> bool {
             .iter()
             .all(|p| keys.contains(&[p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]));
     }
-    m.info().nodes == s.positions.len()
+    // Surface models (bem) have their nodes there; condensed ones keep only the surface's
+    // degrees of freedom, three per drawn vertex.
+    let info = m.info();
+    info.nodes == s.positions.len() || info.dofs == 3 * s.positions.len()
 }
 
 /// Bisection (in log dt) of the largest step at which `steps` steps of a sudden shallow
@@ -624,8 +773,14 @@ fn inverted_element(
     mat: Material,
     st: &Stepping,
 ) -> Measure {
-    let mut mesh = organ.mesh.clone();
+    // The tetrahedron nearest the probe turned inside out (in the stuffed tetrahedra too for
+    // an organ given as a surface), or else a surface triangle.
+    let mut bad = organ.clone();
     let p = sc.probe();
+    let mesh = match bad.stuffed.as_mut() {
+        Some(st) => &mut st.mesh,
+        None => &mut bad.mesh,
+    };
     if let Some(t) = (0..mesh.tets.len()).min_by(|&a, &b| {
         let c = |t: usize| {
             mesh.tets[t]
@@ -637,11 +792,15 @@ fn inverted_element(
         c(a).distance(p).total_cmp(&c(b).distance(p))
     }) {
         mesh.tets[t].swap(0, 1);
-    } else if let Some(t) = mesh.triangles.first_mut() {
+    }
+    // A surface-only organ: the kinds that build on the surface get a flipped triangle.
+    if !bad.mesh.has_volume()
+        && let Some(t) = bad.mesh.triangles.first_mut()
+    {
         t.swap(0, 1);
     }
     let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        let model = match build_on(kind, &mesh, &organ.name, mat, &toml::Table::new()) {
+        let model = match bad.build(kind, mat) {
             Ok(m) => m,
             Err(e) => return (1.0, format!("refused: {e}")),
         };

@@ -28,7 +28,7 @@ pub use measure::measure_kind;
 pub use record::{CompareRecord, KindRecord, KindScores, Measure};
 pub use reference::{Reference, reference};
 pub use score::score_kind;
-pub use setup::{Organ, Scenario};
+pub use setup::{Organ, Scenario, Stuffing};
 
 /// How thorough the comparison is. `quick` is CI's: coarse and short.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -58,6 +58,12 @@ pub struct Settings {
     pub reference_refinements: usize,
     /// Cells of the bar along its length.
     pub bar_cells: usize,
+    /// Tetrahedra stuffed into an organ given as a surface (for the kinds that need a volume
+    /// and for the reference).
+    pub surface_tets: usize,
+    /// Refinements (`split_tets`) of the organ each kind is also measured on: the mesh-size
+    /// ladder of "mesh dimension" and of the cost-size plot.
+    pub ladder_refinements: usize,
 }
 
 impl Default for Settings {
@@ -84,6 +90,8 @@ impl Settings {
             dynamics_time: 0.4,
             reference_refinements: 1,
             bar_cells: 8,
+            surface_tets: 800,
+            ladder_refinements: 0,
         }
     }
 
@@ -104,6 +112,8 @@ impl Settings {
             dynamics_time: 0.8,
             reference_refinements: 2,
             bar_cells: 12,
+            surface_tets: 2000,
+            ladder_refinements: 1,
         }
     }
 }

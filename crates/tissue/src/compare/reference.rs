@@ -5,6 +5,8 @@
 
 use std::time::Instant;
 
+use serde::{Deserialize, Serialize};
+
 use crate::error::Error;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
@@ -49,6 +51,56 @@ impl Reference {
     }
 }
 
+/// `Reference` as stored in the comparison's cache (vectors as arrays).
+#[derive(Serialize, Deserialize)]
+struct Stored {
+    force_shallow: Real,
+    force_deep: Real,
+    compression_volume: Real,
+    bar_force: Real,
+    bar_nu: Real,
+    frequency: Option<Real>,
+    delay: Option<Real>,
+    rest: Vec<[Real; 3]>,
+    displacement: Vec<[Real; 3]>,
+    record: ReferenceRecord,
+}
+
+impl Reference {
+    /// The reference as JSON, for a cache: computing it is the longest part of a run.
+    pub fn to_json(&self) -> serde_json::Result<String> {
+        serde_json::to_string(&Stored {
+            force_shallow: self.force_shallow,
+            force_deep: self.force_deep,
+            compression_volume: self.compression_volume,
+            bar_force: self.bar_force,
+            bar_nu: self.bar_nu,
+            frequency: self.frequency,
+            delay: self.delay,
+            rest: self.rest.iter().map(|v| v.to_array()).collect(),
+            displacement: self.displacement.iter().map(|v| v.to_array()).collect(),
+            record: self.record.clone(),
+        })
+    }
+
+    /// The reference `to_json` wrote.
+    pub fn from_json(text: &str) -> serde_json::Result<Self> {
+        let s: Stored = serde_json::from_str(text)?;
+        Ok(Self {
+            force_shallow: s.force_shallow,
+            force_deep: s.force_deep,
+            compression_volume: s.compression_volume,
+            bar_force: s.bar_force,
+            bar_nu: s.bar_nu,
+            frequency: s.frequency,
+            delay: s.delay,
+            rest: s.rest.into_iter().map(Vec3::from).collect(),
+            displacement: s.displacement.into_iter().map(Vec3::from).collect(),
+            record: s.record,
+        })
+    }
+}
+
 fn quadratic() -> toml::Table {
     let mut t = toml::Table::new();
     t.insert("order".into(), toml::Value::String("quadratic".into()));
@@ -64,14 +116,28 @@ pub fn reference(
 ) -> Result<Reference, Error> {
     let mat = settling(organ.material, sc);
     let st = Stepping::new(true, 1.0, s);
-    let mut meshes = vec![organ.mesh.clone()];
-    let mut tets = organ.mesh.tet_mesh(&organ.name)?;
+    let mut meshes = vec![organ.tets().clone()];
+    let mut tets = organ.tets().tet_mesh(&organ.name)?;
     for _ in 0..s.reference_refinements {
         tets = split_tets(&tets)?;
         meshes.push(MeshData::from_tets(&tets));
     }
+    let model = match &organ.stuffed {
+        None => "fem-static, order = quadratic".to_string(),
+        Some(st) => format!(
+            "fem-static, order = quadratic, on {} tetrahedra stuffed from the surface \
+             (h = {:.2e} m{})",
+            st.mesh.tets.len(),
+            st.size,
+            if st.issues.is_empty() {
+                String::new()
+            } else {
+                format!("; they miss the surface: {}", st.issues.join("; "))
+            }
+        ),
+    };
     let mut rec = ReferenceRecord {
-        model: "fem-static, order = quadratic".into(),
+        model,
         ..ReferenceRecord::default()
     };
     let mut out = Reference::default();

@@ -5,11 +5,14 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, SimError};
+use std::time::Instant;
+
+use crate::error::{Error, MeshError, SimError};
 use crate::material::Material;
 use crate::math::{Real, Vec3};
-use crate::mesh::MeshData;
-use crate::model::{BuildInput, Deformable, build};
+use crate::mesh::stuffing::{SurfaceDomain, size_for, stuff};
+use crate::mesh::{MeshData, split_tets};
+use crate::model::{BuildInput, Deformable, Progress, build};
 
 /// The scenario geometry derived from the organ (SI units). "Up" is +y, as in the scenes.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -146,18 +149,121 @@ pub fn nearest(points: &[Vec3], p: Vec3) -> Option<u32> {
 /// The organ as the comparison uses it: a loaded mesh and the material.
 #[derive(Clone, Debug)]
 pub struct Organ {
+    /// The mesh as loaded: tetrahedra, or a closed surface only.
     pub mesh: MeshData,
     /// Names the organ in messages and in the record.
     pub name: String,
     pub material: Material,
     /// Seconds it took to read the file (counted in every model's mesh acquisition).
     pub read_seconds: Real,
+    /// For an organ given as a surface: its tetrahedra by the project's own isosurface
+    /// stuffing, for the kinds that need a volume and for the reference.
+    pub stuffed: Option<Stuffing>,
+}
+
+/// Tetrahedra made from a surface-only organ, and what making them cost (counted in the
+/// mesh data acquisition of every kind that needs them).
+#[derive(Clone, Debug)]
+pub struct Stuffing {
+    pub mesh: MeshData,
+    pub seconds: Real,
+    /// The lattice spacing used, m.
+    pub size: Real,
+    /// The mesher's checks the tetrahedra fail (volume or boundary off the surface), if any.
+    pub issues: Vec<String>,
 }
 
 impl Organ {
-    /// Builds `kind` on this organ with the model's default settings and `material`.
+    /// The organ of `mesh`. A surface without tetrahedra is stuffed with about `tet_target`
+    /// tetrahedra (`mesh::stuffing`) so the kinds that need a volume, and the reference, have
+    /// one; the kinds that build on a surface still get the surface.
+    pub fn new(
+        mesh: MeshData,
+        name: String,
+        material: Material,
+        read_seconds: Real,
+        tet_target: usize,
+    ) -> Result<Self, Error> {
+        let stuffed = if mesh.has_volume() {
+            None
+        } else {
+            let t = Instant::now();
+            let surface = mesh.surface_mesh()?;
+            let domain = SurfaceDomain::new(&surface).map_err(|e| {
+                Error::from(MeshError::Invalid(format!(
+                    "{name}: only a closed surface can be tetrahedralised for the kinds that \
+                     need a volume: {e}"
+                )))
+            })?;
+            // Coarse stuffing loses thin parts (the volume and boundary checks of the mesher):
+            // finer lattices until it passes, at most four times the target's tetrahedra; the
+            // finest one is kept, and what it breaks is said in the record.
+            let mut size = size_for(surface.signed_volume(), tet_target);
+            let (mesh_t, issues) = loop {
+                let stuffed = stuff(&domain, size, &Progress::silent()).map_err(|e| {
+                    Error::from(MeshError::Invalid(format!(
+                        "{name}: tetrahedralising the surface: {e}"
+                    )))
+                })?;
+                let v = stuffed.report.violations();
+                if v.is_empty() || stuffed.mesh.tets.len() > 4 * tet_target {
+                    break (stuffed.to_mesh_data(), v);
+                }
+                size *= 0.8;
+            };
+            Some(Stuffing {
+                mesh: mesh_t,
+                seconds: t.elapsed().as_secs_f64(),
+                size,
+                issues,
+            })
+        };
+        Ok(Self {
+            mesh,
+            name,
+            material,
+            read_seconds,
+            stuffed,
+        })
+    }
+
+    /// The organ's tetrahedra: the loaded ones, or those stuffed from its surface.
+    pub fn tets(&self) -> &MeshData {
+        self.stuffed.as_ref().map_or(&self.mesh, |s| &s.mesh)
+    }
+
+    /// The organ with every tetrahedron split into eight (the mesh-size ladder): a volume
+    /// organ, whatever the input was.
+    pub fn refined(&self) -> Result<Organ, Error> {
+        let tets = split_tets(&self.tets().tet_mesh(&self.name)?)?;
+        Ok(Organ {
+            mesh: MeshData::from_tets(&tets),
+            name: self.name.clone(),
+            material: self.material,
+            read_seconds: self.read_seconds,
+            stuffed: None,
+        })
+    }
+
+    /// Builds `kind` on this organ with the model's default settings and `material`: on the
+    /// loaded mesh, or on the stuffed tetrahedra when the kind refuses a surface alone.
     pub fn build(&self, kind: &str, material: Material) -> Result<Box<dyn Deformable>, Error> {
-        build_on(kind, &self.mesh, &self.name, material, &toml::Table::new())
+        self.build_with(kind, material, &toml::Table::new())
+    }
+
+    /// `build` with model parameters.
+    pub fn build_with(
+        &self,
+        kind: &str,
+        material: Material,
+        params: &toml::Table,
+    ) -> Result<Box<dyn Deformable>, Error> {
+        match build_on(kind, &self.mesh, &self.name, material, params) {
+            Err(Error::Mesh(MeshError::NeedsVolume { .. })) if self.stuffed.is_some() => {
+                build_on(kind, self.tets(), &self.name, material, params)
+            }
+            r => r,
+        }
     }
 }
 
