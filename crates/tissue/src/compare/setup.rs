@@ -196,8 +196,9 @@ impl Organ {
                 )))
             })?;
             // Coarse stuffing loses thin parts (the volume and boundary checks of the mesher):
-            // finer lattices until it passes, at most four times the target's tetrahedra; the
-            // finest one is kept, and what it breaks is said in the record.
+            // finer lattices until it passes, at most twice the target's tetrahedra (the
+            // reference refines them, and its cost grows eightfold with each split); the
+            // finest one is kept, and what it misses is said in the record.
             let mut size = size_for(surface.signed_volume(), tet_target);
             let (mesh_t, issues) = loop {
                 let stuffed = stuff(&domain, size, &Progress::silent()).map_err(|e| {
@@ -206,7 +207,8 @@ impl Organ {
                     )))
                 })?;
                 let v = stuffed.report.violations();
-                if v.is_empty() || stuffed.mesh.tets.len() > 4 * tet_target {
+                // The next lattice (0.8 h) holds about 1/0.8³ ≈ 2 times as many tetrahedra.
+                if v.is_empty() || stuffed.mesh.tets.len() > tet_target {
                     break (stuffed.to_mesh_data(), v);
                 }
                 size *= 0.8;
