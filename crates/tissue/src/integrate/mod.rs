@@ -428,6 +428,15 @@ impl Integrator {
         self.watch = GrowthWatch::default();
     }
 
+    /// Forgets the forces and energy kept from the last step but keeps the measured
+    /// stability limit: for a change of external forces that leaves the stiffness as it was
+    /// (a coupled model's targets moving, not its contact set).
+    pub fn forget_forces(&mut self) {
+        self.end = None;
+        self.implicit.forget_warm_start();
+        self.watch = GrowthWatch::default();
+    }
+
     /// Measures the stability limit now at `state` (the models call it when built, so that
     /// their info shows it before the first step).
     pub fn measure<S: ParticleSystem + ?Sized>(

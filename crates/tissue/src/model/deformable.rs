@@ -209,5 +209,12 @@ pub trait Deformable: Send {
         None
     }
 
+    /// A small integer label per surface vertex for models made of parts, for a viewer to
+    /// colour them (each kind's doc says what its labels mean: `hybrid`: 0 the pre-computed
+    /// rest, 1 the cut region's border, 2 the cuttable region). `None` for one-part models.
+    fn vertex_labels(&self) -> Option<Vec<u8>> {
+        None
+    }
+
     fn info(&self) -> ModelInfo;
 }

@@ -2,8 +2,10 @@
 
 use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
-use crate::math::{Real, Vec3};
-use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView};
+use crate::math::{Mat3, Real, Vec3};
+use crate::model::{
+    CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
+};
 
 use super::CutRegion;
 use super::model::Hybrid;
@@ -23,6 +25,24 @@ impl Deformable for Hybrid {
 
     fn rest_surface(&self) -> &[Vec3] {
         &self.surf_rest
+    }
+
+    /// Every node of the organ (the rest's interior from its condensed state: one sparse
+    /// solve on the first read after a step) and the tetrahedra no cut removed.
+    fn volume(&self) -> Option<VolumeView<'_>> {
+        Some(self.volume_view())
+    }
+
+    /// The instantaneous stiffness, everything else held: the region's tangent at the
+    /// instrument's region nodes, the rest's condensed stiffness at the interface and its
+    /// contacts (see `Hybrid::held_stiffness`).
+    fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        self.held_stiffness(entries)
+    }
+
+    /// 0 the pre-computed rest, 1 the cut region's border, 2 the cuttable region.
+    fn vertex_labels(&self) -> Option<Vec<u8>> {
+        Some(self.region_labels())
     }
 
     /// Contacts and supports on either part; on the rest they are contacts of its
@@ -71,6 +91,13 @@ impl Deformable for Hybrid {
                     given => given.describe(),
                 },
             ),
+            (
+                "auto_radius".into(),
+                match self.mode {
+                    CutRegion::Auto => format!("{:.4}", self.auto_radius),
+                    CutRegion::Given(_) => "-".into(),
+                },
+            ),
             ("region_tets".into(), self.region_tets().to_string()),
             (
                 "region_volume_fraction".into(),
@@ -95,6 +122,16 @@ impl Deformable for Hybrid {
             ),
             ("border_removals".into(), self.border_removals.to_string()),
         ];
+        if let Some(p) = self.default_seed {
+            details.push((
+                "default_region".into(),
+                format!(
+                    "auto, seeded at the topmost point ({:.4}, {:.4}, {:.4}): no cut_region \
+                     and no scalpel given",
+                    p.x, p.y, p.z
+                ),
+            ));
+        }
         if let Some(g) = self.growths.last() {
             details.push(("last_growth_s".into(), format!("{:.4}", g.seconds)));
             details.push((

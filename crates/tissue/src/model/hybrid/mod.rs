@@ -68,6 +68,7 @@ enum CutRegionSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct HybridKeys {
+    /// Default `"auto"`.
     cut_region: CutRegionSpec,
     /// St Venant–Kirchhoff in the region (default) or linear tensor-mass.
     #[serde(default = "yes")]
@@ -79,7 +80,7 @@ struct HybridKeys {
     /// distance plus the border's depth (2.5 mean edge lengths).
     auto_radius: Option<Real>,
     /// Automatic mode: the starting region's centres (the scene fills them in from the
-    /// scalpels' first blade positions).
+    /// scalpels' first blade positions; without any, the organ's topmost point).
     #[serde(default)]
     auto_seeds: Vec<[Real; 3]>,
 }
@@ -100,17 +101,10 @@ impl Hybrid {
                 own.insert(k.into(), v);
             }
         }
-        if !own.contains_key("cut_region") {
-            return Err(SimError::BadParameter {
-                name: "cut_region",
-                value: "(missing)".into(),
-                reason: "hybrid needs the region where cuts happen: a box, sphere or plane \
-                         table (e.g. cut_region = { sphere = { center = [x, y, z], radius = r } }) \
-                         or \"auto\" (around the scalpels)"
-                    .into(),
-            }
-            .into());
-        }
+        // No region given (a live switch of kind, `tissue compare`, a bare library call):
+        // the automatic one, which grows around wherever a blade goes.
+        own.entry("cut_region")
+            .or_insert_with(|| toml::Value::String("auto".into()));
         let keys: HybridKeys = parse_params("hybrid", &own)?;
         let scheme = match table.remove("integrator") {
             None => Scheme::default(),
@@ -149,19 +143,23 @@ impl Hybrid {
             .into());
         }
         let cents = split::centroids(&mesh);
+        let mut default_seed = None;
         let (mode, in_region) = match keys.cut_region {
             CutRegionSpec::Word(w) if w == "auto" => {
-                if keys.auto_seeds.is_empty() {
-                    return Err(SimError::BadParameter {
-                        name: "cut_region",
-                        value: "\"auto\"".into(),
-                        reason: "the automatic region starts around the scalpels: the scene \
-                                 has none (add a scalpel, or give auto_seeds = [[x, y, z]])"
-                            .into(),
-                    }
-                    .into());
-                }
-                let seeds: Vec<Vec3> = keys.auto_seeds.iter().map(|&s| Vec3::from(s)).collect();
+                let seeds: Vec<Vec3> = if keys.auto_seeds.is_empty() {
+                    // No scalpel to start from: the organ's topmost point (scenes are y-up),
+                    // where an instrument usually comes in from.
+                    let top = mesh
+                        .vertices
+                        .iter()
+                        .copied()
+                        .max_by(|a, b| a.y.total_cmp(&b.y))
+                        .unwrap_or(Vec3::ZERO);
+                    default_seed = Some(top);
+                    vec![top]
+                } else {
+                    keys.auto_seeds.iter().map(|&s| Vec3::from(s)).collect()
+                };
                 let mask = cents
                     .iter()
                     .map(|c| seeds.iter().any(|s| s.distance(*c) <= auto_radius))
@@ -196,7 +194,9 @@ impl Hybrid {
             nonlinear: keys.nonlinear,
             scheme,
         };
-        Self::build(mesh, in_region, mode, auto_radius, recipe)
+        let mut model = Self::build(mesh, in_region, mode, auto_radius, recipe)?;
+        model.default_seed = default_seed;
+        Ok(model)
     }
 }
 

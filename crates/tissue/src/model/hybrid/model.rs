@@ -1,6 +1,7 @@
 //! `Hybrid`: the tensor-mass region, the pre-computed rest, the surface drawn over both,
 //! and the split of constraints and loads between them.
 
+use std::cell::OnceCell;
 use std::time::Instant;
 
 use faer::Mat;
@@ -9,12 +10,12 @@ use crate::error::{Error, SimError};
 use crate::integrate::Scheme;
 use crate::interact::{Constraints, Loads, Prescribed};
 use crate::material::Material;
-use crate::math::{Real, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TET_FACES;
 use crate::mesh::TetMesh;
 use crate::mesh::topology::tet_neighbours;
 use crate::model::tensor_mass::{TensorMass, TensorMassParams};
-use crate::model::{ConstraintReactions, CutInfo, CutPath, Deformable, StepInfo};
+use crate::model::{ConstraintReactions, CutInfo, CutPath, Deformable, StepInfo, VolumeView};
 
 use super::CutRegion;
 use super::grow::{Built, Growth};
@@ -85,6 +86,13 @@ pub struct Hybrid {
     /// Cut tetrahedra that reached the region's border (through the sliver guard).
     pub(super) border_removals: usize,
     pub(super) precompute_seconds: Real,
+    /// The surviving tetrahedra (global numbers), for the volume view.
+    alive_tets: Vec<[u32; 4]>,
+    /// Every node's position, the rest's interior included (a sparse solve): filled on the
+    /// first volume read after a step.
+    volume_positions: OnceCell<Vec<Vec3>>,
+    /// The automatic region's seed when neither the scene nor a scalpel gave one.
+    pub(super) default_seed: Option<Vec3>,
 }
 
 impl Hybrid {
@@ -152,11 +160,15 @@ impl Hybrid {
             steps: 0,
             border_removals: 0,
             precompute_seconds: 0.0,
+            alive_tets: Vec::new(),
+            volume_positions: OnceCell::new(),
+            default_seed: None,
             mesh,
         };
         m.adopt_split();
         m.set_loads_checked(&Loads::default())?;
         m.update_state()?;
+        m.measure_stability();
         m.precompute_seconds = start.elapsed().as_secs_f64();
         Ok(m)
     }
@@ -184,6 +196,14 @@ impl Hybrid {
     /// The boundary faces of the surviving tetrahedra, outward, over the surface vertices
     /// (nodes a cut exposes get new vertex numbers at the end).
     fn rebuild_triangles(&mut self) {
+        self.alive_tets = self
+            .mesh
+            .tets
+            .iter()
+            .zip(&self.alive)
+            .filter(|&(_, &a)| a)
+            .map(|(t, _)| *t)
+            .collect();
         self.triangles.clear();
         for (t, tet) in self.mesh.tets.iter().enumerate() {
             if !self.alive[t] {
@@ -259,6 +279,92 @@ impl Hybrid {
             .collect()
     }
 
+    /// Per surface vertex, what part of the model it is on: 0 the pre-computed rest, 1 the
+    /// region's border (region nodes a cut may not reach: on the interface or on a region
+    /// tetrahedron touching it), 2 the cuttable region.
+    pub fn region_labels(&self) -> Vec<u8> {
+        self.surf_nodes
+            .iter()
+            .map(|&n| {
+                if self.split.region.local[n as usize] == NONE {
+                    0
+                } else if self.split.border[n as usize] {
+                    1
+                } else {
+                    2
+                }
+            })
+            .collect()
+    }
+
+    /// The volume view: every node's current position (the rest's interior from its
+    /// displacement field, one sparse solve per step read) and the surviving tetrahedra.
+    pub(super) fn volume_view(&self) -> VolumeView<'_> {
+        let positions = self.volume_positions.get_or_init(|| {
+            let mut x = self.mesh.vertices.clone();
+            let coupling = self
+                .rest
+                .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+            let u = coupling.interface_displacements(self.tm.positions());
+            if let Ok(rest_u) = self.rest.node_displacements(&u) {
+                for (l, &g) in self.split.rest.global.iter().enumerate() {
+                    x[g as usize] += rest_u[l];
+                }
+            }
+            for (l, &g) in self.split.region.global.iter().enumerate() {
+                x[g as usize] = self.tm.positions()[l];
+            }
+            x
+        });
+        VolumeView {
+            positions,
+            rest_positions: &self.mesh.vertices,
+            tets: &self.alive_tets,
+        }
+    }
+
+    /// `Deformable::prescribed_stiffness`: the instantaneous stiffness of the prescribed
+    /// entries, everything else held — the region's tangent at its nodes (St Venant–Kirchhoff
+    /// at the current state), the rest's condensed response at the interface and its
+    /// contacts: −(T_region + d_Iᵀ S d_I + yᵀ W_cc⁻¹ y), y = G_c d_I − d_c (reactions are
+    /// the tissue's forces on the instrument, so pushing in lowers them).
+    pub(super) fn held_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        let picked = self.constraints.prescribed.get(entries)?;
+        let mut region_held = vec![false; self.split.region.global.len()];
+        let mut contact_held = vec![false; self.rest_contact.len()];
+        let mut any = false;
+        for p in picked {
+            if self.constraints.fixed.contains(&p.vertex) {
+                continue; // fixed wins: that vertex does not follow the instrument
+            }
+            let g = *self.surf_nodes.get(p.vertex as usize)? as usize;
+            let r = self.split.region.local[g];
+            if r != NONE {
+                if self.tm_vertex[r as usize] != NONE {
+                    region_held[r as usize] = true;
+                    any = true;
+                }
+            } else if let Some(k) = self.rest_contact.iter().position(|&c| c == p.vertex) {
+                contact_held[k] = true;
+                any = true;
+            }
+        }
+        if !any {
+            return None;
+        }
+        let iface_held: Vec<bool> = self
+            .region_iface
+            .iter()
+            .map(|&r| region_held[r as usize])
+            .collect();
+        let k = self
+            .tm
+            .system()
+            .translation_stiffness(self.tm.positions(), &region_held)
+            + self.rest.translation_stiffness(&iface_held, &contact_held);
+        (-k).is_finite().then_some(-k)
+    }
+
     /// The forces the rest exerts on the interface nodes after the last step (global node,
     /// force), and the forces the contacts on the rest apply to it.
     pub fn interface_balance(&self) -> (Vec<(u32, Vec3)>, Vec<Vec3>) {
@@ -329,9 +435,15 @@ impl Hybrid {
             }
         }
         if !self.rest.same_contacts(&slots, &targets) {
+            let same_set = self.rest.contact_slots() == slots.as_slice();
             self.rest.set_contacts(&slots, &targets)?;
-            // The coupling's forces and energy changed under the integrator's feet.
-            self.tm.invalidate_forces();
+            // The coupling's forces and energy changed under the integrator's feet; its
+            // stiffness (S + G_cᵀ W_cc⁻¹ G_c) only when the contact set did.
+            if same_set {
+                self.tm.forget_forces();
+            } else {
+                self.tm.invalidate_forces();
+            }
         }
         self.tm.set_constraints(&tm_c)?;
         self.tm_entry = tm_entry;
@@ -405,7 +517,8 @@ impl Hybrid {
     }
 
     /// Surface positions and reactions from the region's state.
-    fn update_state(&mut self) -> Result<(), SimError> {
+    pub(super) fn update_state(&mut self) -> Result<(), SimError> {
+        self.volume_positions.take();
         let coupling = self
             .rest
             .coupling(&self.region_iface, &self.split.region.mesh.vertices);
@@ -689,7 +802,18 @@ impl Hybrid {
         self.set_loads_checked(&loads)?;
         let c = self.constraints.clone();
         self.apply_constraints(&c)?;
-        self.update_state()
+        self.update_state()?;
+        self.measure_stability();
+        Ok(())
+    }
+
+    /// The region's stability limit measured with the rest's interface stiffness (the
+    /// region model measured itself alone when built).
+    pub(super) fn measure_stability(&mut self) {
+        let coupling = self
+            .rest
+            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+        self.tm.measure_stability(Some(&coupling));
     }
 
     /// Back to rest, uncut (the region stays as grown).
@@ -709,11 +833,6 @@ impl Hybrid {
     #[cfg(test)]
     pub(super) fn rest_moment_of_loads_and_contacts(&self) -> Vec3 {
         self.rest.moment(&self.contact_forces)
-    }
-
-    #[cfg(test)]
-    pub(super) fn surf_of_node_for_tests(&self, g: u32) -> usize {
-        self.surf_of_node[g as usize] as usize
     }
 
     #[cfg(test)]

@@ -30,7 +30,7 @@ use faer::{Accum, Mat, MatRef, Par, Side};
 use crate::error::{Error, SimError};
 use crate::integrate::coupling::NodeCoupling;
 use crate::material::Material;
-use crate::math::{Real, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::model::Deformable;
 use crate::model::fem::{DofProblem, FemStatic, Order};
 
@@ -57,7 +57,9 @@ struct Contacts {
 
 /// The pre-computed rest (see the module doc).
 pub(super) struct RestPart {
-    fem: FemStatic,
+    /// In a cell so that `node_displacements` (a sparse solve with the factor's scratch)
+    /// can answer a `&self` read of the volume.
+    fem: RefCell<FemStatic>,
     density: Real,
     /// Rest-local node of each interface node (in `Split::interface` order).
     iface: Vec<u32>,
@@ -171,7 +173,7 @@ impl RestPart {
             forces: vec![0.0; 3 * nodes],
             build_seconds: 0.0,
             column_solves: 0,
-            fem,
+            fem: RefCell::new(fem),
         };
         Ok(Self {
             build_seconds: start.elapsed().as_secs_f64(),
@@ -190,7 +192,7 @@ impl RestPart {
     /// Sets the loads: gravity over the rest's tetrahedra and point forces on rest-local
     /// nodes; one sparse solve.
     pub fn set_loads(&mut self, gravity: Vec3, point: &[(u32, Vec3)]) -> Result<(), SimError> {
-        let mut f = self.fem.body_load(gravity * self.density);
+        let mut f = self.fem.borrow().body_load(gravity * self.density);
         // The region carries the rest's mass share at the interface nodes, and its weight.
         for &n in &self.iface {
             for k in 0..3 {
@@ -204,7 +206,7 @@ impl RestPart {
         }
         let mut dp = held(&self.iface, self.outer_slot.len())?;
         dp.forces.copy_from_slice(&f);
-        let sol = self.fem.solve_dofs(&dp)?;
+        let sol = self.fem.borrow_mut().solve_dofs(&dp)?;
         for (b, &m) in self.iface.iter().enumerate() {
             for l in 0..3 {
                 self.r0[(3 * b + l, 0)] = sol.reactions[m as usize][l];
@@ -243,7 +245,7 @@ impl RestPart {
         let mut w = Mat::zeros(3 * self.outer.len(), 3);
         for k in 0..3 {
             dp.forces[3 * n + k] = 1.0;
-            let sol = self.fem.solve_dofs(&dp)?;
+            let sol = self.fem.borrow_mut().solve_dofs(&dp)?;
             dp.forces[3 * n + k] = 0.0;
             for (b, &m) in self.outer.iter().enumerate() {
                 for l in 0..3 {
@@ -256,6 +258,11 @@ impl RestPart {
         Ok(())
     }
 
+    /// The outer slots of the contacts set.
+    pub fn contact_slots(&self) -> &[u32] {
+        &self.contacts.slots
+    }
+
     /// Are these the contacts and targets already set?
     pub fn same_contacts(&self, slots: &[u32], targets: &[Real]) -> bool {
         self.contacts.slots == slots && self.contact_targets() == targets
@@ -264,6 +271,17 @@ impl RestPart {
     /// Sets the contacts: outer slots and their target displacements (3 each; a support is
     /// a contact with target zero). Nothing changes on error.
     pub fn set_contacts(&mut self, slots: &[u32], targets: &[Real]) -> Result<(), SimError> {
+        if slots == self.contacts.slots.as_slice() && targets.len() == self.contacts.rhs.nrows() {
+            // The same contact set (an instrument moving its targets): only the right-hand
+            // side changes, W_cc and its inverse stay.
+            for (k, &s) in slots.iter().enumerate() {
+                for l in 0..3 {
+                    self.contacts.rhs[(3 * k + l, 0)] =
+                        targets[3 * k + l] - self.u0[(3 * s as usize + l, 0)];
+                }
+            }
+            return Ok(());
+        }
         for &s in slots {
             self.ensure_column(s)?;
         }
@@ -316,17 +334,46 @@ impl RestPart {
     /// The contact forces λ_c (forces applied to the rest, 3 per contact) for interface
     /// displacements `u_i` (a 3n_I column).
     pub fn contact_forces(&self, u_i: &Mat<Real>) -> Mat<Real> {
-        let c = &self.contacts;
-        let mut y = c.rhs.clone();
-        gemv(&mut y, Accum::Add, c.g.as_ref(), u_i.as_ref(), -1.0);
-        let mut z = Mat::zeros(y.nrows(), 1);
-        gemv(&mut z, Accum::Replace, c.w_inv.as_ref(), y.as_ref(), 1.0);
+        let mut y = Mat::zeros(0, 1);
+        let mut z = Mat::zeros(0, 1);
+        self.contact_forces_into(u_i, &mut y, &mut z);
         z
+    }
+
+    /// `contact_forces` into `z`, with `y` as scratch (both resized if needed): no
+    /// allocation once they have the contact count's size.
+    fn contact_forces_into(&self, u_i: &Mat<Real>, y: &mut Mat<Real>, z: &mut Mat<Real>) {
+        let c = &self.contacts;
+        let m3 = c.rhs.nrows();
+        if y.nrows() != m3 {
+            *y = Mat::zeros(m3, 1);
+            *z = Mat::zeros(m3, 1);
+        }
+        if m3 == 0 {
+            return;
+        }
+        y.as_mut().copy_from(c.rhs.as_ref());
+        gemv(y, Accum::Add, c.g.as_ref(), u_i.as_ref(), -1.0);
+        gemv(z, Accum::Replace, c.w_inv.as_ref(), y.as_ref(), 1.0);
     }
 
     /// The forces the rest exerts on the interface nodes (3n_I) and the contact forces.
     pub fn interface_forces(&self, u_i: &Mat<Real>, out: &mut Mat<Real>) -> Mat<Real> {
-        let z = self.contact_forces(u_i);
+        let mut y = Mat::zeros(0, 1);
+        let mut z = Mat::zeros(0, 1);
+        self.interface_forces_into(u_i, out, &mut y, &mut z);
+        z
+    }
+
+    /// `interface_forces` with the contact forces into `z` (`y` scratch).
+    fn interface_forces_into(
+        &self,
+        u_i: &Mat<Real>,
+        out: &mut Mat<Real>,
+        y: &mut Mat<Real>,
+        z: &mut Mat<Real>,
+    ) {
+        self.contact_forces_into(u_i, y, z);
         out.as_mut().copy_from(self.r0.as_ref());
         gemv(out, Accum::Add, self.s.as_ref(), u_i.as_ref(), -1.0);
         if z.nrows() > 0 {
@@ -338,7 +385,74 @@ impl RestPart {
                 1.0,
             );
         }
-        z
+    }
+
+    /// The stiffness a common translation meets at the interface nodes `iface_held` (in
+    /// `Split::interface` order) and the contacts `contact_held` (in contact order), every
+    /// other interface node and contact held: with d_I, d_c the unit translations,
+    /// d_Iᵀ S d_I + yᵀ W_cc⁻¹ y, y = G_c d_I − d_c (the Hessian of the coupling energy in
+    /// the interface displacements and the contact targets). 3×3, N/m.
+    pub fn translation_stiffness(&self, iface_held: &[bool], contact_held: &[bool]) -> Mat3 {
+        let ni = self.s.nrows();
+        let m3 = self.contacts.rhs.nrows();
+        let mut d = Mat::<Real>::zeros(ni, 3);
+        for (a, _) in iface_held.iter().enumerate().filter(|(_, h)| **h) {
+            for l in 0..3 {
+                d[(3 * a + l, l)] = 1.0;
+            }
+        }
+        let mut sd = Mat::<Real>::zeros(ni, 3);
+        faer::linalg::matmul::matmul(
+            sd.as_mut(),
+            Accum::Replace,
+            self.s.as_ref(),
+            d.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        let mut k = Mat::<Real>::zeros(3, 3);
+        faer::linalg::matmul::matmul(
+            k.as_mut(),
+            Accum::Replace,
+            d.as_ref().transpose(),
+            sd.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        if m3 > 0 {
+            let mut y = Mat::<Real>::zeros(m3, 3);
+            faer::linalg::matmul::matmul(
+                y.as_mut(),
+                Accum::Replace,
+                self.contacts.g.as_ref(),
+                d.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+            for (c, _) in contact_held.iter().enumerate().filter(|(_, h)| **h) {
+                for l in 0..3 {
+                    y[(3 * c + l, l)] -= 1.0;
+                }
+            }
+            let mut wy = Mat::<Real>::zeros(m3, 3);
+            faer::linalg::matmul::matmul(
+                wy.as_mut(),
+                Accum::Replace,
+                self.contacts.w_inv.as_ref(),
+                y.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+            faer::linalg::matmul::matmul(
+                k.as_mut(),
+                Accum::Add,
+                y.as_ref().transpose(),
+                wy.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+        }
+        Mat3::from_cols_array_2d(&std::array::from_fn(|c| std::array::from_fn(|r| k[(r, c)])))
     }
 
     /// Displacements of the outer nodes (3n_O) for `u_i` and contact forces `z`.
@@ -361,7 +475,7 @@ impl RestPart {
 
     /// Displacements of every node of the rest (a sparse solve): for a region growth, whose
     /// new region nodes start where the rest had them.
-    pub fn node_displacements(&mut self, u_i: &Mat<Real>) -> Result<Vec<Vec3>, SimError> {
+    pub fn node_displacements(&self, u_i: &Mat<Real>) -> Result<Vec<Vec3>, SimError> {
         let z = self.contact_forces(u_i);
         let mut dp = held(&self.iface, self.outer_slot.len())?;
         dp.forces.copy_from_slice(&self.forces);
@@ -376,7 +490,7 @@ impl RestPart {
                 dp.forces[3 * n + l] += z[(3 * k + l, 0)];
             }
         }
-        Ok(self.fem.solve_dofs(&dp)?.displacements)
+        Ok(self.fem.borrow_mut().solve_dofs(&dp)?.displacements)
     }
 
     /// The rest's total load (for balance checks): body and point forces, without the
@@ -391,14 +505,16 @@ impl RestPart {
 
     /// The rest's lumped mass at each interface node, in kg.
     pub fn interface_masses(&self) -> Vec<Real> {
-        let m = crate::model::fem::mass::lumped_masses(self.fem.linear_mesh(), self.density);
+        let m =
+            crate::model::fem::mass::lumped_masses(self.fem.borrow().linear_mesh(), self.density);
         self.iface.iter().map(|&n| m[n as usize]).collect()
     }
 
     /// The moment about the origin of the loads and the contact forces `z`, at rest.
     #[cfg(test)]
     pub fn moment(&self, z: &Mat<Real>) -> Vec3 {
-        let x = self.fem.rest_nodes();
+        let fem = self.fem.borrow();
+        let x = fem.rest_nodes();
         let mut m = Vec3::ZERO;
         for (n, f) in self.forces.chunks_exact(3).enumerate() {
             m += x[n].cross(Vec3::new(f[0], f[1], f[2]));
@@ -415,7 +531,7 @@ impl RestPart {
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.fem.info().memory_bytes
+        self.fem.borrow().info().memory_bytes
             + 8 * (self.s.nrows() * self.s.ncols()
                 + self.g.nrows() * self.g.ncols()
                 + self.columns.len() * 3 * self.g.nrows())
@@ -429,7 +545,14 @@ impl RestPart {
             rest: self,
             region_node,
             region_rest,
-            scratch: RefCell::new((Mat::zeros(n, 1), Mat::zeros(n, 1))),
+            scratch: RefCell::new(Scratch {
+                u: Mat::zeros(n, 1),
+                out: Mat::zeros(n, 1),
+                y: Mat::zeros(0, 1),
+                z: Mat::zeros(0, 1),
+                probe: Mat::zeros(n, 1),
+                fresh: false,
+            }),
         }
     }
 }
@@ -449,7 +572,20 @@ pub(super) struct Coupling<'a> {
     rest: &'a RestPart,
     region_node: &'a [u32],
     region_rest: &'a [Vec3],
-    scratch: RefCell<(Mat<Real>, Mat<Real>)>,
+    scratch: RefCell<Scratch>,
+}
+
+/// Vectors a force evaluation reuses: interface displacements and forces, the contacts'
+/// right-hand side and forces.
+struct Scratch {
+    u: Mat<Real>,
+    out: Mat<Real>,
+    y: Mat<Real>,
+    z: Mat<Real>,
+    /// The interface displacements an energy request is for.
+    probe: Mat<Real>,
+    /// `out`, `y`, `z` are the forces at `u`.
+    fresh: bool,
 }
 
 impl Coupling<'_> {
@@ -473,36 +609,51 @@ impl Coupling<'_> {
 impl NodeCoupling for Coupling<'_> {
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) {
         let mut guard = self.scratch.borrow_mut();
-        let (u, out) = &mut *guard;
+        let Scratch {
+            u,
+            out,
+            y,
+            z,
+            fresh,
+            ..
+        } = &mut *guard;
         self.gather(x, u);
-        self.rest.interface_forces(u, out);
+        self.rest.interface_forces_into(u, out, y, z);
+        *fresh = true;
         for (a, &n) in self.region_node.iter().enumerate() {
             f[n as usize] += Vec3::new(out[(3 * a, 0)], out[(3 * a + 1, 0)], out[(3 * a + 2, 0)]);
         }
     }
 
+    /// E = ½ uᵀS u − r₀ᵀu + ½ λᵀW_cc λ, rewritten with what the force evaluation at the same
+    /// u left (F_I = r₀ − S u + G_cᵀλ, W_cc λ = y = t − u₀ − G_c u) as
+    /// E = −½ uᵀ(r₀ + F_I) + ½ (t − u₀)_cᵀ λ: no second dense S·u per step for the
+    /// integrator's energy guard (it asks for the energy where it just took the forces).
     fn energy(&self, x: &[Vec3]) -> Real {
         let mut guard = self.scratch.borrow_mut();
-        let (u, su) = &mut *guard;
-        self.gather(x, u);
-        gemv(su, Accum::Replace, self.rest.s.as_ref(), u.as_ref(), 1.0);
+        let Scratch {
+            u,
+            out,
+            y,
+            z,
+            probe,
+            fresh,
+        } = &mut *guard;
+        self.gather(x, probe);
+        let same = *fresh && (0..u.nrows()).all(|i| u[(i, 0)] == probe[(i, 0)]);
+        if !same {
+            u.as_mut().copy_from(probe.as_ref());
+            self.rest.interface_forces_into(u, out, y, z);
+            *fresh = true;
+        }
+        let r0 = &self.rest.r0;
         let mut e = 0.0;
         for i in 0..u.nrows() {
-            e += u[(i, 0)] * (0.5 * su[(i, 0)] - self.rest.r0[(i, 0)]);
+            e -= 0.5 * u[(i, 0)] * (r0[(i, 0)] + out[(i, 0)]);
         }
-        let z = self.rest.contact_forces(u);
-        if z.nrows() > 0 {
-            let mut wz = Mat::zeros(z.nrows(), 1);
-            gemv(
-                &mut wz,
-                Accum::Replace,
-                self.rest.contacts.w.as_ref(),
-                z.as_ref(),
-                1.0,
-            );
-            for i in 0..z.nrows() {
-                e += 0.5 * z[(i, 0)] * wz[(i, 0)];
-            }
+        let rhs = &self.rest.contacts.rhs;
+        for i in 0..z.nrows() {
+            e += 0.5 * rhs[(i, 0)] * z[(i, 0)];
         }
         e
     }

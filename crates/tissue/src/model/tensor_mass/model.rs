@@ -160,6 +160,28 @@ impl TensorMass {
     pub fn invalidate_forces(&mut self) {
         self.integrator.invalidate();
     }
+    /// Measures the stability limit now, with `coupling`'s forces added to the system's
+    /// (the `hybrid` model's interface stiffness raises the interface nodes' frequency).
+    pub fn measure_stability(&mut self, coupling: Option<&dyn NodeCoupling>) {
+        match coupling {
+            None => self
+                .integrator
+                .measure(&mut self.system, &self.state, &self.step_holds),
+            Some(coupling) => {
+                let mut coupled = Coupled {
+                    system: &mut self.system,
+                    coupling,
+                };
+                self.integrator
+                    .measure(&mut coupled, &self.state, &self.step_holds);
+            }
+        }
+    }
+    /// `invalidate_forces` without measuring the stability limit again: the caller changed
+    /// forces whose stiffness stays the same (the `hybrid` model's contact targets).
+    pub fn forget_forces(&mut self) {
+        self.integrator.forget_forces();
+    }
     /// Chooses the integration scheme.
     pub fn set_scheme(&mut self, scheme: Scheme) {
         self.integrator = Integrator::with_settings(scheme, self.integrator.settings);

@@ -210,6 +210,48 @@ impl TensorSystem {
         self.energy = None;
     }
 
+    /// The tangent stiffness a common translation of the `held` nodes meets from the
+    /// tetrahedra around them at positions `x`, everything else held: Σ_{a,b held} K_ab
+    /// (3×3, N/m; K = −∂f/∂x of the elastic forces: the St Venant–Kirchhoff tangent on the
+    /// non-linear set, the linear one elsewhere, the volume penalty's g gᵀ part as in the
+    /// implicit Jacobian). For the `hybrid` model's haptic stiffness.
+    pub fn translation_stiffness(&self, x: &[Vec3], held: &[bool]) -> crate::math::Mat3 {
+        let is_held = |v: u32| held.get(v as usize).copied().unwrap_or(false);
+        let mut k = crate::math::Mat3::ZERO;
+        for (t, tet) in self.tets.iter().enumerate() {
+            if !self.alive[t] || !tet.iter().any(|&v| is_held(v)) {
+                continue;
+            }
+            let (r, el) = (&self.rest_tets[t], &self.elasticity[t]);
+            let xs = self.corners(t, x);
+            let rest = self.corners(t, &self.rest);
+            let u = if self.in_nonlinear_set(t) {
+                std::array::from_fn(|a| xs[a] - rest[a])
+            } else {
+                [Vec3::ZERO; 4]
+            };
+            for c in 0..3 {
+                let e = Vec3::AXES[c];
+                let d = tet.map(|v| if is_held(v) { e } else { Vec3::ZERO });
+                let mut add = element::stvk_tangent_product(r, el, &u, &d);
+                if self.volume_penalty > 0.0 {
+                    let g = element::volume_gradient(&xs);
+                    let s = self.volume_penalty / r.volume
+                        * (0..4).map(|a| g[a].dot(d[a])).sum::<Real>();
+                    for a in 0..4 {
+                        add[a] += g[a] * s;
+                    }
+                }
+                for (a, &v) in tet.iter().enumerate() {
+                    if is_held(v) {
+                        *k.col_mut(c) += add[a];
+                    }
+                }
+            }
+        }
+        k
+    }
+
     pub fn node_count(&self) -> usize {
         self.rest.len()
     }
