@@ -40,6 +40,7 @@ window.__tissue = state;
 
 // ---------------------------------------------------------------- connection
 let ws = null;
+let pendingFrame = null;
 function send(obj) {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(obj));
 }
@@ -56,6 +57,9 @@ function connect() {
     setTimeout(connect, 1000);
   };
   ws.onmessage = (ev) => {
+    // Frames come at ~30 Hz; a slow page (software WebGL, a big voxel organ) draws fewer:
+    // only the newest is parsed and applied, once per drawn frame.
+    if (typeof ev.data === 'string' && ev.data.includes('"type":"frame"')) { pendingFrame = ev.data; return; }
     let msg;
     try { msg = JSON.parse(ev.data); } catch { return notice('error', 'unreadable message from the server'); }
     if (msg.type === 'init') onInit(msg);
@@ -355,8 +359,17 @@ state.pathPixels = () => {
   for (let i = 0; i < px.length; i += 4) if (px[i] > 200 && px[i + 1] > 180 && px[i + 2] < 110) n += 1;
   return n;
 };
-// A coarse grey image of the frame (every 2nd pixel each way), to count what changed.
-state.snapshot = () => {
+// A coarse grey image of the frame (every 2nd pixel each way), kept on the page under
+// `name` (sending it to the test costs seconds); `changedPixels` compares two of them.
+const snapshots = {};
+state.snapshot = (name) => { snapshots[name] = grey(); return snapshots[name].length; };
+state.changedPixels = (a, b) => {
+  const x = snapshots[a], y = snapshots[b];
+  let n = 0;
+  for (let i = 0; i < Math.min(x.length, y.length); i++) if (Math.abs(x[i] - y[i]) > 24) n += 1;
+  return n;
+};
+function grey() {
   const px = readFrame();
   const w = renderer.getContext().drawingBufferWidth;
   const out = [];
@@ -366,12 +379,7 @@ state.snapshot = () => {
     out.push(Math.round(0.3 * px[i] + 0.59 * px[i + 1] + 0.11 * px[i + 2]));
   }
   return out;
-};
-state.changedPixels = (a, b) => {
-  let n = 0;
-  for (let i = 0; i < Math.min(a.length, b.length); i++) if (Math.abs(a[i] - b[i]) > 24) n += 1;
-  return n;
-};
+}
 function readFrame() {
   renderer.render(scene, camera);
   const gl = renderer.getContext();
@@ -401,6 +409,13 @@ function animate() {
     $('fps').textContent = `${state.fps.toFixed(0)} frames/s`;
     fpsCount = 0;
     fpsStart = now;
+  }
+  if (pendingFrame) {
+    const text = pendingFrame;
+    pendingFrame = null;
+    let msg = null;
+    try { msg = JSON.parse(text); } catch { notice('error', 'unreadable frame from the server'); }
+    if (msg) onFrame(msg);
   }
   updateProbe();
   plot.draw();

@@ -4,6 +4,8 @@
 import * as THREE from 'three';
 import { colormap, TISSUE_COLOUR } from './colormap.js';
 
+const CUT_COLOUR = [0.05, 0.004, 0.003];
+
 // A round, soft-edged dot for the fixed-vertex markers (square points look like noise).
 function dotTexture() {
   const c = document.createElement('canvas');
@@ -115,6 +117,9 @@ export class Organ {
     this.incision = new THREE.LineSegments(egeo, new THREE.LineBasicMaterial({ color: 0x1a0302 }));
     this.incision.visible = this.openEdges.length > 0;
     this.incision.renderOrder = 2;
+    // The lips' vertices are painted the dark red of cut tissue, a band one triangle wide.
+    this.lips = new Uint8Array(rest.length / 3);
+    for (const v of this.openEdges) this.lips[v] = 1;
     this.group.add(this.mesh, this.wire, this.restMesh, this.fixed, this.incision);
     this.updateIncision(rest);
     this.probe.scale.setScalar(msg.probe_radius);
@@ -157,7 +162,7 @@ export class Organ {
     this.colourScale = Math.max(this.colourScale, max, 1e-3 * this.size);
     for (let i = 0; i < disp.length; i++) {
       if (this.colours) colormap(disp[i] / this.colourScale, col, 3 * i);
-      else col.set(TISSUE_COLOUR, 3 * i);
+      else col.set(this.lips && this.lips[i] ? CUT_COLOUR : TISSUE_COLOUR, 3 * i);
     }
     this.mesh.geometry.attributes.color.needsUpdate = true;
   }
