@@ -44,7 +44,7 @@ serve() {
     SERVER=$!
     SERVERS+=("$SERVER")
     URL=""
-    for _ in $(seq 1 600); do
+    for _ in $(seq 1 3000); do
         URL=$(grep -o 'http://[0-9.]*:[0-9]*/?token=[0-9a-f]*' "$log" | head -n1 || true)
         [ -n "$URL" ] && return 0
         if ! kill -0 "$SERVER" 2>/dev/null; then cat "$log"; echo "browser-test: the server for $1 died"; exit 1; fi
@@ -52,6 +52,22 @@ serve() {
     done
     cat "$log"; echo "browser-test: no URL printed for $1"; exit 1
 }
+
+# `--matrix`: the switch matrix (every kind, a 2 s probe) on every shipped scene instead of
+# the CI checks. Long (the bem builds alone take minutes): not part of CI.
+if [ "${1:-}" = "--matrix" ]; then
+    failed=0
+    : >"$OUT/matrix.log"
+    for path in "$ROOT"/scenes/*.toml; do
+        scene=$(basename "$path")
+        serve "$scene" "matrix-${scene%.toml}"
+        timeout 1800 node viewer/tests/matrix.test.mjs "$URL" | tee -a "$OUT/matrix.log" || failed=$((failed + 1))
+        kill "$SERVER" 2>/dev/null || true
+    done
+    grep '^info switch matrix' "$OUT/matrix.log"
+    echo "browser-test --matrix: $failed scenes with failures"
+    exit $((failed > 0))
+fi
 
 serve liver-probe.toml server
 LOG="$OUT/server.log"
