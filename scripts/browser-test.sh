@@ -27,25 +27,54 @@ echo "browser-test: build and install ${SECONDS} s"
 SECONDS=0
 
 mkdir -p "$OUT"
-LOG="$OUT/server.log"
 EMPTY=$(mktemp -d)
-(cd "$EMPTY" && exec env -u TISSUE_VIEWER_DIR "$OUT/install/bin/tissue" view \
-    "$ROOT/scenes/liver-probe.toml" --port 0) >"$LOG" 2>&1 &
-SERVER=$!
-trap 'kill "$SERVER" 2>/dev/null || true; wait "$SERVER" 2>/dev/null || true; rmdir "$EMPTY" 2>/dev/null || true' EXIT
+SERVERS=()
+cleanup() {
+    for pid in "${SERVERS[@]}"; do kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; done
+    rmdir "$EMPTY" 2>/dev/null || true
+}
+trap cleanup EXIT
 
-URL=""
-for _ in $(seq 1 300); do
-    URL=$(grep -o 'http://[0-9.]*:[0-9]*/?token=[0-9a-f]*' "$LOG" | head -n1 || true)
-    [ -n "$URL" ] && break
-    if ! kill -0 "$SERVER" 2>/dev/null; then cat "$LOG"; echo "browser-test: the server died"; exit 1; fi
-    sleep 0.1
-done
-[ -n "$URL" ] || { cat "$LOG"; echo "browser-test: no URL printed"; exit 1; }
+# serve SCENE NAME: starts `tissue view SCENE` from an empty folder, logs to $OUT/NAME.log,
+# sets URL to the printed address and SERVER to its pid.
+serve() {
+    local log="$OUT/$2.log"
+    (cd "$EMPTY" && exec env -u TISSUE_VIEWER_DIR "$OUT/install/bin/tissue" view \
+        "$ROOT/scenes/$1" --port 0) >"$log" 2>&1 &
+    SERVER=$!
+    SERVERS+=("$SERVER")
+    URL=""
+    for _ in $(seq 1 3000); do
+        URL=$(grep -o 'http://[0-9.]*:[0-9]*/?token=[0-9a-f]*' "$log" | head -n1 || true)
+        [ -n "$URL" ] && return 0
+        if ! kill -0 "$SERVER" 2>/dev/null; then cat "$log"; echo "browser-test: the server for $1 died"; exit 1; fi
+        sleep 0.1
+    done
+    cat "$log"; echo "browser-test: no URL printed for $1"; exit 1
+}
+
+# `--matrix`: the switch matrix (every kind, a 2 s probe) on every shipped scene instead of
+# the CI checks. Long (the bem builds alone take minutes): not part of CI.
+if [ "${1:-}" = "--matrix" ]; then
+    failed=0
+    : >"$OUT/matrix.log"
+    for path in "$ROOT"/scenes/*.toml; do
+        scene=$(basename "$path")
+        serve "$scene" "matrix-${scene%.toml}"
+        timeout 1800 node viewer/tests/matrix.test.mjs "$URL" | tee -a "$OUT/matrix.log" || failed=$((failed + 1))
+        kill "$SERVER" 2>/dev/null || true
+    done
+    grep '^info switch matrix' "$OUT/matrix.log"
+    echo "browser-test --matrix: $failed scenes with failures"
+    exit $((failed > 0))
+fi
+
+serve liver-probe.toml server
+LOG="$OUT/server.log"
 echo "browser-test: $URL"
 
 status=0
-timeout 150 node viewer/tests/browser.test.mjs "$URL" "$OUT/screenshot.png" | tee "$OUT/page.log" \
+timeout 240 node viewer/tests/browser.test.mjs "$URL" "$OUT/screenshot.png" | tee "$OUT/page.log" \
     || status=$?
 passed=$(grep -c '^ok ' "$OUT/page.log" || true)
 failed=$(grep -c '^FAIL' "$OUT/page.log" || true)
@@ -64,6 +93,23 @@ else
     echo "FAIL no rejection in the server log"; status=1; failed=$((failed + 1))
 fi
 [ "$status" = 0 ] || { echo "--- server log"; tail -n 30 "$LOG"; }
+kill "$SERVER" 2>/dev/null || true
+
+# The other scenes, one server at a time: every cutting kind's cut scene (incision,
+# Reset), the voxel pelvis (frame rate).
+: >"$OUT/scenes.log"
+for scene in ${BROWSER_TEST_SCENES:-liver-spring-mass-cut liver-tensor-mass-cut liver-linked-volumes-cut pelvis-chainmail}; do
+    serve "$scene.toml" "$scene"
+    s2=0
+    SHOTS="$OUT" timeout 120 node viewer/tests/scenes.test.mjs "$URL" >"$OUT/scene.log" || s2=$?
+    cat "$OUT/scene.log" | tee -a "$OUT/scenes.log"
+    p2=$(grep -c '^ok ' "$OUT/scene.log" || true)
+    f2=$(grep -c '^FAIL' "$OUT/scene.log" || true)
+    if [ "$s2" != 0 ] && [ "$f2" = 0 ]; then f2=1; echo "FAIL $scene: the page test stopped ($s2)"; fi
+    passed=$((passed + p2)); failed=$((failed + f2))
+    kill "$SERVER" 2>/dev/null || true
+done
+
 [ "$failed" = 0 ] || status=1
 echo "browser-test: page and checks ${SECONDS} s"
 echo "browser: $passed passed, $failed failed"

@@ -22,4 +22,13 @@ export function colormap(t, out, k) {
   }
 }
 
-export const TISSUE_COLOUR = [0.72, 0.30, 0.26];
+// Liver-like: a deep red-brown (linear RGB, as three.js vertex colours are).
+export const TISSUE_COLOUR = [0.42, 0.085, 0.06];
+
+// The colour map as a CSS gradient for the legend. Vertex colours are linear; the screen
+// shows them through sRGB, so the legend converts the stops the same way.
+const toSrgb = (c) => Math.round(255 * (c <= 0.0031308 ? 12.92 * c : 1.055 * c ** (1 / 2.4) - 0.055));
+export function legendGradient() {
+  const stops = STOPS.map(([t, c]) => `rgb(${c.map(toSrgb).join(',')}) ${(100 * t).toFixed(0)}%`);
+  return `linear-gradient(to right, ${stops.join(', ')})`;
+}

@@ -4,18 +4,26 @@ import * as THREE from 'three';
 import { Orbit } from './orbit.js';
 import { Organ } from './organ.js';
 import { RollingPlot } from './plot.js';
+import { legendGradient } from './colormap.js';
 
 const $ = (id) => document.getElementById(id);
 const view = $('view');
 const renderer = new THREE.WebGLRenderer({ antialias: true });
 renderer.setPixelRatio(Math.min(2, window.devicePixelRatio || 1));
 renderer.setClearColor(0x1b1d23);
+renderer.toneMapping = THREE.ACESFilmicToneMapping;
+renderer.toneMappingExposure = 1.1;
 view.appendChild(renderer.domElement);
 const scene = new THREE.Scene();
 const camera = new THREE.PerspectiveCamera(40, 1, 0.001, 100);
-scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 1.6));
-const sun = new THREE.DirectionalLight(0xffffff, 1.8);
-scene.add(sun);
+// Three-point lighting around the organ (placed in onInit): a warm key light above and to
+// the side, a cool dimmer fill from the other side, a rim light from behind that outlines
+// the silhouette; a faint sky/ground ambient keeps the shadows from going black.
+scene.add(new THREE.HemisphereLight(0xdde6ff, 0x2a1a18, 0.5));
+const sun = new THREE.DirectionalLight(0xfff1e0, 2.6);
+const fill = new THREE.DirectionalLight(0xc8d8ff, 0.9);
+const rim = new THREE.DirectionalLight(0xffffff, 1.6);
+scene.add(sun, fill, rim);
 const orbit = new Orbit(camera, renderer.domElement);
 const organ = new Organ(scene);
 const plot = new RollingPlot($('plot'));
@@ -32,6 +40,7 @@ window.__tissue = state;
 
 // ---------------------------------------------------------------- connection
 let ws = null;
+let pendingFrame = null;
 function send(obj) {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(obj));
 }
@@ -48,6 +57,9 @@ function connect() {
     setTimeout(connect, 1000);
   };
   ws.onmessage = (ev) => {
+    // Frames come at ~30 Hz; a slow page (software WebGL, a big voxel organ) draws fewer:
+    // only the newest is parsed and applied, once per drawn frame.
+    if (typeof ev.data === 'string' && ev.data.includes('"type":"frame"')) { pendingFrame = ev.data; return; }
     let msg;
     try { msg = JSON.parse(ev.data); } catch { return notice('error', 'unreadable message from the server'); }
     if (msg.type === 'init') onInit(msg);
@@ -79,6 +91,9 @@ function onInit(msg) {
   const c = new THREE.Vector3(...msg.center);
   if (first) orbit.frame(c, msg.size);
   sun.position.set(c.x + msg.size * 2, c.y + msg.size * 3, c.z + msg.size * 2);
+  fill.position.set(c.x - msg.size * 3, c.y + msg.size * 0.5, c.z + msg.size * 1.5);
+  rim.position.set(c.x - msg.size * 0.5, c.y + msg.size * 2, c.z - msg.size * 3);
+  for (const l of [sun, fill, rim]) { l.target.position.copy(c); l.target.updateMatrixWorld(); }
   const sel = $('kind');
   sel.innerHTML = '';
   for (const k of msg.kinds) {
@@ -90,8 +105,51 @@ function onInit(msg) {
   $('kind-summary').textContent = (msg.kinds.find((k) => k.name === msg.kind) || {}).summary || '';
   $('young').value = msg.material.young_modulus;
   $('poisson').value = msg.material.poisson_ratio;
-  $('status').textContent = `${msg.scene}: ${msg.kind}${msg.is_static ? ' (static)' : ''}, dt ${msg.dt} s`;
+  showStatus(null);
+  updateLegend();
   state.ready = true;
+}
+
+// The status line: the scene, the running model, its dt and substeps; a build in progress
+// and a cut in progress below it.
+function showStatus(frame) {
+  const init = state.init;
+  if (!init) return;
+  const kind = (frame && frame.kind) || init.kind;
+  const dt = frame ? frame.dt : init.dt;
+  let step;
+  if (init.is_static) step = 'static';
+  else {
+    const sub = frame && frame.substeps > 1 ? ` in ${frame.substeps} substeps` : '';
+    step = `dt ${Number(dt).toExponential(2)} s${sub}`;
+  }
+  const name = init.scene.split('/').pop();
+  $('status').textContent = `${name}: running ${kind}, ${step}`;
+  state.status = $('status').textContent;
+  const b = frame && frame.building;
+  const bar = $('build');
+  if (b) {
+    const pct = b.percent === null || b.percent === undefined ? null : b.percent;
+    bar.style.display = 'block';
+    $('build-text').textContent = `building ${b.kind}: ${b.stage}${pct === null ? '' : ` ${pct.toFixed(0)} %`} (${b.seconds.toFixed(0)} s)`;
+    $('build-bar').style.width = pct === null ? '100%' : `${pct}%`;
+    $('build-bar').classList.toggle('unknown', pct === null);
+  } else bar.style.display = 'none';
+  state.buildText = b ? $('build-text').textContent : '';
+  const cut = frame && frame.cut;
+  $('cut-progress').textContent = cut ? `cutting: ${cut.done} of ${cut.total} path points swept` : '';
+}
+
+// The colour legend: the map, its range in mm and the quantity.
+function updateLegend() {
+  const on = $('cmap').checked;
+  $('legend').style.display = on ? 'block' : 'none';
+  $('legend-bar').style.background = legendGradient();
+  const mm = organ.colourScale * 1000;
+  $('legend-lo').textContent = '0 mm';
+  $('legend-hi').textContent = `${mm < 10 ? mm.toFixed(2) : mm.toFixed(1)} mm`;
+  $('legend-title').textContent = 'displacement |u| (scale grows with the largest, reset with R)';
+  state.legend = on ? `${$('legend-lo').textContent} – ${$('legend-hi').textContent}` : '';
 }
 
 function onFrame(msg) {
@@ -100,11 +158,14 @@ function onFrame(msg) {
   const n = organ.frame(msg) || 0;
   state.forceMagnitude = n;
   state.maxDisplacement = organ.maxDisplacement;
+  state.openEdges = organ.openEdges ? organ.openEdges.length / 2 : 0;
   plot.push(n);
   const f = msg.grasper ? msg.grasper.force : msg.haptic_force;
   $('sim-rate').textContent = `${msg.sim_rate.toFixed(0)} steps/s`;
   $('haptic-rate').textContent = `${msg.haptic_rate.toFixed(0)} Hz, p99 ${msg.haptic_p99_us.toFixed(0)} µs`;
-  $('time').textContent = `${msg.time.toFixed(2)} s${msg.building ? ' (building…)' : ''}`;
+  $('time').textContent = `${msg.time.toFixed(2)} s`;
+  showStatus(msg);
+  updateLegend();
   $('force').textContent = `${n.toFixed(4)} N`;
   $('force-vec').textContent = f.map((x) => x.toFixed(3)).join(', ');
   $('disp').textContent = `${(organ.maxDisplacement * 1000).toFixed(2)} mm`;
@@ -223,25 +284,37 @@ function updateProbe() {
 // ---------------------------------------------------------------- panel and keys
 for (const b of document.querySelectorAll('.tool')) b.addEventListener('click', () => setTool(b.dataset.tool));
 $('wire').addEventListener('change', (e) => organ.setWireframe(e.target.checked));
-$('cmap').addEventListener('change', (e) => organ.setColours(e.target.checked));
-$('kind').addEventListener('change', (e) => send({ type: 'set_model', kind: e.target.value }));
-$('reset').addEventListener('click', () => send({ type: 'reset' }));
+$('cmap').addEventListener('change', (e) => { organ.setColours(e.target.checked); updateLegend(); });
+// After a choice the selector lets go of the keyboard, so the shortcuts work again (a
+// focused select would take C, R, W... as type-to-search).
+$('kind').addEventListener('change', (e) => { send({ type: 'set_model', kind: e.target.value }); e.target.blur(); });
+$('reset').addEventListener('click', () => { send({ type: 'reset' }); organ.rescale(); });
+for (const el of document.querySelectorAll('button, input[type=checkbox]')) {
+  el.addEventListener('click', () => el.blur());
+}
 $('apply-material').addEventListener('click', () => send({
   type: 'set_material',
   young_modulus: Number($('young').value),
   poisson_ratio: Number($('poisson').value),
 }));
 
+const SHORTCUTS = new Set(['1', '2', '3', 'w', 'c', 'f', 'r', '[', ']', 'm']);
+// Captured on the window before any control sees it: shortcuts work whatever has focus,
+// except while typing a number into a field.
 window.addEventListener('keydown', (e) => {
-  if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+  if (e.ctrlKey || e.metaKey || e.altKey) return;
+  const typing = e.target instanceof HTMLInputElement && e.target.type !== 'checkbox';
+  if (typing) return;
   const k = e.key.toLowerCase();
+  if (!SHORTCUTS.has(k)) return;
+  if (e.target instanceof HTMLElement && e.target !== document.body) e.target.blur();
   if (k === '1') setTool('probe');
   else if (k === '2') setTool('grasp');
   else if (k === '3') setTool('scalpel');
   else if (k === 'w') { $('wire').checked = !$('wire').checked; organ.setWireframe($('wire').checked); }
-  else if (k === 'c') { $('cmap').checked = !$('cmap').checked; organ.setColours($('cmap').checked); }
+  else if (k === 'c') { $('cmap').checked = !$('cmap').checked; organ.setColours($('cmap').checked); updateLegend(); }
   else if (k === 'f') organ.setShowFixed(!organ.showFixed);
-  else if (k === 'r') send({ type: 'reset' });
+  else if (k === 'r') { send({ type: 'reset' }); organ.rescale(); }
   else if (k === '[') state.depth = Math.max(0.1, state.depth - 0.1);
   else if (k === ']') state.depth = Math.min(3, state.depth + 0.1);
   else if (k === 'm' && state.init) {
@@ -249,7 +322,8 @@ window.addEventListener('keydown', (e) => {
     send({ type: 'set_model', kind: names[(names.indexOf(state.init.kind) + 1) % names.length] });
   } else return;
   e.preventDefault();
-});
+  e.stopPropagation();
+}, { capture: true });
 
 // ---------------------------------------------------------------- test hooks
 // Screen point (CSS pixels, page coordinates) of a world point.
@@ -278,6 +352,41 @@ state.organPixels = () => {
   }
   return { organ, total: w * h };
 };
+// Pixels of the drawn scalpel path (yellow) in the rendered frame.
+state.pathPixels = () => {
+  const px = readFrame();
+  let n = 0;
+  for (let i = 0; i < px.length; i += 4) if (px[i] > 200 && px[i + 1] > 180 && px[i + 2] < 110) n += 1;
+  return n;
+};
+// A coarse grey image of the frame (every 2nd pixel each way), kept on the page under
+// `name` (sending it to the test costs seconds); `changedPixels` compares two of them.
+const snapshots = {};
+state.snapshot = (name) => { snapshots[name] = grey(); return snapshots[name].length; };
+state.changedPixels = (a, b) => {
+  const x = snapshots[a], y = snapshots[b];
+  let n = 0;
+  for (let i = 0; i < Math.min(x.length, y.length); i++) if (Math.abs(x[i] - y[i]) > 24) n += 1;
+  return n;
+};
+function grey() {
+  const px = readFrame();
+  const w = renderer.getContext().drawingBufferWidth;
+  const out = [];
+  for (let i = 0; i < px.length; i += 4) {
+    const p = i / 4;
+    if ((p % w) % 2 || Math.floor(p / w) % 2) continue;
+    out.push(Math.round(0.3 * px[i] + 0.59 * px[i + 1] + 0.11 * px[i + 2]));
+  }
+  return out;
+}
+function readFrame() {
+  renderer.render(scene, camera);
+  const gl = renderer.getContext();
+  const px = new Uint8Array(gl.drawingBufferWidth * gl.drawingBufferHeight * 4);
+  gl.readPixels(0, 0, gl.drawingBufferWidth, gl.drawingBufferHeight, gl.RGBA, gl.UNSIGNED_BYTE, px);
+  return px;
+}
 
 // ---------------------------------------------------------------- render loop
 function resize() {
@@ -300,6 +409,13 @@ function animate() {
     $('fps').textContent = `${state.fps.toFixed(0)} frames/s`;
     fpsCount = 0;
     fpsStart = now;
+  }
+  if (pendingFrame) {
+    const text = pendingFrame;
+    pendingFrame = null;
+    let msg = null;
+    try { msg = JSON.parse(text); } catch { notice('error', 'unreadable frame from the server'); }
+    if (msg) onFrame(msg);
   }
   updateProbe();
   plot.draw();

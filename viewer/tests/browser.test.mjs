@@ -1,32 +1,25 @@
 // End-to-end test of `tissue view` in headless Chromium (driven by playwright-core; the
 // browser is Debian's /usr/bin/chromium). Usage: node browser.test.mjs URL SCREENSHOT.png
-// Checks: the liver renders (its pixels are in the frame), malformed and oversized messages
-// are rejected with an error on the page while the simulation keeps running, a scripted
-// grasp-and-drag moves vertices and the shown force becomes non-zero.
-import { chromium } from 'playwright-core';
+// On the probe liver: the page renders with its icon; malformed and oversized messages are
+// rejected with an error while the simulation keeps running; a grasp-and-drag moves the
+// surface, Reset brings back the scene's dt and the colour scale; the legend shows its
+// range; the shortcuts work after the model selector was used; the scalpel's path is drawn
+// while dragging; and the switch matrix: every kind the page lists, switched to live,
+// holds the probe for 2 s with no blow-up and a bounded force (or is refused with its reason).
+import { launch, open, check, info, verdict, switchTo, holdProbe, noticeCount, notices } from './lib.mjs';
 
 const [url, shot] = process.argv.slice(2);
-const results = [];
-function check(name, ok, detail) {
-  results.push({ name, ok });
-  console.log(`${ok ? 'ok  ' : 'FAIL'} ${name}: ${detail}`);
-}
+// Kinds that cannot represent a closed organ refuse it with the reason on the page (the
+// part of the message that must appear). hybrid needs its cut region from a scene (or
+// scalpels to grow it around); a live switch has neither. Edit here when that changes.
+const REFUSED = { spline: 'genus', hybrid: 'cut_region' };
+// The probe pushes one probe radius into the liver: a plausible state gives well under
+// this (the issue's exploding spring-mass showed 9.24 N, 10.7 N peak).
+const FORCE_BOUND = 3.0;
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: [
-    '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
-    '--disable-quic', '--no-first-run', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync',
-  ],
-});
+const browser = await launch();
 try {
-  const page = await browser.newPage({ viewport: { width: 1000, height: 700 } });
-  page.on('pageerror', (e) => console.log(`page error: ${e.message}`));
-  await page.goto(url);
-  await page.waitForFunction(() => window.__tissue && window.__tissue.ready && window.__tissue.frames > 5,
-    null, { timeout: 60000 });
+  const page = await open(browser, url);
   const webgl2 = await page.evaluate(() => !!document.createElement('canvas').getContext('webgl2'));
   check('WebGL 2', webgl2, webgl2 ? 'available' : 'missing');
 
@@ -34,6 +27,7 @@ try {
   const share = px.organ / px.total;
   check('the liver renders', share > 0.005, `${px.organ} of ${px.total} pixels have the tissue colour (${(100 * share).toFixed(2)} %)`);
   await page.screenshot({ path: shot });
+  check('no failed request (favicon included)', page.requestsFailed.length === 0, page.requestsFailed.join(', ') || 'none');
 
   // Robustness: bad messages get an error on the page, the simulation goes on.
   const before = await page.evaluate(() => window.__tissue.last.steps);
@@ -54,7 +48,18 @@ try {
   const after = await page.evaluate(() => window.__tissue.last.steps);
   check('simulation keeps running', after > before, `steps ${before} -> ${after}`);
 
-  // A scripted grasp and drag.
+  // The status names the running model and its step.
+  const status = await page.evaluate(() => window.__tissue.status);
+  const kind0 = await page.evaluate(() => window.__tissue.init.kind);
+  check('status shows the model and its step', status.includes(`running ${kind0}`) && /dt \d|static/.test(status), status);
+
+  // Colour map and its legend.
+  await page.keyboard.press('c');
+  await page.waitForTimeout(300);
+  const legend0 = await page.evaluate(() => window.__tissue.legend);
+  check('legend shows the range in mm', /^0 mm – \d+(\.\d+)? mm$/.test(legend0), `"${legend0}"`);
+
+  // A scripted grasp and drag, then Reset.
   await page.keyboard.press('2');
   const p = await page.evaluate(() => window.__tissue.organScreenPoint());
   check('organ under the pointer', !!p, JSON.stringify(p));
@@ -72,81 +77,109 @@ try {
       force: window.__tissue.forceMagnitude,
       shown: document.getElementById('force').textContent,
       size: window.__tissue.init.size,
+      legend: window.__tissue.legend,
     }));
     check('drag moves vertices', s.disp > 0.02 * s.size && s.disp > d0,
       `max displacement ${(1000 * s.disp).toFixed(2)} mm (organ size ${(1000 * s.size).toFixed(0)} mm)`);
     const shown = parseFloat(s.shown);
     check('shown force is non-zero', shown > 0 && s.force > 0, `force shown "${s.shown}"`);
     await page.mouse.up();
+    const hiDrag = parseFloat(s.legend.split('–')[1]);
+    const n0 = await noticeCount(page);
+    await page.keyboard.press('r');
+    await page.waitForFunction((n) => window.__tissue.notices.slice(n).some((x) => x.message.startsWith('reset')), n0, { timeout: 5000 }).catch(() => {});
+    await page.waitForTimeout(600);
+    const r = await page.evaluate(() => ({ legend: window.__tissue.legend, status: window.__tissue.status, dt: window.__tissue.last.dt, dt0: window.__tissue.init.dt }));
+    const hiReset = parseFloat(r.legend.split('–')[1]);
+    check('Reset rescales the colour map', hiReset < 0.5 * hiDrag, `legend top ${hiDrag} mm after the drag, ${hiReset} mm after Reset`);
+    check('Reset restores the dt shown', r.dt === r.dt0 && (r.status.includes(`dt ${Number(r.dt0).toExponential(2)}`) || r.status.endsWith('static')),
+      `dt ${r.dt} s (the scene's ${r.dt0} s): "${r.status}"`);
   }
-  // The page's own frame rate (software WebGL here: a floor, not what a GPU gives).
-  await page.waitForTimeout(1200);
-  const fps = await page.evaluate(() => window.__tissue.fps || 0);
-  // Informational: software rendering on a shared CI machine says little about a GPU.
-  console.log(`info page frame rate: ${fps.toFixed(1)} frames/s (SwiftShader, software WebGL)`);
+  await page.keyboard.press('c');
 
-  // A scalpel path: a model that refuses cutting says so on the page.
+  // The scalpel: its path is drawn while dragging, with no three.js buffer warning.
   await page.keyboard.press('3');
   const c = await page.evaluate(() => window.__tissue.organScreenPoint());
   if (c) {
-    const kind = await page.evaluate(() => window.__tissue.init.kind);
-    const n0 = await page.evaluate(() => window.__tissue.notices.length);
+    const pathBefore = await page.evaluate(() => window.__tissue.pathPixels());
     await page.mouse.move(c[0] - 40, c[1]);
     await page.mouse.down();
     for (let k = 0; k <= 16; k++) await page.mouse.move(c[0] - 40 + 5 * k, c[1] + 2 * k);
+    const pathDrawn = await page.evaluate(() => window.__tissue.pathPixels());
+    const n0 = await noticeCount(page);
     await page.mouse.up();
+    check('cut path drawn while dragging', pathDrawn > pathBefore + 50, `${pathBefore} -> ${pathDrawn} path-coloured pixels`);
+    const buf = page.warnings.filter((w) => w.includes('Buffer size too small'));
+    check('no "Buffer size too small" warning', buf.length === 0, `${buf.length} warnings`);
+    const kind = await page.evaluate(() => window.__tissue.init.kind);
     await page.waitForFunction((n) => window.__tissue.notices.length > n, n0, { timeout: 10000 }).catch(() => {});
-    const said = await page.evaluate((n) => window.__tissue.notices.slice(n).map((x) => x.message), n0);
-    check('scalpel answered', said.some((m) => m.includes('cannot cut') || m.includes('cut')),
-      `${kind}: ${said.join(' | ')}`);
+    const said = (await notices(page, n0)).map((x) => x.message);
+    check('scalpel answered', said.some((m) => m.includes('cannot cut') || m.includes('cut')), `${kind}: ${said.join(' | ')}`);
   }
 
-  // Every model kind the server lists: switch to it live, push the probe in, feel a force.
-  const kinds = await page.evaluate(() => window.__tissue.init.kinds.map((k) => k.name));
-  await page.keyboard.press('1');
-  // Kinds that cannot represent a closed organ must refuse it with the reason on the page.
-  // hybrid needs its cut region from a scene (or scalpels to grow it around); a live switch has neither.
-  const refusesClosedOrgan = { spline: 'genus', hybrid: 'cut_region' };
-  for (const kind of kinds) {
-    const t0 = Date.now();
-    const n0 = await page.evaluate(() => window.__tissue.notices.length);
-    await page.evaluate((k) => window.__tissue.send({ type: 'set_model', kind: k }), kind);
-    try {
-      await page.waitForFunction(([k, n]) =>
-        (window.__tissue.init.kind === k && !window.__tissue.last.building)
-        || window.__tissue.notices.slice(n).some((x) => x.message.includes(`building ${k} failed`)),
-      [kind, n0], { timeout: 60000 });
-    } catch {
-      check(`model ${kind}`, false, 'not running after 60 s');
-      continue;
-    }
-    const failure = await page.evaluate(([k, n]) => window.__tissue.notices.slice(n)
-      .map((x) => x.message).find((m) => m.includes(`building ${k} failed`)), [kind, n0]);
-    if (failure) {
-      const reason = refusesClosedOrgan[kind];
-      check(`model ${kind}`, reason !== undefined && failure.includes(reason), `refused: ${failure}`);
-      continue;
-    }
-    const built = Date.now() - t0;
-    const q = await page.evaluate(() => window.__tissue.organScreenPoint());
-    if (!q) { check(`model ${kind}`, false, 'organ not under the pointer'); continue; }
-    await page.mouse.move(q[0], q[1]);
-    await page.mouse.down();
-    let f = 0;
-    for (let k = 0; k < 40 && !(f > 0); k++) {
-      await page.waitForTimeout(100);
-      f = await page.evaluate(() => window.__tissue.forceMagnitude);
-    }
-    const rates = await page.evaluate(() => [window.__tissue.last.sim_rate, window.__tissue.last.haptic_rate]);
-    await page.mouse.up();
-    check(`model ${kind}`, f > 0, `built and running in ${built} ms, probe force ${f.toFixed(4)} N, `
-      + `${rates[0].toFixed(0)} steps/s, haptic ${rates[1].toFixed(0)} Hz`);
-    await page.waitForTimeout(200);
+  // Shortcuts after the model selector was used: pick a kind with the mouse, then keys.
+  {
+    const kinds = await page.evaluate(() => window.__tissue.init.kinds.map((k) => k.name));
+    const target = kinds.includes('tensor-mass') ? 'tensor-mass' : kinds[0];
+    await switchTo(page, target);
+    const n0 = await noticeCount(page);
+    const w0 = await page.evaluate(() => document.getElementById('wire').checked);
+    const focus = await page.evaluate(() => document.activeElement && document.activeElement.id);
+    await page.keyboard.press('w');
+    await page.keyboard.press('c');
+    await page.keyboard.press('2');
+    await page.waitForTimeout(700);
+    const s = await page.evaluate(() => ({
+      wire: document.getElementById('wire').checked, cmap: document.getElementById('cmap').checked,
+      tool: window.__tissue.tool, kind: window.__tissue.init.kind, building: !!window.__tissue.last.building,
+    }));
+    const said = (await notices(page, n0)).map((x) => x.message);
+    check('shortcuts after the selector', s.wire !== w0 && s.cmap && s.tool === 'grasp' && s.kind === target && !s.building
+      && !said.some((m) => m.includes('building')),
+    `focus after the choice: ${focus || 'body'}; W -> wireframe ${s.wire}, C -> colours ${s.cmap}, 2 -> ${s.tool}, model ${s.kind}`);
+    await page.keyboard.press('w');
+    await page.keyboard.press('c');
+    await page.keyboard.press('1');
   }
+
+  // The switch matrix on this scene: every listed kind, live, a 2 s probe.
+  const kinds = await page.evaluate(() => window.__tissue.init.kinds.map((k) => k.name));
+  const matrix = [];
+  for (const kind of kinds) {
+    // While a long build runs, the status says what is being built and how far it got.
+    const watch = page.evaluate(() => new Promise((resolve) => {
+      const seen = { text: '', rate: [] };
+      const t = setInterval(() => {
+        const s = window.__tissue;
+        if (s.buildText) { seen.text = s.buildText; seen.rate.push(s.last.sim_rate); }
+        else if (seen.text && !s.last.building) { clearInterval(t); resolve(seen); }
+      }, 250);
+      setTimeout(() => { clearInterval(t); resolve(seen); }, 95000);
+    }));
+    const sw = await switchTo(page, kind);
+    const seen = await Promise.race([watch, new Promise((r) => setTimeout(() => r({ text: '', rate: [] }), 500))]);
+    if (sw.status === 'timeout') { check(`switch to ${kind}`, false, 'not running after 90 s'); matrix.push([kind, 'timeout']); continue; }
+    if (sw.status === 'refused') {
+      const reason = REFUSED[kind];
+      check(`switch to ${kind}`, reason !== undefined && sw.reason.includes(reason), `refused: ${sw.reason}`);
+      matrix.push([kind, `refused (${sw.reason.slice(0, 80)})`]);
+      continue;
+    }
+    const h = await holdProbe(page, 2000);
+    if (!h) { check(`switch to ${kind}`, false, 'organ not under the pointer'); continue; }
+    const ok = h.blowUps.length === 0 && h.max > 0 && h.max < FORCE_BOUND;
+    const built = seen.text ? `; while building: "${seen.text}", old model ${Math.min(...seen.rate).toFixed(0)}-${Math.max(...seen.rate).toFixed(0)} steps/s` : '';
+    check(`switch to ${kind}`, ok, `built in ${sw.ms} ms, probe 2 s: peak ${h.max.toFixed(4)} N, ${h.sim.toFixed(0)} steps/s, `
+      + `haptic ${h.haptic.toFixed(0)} Hz, "${h.status}"${h.blowUps.length ? `; ${h.blowUps.join(' | ')}` : ''}${built}`);
+    matrix.push([kind, ok ? `ok ${h.max.toFixed(3)} N` : `FAIL ${h.max.toFixed(3)} N ${h.blowUps[0] || ''}`]);
+  }
+  const scene = await page.evaluate(() => window.__tissue.init.scene.split('/').pop());
+  info('switch matrix', `${scene}: ${matrix.map(([k, r]) => `${k}=${r}`).join('; ')}`);
+  await page.waitForTimeout(1200);
+  const fps = await page.evaluate(() => window.__tissue.fps || 0);
+  info('page frame rate', `${fps.toFixed(1)} frames/s on ${scene} (SwiftShader, software WebGL)`);
   await page.close();
 } finally {
   await browser.close();
 }
-const failed = results.filter((r) => !r.ok).length;
-console.log(`page: ${results.length - failed} passed, ${failed} failed`);
-process.exit(failed ? 1 : 0);
+process.exit(verdict() ? 1 : 0);

@@ -8,6 +8,7 @@ use tissue::model::KINDS;
 use tissue::sim::Simulation;
 use tissue::{Material, Real, Vec3};
 
+use super::session::BuildStatus;
 use super::setup::Setup;
 
 fn flat_f32(points: &[Vec3]) -> Vec<f32> {
@@ -26,8 +27,11 @@ pub fn init_message(
 ) -> String {
     let m = sim.model();
     let triangles: Vec<u32> = m.surface().triangles.iter().flatten().copied().collect();
+    // Only what this body can be built as: an image scene lists its voxel kinds.
+    let buildable = setup.buildable_kinds();
     let kinds: Vec<_> = KINDS
         .iter()
+        .filter(|k| buildable.contains(&k.name))
         .map(|k| json!({ "name": k.name, "summary": k.summary }))
         .collect();
     let b = setup.bounds;
@@ -49,22 +53,30 @@ pub fn init_message(
         "grasp_radius": setup.grasp_radius,
         "dt": dt,
         "scene": setup.scene.path.display().to_string(),
+        // A voxel body's surface is drawn smoothed by the page.
+        "smooth": setup.body.grid.is_some(),
     })
     .to_string()
 }
 
 /// What the session knows beyond the simulation.
-pub struct Figures {
+pub struct Figures<'a> {
     pub dt: Real,
     pub sim_rate: Real,
     pub haptic: TimingSummary,
     pub haptic_force: Vec3,
     pub probe_active: bool,
-    pub building: bool,
+    /// The running model's kind and the internal steps its last step took.
+    pub kind: &'a str,
+    pub substeps: u32,
+    /// The build in progress, if any.
+    pub building: Option<BuildStatus>,
+    /// A cut in progress: path points swept, of how many.
+    pub cut: Option<(usize, usize)>,
 }
 
 /// `names`: the viewer's probe, grasper and scalpel.
-pub fn frame_message(sim: &Simulation, f: &Figures, names: [&str; 3]) -> String {
+pub fn frame_message(sim: &Simulation, f: &Figures<'_>, names: [&str; 3]) -> String {
     let tool = |name: &str| -> Option<Value> {
         sim.instruments().iter().find(|i| i.name == name).map(|i| {
             json!({
@@ -92,7 +104,15 @@ pub fn frame_message(sim: &Simulation, f: &Figures, names: [&str; 3]) -> String 
         "haptic_rate": f.haptic.rate_hz,
         "haptic_p99_us": f.haptic.p99_us,
         "haptic_missed": f.haptic.missed_deadlines,
-        "building": f.building,
+        "kind": f.kind,
+        "substeps": f.substeps,
+        "building": f.building.as_ref().map(|b| json!({
+            "kind": b.kind,
+            "stage": b.stage,
+            "percent": (b.fraction >= 0.0).then(|| (100.0 * b.fraction).round()),
+            "seconds": b.started.map_or(0.0, |t| t.elapsed().as_secs_f64()),
+        })),
+        "cut": f.cut.map(|(done, total)| json!({ "done": done, "total": total })),
     })
     .to_string()
 }

@@ -9,12 +9,13 @@
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::sync::mpsc::{Receiver, TryRecvError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use tissue::haptic::{HapticConfig, HapticHandle, HapticLoop, Pose, UdpBridge, step_coupled};
 use tissue::interact::{Instrument, InstrumentKind, Trajectory};
+use tissue::model::Progress;
 use tissue::sim::Simulation;
 use tissue::{Material, Real, SimError, Vec3};
 
@@ -29,12 +30,32 @@ pub const SCALPEL: &str = "viewer-scalpel";
 /// Wall time spent stepping before a frame is published regardless.
 const STEP_BUDGET: Duration = Duration::from_millis(25);
 const FRAME_EVERY: Duration = Duration::from_millis(33);
+/// After a blow-up is reported, further failures within this window are counted, not
+/// reported one by one (a cascade of messages says nothing the first one did not).
+const QUIET_AFTER_FAILURE: Duration = Duration::from_secs(3);
 
 struct CutJob {
     remaining: VecDeque<Vec3>,
+    total: usize,
 }
 
 type Built = Result<(Simulation, String, Material), String>;
+
+/// What a build in progress is doing, written by its progress callback, read by the frames.
+#[derive(Clone, Debug, Default)]
+pub struct BuildStatus {
+    pub kind: String,
+    pub stage: String,
+    /// 0..1, or negative while the stage's length is unknown.
+    pub fraction: Real,
+    pub started: Option<Instant>,
+}
+
+/// The last reported blow-up and how many followed it unreported.
+struct Failure {
+    at: Instant,
+    more: u32,
+}
 
 pub struct Session {
     setup: Arc<Setup>,
@@ -49,6 +70,9 @@ pub struct Session {
     grasp: Option<Vec3>,
     cut: Option<CutJob>,
     building: Option<Receiver<Built>>,
+    build_status: Arc<Mutex<BuildStatus>>,
+    substeps: u32,
+    failure: Option<Failure>,
     steps_in_window: u64,
     window_start: Instant,
     sim_rate: Real,
@@ -63,7 +87,7 @@ impl Session {
         device: Option<SocketAddr>,
     ) -> anyhow::Result<Session> {
         let kind = setup.scene.model_kind.clone();
-        let sim = setup.build(&kind, material)?;
+        let sim = setup.build(&kind, material, Progress::silent())?;
         let haptic = HapticLoop::start(HapticConfig::default())?;
         let handle = haptic.handle();
         handle.set_pose(Pose {
@@ -95,6 +119,9 @@ impl Session {
             grasp: None,
             cut: None,
             building: None,
+            build_status: Arc::new(Mutex::new(BuildStatus::default())),
+            substeps: 0,
+            failure: None,
             steps_in_window: 0,
             window_start: Instant::now(),
             sim_rate: 0.0,
@@ -181,22 +208,39 @@ impl Session {
                 }
             }
             Command::Reset => {
-                self.drop_tools();
+                self.drop_tools("reset");
                 self.sim.model_mut().reset();
                 self.dt = self.setup.scene.run.dt;
-                self.hub.notify("info", "reset to the rest state");
+                self.failure = None;
+                self.substeps = 0;
+                // A fresh init: the page rescales its colours and shows the dt again.
+                self.publish_init();
+                self.hub.notify(
+                    "info",
+                    &format!("reset to the rest state (dt {:.3e} s)", self.dt),
+                );
             }
         }
     }
 
-    fn drop_tools(&mut self) {
+    /// Removes the grasper and the scalpel and parks the probe; a cut in progress is
+    /// abandoned with a notice saying `why`.
+    fn drop_tools(&mut self, why: &str) {
         for name in [GRASPER, SCALPEL] {
             if let Some(i) = self.index_of(name) {
                 self.sim.remove_instrument(i);
             }
         }
         self.grasp = None;
-        self.cut = None;
+        if let Some(job) = self.cut.take() {
+            self.hub.notify(
+                "error",
+                &format!(
+                    "the cut in progress was stopped ({why}) with {} of its path points left",
+                    job.remaining.len()
+                ),
+            );
+        }
         self.handle.set_pose(Pose {
             position: self.setup.park,
             ..self.handle.pose()
@@ -249,21 +293,41 @@ impl Session {
             Ok(s) => self.sim.add_instrument(s),
             Err(e) => return self.hub.notify("error", &format!("scalpel: {e}")),
         }
-        self.cut = Some(CutJob { remaining: tips });
+        let total = tips.len();
+        self.cut = Some(CutJob {
+            remaining: tips,
+            total,
+        });
     }
 
     fn rebuild(&mut self, kind: String, material: Material) {
         if self.building.is_some() {
             return self.hub.notify("error", "a model is already being built");
         }
-        self.hub.notify("info", &format!("building {kind} ..."));
+        self.hub.notify(
+            "info",
+            &format!("building {kind}; {} keeps running meanwhile", self.kind),
+        );
         let (tx, rx) = std::sync::mpsc::channel();
         let setup = Arc::clone(&self.setup);
+        let status = Arc::clone(&self.build_status);
+        *lock(&status) = BuildStatus {
+            kind: kind.clone(),
+            stage: "setting up the model".into(),
+            fraction: -1.0,
+            started: Some(Instant::now()),
+        };
+        let sink = Arc::clone(&status);
+        let progress = Progress::new(move |stage, fraction| {
+            let mut g = lock(&sink);
+            g.stage = stage.to_string();
+            g.fraction = fraction;
+        });
         let spawned = std::thread::Builder::new()
             .name("tissue-view-build".into())
             .spawn(move || {
                 let r = setup
-                    .build(&kind, material)
+                    .build(&kind, material, progress)
                     .map(|sim| (sim, kind.clone(), material))
                     .map_err(|e| format!("building {kind} failed: {e}"));
                 let _ = tx.send(r);
@@ -289,17 +353,22 @@ impl Session {
         self.building = None;
         match result {
             Ok((sim, kind, material)) => {
-                self.drop_tools();
+                self.drop_tools(&format!("switching to {kind}"));
                 self.sim = sim;
                 self.kind = kind;
                 self.material = material;
                 self.dt = self.setup.scene.run.dt;
+                self.substeps = 0;
+                self.failure = None;
                 self.publish_init();
+                let took = lock(&self.build_status)
+                    .started
+                    .map_or(0.0, |t| t.elapsed().as_secs_f64());
                 self.hub.notify(
                     "info",
                     &format!(
-                        "now running {} (E = {} Pa, nu = {})",
-                        self.kind, material.young_modulus, material.poisson_ratio
+                        "now running {} (E = {} Pa, nu = {}, dt {:.3e} s; built in {took:.1} s)",
+                        self.kind, material.young_modulus, material.poisson_ratio, self.dt
                     ),
                 );
                 true
@@ -330,8 +399,9 @@ impl Session {
             self.sim.topology_version(),
         );
         match step_coupled(&mut self.sim, 0, &self.handle, self.dt) {
-            Ok(_) => {
+            Ok(report) => {
                 self.steps_in_window += 1;
+                self.substeps = report.info.substeps;
                 if self.cut.as_ref().is_some_and(|j| j.remaining.is_empty()) {
                     self.finish_cut("the cut is done");
                 }
@@ -367,23 +437,8 @@ impl Session {
             };
             return self.hub.notify("error", &msg);
         }
-        if matches!(e, SimError::Diverged { .. }) && self.dt > 1e-6 {
-            // Models with a stability limit publish it; others get half the step.
-            let critical = self
-                .sim
-                .model()
-                .info()
-                .details
-                .iter()
-                .find(|(k, _)| k == "critical_dt")
-                .and_then(|(_, v)| v.parse::<Real>().ok())
-                .filter(|c| c.is_finite() && *c > 0.0 && *c < self.dt);
-            self.dt = critical.map_or(0.5 * self.dt, |c| 0.9 * c);
-            self.sim.model_mut().reset();
-            return self.hub.notify(
-                "error",
-                &format!("{e}; reset, and the time step is now {:.3e} s", self.dt),
-            );
+        if matches!(e, SimError::Diverged { .. } | SimError::Implausible { .. }) {
+            return self.blew_up(e);
         }
         // The same failure every step would flood the log: say it once a second.
         let text = e.to_string();
@@ -395,6 +450,60 @@ impl Session {
             self.hub.notify("error", &format!("step failed: {text}"));
             self.last_error = Some((text, Instant::now()));
         }
+    }
+
+    /// A step diverged or left the plausible range. The simulation kept its last good state,
+    /// but that state is what led here: go back to rest (plausible by construction), let go
+    /// of the grasp that was pulling, and tell the haptic loop there is no contact, so no
+    /// force from the failing state reaches the page or the device. Said once; failures
+    /// within the next few seconds are counted into one follow-up line.
+    fn blew_up(&mut self, e: SimError) {
+        self.handle.clear_contact();
+        self.grasp = None;
+        if let Some(i) = self.index_of(GRASPER) {
+            self.sim.remove_instrument(i);
+        }
+        self.sim.model_mut().reset();
+        // Models with a published stability limit below the step get it; models that
+        // substep on their own (substeps > 0) already take a step they can.
+        if self.substeps == 0 {
+            let critical = self
+                .sim
+                .model()
+                .info()
+                .details
+                .iter()
+                .find(|(k, _)| k == "critical_dt")
+                .and_then(|(_, v)| v.parse::<Real>().ok())
+                .filter(|c| c.is_finite() && *c > 0.0 && *c < self.dt);
+            if let Some(c) = critical {
+                self.dt = 0.9 * c;
+            }
+        }
+        match &mut self.failure {
+            Some(f) if f.at.elapsed() < QUIET_AFTER_FAILURE => {
+                f.more += 1;
+                return;
+            }
+            _ => {}
+        }
+        let earlier = self.failure.take().map_or(0, |f| f.more);
+        let tail = if earlier > 0 {
+            format!(" ({earlier} more failures after the previous report)")
+        } else {
+            String::new()
+        };
+        self.failure = Some(Failure {
+            at: Instant::now(),
+            more: 0,
+        });
+        self.hub.notify(
+            "error",
+            &format!(
+                "{} blew up: {e}; restored the rest state and released the grasp (dt {:.3e} s){tail}",
+                self.kind, self.dt
+            ),
+        );
     }
 
     fn publish_init(&self) {
@@ -415,7 +524,16 @@ impl Session {
             haptic: self.handle.stats(),
             haptic_force: self.handle.latest().force,
             probe_active: self.handle.pose().position != self.setup.park,
-            building: self.building.is_some(),
+            kind: &self.kind,
+            substeps: self.substeps,
+            building: self
+                .building
+                .is_some()
+                .then(|| lock(&self.build_status).clone()),
+            cut: self
+                .cut
+                .as_ref()
+                .map(|c| (c.total - c.remaining.len(), c.total)),
         };
         self.hub.set_frame(publish::frame_message(
             &self.sim,
@@ -423,4 +541,8 @@ impl Session {
             [PROBE, GRASPER, SCALPEL],
         ));
     }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }

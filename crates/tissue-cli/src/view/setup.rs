@@ -4,7 +4,8 @@
 //! for another kind or material starts from here.
 
 use tissue::interact::{Instrument, InstrumentKind, Trajectory};
-use tissue::scene::{Body, Scene};
+use tissue::model::{KINDS, Progress};
+use tissue::scene::{Body, IMAGE_KINDS, Scene};
 use tissue::sim::Simulation;
 use tissue::{Error, Material, Real, Vec3};
 
@@ -69,8 +70,25 @@ impl Setup {
         ))
     }
 
-    /// Builds a simulation of `kind` with the viewer's probe as instrument 0.
-    pub fn build(&self, kind: &str, material: Material) -> Result<Simulation, Error> {
+    /// The kinds this body can be built as: the voxel kinds on an image, every kind on a
+    /// mesh (those that refuse a closed organ say why when asked).
+    pub fn buildable_kinds(&self) -> Vec<&'static str> {
+        KINDS
+            .iter()
+            .map(|k| k.name)
+            .filter(|k| self.body.grid.is_none() || IMAGE_KINDS.contains(k))
+            .collect()
+    }
+
+    /// Builds a simulation of `kind` with the viewer's probe as instrument 0. Models with long
+    /// pre-computations report them to `progress` (most do it when their supports are set,
+    /// inside `build_with_model`).
+    pub fn build(
+        &self,
+        kind: &str,
+        material: Material,
+        progress: Progress,
+    ) -> Result<Simulation, Error> {
         // A kind's settings do not fit another kind: other kinds get their defaults.
         let mut params = self.scene.model_params.clone();
         if kind != self.scene.model_kind {
@@ -81,6 +99,7 @@ impl Setup {
             .build_model(kind, &self.body, material, &params)?;
         // The page steps the model against the wall clock.
         model.set_real_time(true);
+        model.set_progress(progress);
         let mut sim = self.scene.build_with_model(model, &self.body.mesh)?;
         let probe = Instrument::new(
             PROBE,
@@ -108,17 +127,18 @@ mod tests {
         let scene = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
         let (setup, material) = Setup::load(&scene).unwrap_or_else(|e| panic!("{e}"));
         assert!(setup.body.grid.is_some());
+        assert_eq!(setup.buildable_kinds(), ["chainmail", "linked-volumes"]);
         // The block spans 0.068 x 0.084 x 0.052 m around (0.064, 0, 0.008).
         assert!(setup.bounds.center.distance(Vec3::new(0.064, 0.0, 0.008)) < 1e-9);
         for kind in ["linked-volumes", "chainmail"] {
             let sim = setup
-                .build(kind, material)
+                .build(kind, material, Progress::silent())
                 .unwrap_or_else(|e| panic!("{kind}: {e}"));
             assert_eq!(sim.model().kind(), kind);
             assert_eq!(sim.instrument_forces().len(), 1);
         }
         let e = setup
-            .build("fem-static", material)
+            .build("fem-static", material, Progress::silent())
             .err()
             .map(|e| e.to_string());
         assert!(
