@@ -10,9 +10,9 @@ import { launch, open, check, info, verdict, switchTo, holdProbe, noticeCount, n
 
 const [url, shot] = process.argv.slice(2);
 // Kinds that cannot represent a closed organ refuse it with the reason on the page (the
-// part of the message that must appear). hybrid needs its cut region from a scene (or
-// scalpels to grow it around); a live switch has neither. Edit here when that changes.
-const REFUSED = { spline: 'genus', hybrid: 'cut_region' };
+// part of the message that must appear). hybrid builds with its automatic region at the
+// organ's top when the scene gives none. Edit here when that changes.
+const REFUSED = { spline: 'genus' };
 // The probe pushes one probe radius into the liver: a plausible state gives well under
 // this (the exploding spring-mass showed 9.24 N, 10.7 N peak).
 const FORCE_BOUND = 3.0;
