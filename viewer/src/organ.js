@@ -5,6 +5,9 @@ import * as THREE from 'three';
 import { colormap, TISSUE_COLOUR } from './colormap.js';
 
 const CUT_COLOUR = [0.05, 0.004, 0.003];
+// A composed model's parts (hybrid): the pre-computed rest in the tissue colour, the cuttable
+// region lighter and yellower, its border orange.
+const PART_COLOURS = [TISSUE_COLOUR, [0.85, 0.32, 0.04], [0.62, 0.3, 0.1]];
 
 // A round, soft-edged dot for the fixed-vertex markers (square points look like noise).
 function dotTexture() {
@@ -70,6 +73,7 @@ export class Organ {
   init(msg) {
     this.group.clear();
     this.size = msg.size;
+    this.labels = null;
     // A voxel organ's surface is made of cube faces: it is drawn smoothed (Taubin's
     // shrink-free filter, a few passes over the neighbours; the mechanics are untouched).
     this.smoother = msg.smooth ? new Smoother(msg.triangles, msg.rest.length / 3) : null;
@@ -162,7 +166,8 @@ export class Organ {
     this.colourScale = Math.max(this.colourScale, max, 1e-3 * this.size);
     for (let i = 0; i < disp.length; i++) {
       if (this.colours) colormap(disp[i] / this.colourScale, col, 3 * i);
-      else col.set(this.lips && this.lips[i] ? CUT_COLOUR : TISSUE_COLOUR, 3 * i);
+      else if (this.lips && this.lips[i]) col.set(CUT_COLOUR, 3 * i);
+      else col.set(this.labels ? PART_COLOURS[this.labels[i]] || TISSUE_COLOUR : TISSUE_COLOUR, 3 * i);
     }
     this.mesh.geometry.attributes.color.needsUpdate = true;
   }
@@ -172,6 +177,7 @@ export class Organ {
     const attr = this.mesh.geometry.attributes.position;
     if (msg.positions.length !== attr.array.length) return; // a new init is on its way
     attr.array.set(msg.positions);
+    this.labels = msg.labels && msg.labels.length === attr.array.length / 3 ? msg.labels : null;
     if (this.smoother) this.smoother.apply(attr.array);
     attr.needsUpdate = true;
     this.mesh.geometry.computeVertexNormals();

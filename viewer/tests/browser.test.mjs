@@ -165,6 +165,13 @@ try {
       matrix.push([kind, `refused (${sw.reason.slice(0, 80)})`]);
       continue;
     }
+    if (kind === 'hybrid') {
+      // The region is coloured: the frames carry a part label per surface vertex, with the
+      // cuttable region (2) and the pre-computed rest (0) both present.
+      const labels = await page.evaluate(() => window.__tissue.last.labels || []);
+      const parts = [0, 1, 2].map((p) => labels.filter((l) => l === p).length);
+      check('hybrid region labels', parts[0] > 0 && parts[2] > 0, `rest ${parts[0]}, border ${parts[1]}, region ${parts[2]} surface vertices`);
+    }
     const h = await holdProbe(page, 2000);
     if (!h) { check(`switch to ${kind}`, false, 'organ not under the pointer'); continue; }
     const ok = h.blowUps.length === 0 && h.max > 0 && h.max < FORCE_BOUND;

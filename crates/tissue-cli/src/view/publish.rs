@@ -113,6 +113,9 @@ pub fn frame_message(sim: &Simulation, f: &Figures<'_>, names: [&str; 3]) -> Str
             "seconds": b.started.map_or(0.0, |t| t.elapsed().as_secs_f64()),
         })),
         "cut": f.cut.map(|(done, total)| json!({ "done": done, "total": total })),
+        // Parts of a composed model (hybrid: 0 the pre-computed rest, 1 the region's border,
+        // 2 the cuttable region), per surface vertex; every frame, as a region can grow.
+        "labels": sim.model().vertex_labels(),
     })
     .to_string()
 }
