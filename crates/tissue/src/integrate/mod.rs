@@ -18,6 +18,7 @@
 pub mod coupling;
 mod implicit;
 mod schemes;
+pub mod split_damping;
 pub mod stable_step;
 #[cfg(test)]
 mod tests;
@@ -78,6 +79,22 @@ pub trait ParticleSystem {
     fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
         stiffness.fill(Vec3::ZERO);
         damping.fill(Vec3::ZERO);
+    }
+
+    /// Explicit schemes: prepares a velocity update applied once per step after the
+    /// substeps (stiffness damping taken out of `forces`, see `split_damping`), for step
+    /// `dt` with the particles flagged in `held` held. Returns whether there is one. Called
+    /// before the step, so that an error leaves the state as it was.
+    fn prepare_velocity_split(&mut self, dt: Real, held: &[bool]) -> Result<bool, SimError> {
+        let _ = (dt, held);
+        Ok(false)
+    }
+
+    /// Applies the prepared update to `v` and writes the forces it stands for into `force`
+    /// (the held particles' share goes into their reactions). False when nothing was done.
+    fn apply_velocity_split(&mut self, v: &mut [Vec3], force: &mut [Vec3]) -> bool {
+        let _ = (v, force);
+        false
     }
 }
 
@@ -350,6 +367,9 @@ pub struct Integrator {
     saved: Saved,
     sub_holds: Vec<Hold>,
     scratch_inv_mass: Vec<Real>,
+    /// Held flags and forces of the velocity split (`ParticleSystem::apply_velocity_split`).
+    split_held: Vec<bool>,
+    split_force: Vec<Vec3>,
 }
 
 impl Integrator {
@@ -530,6 +550,7 @@ impl Integrator {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(SimError::BadTimeStep { dt });
         }
+        let split = self.prepare_split(system, state, holds, dt)?;
         let mut n = self.substep_count(system, state, holds, dt)?;
         let mut result = self.substepped(system, state, holds, dt, n);
         let auto = self.settings.substeps == Substeps::Auto && self.scheme != Scheme::ImplicitEuler;
@@ -558,7 +579,65 @@ impl Integrator {
                 _ => break,
             }
         }
+        if split && result.is_ok() {
+            self.apply_split(system, state, holds);
+        }
         result
+    }
+
+    /// Explicit schemes: asks the system to prepare its velocity split for this step.
+    fn prepare_split<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &ParticleState,
+        holds: &[Hold],
+        dt: Real,
+    ) -> Result<bool, SimError> {
+        if self.scheme == Scheme::ImplicitEuler {
+            return Ok(false);
+        }
+        let n = state.x.len();
+        self.split_held.clear();
+        self.split_held.resize(n, false);
+        for h in holds {
+            if let Some(f) = self.split_held.get_mut(h.particle) {
+                *f = true;
+            }
+        }
+        system.prepare_velocity_split(dt, &self.split_held)
+    }
+
+    /// Applies the system's velocity split after a successful step: the held particles'
+    /// reactions get its forces, the energy ledger loses what it dissipated, and the kept
+    /// end-of-step forces (which depend on v) are dropped.
+    fn apply_split<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &mut ParticleState,
+        holds: &[Hold],
+    ) {
+        let kinetic = |v: &[Vec3], masses: &[Real], held: &[bool]| -> Real {
+            v.iter()
+                .zip(masses)
+                .zip(held)
+                .filter(|(_, h)| !**h)
+                .map(|((v, m), _)| 0.5 * m * v.length_squared())
+                .sum()
+        };
+        let before = kinetic(&state.v, system.masses(), &self.split_held);
+        self.split_force.clear();
+        self.split_force.resize(state.v.len(), Vec3::ZERO);
+        if !system.apply_velocity_split(&mut state.v, &mut self.split_force) {
+            return;
+        }
+        let after = kinetic(&state.v, system.masses(), &self.split_held);
+        for (f, h) in self.held_forces.iter_mut().zip(holds) {
+            *f += self.split_force[h.particle];
+        }
+        if let Some(last) = self.watch.last.as_mut() {
+            *last -= (before - after).max(0.0);
+        }
+        self.end = None;
     }
 
     fn substepped<S: ParticleSystem + ?Sized>(
