@@ -93,35 +93,39 @@ fn decay(z: &[Real], dt: Real, skip: usize) -> (Real, Real) {
 }
 
 #[test]
-fn split_stiffness_damping_decays_the_first_mode_at_the_rayleigh_rate() {
-    let (dt, beta) = (1e-3, 0.004);
-    let z = tip_history(false, beta, 9.81, true, dt, 1500);
-    let (sigma, wd) = decay(&z, dt, 50);
-    // Rayleigh damping C = βK: the mode ω₀ decays at σ = βω₀²/2, ω₀² = σ² + ω_d².
-    let expected = 0.5 * beta * (sigma * sigma + wd * wd);
-    assert!(
-        (sigma / expected - 1.0).abs() < 0.03,
-        "σ = {sigma:.4} 1/s, Rayleigh βω₀²/2 = {expected:.4} (ω_d = {wd:.3} rad/s)"
-    );
-    // The same damping kept in the force (explicit, ~20 substeps per step here) agrees.
-    let z2 = tip_history(false, beta, 9.81, false, dt, 1500);
-    let (sigma2, wd2) = decay(&z2, dt, 50);
-    assert!(
-        (sigma2 / sigma - 1.0).abs() < 0.03 && (wd2 / wd - 1.0).abs() < 0.01,
-        "split σ = {sigma:.4}, ω_d = {wd:.3}; explicit σ = {sigma2:.4}, ω_d = {wd2:.3}"
-    );
+fn split_stiffness_damping_decays_the_beam_like_the_explicit_damping() {
+    // Two implementations of the same Rayleigh damping βK: kept in the force (explicit,
+    // ~20 substeps per 1 ms step here) and split off (implicit once per step, 2 substeps).
+    // The first mode's decay rate and frequency agree to 1% at 1 ms and below (measured:
+    // 1e-4 on both).
+    let beta = 0.004;
+    let reference = tip_history(false, beta, 9.81, false, 1e-3, 1500);
+    let (s0, w0) = decay(&reference, 1e-3, 50);
+    assert!(s0 > 0.1, "no decay: σ = {s0}");
+    for dt in [1e-3, 2.5e-4] {
+        let n = (1.5 / dt) as usize;
+        let z = tip_history(false, beta, 9.81, true, dt, n);
+        let (sigma, wd) = decay(&z, dt, n / 30);
+        assert!(
+            (sigma / s0 - 1.0).abs() < 0.01 && (wd / w0 - 1.0).abs() < 0.01,
+            "dt {dt:e}: split σ = {sigma:.4}, ω_d = {wd:.3}; explicit σ = {s0:.4}, ω_d = {w0:.3}"
+        );
+    }
 }
 
 #[test]
-fn split_damping_settles_the_nonlinear_beam_on_the_explicit_one() {
-    // St Venant–Kirchhoff at a small sag: the split and the explicit damping settle on
-    // the same tip, and the split run needs the undamped substeps only.
+fn split_damping_settles_the_nonlinear_beam_on_the_linear_one() {
+    // St Venant–Kirchhoff at a small sag (1% of the length) with the split damping (the
+    // element form keeps no linear tensors, so this is its only β) follows the linear
+    // kind's tip to 1% (measured 2e-4; geometric nonlinearity is far below 1% here). Both
+    // still swing by ~20% of the sag after 1.5 s at this light β.
     let (dt, beta) = (1e-3, 0.004);
-    let a = tip_history(true, beta, 1.0, true, dt, 1200);
-    let b = tip_history(true, beta, 1.0, false, dt, 1200);
-    let (ta, tb) = (a[a.len() - 1], b[b.len() - 1]);
+    let sag = |z: &[Real]| 0.05 - z[z.len() - 1];
+    let a = tip_history(true, beta, 1.0, true, dt, 1500);
+    let b = tip_history(false, beta, 1.0, true, dt, 1500);
+    let (sa, sb) = (sag(&a), sag(&b));
     assert!(
-        (ta / tb - 1.0).abs() < 1e-3,
-        "split {ta:.6e} m, explicit {tb:.6e} m"
+        (sa / sb - 1.0).abs() < 0.01,
+        "non-linear sag {sa:.6e} m, linear {sb:.6e} m"
     );
 }
