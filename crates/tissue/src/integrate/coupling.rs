@@ -58,4 +58,12 @@ impl<S: ParticleSystem + ?Sized, C: NodeCoupling + ?Sized> ParticleSystem for Co
         self.system.jacobian_diagonal(stiffness, damping);
         self.coupling.add_stiffness_diagonal(stiffness);
     }
+
+    fn prepare_velocity_split(&mut self, dt: Real, held: &[bool]) -> Result<bool, SimError> {
+        self.system.prepare_velocity_split(dt, held)
+    }
+
+    fn apply_velocity_split(&mut self, v: &mut [Vec3], force: &mut [Vec3]) -> bool {
+        self.system.apply_velocity_split(v, force)
+    }
 }

@@ -159,7 +159,10 @@ impl RateEstimate {
         for buf in [&mut self.xp, &mut self.xm, &mut self.fp, &mut self.fm] {
             buf.resize(n, Vec3::ZERO);
         }
-        if self.stiff_vec.len() != n {
+        // A kept vector that died (all zero: the system had no such rate when it was last
+        // measured, e.g. no damping) cannot find a rate that appeared since: start afresh.
+        let dead = |u: &[Vec3]| !u.iter().any(|u| u.is_finite() && *u != Vec3::ZERO);
+        if self.stiff_vec.len() != n || dead(&self.stiff_vec) {
             self.stiff_vec = start_vector(n);
         }
         // Difference steps: a millionth of the body's size (forces are smooth, so the
@@ -176,7 +179,7 @@ impl RateEstimate {
         };
         let mut vec = std::mem::take(&mut self.stiff_vec);
         let omega_sq = self.power(system, x, v, inv_mass, &mut vec, iterations, eps_x, false);
-        if self.damp_vec.len() != n {
+        if self.damp_vec.len() != n || dead(&self.damp_vec) {
             self.damp_vec.clone_from(&vec);
         }
         self.stiff_vec = vec;

@@ -195,4 +195,6 @@ mod tests;
 #[cfg(test)]
 mod tests_cut;
 #[cfg(test)]
+mod tests_damping;
+#[cfg(test)]
 mod tests_dynamics;

@@ -121,6 +121,8 @@ impl TensorMass {
             mesh,
             system,
         };
+        m.system
+            .set_split_damping(m.integrator.scheme != Scheme::ImplicitEuler);
         if nonlinear && m.params.strain_threshold > 0.0 {
             // Start from the linear force everywhere; the switch brings tetrahedra in.
             m.system.switch_hybrid(&m.mesh.vertices, Real::INFINITY);
@@ -185,6 +187,8 @@ impl TensorMass {
     /// Chooses the integration scheme.
     pub fn set_scheme(&mut self, scheme: Scheme) {
         self.integrator = Integrator::with_settings(scheme, self.integrator.settings);
+        self.system
+            .set_split_damping(scheme != Scheme::ImplicitEuler);
     }
     pub fn positions(&self) -> &[Vec3] {
         &self.state.x

@@ -56,6 +56,8 @@ impl TensorMass {
             self.params.volume_penalty,
             form,
         );
+        self.system
+            .set_split_damping(self.integrator.scheme != crate::integrate::Scheme::ImplicitEuler);
         if self.nonlinear && self.params.strain_threshold > 0.0 {
             self.system
                 .switch_hybrid(&self.mesh.vertices, Real::INFINITY);

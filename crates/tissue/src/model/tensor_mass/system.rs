@@ -8,6 +8,7 @@
 
 use crate::error::SimError;
 use crate::integrate::ParticleSystem;
+use crate::integrate::split_damping::SplitDamping;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
@@ -111,6 +112,10 @@ pub struct TensorSystem {
     /// Displacements at which `prepare_jacobians` linearised.
     jacobian_u: Vec<Vec3>,
     penalty_pass: PenaltyPass,
+    /// Explicit schemes with β > 0: the stiffness damping, out of `add_forces`, applied once
+    /// per step implicitly (`integrate::split_damping`); K₀ reassembled after a removal.
+    split: Option<Box<SplitDamping>>,
+    split_dirty: bool,
 }
 
 impl TensorSystem {
@@ -170,6 +175,8 @@ impl TensorSystem {
             energy: None,
             jacobian_u: vec![Vec3::ZERO; n],
             penalty_pass: PenaltyPass::default(),
+            split: None,
+            split_dirty: false,
         };
         if nonlinear == Some(NonlinearForm::Elements) {
             system.elements = Some(ElementSet {
@@ -250,6 +257,29 @@ impl TensorSystem {
             }
         }
         k
+    }
+
+    /// Takes the stiffness damping β K₀ v out of the forces and applies it once per step
+    /// implicitly (`on`: what explicit schemes need, see `integrate::split_damping`), or puts
+    /// it back (implicit Euler, which integrates it in its own solve). No-op when β = 0.
+    pub fn set_split_damping(&mut self, on: bool) {
+        if on && self.stiffness_damping > 0.0 {
+            if self.split.is_none() {
+                self.split = Some(Box::new(SplitDamping::new(
+                    self.rest.len(),
+                    &self.tets,
+                    self.stiffness_damping,
+                )));
+                self.split_dirty = true;
+            }
+        } else {
+            self.split = None;
+        }
+    }
+
+    /// Whether the stiffness damping is split off (see `set_split_damping`).
+    pub fn split_damping(&self) -> bool {
+        self.split.is_some()
     }
 
     pub fn node_count(&self) -> usize {
@@ -365,7 +395,7 @@ impl TensorSystem {
         {
             *fi += *e - *vi * (self.damping * m);
         }
-        if self.stiffness_damping > 0.0 {
+        if self.stiffness_damping > 0.0 && self.split.is_none() {
             self.kv.iter_mut().for_each(|k| *k = Vec3::ZERO);
             self.linear.add_forces(&self.topo, v, &mut self.kv);
             for (fi, k) in f.iter_mut().zip(&self.kv) {
@@ -488,6 +518,7 @@ impl TensorSystem {
         self.alive[t] = false;
         self.alive_count -= 1;
         self.energy = None;
+        self.split_dirty = true;
         true
     }
 
@@ -606,6 +637,31 @@ impl ParticleSystem for TensorSystem {
         }
         for ((o, d), m) in out.iter_mut().zip(dv).zip(&self.masses) {
             *o += *d * (self.damping * m);
+        }
+    }
+
+    fn prepare_velocity_split(&mut self, dt: Real, held: &[bool]) -> Result<bool, SimError> {
+        let Some(split) = self.split.as_mut() else {
+            return Ok(false);
+        };
+        if self.split_dirty {
+            let (tets, rest, el, alive) =
+                (&self.tets, &self.rest_tets, &self.elasticity, &self.alive);
+            split.assemble(
+                (0..tets.len())
+                    .filter(|&t| alive[t])
+                    .map(|t| (tets[t], tet_blocks(&rest[t], &el[t]))),
+            );
+            self.split_dirty = false;
+        }
+        split.prepare(dt, &self.masses, held)?;
+        Ok(true)
+    }
+
+    fn apply_velocity_split(&mut self, v: &mut [Vec3], force: &mut [Vec3]) -> bool {
+        match self.split.as_mut() {
+            Some(split) => split.apply(&self.masses, v, force),
+            None => false,
         }
     }
 

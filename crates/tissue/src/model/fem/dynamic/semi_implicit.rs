@@ -145,7 +145,11 @@ impl FemSemiImplicit {
             return Err(e);
         }
         c.accept(dt, energy);
-        Ok(StepInfo::default())
+        // One linear solve covers the whole step: a single step, no substeps.
+        Ok(StepInfo {
+            substeps: 1,
+            ..StepInfo::default()
+        })
     }
 
     fn details(&self) -> (usize, Vec<(String, String)>) {
