@@ -161,23 +161,37 @@ impl Mat3ForTest {
 #[test]
 fn blow_up_is_refused_and_the_last_good_state_kept() {
     let s = icosphere(Vec3::ZERO, 0.05, 2);
-    let mut model = surface::build(&s, material(3.0e5), params(Scheme::SymplecticEuler)).unwrap();
-    model.set_constraints(&Constraints::fixed(vec![0])).unwrap();
-    model
-        .set_loads(&Loads {
-            gravity: Vec3::new(0.0, -9.81, 0.0),
-            point_loads: vec![],
-        })
-        .unwrap();
-    for _ in 0..5 {
-        model.step(1e-5).unwrap();
-    }
+    let make = |substeps| {
+        let p = SpringParams {
+            substeps,
+            ..params(Scheme::SymplecticEuler)
+        };
+        let mut model = surface::build(&s, material(3.0e5), p).unwrap();
+        model.set_constraints(&Constraints::fixed(vec![0])).unwrap();
+        model
+            .set_loads(&Loads {
+                gravity: Vec3::new(0.0, -9.81, 0.0),
+                point_loads: vec![],
+            })
+            .unwrap();
+        for _ in 0..5 {
+            model.step(1e-5).unwrap();
+        }
+        model
+    };
+    // One forced step of 0.5 s, far above the stability limit: refused, state kept.
+    let mut model = make(crate::integrate::Substeps::Fixed(1));
     let before = model.state().clone();
     let err = model.step(0.5).unwrap_err();
     assert!(matches!(err, SimError::Diverged { .. }), "{err}");
     assert_eq!(model.state(), &before);
     // Still usable at a sane step.
     model.step(1e-5).unwrap();
+    // The default (automatic substeps) takes the same step in as many as it needs.
+    let mut model = make(crate::integrate::Substeps::Auto);
+    let info = model.step(0.5).unwrap();
+    assert!(info.substeps > 100, "{info:?}");
+    assert!(model.state().x.iter().all(|p| p.is_finite()));
 }
 
 #[test]
