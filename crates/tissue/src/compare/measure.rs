@@ -113,11 +113,7 @@ pub fn measure_kind(
                 "file read + tetrahedralisation ({} tetrahedra, {:.2} s{}) + build",
                 st.mesh.tets.len(),
                 st.seconds,
-                if st.issues.is_empty() {
-                    String::new()
-                } else {
-                    format!("; they miss the surface: {}", st.issues.join("; "))
-                }
+                st.misses()
             ),
         ),
         _ => (0.0, "file read + conversion + build".to_string()),

@@ -129,11 +129,7 @@ pub fn reference(
              (h = {:.2e} m{})",
             st.mesh.tets.len(),
             st.size,
-            if st.issues.is_empty() {
-                String::new()
-            } else {
-                format!("; they miss the surface: {}", st.issues.join("; "))
-            }
+            st.misses()
         ),
     };
     let mut rec = ReferenceRecord {

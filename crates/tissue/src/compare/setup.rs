@@ -173,6 +173,17 @@ pub struct Stuffing {
     pub issues: Vec<String>,
 }
 
+impl Stuffing {
+    /// "; they miss the surface: …" when the mesher's checks failed, for notes.
+    pub fn misses(&self) -> String {
+        if self.issues.is_empty() {
+            String::new()
+        } else {
+            format!("; they miss the surface: {}", self.issues.join("; "))
+        }
+    }
+}
+
 impl Organ {
     /// The organ of `mesh`. A surface without tetrahedra is stuffed with about `tet_target`
     /// tetrahedra (`mesh::stuffing`) so the kinds that need a volume, and the reference, have
