@@ -90,6 +90,17 @@ fn quick_compare_reports_every_kind_with_physics_invariants() {
     for k in ["fem-corotational", "tensor-mass-nonlinear"] {
         assert!(rot(k) < 0.05, "{k}: {}", rot(k));
     }
+    // Rendering: the condensed and mesh kinds draw their mechanical surface, the voxel and
+    // simplex kinds a mapped one.
+    for (k, direct) in [
+        ("fem-condensed", 1.0),
+        ("fem-static", 1.0),
+        ("bem", 1.0),
+        ("chainmail", 0.0),
+        ("simplex-spring-mass", 0.0),
+    ] {
+        assert_eq!(value(&r, k, "surface_is_mechanical"), Some(direct), "{k}");
+    }
     for f in [
         "table1.md",
         "table1.html",

@@ -545,10 +545,12 @@ fn surface_is_mechanical(m: &dyn Deformable) -> bool {
             .iter()
             .all(|p| keys.contains(&[p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]));
     }
-    // Surface models (bem) have their nodes there; condensed ones keep only the surface's
-    // degrees of freedom, three per drawn vertex.
+    // Surface models (bem) have their nodes there; condensed ones solve for the surface's
+    // degrees of freedom only (at most three per drawn vertex) while their mesh holds every
+    // drawn vertex. A spline or a coarse voxel grid has fewer nodes than it draws.
     let info = m.info();
-    info.nodes == s.positions.len() || info.dofs == 3 * s.positions.len()
+    info.nodes == s.positions.len()
+        || (info.dofs <= 3 * s.positions.len() && info.nodes >= s.positions.len())
 }
 
 /// Bisection (in log dt) of the largest step at which `steps` steps of a sudden shallow

@@ -585,6 +585,9 @@ impl<T: SurfaceResponse> Deformable for T {
         let mut info = core.fem.info();
         info.kind = T::KIND;
         info.is_static = true;
+        // The unknowns solved at run time: the free surface's (the interior and the held
+        // vertices are condensed out once, before the simulation).
+        info.dofs = core.us.len();
         info.memory_bytes = core.memory_bytes() + self.own_memory_bytes();
         info.precompute_seconds += core.precompute_seconds;
         info.details = self.details();
