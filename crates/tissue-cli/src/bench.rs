@@ -76,7 +76,7 @@ fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
     };
     let threads = args.threads;
     if !args.json {
-        println!(
+        crate::outln!(
             "clamped beam, dt = 1 ms, {} s simulated, threads: {}; cost = wall (process CPU) \
              ms per simulated ms; tip/P1 = settled tip over fem-static's; osc = half the tip's \
              range over the last 0.1 s / |P1|",
@@ -92,14 +92,22 @@ fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
         let p1 =
             beam::p1_tip(&spec, &mesh).with_context(|| format!("fem-static on the {name} beam"))?;
         if !args.json {
-            println!(
+            crate::outln!(
                 "\n{name}: {} tets, {} nodes, P1 tip {p1:.5e} m",
                 mesh.tets.len(),
                 mesh.vertices.len()
             );
-            println!(
+            crate::outln!(
                 "{:<24} {:>9} {:>9} {:>8} {:>9} {:>5} {:>7} {:>9} {:>6}",
-                "kind", "wall", "cpu", "tip/P1", "osc", "sub", "capped", "resid", "iters"
+                "kind",
+                "wall",
+                "cpu",
+                "tip/P1",
+                "osc",
+                "sub",
+                "capped",
+                "resid",
+                "iters"
             );
         }
         let mut cases = Vec::new();
@@ -108,7 +116,7 @@ fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
                 beam::run_case(kind, &spec, &mesh, &params, p1)
             })?;
             if !args.json {
-                print_row(&case);
+                print_row(&case)?;
             }
             cases.push(case);
         }
@@ -120,14 +128,14 @@ fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
         });
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&runs)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&runs)?);
     }
     Ok(())
 }
 
-fn print_row(c: &BeamCase) {
+fn print_row(c: &BeamCase) -> anyhow::Result<()> {
     if c.steps > 0 {
-        println!(
+        crate::outln!(
             "{:<24} {:>9.3} {:>9.3} {:>8.4} {:>9.2e} {:>5} {:>7} {:>9.1e} {:>6.1}",
             c.kind,
             c.wall_ms_per_ms,
@@ -141,6 +149,7 @@ fn print_row(c: &BeamCase) {
         );
     }
     if let Some(e) = &c.error {
-        println!("{:<24} cannot: {e}", c.kind);
+        crate::outln!("{:<24} cannot: {e}", c.kind);
     }
+    Ok(())
 }

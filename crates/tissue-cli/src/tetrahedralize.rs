@@ -101,7 +101,7 @@ pub fn tetrahedralize(r: &Request) -> anyhow::Result<()> {
     let report = &stuffed.report;
     let violations = report.violations();
     if r.json {
-        println!("{}", serde_json::to_string_pretty(report)?);
+        crate::outln!("{}", serde_json::to_string_pretty(report)?);
     } else {
         print!("{report}");
     }
