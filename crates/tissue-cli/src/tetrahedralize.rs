@@ -103,7 +103,7 @@ pub fn tetrahedralize(r: &Request) -> anyhow::Result<()> {
     if r.json {
         crate::outln!("{}", serde_json::to_string_pretty(report)?);
     } else {
-        print!("{report}");
+        crate::out!("{report}");
     }
     if !violations.is_empty() && !r.force {
         anyhow::bail!(
