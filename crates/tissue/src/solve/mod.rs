@@ -1,9 +1,11 @@
 //! Linear algebra for the models: sparse matrices with a fixed pattern and a sparse Cholesky
-//! factorisation whose symbolic analysis is done once and reused; a matrix-free Jacobi-
+//! factorisation whose symbolic analysis (AMD or nested dissection, whichever fills less) is
+//! done once and reused; a matrix-free Jacobi-
 //! preconditioned conjugate gradient for the implicit dynamic models.
 
 pub mod cg;
+pub mod ordering;
 pub mod sparse;
 
 pub use cg::{CgResult, CgWorkspace};
-pub use sparse::{BlockPattern, SparseCholesky};
+pub use sparse::{BlockPattern, Ordering, SparseCholesky};

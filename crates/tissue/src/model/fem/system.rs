@@ -100,7 +100,7 @@ pub struct System {
 impl System {
     /// Takes the assembled stiffness `k` of `assembler`'s pattern over nodes at `rest`.
     pub fn new(assembler: Assembler, k: Vec<Real>, rest: Vec<Vec3>) -> Result<Self, SimError> {
-        let chol = SparseCholesky::new(&assembler.pattern)?;
+        let chol = SparseCholesky::with_positions(&assembler.pattern, &rest)?;
         let diag = assembler.pattern.diagonal_slots();
         let (component, components) = connected_components(&assembler, rest.len());
         let n = assembler.pattern.dim();

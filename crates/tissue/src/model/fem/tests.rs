@@ -582,3 +582,44 @@ fn cholesky_alone_detects_free_stiffness_matrices() {
         chol.factorize(pattern, &a, "").unwrap();
     }
 }
+
+/// Study (prints): the sparse factorisation of quadratic `fem-static` on the built-in liver
+/// refined once and twice (the comparison's reference meshes) with AMD and with geometric
+/// nested dissection: factor size and numeric time. `tissue compare`'s full reference was
+/// bound by this factorisation (over 13 CPU minutes with AMD at the second refinement).
+/// `cargo test --release --workspace --lib reference_factorisation_study -- --ignored --nocapture`
+#[test]
+#[ignore = "a printing study, minutes"]
+fn reference_factorisation_study() {
+    use crate::solve::{Ordering, SparseCholesky};
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
+    let data = crate::io::read(path).unwrap().tet_mesh("liver.msh").unwrap();
+    let mut mesh = TetMesh::new(data.vertices.iter().map(|v| *v * 0.01).collect(), data.tets);
+    for level in 1..=2 {
+        mesh = crate::mesh::split_tets(&mesh).unwrap();
+        let model = FemStatic::new(&mesh, Material::new(3000.0, 0.3).unwrap(), Order::Quadratic)
+            .unwrap();
+        let pattern = &model.system.assembler.pattern;
+        for ordering in [Ordering::NestedDissection, Ordering::Amd] {
+            let t = std::time::Instant::now();
+            let mut chol = SparseCholesky::with_ordering(pattern, &model.rest, ordering).unwrap();
+            let analysis = t.elapsed().as_secs_f64();
+            // K itself is singular (no supports): K + I·mean(diag) has the same pattern.
+            let diag = pattern.diagonal_slots();
+            let shift = diag.iter().map(|&s| model.system.k[s]).sum::<Real>() / diag.len() as Real;
+            let mut a = model.system.k.clone();
+            diag.iter().for_each(|&s| a[s] += shift);
+            let t = std::time::Instant::now();
+            chol.factorize(pattern, &a, "").unwrap();
+            println!(
+                "level {level}: {} quadratic tets, {} unknowns, {ordering:?}: factor {} values \
+                 ({:.2} GB), analysis {analysis:.2} s, numeric {:.1} s",
+                mesh.tets.len(),
+                pattern.dim(),
+                chol.factor_nnz(),
+                chol.factor_nnz() as Real * 8e-9,
+                t.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
