@@ -8,6 +8,7 @@ use faer::Mat;
 
 use crate::error::{Error, SimError};
 use crate::integrate::Scheme;
+use crate::integrate::coupling::NodeCoupling;
 use crate::interact::{Constraints, Loads, Prescribed};
 use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3};
@@ -15,7 +16,9 @@ use crate::mesh::TET_FACES;
 use crate::mesh::TetMesh;
 use crate::mesh::topology::tet_neighbours;
 use crate::model::tensor_mass::{TensorMass, TensorMassParams};
-use crate::model::{ConstraintReactions, CutInfo, CutPath, Deformable, StepInfo, VolumeView};
+use crate::model::{
+    ConstraintReactions, CutInfo, CutPath, Deformable, Progress, StepInfo, VolumeView,
+};
 
 use super::CutRegion;
 use super::grow::{Built, Growth};
@@ -93,7 +96,17 @@ pub struct Hybrid {
     volume_positions: OnceCell<Vec<Vec3>>,
     /// The automatic region's seed when neither the scene nor a scalpel gave one.
     pub(super) default_seed: Option<Vec3>,
+    /// Where the notice that the region covers the organ goes (once).
+    pub(super) progress: Progress,
+    /// That notice was given.
+    whole_noticed: bool,
 }
+
+/// What `ModelInfo::details` (`whole_organ`) and the one notice say when the region covers
+/// every tetrahedron.
+pub const WHOLE_ORGAN_NOTICE: &str = "hybrid: the cut region covers every tetrahedron; the \
+    model is now whole-organ tensor-mass (nothing is pre-computed, cutting continues \
+    everywhere)";
 
 impl Hybrid {
     /// Builds the model on a validated mesh with the region's tetrahedra `in_region`.
@@ -163,6 +176,8 @@ impl Hybrid {
             alive_tets: Vec::new(),
             volume_positions: OnceCell::new(),
             default_seed: None,
+            progress: Progress::silent(),
+            whole_noticed: false,
             mesh,
         };
         m.adopt_split();
@@ -507,7 +522,13 @@ impl Hybrid {
         let coupling = self
             .rest
             .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        let info = self.tm.advance_coupled(dt, Some(&coupling))?;
+        // A region that covers the organ is whole-organ tensor-mass: nothing to couple.
+        let coupled: Option<&dyn NodeCoupling> = if self.rest.exists() {
+            Some(&coupling)
+        } else {
+            None
+        };
+        let info = self.tm.advance_coupled(dt, coupled)?;
         self.steps += 1;
         if let Some(g) = self.growth.as_mut() {
             g.steps_waited += 1;
@@ -804,7 +825,21 @@ impl Hybrid {
         self.apply_constraints(&c)?;
         self.update_state()?;
         self.measure_stability();
+        self.notice_whole();
         Ok(())
+    }
+
+    /// Says once, through the progress handle, that the region now covers the organ.
+    pub(super) fn notice_whole(&mut self) {
+        if self.split.whole() && !self.whole_noticed {
+            self.whole_noticed = true;
+            self.progress.report(WHOLE_ORGAN_NOTICE, 1.0);
+        }
+    }
+
+    /// Does the cut region cover every tetrahedron (the model is whole-organ tensor-mass)?
+    pub fn is_whole_organ(&self) -> bool {
+        self.split.whole()
     }
 
     /// The region's stability limit measured with the rest's interface stiffness (the
@@ -813,7 +848,8 @@ impl Hybrid {
         let coupling = self
             .rest
             .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        self.tm.measure_stability(Some(&coupling));
+        self.tm
+            .measure_stability(self.rest.exists().then_some(&coupling as &dyn NodeCoupling));
     }
 
     /// Back to rest, uncut (the region stays as grown).

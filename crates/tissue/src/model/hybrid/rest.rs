@@ -58,8 +58,9 @@ struct Contacts {
 /// The pre-computed rest (see the module doc).
 pub(super) struct RestPart {
     /// In a cell so that `node_displacements` (a sparse solve with the factor's scratch)
-    /// can answer a `&self` read of the volume.
-    fem: RefCell<FemStatic>,
+    /// can answer a `&self` read of the volume. `None` when the region covers the organ
+    /// (nothing left to pre-compute: no interface, no outer surface, no loads).
+    fem: Option<RefCell<FemStatic>>,
     density: Real,
     /// Rest-local node of each interface node (in `Split::interface` order).
     iface: Vec<u32>,
@@ -96,6 +97,9 @@ impl RestPart {
     /// Assembles the rest's FEM and pre-computes its responses to the interface: 3n_I
     /// sparse solves.
     pub fn new(split: &Split, material: Material) -> Result<Self, Error> {
+        if split.whole() {
+            return Ok(Self::empty(material.density));
+        }
         let start = Instant::now();
         let mut fem = FemStatic::new(&split.rest.mesh, material, Order::Linear)?;
         let iface: Vec<u32> = split
@@ -173,11 +177,52 @@ impl RestPart {
             forces: vec![0.0; 3 * nodes],
             build_seconds: 0.0,
             column_solves: 0,
-            fem: RefCell::new(fem),
+            fem: Some(RefCell::new(fem)),
         };
         Ok(Self {
             build_seconds: start.elapsed().as_secs_f64(),
             ..rest
+        })
+    }
+
+    /// The rest of a region that covers the whole organ: nothing, coupled to nothing.
+    fn empty(density: Real) -> Self {
+        Self {
+            fem: None,
+            density,
+            iface: Vec::new(),
+            outer: Vec::new(),
+            outer_slot: Vec::new(),
+            s: Mat::zeros(0, 0),
+            g: Mat::zeros(0, 0),
+            r0: Mat::zeros(0, 1),
+            u0: Mat::zeros(0, 1),
+            columns: HashMap::new(),
+            contacts: Contacts {
+                slots: Vec::new(),
+                rhs: Mat::zeros(0, 1),
+                g: Mat::zeros(0, 0),
+                w: Mat::zeros(0, 0),
+                w_inv: Mat::zeros(0, 0),
+            },
+            forces: Vec::new(),
+            build_seconds: 0.0,
+            column_solves: 0,
+        }
+    }
+
+    /// Is there a rest at all (false when the region covers the organ)?
+    pub fn exists(&self) -> bool {
+        self.fem.is_some()
+    }
+
+    /// The rest's FEM (only called with a rest: every caller is reached through an
+    /// interface node or an outer slot, of which an empty rest has none).
+    fn fem(&self) -> Result<&RefCell<FemStatic>, SimError> {
+        self.fem.as_ref().ok_or_else(|| SimError::Unsupported {
+            model: "hybrid",
+            operation: "the pre-computed rest",
+            reason: "the cut region covers the whole organ: there is no rest".into(),
         })
     }
 
@@ -192,7 +237,10 @@ impl RestPart {
     /// Sets the loads: gravity over the rest's tetrahedra and point forces on rest-local
     /// nodes; one sparse solve.
     pub fn set_loads(&mut self, gravity: Vec3, point: &[(u32, Vec3)]) -> Result<(), SimError> {
-        let mut f = self.fem.borrow().body_load(gravity * self.density);
+        if !self.exists() {
+            return Ok(());
+        }
+        let mut f = self.fem()?.borrow().body_load(gravity * self.density);
         // The region carries the rest's mass share at the interface nodes, and its weight.
         for &n in &self.iface {
             for k in 0..3 {
@@ -206,7 +254,7 @@ impl RestPart {
         }
         let mut dp = held(&self.iface, self.outer_slot.len())?;
         dp.forces.copy_from_slice(&f);
-        let sol = self.fem.borrow_mut().solve_dofs(&dp)?;
+        let sol = self.fem()?.borrow_mut().solve_dofs(&dp)?;
         for (b, &m) in self.iface.iter().enumerate() {
             for l in 0..3 {
                 self.r0[(3 * b + l, 0)] = sol.reactions[m as usize][l];
@@ -245,7 +293,7 @@ impl RestPart {
         let mut w = Mat::zeros(3 * self.outer.len(), 3);
         for k in 0..3 {
             dp.forces[3 * n + k] = 1.0;
-            let sol = self.fem.borrow_mut().solve_dofs(&dp)?;
+            let sol = self.fem()?.borrow_mut().solve_dofs(&dp)?;
             dp.forces[3 * n + k] = 0.0;
             for (b, &m) in self.outer.iter().enumerate() {
                 for l in 0..3 {
@@ -476,6 +524,9 @@ impl RestPart {
     /// Displacements of every node of the rest (a sparse solve): for a region growth, whose
     /// new region nodes start where the rest had them.
     pub fn node_displacements(&self, u_i: &Mat<Real>) -> Result<Vec<Vec3>, SimError> {
+        if !self.exists() {
+            return Ok(Vec::new());
+        }
         let z = self.contact_forces(u_i);
         let mut dp = held(&self.iface, self.outer_slot.len())?;
         dp.forces.copy_from_slice(&self.forces);
@@ -490,7 +541,7 @@ impl RestPart {
                 dp.forces[3 * n + l] += z[(3 * k + l, 0)];
             }
         }
-        Ok(self.fem.borrow_mut().solve_dofs(&dp)?.displacements)
+        Ok(self.fem()?.borrow_mut().solve_dofs(&dp)?.displacements)
     }
 
     /// The rest's total load (for balance checks): body and point forces, without the
@@ -505,15 +556,20 @@ impl RestPart {
 
     /// The rest's lumped mass at each interface node, in kg.
     pub fn interface_masses(&self) -> Vec<Real> {
-        let m =
-            crate::model::fem::mass::lumped_masses(self.fem.borrow().linear_mesh(), self.density);
+        let Some(fem) = &self.fem else {
+            return Vec::new();
+        };
+        let m = crate::model::fem::mass::lumped_masses(fem.borrow().linear_mesh(), self.density);
         self.iface.iter().map(|&n| m[n as usize]).collect()
     }
 
     /// The moment about the origin of the loads and the contact forces `z`, at rest.
     #[cfg(test)]
     pub fn moment(&self, z: &Mat<Real>) -> Vec3 {
-        let fem = self.fem.borrow();
+        let Some(fem) = &self.fem else {
+            return Vec3::ZERO;
+        };
+        let fem = fem.borrow();
         let x = fem.rest_nodes();
         let mut m = Vec3::ZERO;
         for (n, f) in self.forces.chunks_exact(3).enumerate() {
@@ -531,7 +587,9 @@ impl RestPart {
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.fem.borrow().info().memory_bytes
+        self.fem
+            .as_ref()
+            .map_or(0, |f| f.borrow().info().memory_bytes)
             + 8 * (self.s.nrows() * self.s.ncols()
                 + self.g.nrows() * self.g.ncols()
                 + self.columns.len() * 3 * self.g.nrows())
