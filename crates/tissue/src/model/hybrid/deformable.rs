@@ -18,7 +18,7 @@ impl Deformable for Hybrid {
     /// Both parts' outer surface (the interface is inside), with the cut surfaces.
     fn surface(&self) -> SurfaceView<'_> {
         SurfaceView {
-            positions: &self.surf_pos,
+            positions: self.surface_positions(),
             triangles: &self.triangles,
         }
     }

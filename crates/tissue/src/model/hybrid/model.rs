@@ -69,7 +69,12 @@ pub struct Hybrid {
     pub(super) surf_nodes: Vec<u32>,
     pub(super) surf_of_node: Vec<u32>,
     pub(super) surf_rest: Vec<Vec3>,
-    pub(super) surf_pos: Vec<Vec3>,
+    /// The drawn surface's current positions, computed on the first read after a step: the
+    /// rest's outer surface is G·u_I (3n_O × 3n_I, megabytes) plus the contacts' columns,
+    /// which a caller that steps without looking (a haptic loop between display frames)
+    /// need not pay for every step. Never stale: every step and every cut empties it.
+    surf_pos: OnceCell<Vec<Vec3>>,
+
     pub(super) triangles: Vec<[u32; 3]>,
     pub(super) constraints: Constraints,
     pub(super) loads: Loads,
@@ -154,7 +159,8 @@ impl Hybrid {
             rest,
             region_iface: Vec::new(),
             tm_vertex: Vec::new(),
-            surf_pos: surf_rest.clone(),
+            surf_pos: OnceCell::new(),
+
             surf_rest,
             surf_nodes,
             surf_of_node,
@@ -188,6 +194,39 @@ impl Hybrid {
         Ok(m)
     }
 
+    /// The drawn surface's current positions (the rest's outer part computed here, once per
+    /// step, on the first read).
+    pub(super) fn surface_positions(&self) -> &[Vec3] {
+        self.surf_pos.get_or_init(|| {
+            // From the current state of both parts (never from a copy that a growth could
+            // have left behind): the gather and the contact forces are small.
+            let u = self
+                .rest
+                .coupling(&self.region_iface, &self.split.region.mesh.vertices)
+                .interface_displacements(self.tm.positions());
+            let z = self.rest.contact_forces(&u);
+            let uo = self.rest.outer_displacements(&u, &z);
+            let x = self.tm.positions();
+            self.surf_nodes
+                .iter()
+                .zip(&self.surf_rest)
+                .map(|(&g, &p)| {
+                    let r = self.split.region.local[g as usize];
+                    if r != NONE {
+                        x[r as usize]
+                    } else if let Some(slot) =
+                        self.rest.outer_slot(self.split.rest.local[g as usize])
+                    {
+                        let s = 3 * slot as usize;
+                        p + Vec3::new(uo[(s, 0)], uo[(s + 1, 0)], uo[(s + 2, 0)])
+                    } else {
+                        p
+                    }
+                })
+                .collect()
+        })
+    }
+
     /// Rebuilds the maps that follow the split and the region model's surface.
     fn adopt_split(&mut self) {
         self.region_iface = self
@@ -211,6 +250,7 @@ impl Hybrid {
     /// The boundary faces of the surviving tetrahedra, outward, over the surface vertices
     /// (nodes a cut exposes get new vertex numbers at the end).
     fn rebuild_triangles(&mut self) {
+        self.surf_pos.take();
         self.alive_tets = self
             .mesh
             .tets
@@ -242,7 +282,6 @@ impl Hybrid {
                     self.surf_of_node[n as usize] = s;
                     self.surf_nodes.push(n);
                     self.surf_rest.push(self.mesh.vertices[n as usize]);
-                    self.surf_pos.push(self.mesh.vertices[n as usize]);
                     s
                 });
                 self.triangles.push(tri);
@@ -417,7 +456,7 @@ impl Hybrid {
         }
         let s = self.surf_of_node[g as usize];
         if s != NONE {
-            return self.surf_pos[s as usize];
+            return self.surface_positions()[s as usize];
         }
         self.mesh.vertices[g as usize]
     }
@@ -546,18 +585,8 @@ impl Hybrid {
         let u = coupling.interface_displacements(self.tm.positions());
         let mut fi = Mat::zeros(u.nrows(), 1);
         let z = self.rest.interface_forces(&u, &mut fi);
-        let uo = self.rest.outer_displacements(&u, &z);
-        for (v, &g) in self.surf_nodes.iter().enumerate() {
-            let r = self.split.region.local[g as usize];
-            self.surf_pos[v] = if r != NONE {
-                self.tm.positions()[r as usize]
-            } else if let Some(slot) = self.rest.outer_slot(self.split.rest.local[g as usize]) {
-                let s = 3 * slot as usize;
-                self.surf_rest[v] + Vec3::new(uo[(s, 0)], uo[(s + 1, 0)], uo[(s + 2, 0)])
-            } else {
-                self.surf_rest[v]
-            };
-        }
+        // The surface follows on its first read (`surface_positions`).
+        self.surf_pos.take();
         let mut force = vec![Vec3::ZERO; self.surf_nodes.len()];
         let tm_prescribed = self.tm.reactions().prescribed;
         for (v, &e) in self.tm_entry.iter().enumerate() {

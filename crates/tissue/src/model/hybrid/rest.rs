@@ -41,6 +41,60 @@ fn gemv(y: &mut Mat<Real>, accum: Accum, a: MatRef<'_, Real>, x: MatRef<'_, Real
     faer::linalg::matmul::matmul(y.as_mut(), accum, a, x, alpha, Par::Seq);
 }
 
+/// A symmetric matrix stored as its upper triangle, column by column (column j holds rows
+/// 0..=j, contiguous): the product every substep reads half the bytes of the dense S
+/// (0.44 MB instead of 0.87 MB at 330 interface dofs, which then stays in a core's L2).
+#[derive(Clone, Debug, Default)]
+struct SymPacked {
+    n: usize,
+    data: Vec<Real>,
+}
+
+impl SymPacked {
+    fn from_dense(s: &Mat<Real>) -> Self {
+        let n = s.nrows();
+        let mut data = Vec::with_capacity(n * (n + 1) / 2);
+        for j in 0..n {
+            data.extend((0..=j).map(|i| s[(i, j)]));
+        }
+        Self { n, data }
+    }
+
+    /// y += alpha · S x: column j adds S[0..j, j] x_j to y[0..j] and S[0..=j, j] · x to
+    /// y_j, one pass over the stored triangle.
+    fn mul_add(&self, x: &[Real], y: &mut [Real], alpha: Real) {
+        let mut off = 0;
+        for j in 0..self.n {
+            let col = &self.data[off..off + j];
+            off += j + 1;
+            let xj = alpha * x[j];
+            // Four partial sums so that the dot product vectorises.
+            let mut acc = [0.0; 4];
+            let (yc, xc) = (&mut y[..j], &x[..j]);
+            let mut cc = col.chunks_exact(4);
+            let mut yi = yc.chunks_exact_mut(4);
+            let mut xi = xc.chunks_exact(4);
+            for ((c, yy), xx) in (&mut cc).zip(&mut yi).zip(&mut xi) {
+                for k in 0..4 {
+                    yy[k] += c[k] * xj;
+                    acc[k] += c[k] * xx[k];
+                }
+            }
+            let mut dot = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+            for ((c, yy), xx) in cc
+                .remainder()
+                .iter()
+                .zip(yi.into_remainder())
+                .zip(xi.remainder())
+            {
+                *yy += c * xj;
+                dot += c * xx;
+            }
+            y[j] += alpha * (dot + self.data[off - 1] * x[j]);
+        }
+    }
+}
+
 /// The contacts on the outer surface, as the coupling forces use them.
 #[derive(Clone, Debug)]
 struct Contacts {
@@ -70,6 +124,8 @@ pub(super) struct RestPart {
     outer_slot: Vec<u32>,
     /// −(interface reactions) per unit interface displacement: 3n_I × 3n_I.
     s: Mat<Real>,
+    /// S packed, for the product every force evaluation takes.
+    s_packed: SymPacked,
     /// Outer displacements per unit interface displacement: 3n_O × 3n_I.
     g: Mat<Real>,
     /// Interface reactions and outer displacements under the loads, interface at rest.
@@ -162,6 +218,7 @@ impl RestPart {
             iface,
             outer,
             outer_slot,
+            s_packed: SymPacked::from_dense(&s),
             s,
             g,
             r0: Mat::zeros(ni, 1),
@@ -194,6 +251,7 @@ impl RestPart {
             outer: Vec::new(),
             outer_slot: Vec::new(),
             s: Mat::zeros(0, 0),
+            s_packed: SymPacked::default(),
             g: Mat::zeros(0, 0),
             r0: Mat::zeros(0, 1),
             u0: Mat::zeros(0, 1),
@@ -423,7 +481,8 @@ impl RestPart {
     ) {
         self.contact_forces_into(u_i, y, z);
         out.as_mut().copy_from(self.r0.as_ref());
-        gemv(out, Accum::Add, self.s.as_ref(), u_i.as_ref(), -1.0);
+        self.s_packed
+            .mul_add(u_i.col_as_slice(0), out.col_as_slice_mut(0), -1.0);
         if z.nrows() > 0 {
             gemv(
                 out,
@@ -591,6 +650,7 @@ impl RestPart {
             .as_ref()
             .map_or(0, |f| f.borrow().info().memory_bytes)
             + 8 * (self.s.nrows() * self.s.ncols()
+                + self.s_packed.data.len()
                 + self.g.nrows() * self.g.ncols()
                 + self.columns.len() * 3 * self.g.nrows())
     }
@@ -755,6 +815,32 @@ impl NodeCoupling for Coupling<'_> {
             );
             if let Some(di) = d.get_mut(n as usize) {
                 *di += diagonal;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod packed_tests {
+    use super::*;
+
+    /// The packed symmetric product equals faer's dense one (odd and even sizes, sizes
+    /// below and above the four-lane chunk).
+    #[test]
+    fn packed_symmetric_product_equals_the_dense_one() {
+        for n in [1, 3, 4, 7, 33] {
+            let a = Mat::<Real>::from_fn(n, n, |i, j| ((3 * i + 7 * j) % 11) as Real - 5.0);
+            let s = Mat::<Real>::from_fn(n, n, |i, j| a[(i, j)] + a[(j, i)]);
+            let x = Mat::<Real>::from_fn(n, 1, |i, _| (i as Real * 0.37).sin());
+            let mut dense = Mat::<Real>::from_fn(n, 1, |i, _| i as Real);
+            let mut packed = dense.clone();
+            gemv(&mut dense, Accum::Add, s.as_ref(), x.as_ref(), -0.5);
+            SymPacked::from_dense(&s).mul_add(x.col_as_slice(0), packed.col_as_slice_mut(0), -0.5);
+            for i in 0..n {
+                assert!(
+                    (dense[(i, 0)] - packed[(i, 0)]).abs() < 1e-12,
+                    "n = {n}, row {i}"
+                );
             }
         }
     }
