@@ -899,3 +899,57 @@ fn a_region_grown_over_every_tetrahedron_is_whole_organ_tensor_mass() {
     assert!(du < 1e-8 * scale, "surface {:e}", du / scale);
     assert!(dr < 1e-8, "probe force {dr:e}");
 }
+
+/// In real time a growth is built on its own thread: the old parts answer every step until
+/// the new ones land, the steps waited and the build time are recorded.
+#[test]
+fn a_growth_in_real_time_is_built_off_the_stepping_thread_and_timed() {
+    let mesh = beam();
+    let params = r#"
+        cut_region = "auto"
+        auto_radius = 0.03
+        auto_seeds = [[0.0, 0.015, 0.03]]
+    "#;
+    let mut h = hybrid(&mesh, material(5.0), params);
+    h.set_real_time(true);
+    let before = h.region_tets();
+    // A blade just above the top near the region's border: it cuts nothing, but asks for a
+    // growth.
+    let blade = CutPath {
+        start: [Vec3::new(0.04, 0.015, 0.05), Vec3::new(0.04, 0.015, 0.035)],
+        end: [Vec3::new(0.05, 0.015, 0.05), Vec3::new(0.05, 0.015, 0.035)],
+    };
+    assert_eq!(h.cut(&blade).unwrap().removed_elements, 0);
+    assert!(h.growth_pending() || !h.growths().is_empty());
+    let start = std::time::Instant::now();
+    let mut pending_steps = 0;
+    while h.growth_pending() {
+        assert!(start.elapsed().as_secs() < 120, "the growth never landed");
+        assert_eq!(h.region_tets(), before, "the old region answers meanwhile");
+        pending_steps += 1;
+        h.step(1e-4).unwrap();
+    }
+    let g = h.growths().to_vec();
+    assert_eq!(g.len(), 1);
+    assert!(g[0].region_tets > before && g[0].region_tets == h.region_tets());
+    assert!(g[0].seconds > 0.0);
+    // The step that installed the growth did not wait.
+    assert_eq!(g[0].steps_waited, (pending_steps as u64).saturating_sub(1));
+    let info = h.info();
+    let last: Real = info
+        .details
+        .iter()
+        .find(|(k, _)| k == "last_growth_s")
+        .unwrap()
+        .1
+        .parse()
+        .unwrap();
+    assert!((last - g[0].seconds).abs() < 1e-4);
+    eprintln!(
+        "real-time growth {before} -> {} tetrahedra in {:.3} s, {} steps answered by the old \
+         region meanwhile",
+        g[0].region_tets, g[0].seconds, g[0].steps_waited
+    );
+    h.step(1e-4).unwrap();
+    assert_closed_oriented(&h);
+}
