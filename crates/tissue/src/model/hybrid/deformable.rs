@@ -4,11 +4,11 @@ use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{
-    CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
+    CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView, VolumeView,
 };
 
 use super::CutRegion;
-use super::model::Hybrid;
+use super::model::{Hybrid, WHOLE_ORGAN_NOTICE};
 
 impl Deformable for Hybrid {
     fn kind(&self) -> &'static str {
@@ -18,7 +18,7 @@ impl Deformable for Hybrid {
     /// Both parts' outer surface (the interface is inside), with the cut surfaces.
     fn surface(&self) -> SurfaceView<'_> {
         SurfaceView {
-            positions: &self.surf_pos,
+            positions: self.surface_positions(),
             triangles: &self.triangles,
         }
     }
@@ -69,6 +69,13 @@ impl Deformable for Hybrid {
 
     fn reset(&mut self) {
         self.reset_state();
+    }
+
+    /// The one notice this model gives goes here: that the cut region has come to cover
+    /// the whole organ (given now if it already does).
+    fn set_progress(&mut self, progress: Progress) {
+        self.progress = progress;
+        self.notice_whole();
     }
 
     /// In real time a region growth is built on its own thread while the old region
@@ -122,6 +129,9 @@ impl Deformable for Hybrid {
             ),
             ("border_removals".into(), self.border_removals.to_string()),
         ];
+        if self.is_whole_organ() {
+            details.push(("whole_organ".into(), WHOLE_ORGAN_NOTICE.into()));
+        }
         if let Some(p) = self.default_seed {
             details.push((
                 "default_region".into(),

@@ -8,6 +8,7 @@ use faer::Mat;
 
 use crate::error::{Error, SimError};
 use crate::integrate::Scheme;
+use crate::integrate::coupling::NodeCoupling;
 use crate::interact::{Constraints, Loads, Prescribed};
 use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3};
@@ -15,7 +16,9 @@ use crate::mesh::TET_FACES;
 use crate::mesh::TetMesh;
 use crate::mesh::topology::tet_neighbours;
 use crate::model::tensor_mass::{TensorMass, TensorMassParams};
-use crate::model::{ConstraintReactions, CutInfo, CutPath, Deformable, StepInfo, VolumeView};
+use crate::model::{
+    ConstraintReactions, CutInfo, CutPath, Deformable, Progress, StepInfo, VolumeView,
+};
 
 use super::CutRegion;
 use super::grow::{Built, Growth};
@@ -66,7 +69,12 @@ pub struct Hybrid {
     pub(super) surf_nodes: Vec<u32>,
     pub(super) surf_of_node: Vec<u32>,
     pub(super) surf_rest: Vec<Vec3>,
-    pub(super) surf_pos: Vec<Vec3>,
+    /// The drawn surface's current positions, computed on the first read after a step: the
+    /// rest's outer surface is G·u_I (3n_O × 3n_I, megabytes) plus the contacts' columns,
+    /// which a caller that steps without looking (a haptic loop between display frames)
+    /// need not pay for every step. Never stale: every step and every cut empties it.
+    surf_pos: OnceCell<Vec<Vec3>>,
+
     pub(super) triangles: Vec<[u32; 3]>,
     pub(super) constraints: Constraints,
     pub(super) loads: Loads,
@@ -93,7 +101,17 @@ pub struct Hybrid {
     volume_positions: OnceCell<Vec<Vec3>>,
     /// The automatic region's seed when neither the scene nor a scalpel gave one.
     pub(super) default_seed: Option<Vec3>,
+    /// Where the notice that the region covers the organ goes (once).
+    pub(super) progress: Progress,
+    /// That notice was given.
+    whole_noticed: bool,
 }
+
+/// What `ModelInfo::details` (`whole_organ`) and the one notice say when the region covers
+/// every tetrahedron.
+pub const WHOLE_ORGAN_NOTICE: &str = "hybrid: the cut region covers every tetrahedron; the \
+    model is now whole-organ tensor-mass (nothing is pre-computed, cutting continues \
+    everywhere)";
 
 impl Hybrid {
     /// Builds the model on a validated mesh with the region's tetrahedra `in_region`.
@@ -141,7 +159,8 @@ impl Hybrid {
             rest,
             region_iface: Vec::new(),
             tm_vertex: Vec::new(),
-            surf_pos: surf_rest.clone(),
+            surf_pos: OnceCell::new(),
+
             surf_rest,
             surf_nodes,
             surf_of_node,
@@ -163,6 +182,8 @@ impl Hybrid {
             alive_tets: Vec::new(),
             volume_positions: OnceCell::new(),
             default_seed: None,
+            progress: Progress::silent(),
+            whole_noticed: false,
             mesh,
         };
         m.adopt_split();
@@ -171,6 +192,39 @@ impl Hybrid {
         m.measure_stability();
         m.precompute_seconds = start.elapsed().as_secs_f64();
         Ok(m)
+    }
+
+    /// The drawn surface's current positions (the rest's outer part computed here, once per
+    /// step, on the first read).
+    pub(super) fn surface_positions(&self) -> &[Vec3] {
+        self.surf_pos.get_or_init(|| {
+            // From the current state of both parts (never from a copy that a growth could
+            // have left behind): the gather and the contact forces are small.
+            let u = self
+                .rest
+                .coupling(&self.region_iface, &self.split.region.mesh.vertices)
+                .interface_displacements(self.tm.positions());
+            let z = self.rest.contact_forces(&u);
+            let uo = self.rest.outer_displacements(&u, &z);
+            let x = self.tm.positions();
+            self.surf_nodes
+                .iter()
+                .zip(&self.surf_rest)
+                .map(|(&g, &p)| {
+                    let r = self.split.region.local[g as usize];
+                    if r != NONE {
+                        x[r as usize]
+                    } else if let Some(slot) =
+                        self.rest.outer_slot(self.split.rest.local[g as usize])
+                    {
+                        let s = 3 * slot as usize;
+                        p + Vec3::new(uo[(s, 0)], uo[(s + 1, 0)], uo[(s + 2, 0)])
+                    } else {
+                        p
+                    }
+                })
+                .collect()
+        })
     }
 
     /// Rebuilds the maps that follow the split and the region model's surface.
@@ -196,6 +250,7 @@ impl Hybrid {
     /// The boundary faces of the surviving tetrahedra, outward, over the surface vertices
     /// (nodes a cut exposes get new vertex numbers at the end).
     fn rebuild_triangles(&mut self) {
+        self.surf_pos.take();
         self.alive_tets = self
             .mesh
             .tets
@@ -227,7 +282,6 @@ impl Hybrid {
                     self.surf_of_node[n as usize] = s;
                     self.surf_nodes.push(n);
                     self.surf_rest.push(self.mesh.vertices[n as usize]);
-                    self.surf_pos.push(self.mesh.vertices[n as usize]);
                     s
                 });
                 self.triangles.push(tri);
@@ -402,7 +456,7 @@ impl Hybrid {
         }
         let s = self.surf_of_node[g as usize];
         if s != NONE {
-            return self.surf_pos[s as usize];
+            return self.surface_positions()[s as usize];
         }
         self.mesh.vertices[g as usize]
     }
@@ -507,7 +561,13 @@ impl Hybrid {
         let coupling = self
             .rest
             .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        let info = self.tm.advance_coupled(dt, Some(&coupling))?;
+        // A region that covers the organ is whole-organ tensor-mass: nothing to couple.
+        let coupled: Option<&dyn NodeCoupling> = if self.rest.exists() {
+            Some(&coupling)
+        } else {
+            None
+        };
+        let info = self.tm.advance_coupled(dt, coupled)?;
         self.steps += 1;
         if let Some(g) = self.growth.as_mut() {
             g.steps_waited += 1;
@@ -525,18 +585,8 @@ impl Hybrid {
         let u = coupling.interface_displacements(self.tm.positions());
         let mut fi = Mat::zeros(u.nrows(), 1);
         let z = self.rest.interface_forces(&u, &mut fi);
-        let uo = self.rest.outer_displacements(&u, &z);
-        for (v, &g) in self.surf_nodes.iter().enumerate() {
-            let r = self.split.region.local[g as usize];
-            self.surf_pos[v] = if r != NONE {
-                self.tm.positions()[r as usize]
-            } else if let Some(slot) = self.rest.outer_slot(self.split.rest.local[g as usize]) {
-                let s = 3 * slot as usize;
-                self.surf_rest[v] + Vec3::new(uo[(s, 0)], uo[(s + 1, 0)], uo[(s + 2, 0)])
-            } else {
-                self.surf_rest[v]
-            };
-        }
+        // The surface follows on its first read (`surface_positions`).
+        self.surf_pos.take();
         let mut force = vec![Vec3::ZERO; self.surf_nodes.len()];
         let tm_prescribed = self.tm.reactions().prescribed;
         for (v, &e) in self.tm_entry.iter().enumerate() {
@@ -804,7 +854,21 @@ impl Hybrid {
         self.apply_constraints(&c)?;
         self.update_state()?;
         self.measure_stability();
+        self.notice_whole();
         Ok(())
+    }
+
+    /// Says once, through the progress handle, that the region now covers the organ.
+    pub(super) fn notice_whole(&mut self) {
+        if self.split.whole() && !self.whole_noticed {
+            self.whole_noticed = true;
+            self.progress.report(WHOLE_ORGAN_NOTICE, 1.0);
+        }
+    }
+
+    /// Does the cut region cover every tetrahedron (the model is whole-organ tensor-mass)?
+    pub fn is_whole_organ(&self) -> bool {
+        self.split.whole()
     }
 
     /// The region's stability limit measured with the rest's interface stiffness (the
@@ -813,7 +877,8 @@ impl Hybrid {
         let coupling = self
             .rest
             .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        self.tm.measure_stability(Some(&coupling));
+        self.tm
+            .measure_stability(self.rest.exists().then_some(&coupling as &dyn NodeCoupling));
     }
 
     /// Back to rest, uncut (the region stays as grown).

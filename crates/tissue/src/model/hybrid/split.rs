@@ -89,19 +89,15 @@ impl Split {
                     .into(),
             ));
         }
-        if rest_tets.is_empty() {
-            return Err(refuse(
-                "it selects every tetrahedron: nothing is left to pre-compute (use the \
-                 tensor-mass kinds for a whole organ)"
-                    .into(),
-            ));
-        }
+        // An empty rest is legal: the region covers the organ (scalpel sweeps across the
+        // whole of it grew the automatic region there, or the scene's region holds it all),
+        // and the model is whole-organ tensor-mass (`Split::whole`).
         let region = Part::new(mesh, region_tets);
         let rest = Part::new(mesh, rest_tets);
         let interface: Vec<u32> = (0..mesh.vertices.len() as u32)
             .filter(|&v| region.local[v as usize] != NONE && rest.local[v as usize] != NONE)
             .collect();
-        if interface.is_empty() {
+        if interface.is_empty() && !rest.tets.is_empty() {
             return Err(refuse(
                 "the region shares no node with the rest of the organ: the two parts would \
                  not be coupled"
@@ -134,6 +130,11 @@ impl Split {
             border,
             volume_fraction,
         })
+    }
+
+    /// Does the region cover every tetrahedron (nothing left to pre-compute)?
+    pub fn whole(&self) -> bool {
+        self.rest.tets.is_empty()
     }
 
     /// Can a cut remove global tetrahedron `t` (in the region, away from its border)?
