@@ -505,55 +505,83 @@ fn fine_liver_surface_holds_the_probe_out_and_the_supports_balance() {
     assert!(balance.length() < 1e-6 * f.length(), "{balance}");
 }
 
-/// The shipped coarse liver (edges about 1 cm) with a frictionless probe on `fem-condensed`,
-/// whose contacts are held along the probe's normal only and solved with its compliance:
-/// pressed 1 cm, then backed off a little in three directions. Every step the supports take
-/// what the probe gives (static), the tissue pushes the probe out and no contact pulls.
-/// (With contacts held in all three directions and relaxed, a vertex released and taken back
-/// in one step kept a pull of up to half the probe force here.)
-#[test]
-fn coarse_liver_frictionless_probe_on_the_compliance_pushes_and_balances() {
+/// What a frictionless press of the coarse liver showed (`coarse_liver_press`).
+struct LiverPress {
+    force: Vec3,
+    contacts: usize,
+    most_solves: usize,
+    all_converged: bool,
+    /// The largest pull of a contact along its normal, relative to the probe force.
+    worst_pull: Real,
+    /// The largest |supports + probe| relative to the probe force.
+    worst_balance: Real,
+    /// The largest angle between a contact's reaction and its normal, in rad.
+    worst_angle: Real,
+    /// The probe force along +y (out of the liver) at each back-off step.
+    backed_off: Vec<Real>,
+}
+
+/// The shipped coarse liver (edges about 1 cm, `liver-fem-condensed.toml` with `kind`) under
+/// a frictionless 2 cm probe (larger than the edges, so that the contact is resolved by the
+/// mesh's vertices) pressed 8 mm, then backed off 0.2 mm in three directions and returned.
+fn coarse_liver_press(kind: &str) -> LiverPress {
     let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(format!("{root}/scenes/liver-fem-condensed.toml"))
         .unwrap()
         .replace("../assets", &format!("{root}/assets"))
+        .replace("\"fem-condensed\"", &format!("\"{kind}\""))
         .replace(
             "kind = \"probe\"",
             "kind = \"probe\"\ncontact = \"sliding\"",
-        );
-    let dir = std::env::temp_dir().join(format!("tissue-sliding-liver-{}", std::process::id()));
+        )
+        .replace("max_iterations = 8", "max_iterations = 50")
+        .replace("radius = 0.005", "radius = 0.02")
+        .replace("0.0555, 0.0067", "0.0705, 0.0067")
+        .replace("0.0455, 0.0067", "0.0625, 0.0067");
+    let dir = std::env::temp_dir().join(format!(
+        "tissue-sliding-liver-{kind}-{}",
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("sliding.toml");
     std::fs::write(&path, text).unwrap();
     let scene = tissue::scene::Scene::load(&path).unwrap();
     let mut sim = scene.build().unwrap();
+    assert_eq!(sim.model().kind(), kind);
     assert_eq!(sim.instruments()[0].friction(), Some(0.0));
-    let mut worst_pull: Real = 0.0;
-    let mut worst_balance: Real = 0.0;
-    let mut check = |sim: &Simulation| {
+    let mut out = LiverPress {
+        force: Vec3::ZERO,
+        contacts: 0,
+        most_solves: 0,
+        all_converged: true,
+        worst_pull: 0.0,
+        worst_balance: 0.0,
+        worst_angle: 0.0,
+        backed_off: Vec::new(),
+    };
+    let check = |sim: &Simulation, r: &tissue::sim::StepReport, out: &mut LiverPress| {
+        out.most_solves = out.most_solves.max(r.contact_iterations);
+        out.all_converged &= r.contact_converged;
         let inst = &sim.instruments()[0];
         let f = inst.force();
-        let balance = (f + sim.fixed_reaction_total()).length() / f.length().max(1e-30);
-        worst_balance = worst_balance.max(balance);
+        let scale = f.length().max(1e-30);
+        let balance = (f + sim.fixed_reaction_total()).length() / scale;
+        out.worst_balance = out.worst_balance.max(balance);
         let shape = inst.shape().unwrap();
         for (k, r) in inst.contacts().iter().zip(inst.contact_reactions()) {
             let n = k.normal(&shape, inst.position());
-            // Along the normal only: no sideways part either.
-            assert!(
-                r.cross(n).length() <= 1e-9 * f.length(),
-                "vertex {} reaction {r} not along {n}",
-                k.vertex
-            );
-            worst_pull = worst_pull.max(r.dot(n) / f.length().max(1e-30));
+            out.worst_angle = out
+                .worst_angle
+                .max(r.cross(n).length() / r.length().max(1e-300));
+            out.worst_pull = out.worst_pull.max(r.dot(n) / scale);
         }
     };
-    let mut most = 0;
     for _ in 0..scene.run.step_count() {
         let r = sim.step(scene.run.dt).unwrap();
-        most = most.max(r.contact_iterations);
-        check(&sim);
+        check(&sim, &r, &mut out);
     }
-    let pressed = sim.instruments()[0].force();
+    out.force = sim.instruments()[0].force();
+    out.contacts = sim.instruments()[0].contacts().len();
     let deep = sim.instruments()[0].position();
     for d in [
         Vec3::new(0.0, 2e-4, 0.0),
@@ -563,15 +591,52 @@ fn coarse_liver_frictionless_probe_on_the_compliance_pushes_and_balances() {
     ] {
         sim.set_instrument_position(0, Some(deep + d)).unwrap();
         let r = sim.step(0.01).unwrap();
-        assert!(r.forces[0].y > 0.0, "{d}: force {}", r.forces[0]);
-        check(&sim);
+        out.backed_off.push(r.forces[0].y);
+        check(&sim, &r, &mut out);
     }
     eprintln!(
-        "coarse liver, frictionless on fem-condensed: F = {pressed:.5} N at 1 cm, {} contacts, \
-         at most {most} solves a step, worst pull {worst_pull:.1e} of F, balance {worst_balance:.1e}",
-        sim.instruments()[0].contacts().len()
+        "coarse liver, frictionless probe, {kind}: F = {:.5} N at 8 mm, {} contacts, at most \
+         {} solves a step (all converged: {}), worst pull {:.1e} of F, balance {:.1e}, \
+         reactions within {:.1e} rad of their normals, backing off F_y = {:.5?}",
+        out.force,
+        out.contacts,
+        out.most_solves,
+        out.all_converged,
+        out.worst_pull,
+        out.worst_balance,
+        out.worst_angle,
+        out.backed_off
     );
-    assert!(pressed.y > 0.0);
-    assert!(worst_balance < 1e-9, "{worst_balance}");
-    assert!(worst_pull < 0.05, "{worst_pull}");
+    out
+}
+
+/// `fem-condensed` holds each frictionless contact along the probe's normal only and solves
+/// it with its compliance: every step converges, the supports take what the probe gives, no
+/// contact pulls and every reaction is along its normal.
+#[test]
+fn coarse_liver_frictionless_probe_on_the_compliance_pushes_and_balances() {
+    let out = coarse_liver_press("fem-condensed");
+    assert!(out.force.y > 0.0 && out.contacts >= 3, "{}", out.force);
+    assert!(out.all_converged);
+    assert!(out.worst_balance < 1e-9, "{}", out.worst_balance);
+    assert!(out.worst_pull <= 1e-9, "{}", out.worst_pull);
+    assert!(out.worst_angle < 1e-5, "{}", out.worst_angle);
+    assert!(
+        out.backed_off.iter().all(|&f| f > 0.0),
+        "{:?}",
+        out.backed_off
+    );
+}
+
+/// The same press on `fem-static`, whose contacts are held in all three directions and slid by
+/// the relaxation: the two frictionless solutions agree (measured 9.2e-4). What differs is
+/// printed: the relaxation took up to the 50-solve cap per step and left contacts pulling
+/// (a quarter of the probe force) with reactions far from their normals.
+#[test]
+fn coarse_liver_normal_only_agrees_with_the_relaxation() {
+    let exact = coarse_liver_press("fem-condensed");
+    let relaxed = coarse_liver_press("fem-static");
+    let gap = (exact.force - relaxed.force).length() / exact.force.length();
+    eprintln!("force gap {gap:.2e}");
+    assert!(gap < 0.01, "{gap}");
 }

@@ -326,4 +326,31 @@ mod run_tests {
         }
         assert!(run(0.999, 1e-9).is_ok());
     }
+
+    /// Sticking is the default; `contact = "sliding"` and `friction` opt into sliding; a
+    /// contradiction or an unknown mode is refused by name.
+    #[test]
+    fn contact_mode_keys() {
+        let spec = |extra: &str| -> InstrumentSpec {
+            toml::from_str(&format!(
+                "kind = \"probe\"\nradius = 0.005\n{extra}\npath = [ {{ t = 0.0, position = [0.0, 0.0, 0.0] }} ]"
+            ))
+            .unwrap()
+        };
+        let friction = |extra: &str| make_instrument(&spec(extra), 0).map(|i| i.friction());
+        assert_eq!(friction(""), Ok(None));
+        assert_eq!(friction("contact = \"sticking\""), Ok(None));
+        assert_eq!(friction("contact = \"sliding\""), Ok(Some(0.0)));
+        assert_eq!(friction("friction = 0.3"), Ok(Some(0.3)));
+        assert_eq!(
+            friction("contact = \"sliding\"\nfriction = 0.2"),
+            Ok(Some(0.2))
+        );
+        let e = friction("contact = \"sticking\"\nfriction = 0.2").unwrap_err();
+        assert!(e.contains("`friction` is for sliding contact"), "{e}");
+        let e = friction("contact = \"glued\"").unwrap_err();
+        assert!(e.contains("unknown contact `glued`"), "{e}");
+        let e = friction("friction = -1.0").unwrap_err();
+        assert!(e.contains("friction"), "{e}");
+    }
 }
