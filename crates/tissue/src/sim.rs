@@ -10,7 +10,8 @@
 use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
-    Contact, PENETRATION_TOLERANCE, hold_points, pulls, vertices_in_ball, vertices_in_shape,
+    Contact, PENETRATION_TOLERANCE, hold_points, is_adhesive, project_to_sphere, pulls,
+    vertices_in_ball, vertices_in_shape,
 };
 use crate::interact::fine_surface::MappedSurface;
 use crate::interact::instrument::{Instrument, InstrumentKind};
@@ -617,6 +618,33 @@ fn keep_and_find(
 ) -> Vec<Contact> {
     let positions = surface.positions;
     let c = inst.position;
+    if let (None, Shape::Sphere { radius: r }, None) = (inst.friction(), shape, surface.fine) {
+        // A sticking probe keeps the contact rule it had before sliding contact existed,
+        // to the last rounding (explicit kinds' scenes are sensitive to it over thousands
+        // of steps): the previous contacts still on the sphere that did not pull, their
+        // vertices projected radially onto it.
+        let scale = force_scale(&old.reactions);
+        let mut contacts: Vec<Contact> = old
+            .contacts
+            .iter()
+            .zip(&old.reactions)
+            .filter(|(k, f)| {
+                !is_taken(taken, k.vertex) && !is_adhesive(**f, k.target, old.position, scale)
+            })
+            .filter_map(|(k, _)| {
+                let p = *positions.get(k.vertex as usize)?;
+                (p.distance(c) <= r * (1.0 + PENETRATION_TOLERANCE)).then(|| {
+                    Contact::on_surface(
+                        k.vertex,
+                        project_to_sphere(p, c, *r, k.target - old.position),
+                    )
+                })
+            })
+            .collect();
+        mark(taken, &contacts);
+        surface.find(shape, c, &mut contacts, taken, &[]);
+        return contacts;
+    }
     let slack = PENETRATION_TOLERANCE * shape.size();
     let shift = c - old.position;
     // Keep the previous contacts still on the shape that did not stick, so a resting probe
