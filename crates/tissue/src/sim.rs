@@ -10,10 +10,14 @@
 use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
-    Contact, PENETRATION_TOLERANCE, is_adhesive, project_to_sphere, vertices_in_ball,
+    Contact, PENETRATION_TOLERANCE, hold_points, is_adhesive, project_to_sphere, pulls,
+    vertices_in_ball, vertices_in_shape,
 };
+use crate::interact::fine_surface::MappedSurface;
 use crate::interact::instrument::{Instrument, InstrumentKind};
 use crate::interact::plausibility::Plausibility;
+use crate::interact::shape::Shape;
+use crate::interact::sliding::SlideResidual;
 use crate::interact::{Constraints, Loads, Prescribed};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{Deformable, StepInfo};
@@ -36,6 +40,10 @@ pub struct StepReport {
     pub contact_iterations: usize,
     /// False when the static contact loop hit its cap with the contact set still changing.
     pub contact_converged: bool,
+    /// The sliding contacts' tangential force beyond Coulomb's bound (all of it when
+    /// frictionless) after the last solve, relative to the normal force, worst instrument:
+    /// below `SLIDE_TOLERANCE` when a static model's contact loop converged.
+    pub slide_residual: Real,
     /// The last inner solve.
     pub info: StepInfo,
 }
@@ -55,8 +63,13 @@ pub struct Simulation {
     bvh_topology: u32,
     is_static: bool,
     max_contact_iterations: usize,
-    /// The constraints the model holds now (restored when a step fails).
+    /// The constraints the model holds now (restored when a step fails), with the direction
+    /// each prescribed entry is held along only (`Deformable::set_constraints_along`).
     constraints: Constraints,
+    normals: Vec<Option<Vec3>>,
+    /// Whether the model held the last constraints' directions (false: it held every entry in
+    /// all three directions, and frictionless contacts slide by relaxation).
+    along: bool,
     /// How many of their prescribed entries each instrument gave, in order. When the
     /// contact loop stops at its cap, the instruments' contact sets have moved on from
     /// what the model last solved with.
@@ -65,6 +78,9 @@ pub struct Simulation {
     returned: Returned,
     /// The bounds a step's result must stay within to be accepted.
     plausibility: Plausibility,
+    /// The fine contact surface mapped onto the model's surface, if the scene gives one,
+    /// and where its vertices are after the last step.
+    fine: Option<(MappedSurface, Vec<Vec3>)>,
 }
 
 impl Simulation {
@@ -97,7 +113,42 @@ impl Simulation {
             held: Vec::new(),
             returned: Returned::default(),
             plausibility,
+            fine: None,
+            normals: Vec::new(),
+            along: false,
         })
+    }
+
+    /// Makes `surface` (tied to the model's rest surface) the surface instruments touch:
+    /// contacts are found on its vertices and handed to the model's surface vertices by the
+    /// map's weights (`interact::fine_surface`). Refused when its map names a vertex the
+    /// model's surface does not have.
+    pub fn set_fine_surface(&mut self, surface: MappedSurface) -> Result<(), SimError> {
+        let count = self.model.rest_surface().len();
+        for j in 0..surface.len() {
+            let (tri, _) = surface
+                .tie(j)
+                .ok_or(SimError::BadConstraint { vertex: j, count })?;
+            if let Some(&v) = tri.iter().find(|&&v| v as usize >= count) {
+                return Err(SimError::BadConstraint {
+                    vertex: v as usize,
+                    count,
+                });
+            }
+        }
+        let mut now = Vec::new();
+        surface.positions(
+            self.model.rest_surface(),
+            self.model.surface().positions,
+            &mut now,
+        );
+        self.fine = Some((surface, now));
+        Ok(())
+    }
+
+    /// The fine contact surface and where its vertices are now, if the scene gives one.
+    pub fn fine_surface(&self) -> Option<(&MappedSurface, &[Vec3])> {
+        self.fine.as_ref().map(|(m, p)| (m, p.as_slice()))
     }
 
     /// Replaces the plausibility bounds (the scene adds the material's force bound).
@@ -243,7 +294,9 @@ impl Simulation {
             Err(e) => {
                 // Best effort: the model already kept its last good state; give it back the
                 // constraints that belong to that state.
-                let _ = self.model.set_constraints(&self.constraints);
+                let _ = self
+                    .model
+                    .set_constraints_along(&self.constraints, &self.normals);
                 Err(e)
             }
         }
@@ -277,29 +330,40 @@ impl Simulation {
         };
         let mut iterations = 0;
         let mut converged = true;
+        let mut slide;
         let info = loop {
             iterations += 1;
-            let constraints = self.constraints_for(next);
-            self.model.set_constraints(&constraints)?;
+            let (constraints, normals) = self.constraints_for(next);
+            self.along = self.model.set_constraints_along(&constraints, &normals)?;
             let info = self.model.step(dt)?;
             self.constraints = constraints;
+            self.normals = normals;
             self.held.clear();
             self.held.extend(next.iter().map(|i| i.contacts.len()));
             self.refresh_bvh();
             self.collect_forces(next);
+            // Sliding moves the targets for the next solve (a dynamic model's next step).
+            slide = self.relax_sliding(next);
             if !self.is_static {
                 break info;
             }
             let changed = self.update_active_set(next, &mut taken, &mut returned);
-            if !changed {
+            if !changed && slide.converged() {
                 break info;
             }
             if iterations >= cap {
-                converged = false;
+                converged = !changed;
                 break info;
             }
         };
         self.returned = returned;
+        if let Some((surface, now)) = &mut self.fine {
+            surface.positions(
+                self.model.rest_surface(),
+                self.model.surface().positions,
+                now,
+            );
+        }
         Ok(StepReport {
             time: t1,
             step: self.steps + 1,
@@ -307,6 +371,7 @@ impl Simulation {
             forces: next.iter().map(|i| i.force).collect(),
             contact_iterations: iterations,
             contact_converged: converged,
+            slide_residual: slide.relative(),
             info,
         })
     }
@@ -329,35 +394,21 @@ impl Simulation {
         let (positions, triangles) = (s.positions, s.triangles);
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             let (c, r) = (inst.position, inst.radius());
+            inst.slider.begin_step();
             match *inst.kind() {
-                InstrumentKind::Probe => {
-                    // Keep the previous contacts still on the sphere that did not stick, so a
-                    // resting probe does not let go and grab again every step.
-                    let scale = force_scale(&old.reactions);
-                    let mut contacts: Vec<Contact> = old
-                        .contacts
-                        .iter()
-                        .zip(&old.reactions)
-                        .filter(|(k, f)| {
-                            !is_taken(taken, k.vertex)
-                                && !is_adhesive(**f, k.target, old.position, scale)
-                        })
-                        .filter_map(|(k, _)| {
-                            let p = *positions.get(k.vertex as usize)?;
-                            (p.distance(c) <= r * (1.0 + PENETRATION_TOLERANCE)).then(|| Contact {
-                                vertex: k.vertex,
-                                target: project_to_sphere(p, c, r, k.target - old.position),
-                            })
-                        })
-                        .collect();
-                    mark(taken, &contacts);
-                    let fresh = vertices_in_ball(&self.bvh, positions, triangles, c, r, &|v| {
-                        is_taken(taken, v)
-                    });
-                    mark(taken, &fresh);
-                    contacts.extend(fresh);
-                    contacts.sort_unstable_by_key(|k| k.vertex);
-                    inst.contacts = contacts;
+                InstrumentKind::Probe
+                | InstrumentKind::Capsule { .. }
+                | InstrumentKind::Plane { .. }
+                | InstrumentKind::Box { .. } => {
+                    let Some(shape) = inst.shape() else { continue };
+                    let surface = Surface {
+                        bvh: &self.bvh,
+                        positions,
+                        triangles,
+                        rest: self.model.rest_surface(),
+                        fine: self.fine.as_ref().map(|(m, _)| m),
+                    };
+                    inst.contacts = keep_and_find(&surface, inst, old, &shape, taken);
                 }
                 InstrumentKind::Grasper {
                     grasp_at,
@@ -381,10 +432,7 @@ impl Simulation {
                         .grasped
                         .iter()
                         .filter(|(v, _)| !is_taken(taken, *v))
-                        .map(|&(vertex, offset)| Contact {
-                            vertex,
-                            target: c + offset,
-                        })
+                        .map(|&(vertex, offset)| Contact::on_surface(vertex, c + offset))
                         .collect();
                     mark(taken, &inst.contacts);
                 }
@@ -395,8 +443,19 @@ impl Simulation {
     }
 
     /// Fixed vertices plus every instrument's contacts, in instrument order.
-    fn constraints_for(&self, next: &[Instrument]) -> Constraints {
-        Constraints {
+    /// The constraints for the instruments' contacts, and the direction each is held along
+    /// only: the instrument's normal for a frictionless contact on its surface (the model
+    /// may hold it along that alone and let it slide across), none for the others.
+    fn constraints_for(&self, next: &[Instrument]) -> (Constraints, Vec<Option<Vec3>>) {
+        let mut normals = Vec::new();
+        for inst in next {
+            let shape = inst.shape().filter(|_| inst.friction() == Some(0.0));
+            normals.extend(inst.contacts.iter().map(|k| match (&shape, k.face) {
+                (Some(shape), None) => Some(k.normal(shape, inst.position)),
+                _ => None,
+            }));
+        }
+        let constraints = Constraints {
             fixed: self.fixed.clone(),
             prescribed: next
                 .iter()
@@ -406,7 +465,8 @@ impl Simulation {
                     position: k.target,
                 })
                 .collect(),
-        }
+        };
+        (constraints, normals)
     }
 
     /// Splits the prescribed reactions among the instruments and sums them.
@@ -421,6 +481,60 @@ impl Simulation {
             inst.force = inst.reactions.iter().copied().sum();
             at += n;
         }
+    }
+
+    /// One relaxation of every pushing instrument's sliding contacts (`interact::sliding`);
+    /// the worst residual, relative to its instrument's push.
+    fn relax_sliding(&self, next: &mut [Instrument]) -> SlideResidual {
+        let rest = self.model.rest_surface();
+        let mut worst = SlideResidual::default();
+        let mut start = 0;
+        for inst in next.iter_mut() {
+            let count = inst.contacts.len();
+            let range = start..start + count;
+            start += count;
+            let Some(shape) = inst.shape() else { continue };
+            // Sticking instruments (the default) hold their contacts where they touched.
+            let Some(friction) = inst.friction() else {
+                continue;
+            };
+            if friction == 0.0 && self.along {
+                // Held along their normals only: the model let them slide and their
+                // reactions have no tangential part. Each target goes to where its vertex
+                // slid to, on the instrument (the tangent plane it was held on leaves the
+                // surface of a curved one), and the loop solves again while they move.
+                let positions = self.model.surface().positions;
+                let mut r = SlideResidual::default();
+                for (k, f) in inst.contacts.iter_mut().zip(&inst.reactions) {
+                    let normal = k.normal(&shape, inst.position);
+                    r.push += (-f.dot(normal)).max(0.0);
+                    if k.face.is_some() {
+                        continue;
+                    }
+                    let Some(&p) = positions.get(k.vertex as usize) else {
+                        continue;
+                    };
+                    let target = shape.closest(inst.position, p, normal).point;
+                    r.moved = r.moved.max(target.distance(k.target) / shape.size());
+                    k.target = target;
+                }
+                worst.merge(r);
+                continue;
+            }
+            let model = &self.model;
+            let at = inst.position;
+            let r = inst.slider.relax(
+                &mut inst.contacts,
+                &inst.reactions,
+                &shape,
+                at,
+                friction,
+                rest,
+                || model.prescribed_stiffness(range),
+            );
+            worst.merge(r);
+        }
+        worst
     }
 
     /// One round of the static active set: release adhesive probe contacts, add vertices
@@ -441,15 +555,13 @@ impl Simulation {
         let s = self.model.surface();
         let mut changed = false;
         for inst in next.iter_mut() {
-            if *inst.kind() != InstrumentKind::Probe {
-                continue;
-            }
-            let (c, r) = (inst.position, inst.radius());
+            let Some(shape) = inst.shape() else { continue };
+            let c = inst.position;
             let scale = force_scale(&inst.reactions);
             let before = inst.contacts.len();
             let mut kept = Vec::with_capacity(before);
             for (k, f) in inst.contacts.iter().zip(&inst.reactions) {
-                if is_adhesive(*f, k.target, c, scale) && !returned.is_back(k.vertex) {
+                if pulls(*f, k.normal(&shape, c), scale) && !returned.is_back(k.vertex) {
                     returned.release(k.vertex);
                     if let Some(t) = taken.get_mut(k.vertex as usize) {
                         *t = false;
@@ -458,22 +570,185 @@ impl Simulation {
                     kept.push(*k);
                 }
             }
-            let fresh = vertices_in_ball(&self.bvh, s.positions, s.triangles, c, r, &|v| {
-                is_taken(taken, v)
-            });
-            for k in &fresh {
-                returned.take(k.vertex);
+            let surface = Surface {
+                bvh: &self.bvh,
+                positions: s.positions,
+                triangles: s.triangles,
+                rest: self.model.rest_surface(),
+                fine: self.fine.as_ref().map(|(m, _)| m),
+            };
+            // Faces held at the last solve rest on the instrument while they do not pull.
+            let resting: Vec<u32> = kept
+                .iter()
+                .filter(|k| k.face.is_some())
+                .map(|k| k.vertex)
+                .collect();
+            let held: Vec<u32> = kept.iter().map(|k| k.vertex).collect();
+            let released = kept.len() != before;
+            let moved = surface.find(&shape, c, &mut kept, taken, &resting);
+            for k in &kept {
+                if held.binary_search(&k.vertex).is_err() {
+                    returned.take(k.vertex);
+                }
             }
-            changed |= kept.len() != before || !fresh.is_empty();
-            mark(taken, &fresh);
-            kept.extend(fresh);
-            kept.sort_unstable_by_key(|k| k.vertex);
-            inst.contacts = kept;
-            inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
+            let same = !released && kept.len() == before;
+            let moved = moved > FACE_MOVE * shape.size();
+            changed |= !same || moved;
+            if !same {
+                // The reactions belong to the solved set: kept when the set stays.
+                inst.contacts = kept;
+                inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
+            } else if moved {
+                inst.contacts = kept;
+            }
         }
         changed
     }
 }
+
+/// A pushing instrument's contacts at the start of a step: the previous ones that still touch
+/// and did not pull, moved with the instrument (sticking, μ > 0) or projected onto it
+/// (frictionless), then the vertices newly inside it.
+fn keep_and_find(
+    surface: &Surface,
+    inst: &Instrument,
+    old: &Instrument,
+    shape: &Shape,
+    taken: &mut [bool],
+) -> Vec<Contact> {
+    let positions = surface.positions;
+    let c = inst.position;
+    if let (None, Shape::Sphere { radius: r }, None) = (inst.friction(), shape, surface.fine) {
+        // A sticking probe keeps the contact rule it had before sliding contact existed,
+        // to the last rounding (explicit kinds' scenes are sensitive to it over thousands
+        // of steps): the previous contacts still on the sphere that did not pull, their
+        // vertices projected radially onto it.
+        let scale = force_scale(&old.reactions);
+        let mut contacts: Vec<Contact> = old
+            .contacts
+            .iter()
+            .zip(&old.reactions)
+            .filter(|(k, f)| {
+                !is_taken(taken, k.vertex) && !is_adhesive(**f, k.target, old.position, scale)
+            })
+            .filter_map(|(k, _)| {
+                let p = *positions.get(k.vertex as usize)?;
+                (p.distance(c) <= r * (1.0 + PENETRATION_TOLERANCE)).then(|| {
+                    Contact::on_surface(
+                        k.vertex,
+                        project_to_sphere(p, c, *r, k.target - old.position),
+                    )
+                })
+            })
+            .collect();
+        mark(taken, &contacts);
+        surface.find(shape, c, &mut contacts, taken, &[]);
+        return contacts;
+    }
+    let slack = PENETRATION_TOLERANCE * shape.size();
+    let shift = c - old.position;
+    // Keep the previous contacts still on the shape that did not stick, so a resting probe
+    // does not let go and grab again every step.
+    let scale = force_scale(&old.reactions);
+    let mut contacts: Vec<Contact> = old
+        .contacts
+        .iter()
+        .zip(&old.reactions)
+        .filter(|(k, f)| {
+            !is_taken(taken, k.vertex) && !pulls(**f, k.normal(shape, old.position), scale)
+        })
+        .filter(|(k, _)| k.face.is_none() && surface.fine.is_none())
+        .filter_map(|(k, _)| {
+            let p = *positions.get(k.vertex as usize)?;
+            let fallback = k.target - old.position;
+            // A sliding contact with friction may stick: it is carried along and let go by
+            // its force (when it pulls), not by where its vertex is: the instrument's motion
+            // just moved its trailing side away from the vertices it drags.
+            let frictional = inst.friction().is_some_and(|mu| mu > 0.0);
+            let touching = shape.closest(c, p, fallback).depth <= slack;
+            (touching || frictional).then(|| {
+                let base = match inst.friction() {
+                    // Sticking contact (the default): the vertex, where it is, onto the
+                    // instrument (the contact rule from before sliding contact existed).
+                    None => p,
+                    // Frictional: the target, where the last solve (or sliding) left it,
+                    // carried along with the instrument.
+                    Some(_) if frictional => k.target + shift,
+                    // Frictionless: where sliding left it.
+                    Some(_) => k.target,
+                };
+                Contact::on_surface(k.vertex, shape.closest(c, base, fallback).point)
+            })
+        })
+        .collect();
+    // Face contacts are found again from the faces, where they are now; those that did not
+    // pull keep their faces held while they rest on the instrument.
+    let mut resting: Vec<u32> = old
+        .contacts
+        .iter()
+        .zip(&old.reactions)
+        .filter(|(k, f)| k.face.is_some() && !pulls(**f, k.normal(shape, old.position), scale))
+        .map(|(k, _)| k.vertex)
+        .collect();
+    resting.sort_unstable();
+    mark(taken, &contacts);
+    surface.find(shape, c, &mut contacts, taken, &resting);
+    contacts
+}
+
+/// The surface contacts are found on: the model's (its BVH, positions, triangles, rest
+/// positions) and the fine surface mapped onto it, if any.
+struct Surface<'a> {
+    bvh: &'a Bvh,
+    positions: &'a [Vec3],
+    triangles: &'a [[u32; 3]],
+    rest: &'a [Vec3],
+    fine: Option<&'a MappedSurface>,
+}
+
+impl Surface<'_> {
+    /// Adds to `contacts` (this instrument's) what newly touches `shape` at `at`: the fine
+    /// surface's vertices when there is one, else the model's vertices. `resting`: sorted face-contact vertices of the
+    /// last solve that did not pull. Returns the largest move of a face target, in m.
+    fn find(
+        &self,
+        shape: &Shape,
+        at: Vec3,
+        contacts: &mut Vec<Contact>,
+        taken: &mut [bool],
+        resting: &[u32],
+    ) -> Real {
+        let kept = |v: u32| resting.binary_search(&v).is_ok();
+        let moved = if let Some(fine) = self.fine {
+            hold_points(
+                fine,
+                self.rest,
+                self.positions,
+                shape,
+                at,
+                contacts,
+                &|v| is_taken(taken, v),
+                &kept,
+            )
+        } else {
+            let fresh =
+                vertices_in_shape(self.bvh, self.positions, self.triangles, shape, at, &|v| {
+                    is_taken(taken, v)
+                });
+            mark(taken, &fresh);
+            contacts.extend(fresh);
+            contacts.sort_unstable_by_key(|k| k.vertex);
+            0.0
+        };
+        mark(taken, contacts);
+        moved
+    }
+}
+
+/// A face hold that moves its targets by less than this fraction of the instrument's size
+/// does not keep the static contact loop going (the sliding relaxation moves face targets a
+/// little each round; the face hold puts them back).
+const FACE_MOVE: Real = 1e-6;
 
 /// Per surface vertex, within one step's contact loop: released as adhesive, and taken
 /// again after that (then held to the end of the step).

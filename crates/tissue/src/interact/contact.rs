@@ -5,6 +5,7 @@
 //! becomes a prescribed vertex, and the model returns the force it needs there.
 
 use crate::interact::bvh::Bvh;
+use crate::interact::shape::Shape;
 use crate::math::{Real, Vec3, triangle_area_vector};
 
 /// Relative slack of "inside": a vertex counts as penetrating when it is deeper than
@@ -17,6 +18,176 @@ pub const PENETRATION_TOLERANCE: Real = 1e-9;
 pub struct Contact {
     pub vertex: u32,
     pub target: Vec3,
+    /// `Some(n)`: held by a face contact (a point of the fine surface tied to a face of this
+    /// vertex touches the instrument, `hold_points`): the target is off the instrument's
+    /// surface, where it keeps that point on it, and `n` is the instrument's outward normal
+    /// there (toward the tissue). `None`: the target is on the instrument's surface.
+    pub face: Option<Vec3>,
+}
+
+impl Contact {
+    /// A contact whose target lies on the instrument's surface.
+    pub fn on_surface(vertex: u32, target: Vec3) -> Self {
+        Self {
+            vertex,
+            target,
+            face: None,
+        }
+    }
+
+    /// The instrument's outward normal at this contact (`shape` placed at `at`).
+    pub fn normal(&self, shape: &Shape, at: Vec3) -> Vec3 {
+        self.face
+            .unwrap_or_else(|| shape.closest(at, self.target, Vec3::ZERO).normal)
+    }
+}
+
+/// Barycentric weights of `q` (a point of the triangle's plane) in triangle `[a, b, c]`;
+/// the vertex nearest `q` for a degenerate triangle.
+pub fn barycentric(q: Vec3, [a, b, c]: [Vec3; 3]) -> [Real; 3] {
+    let (e0, e1, e2) = (b - a, c - a, q - a);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (e2.dot(e0), e2.dot(e1));
+    let den = d00 * d11 - d01 * d01;
+    if den.abs() <= 1e-24 * (d00 * d11).max(Real::MIN_POSITIVE) {
+        let d = [q.distance(a), q.distance(b), q.distance(c)];
+        let i = (0..3).fold(0, |m, i| if d[i] < d[m] { i } else { m });
+        let mut w = [0.0; 3];
+        w[i] = 1.0;
+        return w;
+    }
+    let v = (d11 * d20 - d01 * d21) / den;
+    let w = (d00 * d21 - d01 * d20) / den;
+    [1.0 - v - w, v, w]
+}
+
+/// Moves the movable vertices of face `tri` (held at `y`, `index` into `contacts`) so that
+/// its point of weights `w` goes `push` along `n`: Δᵢ = wᵢ push n / Σ w² over the movable
+/// ones, the least move that does it. They become face contacts with normal `n` (averaged
+/// with the one they had). Returns the largest move.
+#[allow(clippy::too_many_arguments)]
+fn push_face(
+    contacts: &mut Vec<Contact>,
+    tri: [u32; 3],
+    w: [Real; 3],
+    movable: [bool; 3],
+    index: [Option<usize>; 3],
+    y: [Vec3; 3],
+    n: Vec3,
+    push: Real,
+) -> Real {
+    let norm: Real = (0..3).filter(|&i| movable[i]).map(|i| w[i] * w[i]).sum();
+    if norm <= 1e-12 {
+        return 0.0;
+    }
+    let mut largest: Real = 0.0;
+    for i in (0..3).filter(|&i| movable[i]) {
+        let delta = (w[i] * push / norm) * n;
+        largest = largest.max(delta.length());
+        match index[i] {
+            Some(j) => {
+                let k = &mut contacts[j];
+                k.target += delta;
+                k.face = Some(match k.face {
+                    Some(m) => (m + n).normalize_or(n),
+                    None => n,
+                });
+            }
+            None => {
+                // Two slots of one face can name the same vertex only in a broken face.
+                if contacts.iter().any(|k| k.vertex == tri[i]) {
+                    continue;
+                }
+                contacts.push(Contact {
+                    vertex: tri[i],
+                    target: y[i] + delta,
+                    face: Some(n),
+                });
+            }
+        }
+    }
+    largest
+}
+
+/// Contact on a fine surface mapped onto the model's surface (`MappedSurface`): every
+/// fine vertex inside the instrument (any shape) is pushed out to its surface along its
+/// normal there, through the three coarse vertices it is tied to, by `push_face`'s least
+/// move, in a few Gauss–Seidel sweeps. `contacts` are this instrument's; their vertices move
+/// with the fine points and become face contacts, free coarse vertices (`skip(v)` false)
+/// are added. A fine vertex all of whose movable coarse vertices satisfy `kept` is held at
+/// any depth up to the tolerance (resting on the instrument). Returns the largest move, m.
+#[allow(clippy::too_many_arguments)]
+pub fn hold_points(
+    fine: &crate::interact::fine_surface::MappedSurface,
+    coarse_rest: &[Vec3],
+    positions: &[Vec3],
+    shape: &Shape,
+    at: Vec3,
+    contacts: &mut Vec<Contact>,
+    skip: &dyn Fn(u32) -> bool,
+    kept: &dyn Fn(u32) -> bool,
+) -> Real {
+    let tolerance = PENETRATION_TOLERANCE * shape.size();
+    let mut now = Vec::new();
+    fine.positions(coarse_rest, positions, &mut now);
+    // Candidates: the fine vertices near the instrument now (targets move them by less
+    // than the instrument's size).
+    let near: Vec<usize> = match shape.bounds(at) {
+        Some((c, r)) => (0..now.len())
+            .filter(|&j| now[j].distance(c) <= 2.0 * r)
+            .collect(),
+        None => (0..now.len()).collect(),
+    };
+    let mut largest: Real = 0.0;
+    for _sweep in 0..4 {
+        let mut moved = false;
+        for &j in &near {
+            let Some((tri, w)) = fine.tie(j) else {
+                continue;
+            };
+            if tri.iter().any(|&v| positions.get(v as usize).is_none())
+                || tri.iter().any(|&v| coarse_rest.get(v as usize).is_none())
+            {
+                continue;
+            }
+            let index = tri.map(|v| contacts.iter().position(|k| k.vertex == v));
+            let movable = [0, 1, 2].map(|i| index[i].is_some() || !skip(tri[i]));
+            if !movable.iter().any(|&m| m) {
+                continue;
+            }
+            let y = [0, 1, 2].map(|i| match index[i] {
+                Some(k) => contacts[k].target,
+                None => positions[tri[i] as usize],
+            });
+            let p = fine.rest[j]
+                + (0..3)
+                    .map(|i| w[i] * (y[i] - coarse_rest[tri[i] as usize]))
+                    .sum::<Vec3>();
+            let closest = shape.closest(at, p, Vec3::ZERO);
+            let resting = (0..3).all(|i| !movable[i] || kept(tri[i]));
+            let limit = if resting { tolerance } else { -tolerance };
+            if closest.depth >= limit {
+                continue;
+            }
+            let m = push_face(
+                contacts,
+                tri,
+                w,
+                movable,
+                index,
+                y,
+                closest.normal,
+                -closest.depth,
+            );
+            largest = largest.max(m);
+            moved |= m > tolerance;
+        }
+        if !moved {
+            break;
+        }
+    }
+    contacts.sort_unstable_by_key(|k| k.vertex);
+    largest
 }
 
 /// The point of the sphere (center, radius) radially outward from `p`; a vertex at the
@@ -65,12 +236,58 @@ pub fn vertices_in_ball(
             let p = positions[v as usize];
             // Its triangles are all among the candidates: the vertex lies inside the query box.
             let normal = vertex_normal(v, &candidates, positions, triangles);
-            Contact {
-                vertex: v,
-                target: push_out(p, center, radius, normal),
-            }
+            Contact::on_surface(v, push_out(p, center, radius, normal))
         })
         .collect()
+}
+
+/// Surface vertices deeper than the tolerance inside `shape` placed at `at`, ascending, with
+/// their targets on its surface (the sphere keeps `vertices_in_ball`'s rule for a centre that
+/// went past a vertex). `skip(v)` leaves out vertices that are taken.
+pub fn vertices_in_shape(
+    bvh: &Bvh,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    shape: &Shape,
+    at: Vec3,
+    skip: &dyn Fn(u32) -> bool,
+) -> Vec<Contact> {
+    if let Shape::Sphere { radius } = *shape {
+        return vertices_in_ball(bvh, positions, triangles, at, radius, skip);
+    }
+    let candidates: Vec<u32> = match shape.bounds(at) {
+        Some((c, r)) => bvh.query_sphere(c, r),
+        None => (0..triangles.len() as u32).collect(),
+    };
+    let limit = -PENETRATION_TOLERANCE * shape.size();
+    let mut inside: Vec<u32> = candidates
+        .iter()
+        .filter_map(|&t| triangles.get(t as usize))
+        .flatten()
+        .copied()
+        .filter(|&v| {
+            positions
+                .get(v as usize)
+                .is_some_and(|p| shape.closest(at, *p, Vec3::ZERO).depth < limit)
+        })
+        .collect();
+    inside.sort_unstable();
+    inside.dedup();
+    inside.retain(|&v| !skip(v));
+    inside
+        .into_iter()
+        .map(|v| {
+            let normal = vertex_normal(v, &candidates, positions, triangles);
+            Contact::on_surface(v, shape.closest(at, positions[v as usize], normal).point)
+        })
+        .collect()
+}
+
+/// True when the force the tissue exerts on the instrument at a contact on its surface (with
+/// outward `normal` there) pulls the instrument toward the tissue: adhesion. Forces below
+/// `1e-9 · scale` (the instrument's largest contact force) in that direction are rounding.
+pub fn pulls(reaction: Vec3, normal: Vec3, scale: Real) -> bool {
+    reaction.dot(normal) > 1e-9 * scale
 }
 
 /// Where a vertex inside the ball goes. Radially out while the tool is on the outer side of

@@ -1,9 +1,13 @@
-//! Instruments: a probe (sphere tip that pushes), a grasper (grabs the surface vertices within
-//! its radius at a given time and carries them rigidly), a scalpel (a blade segment swept
-//! along its path that cuts). Each follows a scripted path unless a live position overrides it.
+//! Instruments: a probe (sphere tip that pushes), a capsule (a tool shaft), a plane or a box
+//! (a retractor, a table), a grasper (grabs the surface vertices within its radius at a given
+//! time and carries them rigidly), a scalpel (a blade segment swept along its path that
+//! cuts). Each follows a scripted path unless a live position overrides it. The pushing ones
+//! slide over the tissue: frictionless by default, Coulomb with `friction` μ.
 
 use crate::error::SimError;
 use crate::interact::contact::Contact;
+use crate::interact::shape::Shape;
+use crate::interact::sliding::Slider;
 use crate::interact::trajectory::Trajectory;
 use crate::math::{Real, Vec3};
 use crate::model::CutPath;
@@ -22,6 +26,13 @@ pub enum InstrumentKind {
     /// A blade from the path point (tip) `length` m along `direction` (heel), cutting the
     /// ruled surface it sweeps each step.
     Scalpel { direction: Vec3, length: Real },
+    /// Pushes out of a capsule of the instrument's radius around the segment from the path
+    /// point (tip) `length` m along `axis`.
+    Capsule { axis: Vec3, length: Real },
+    /// Pushes out of the half-space `normal · (x − position) ≤ 0` (`normal` toward the tissue).
+    Plane { normal: Vec3 },
+    /// Pushes out of the axis-aligned box of half extents `half` centred at the path point.
+    Box { half: Vec3 },
 }
 
 impl InstrumentKind {
@@ -30,6 +41,9 @@ impl InstrumentKind {
             InstrumentKind::Probe => "probe",
             InstrumentKind::Grasper { .. } => "grasper",
             InstrumentKind::Scalpel { .. } => "scalpel",
+            InstrumentKind::Capsule { .. } => "capsule",
+            InstrumentKind::Plane { .. } => "plane",
+            InstrumentKind::Box { .. } => "box",
         }
     }
 }
@@ -50,6 +64,12 @@ pub struct Instrument {
     pub(crate) grasped: Vec<(u32, Vec3)>,
     pub(crate) grasp_done: bool,
     pub(crate) force: Vec3,
+    /// `None`: sticking contact (a touched vertex is held at its point of the instrument
+    /// within a step, the default); `Some(μ)`: sliding contact with Coulomb friction μ (0:
+    /// frictionless), opted into with `with_friction` (scene keys `contact = "sliding"`,
+    /// `friction`).
+    friction: Option<Real>,
+    pub(crate) slider: Slider,
 }
 
 impl Instrument {
@@ -72,8 +92,49 @@ impl Instrument {
                 "must be finite and > 0 m",
             ));
         }
+        let unit = |v: Vec3, name: &'static str| {
+            if crate::math::is_finite_vec(v) && v.length() > 0.0 {
+                Ok(())
+            } else {
+                Err(bad(
+                    name,
+                    format!("{v:?}"),
+                    "must be a finite non-zero vector",
+                ))
+            }
+        };
+        let kind = match kind {
+            InstrumentKind::Capsule { axis, length } => InstrumentKind::Capsule {
+                axis: axis.normalize_or_zero(),
+                length,
+            },
+            InstrumentKind::Plane { normal } => InstrumentKind::Plane {
+                normal: normal.normalize_or_zero(),
+            },
+            other => other,
+        };
         match &kind {
             InstrumentKind::Probe => {}
+            InstrumentKind::Capsule { axis, length } => {
+                unit(*axis, "axis")?;
+                if !(length.is_finite() && *length >= 0.0) {
+                    return Err(bad(
+                        "length",
+                        length.to_string(),
+                        "must be finite and >= 0 m",
+                    ));
+                }
+            }
+            InstrumentKind::Plane { normal } => unit(*normal, "normal")?,
+            InstrumentKind::Box { half } => {
+                if !(crate::math::is_finite_vec(*half) && half.min_element() > 0.0) {
+                    return Err(bad(
+                        "size",
+                        format!("{}", *half * 2.0),
+                        "must be three finite lengths > 0 m",
+                    ));
+                }
+            }
             InstrumentKind::Grasper {
                 grasp_at,
                 release_at,
@@ -117,7 +178,56 @@ impl Instrument {
             grasped: Vec::new(),
             grasp_done: false,
             force: Vec3::ZERO,
+            friction: None,
+            slider: Slider::default(),
         })
+    }
+
+    /// Makes a pushing instrument's contact sliding, with Coulomb friction coefficient μ
+    /// (finite, ≥ 0; 0 is frictionless): its contacts stick while their tangential force is
+    /// below μ times the normal one and slide at that bound. Graspers hold what they grasp
+    /// and scalpels cut: refused there. Without it contacts stick (the default).
+    pub fn with_friction(mut self, friction: Real) -> Result<Self, SimError> {
+        let bad = |reason: &str| SimError::BadParameter {
+            name: "friction",
+            value: friction.to_string(),
+            reason: reason.to_string(),
+        };
+        if !(friction.is_finite() && friction >= 0.0) {
+            return Err(bad("must be finite and >= 0"));
+        }
+        if self.shape().is_none() {
+            return Err(bad(&format!(
+                "a {} does not slide (only probe, capsule, plane, box)",
+                self.kind.name()
+            )));
+        }
+        self.friction = Some(friction);
+        Ok(self)
+    }
+
+    /// The Coulomb friction coefficient of a sliding contact (0: frictionless); `None` for
+    /// sticking contact (the default) and for graspers and scalpels.
+    pub fn friction(&self) -> Option<Real> {
+        self.friction
+    }
+
+    /// The solid a pushing instrument keeps the tissue out of; `None` for graspers and
+    /// scalpels.
+    pub fn shape(&self) -> Option<Shape> {
+        match self.kind {
+            InstrumentKind::Probe => Some(Shape::Sphere {
+                radius: self.radius,
+            }),
+            InstrumentKind::Capsule { axis, length } => Some(Shape::Capsule {
+                radius: self.radius,
+                axis,
+                length,
+            }),
+            InstrumentKind::Plane { normal } => Some(Shape::Plane { normal }),
+            InstrumentKind::Box { half } => Some(Shape::Box { half }),
+            InstrumentKind::Grasper { .. } | InstrumentKind::Scalpel { .. } => None,
+        }
     }
 
     pub fn kind(&self) -> &InstrumentKind {

@@ -4,14 +4,19 @@
 pub mod bvh;
 pub mod constraints;
 pub mod contact;
+pub mod fine_surface;
 pub mod instrument;
 pub mod plausibility;
 pub mod region;
+pub mod shape;
+pub mod sliding;
 pub mod trajectory;
 
 pub use bvh::Bvh;
 pub use constraints::{Constraints, Loads, Prescribed};
 pub use contact::Contact;
+pub use fine_surface::MappedSurface;
 pub use instrument::{Instrument, InstrumentKind};
 pub use region::Region;
+pub use shape::Shape;
 pub use trajectory::{Keyframe, Trajectory, TrajectoryError};

@@ -162,6 +162,23 @@ pub trait Deformable: Send {
     /// Replaces all constraints. Fixed wins where a vertex is both fixed and prescribed.
     fn set_constraints(&mut self, constraints: &Constraints) -> Result<(), SimError>;
 
+    /// `set_constraints`, with a direction per prescribed entry (`normals[k]`, a unit vector,
+    /// or `None` and missing entries: held in all three directions). An entry with a
+    /// direction n is held along n only: its vertex's displacement along n reaches its
+    /// target's, it moves freely across n, and its reaction lies along n (a frictionless
+    /// contact on the instrument's tangent plane). Returns whether the model did so; one
+    /// that cannot (the default) holds every entry in all three directions and returns
+    /// false, and the caller relaxes the targets itself (`interact::sliding`). See
+    /// docs/contact.md for the kinds that do.
+    fn set_constraints_along(
+        &mut self,
+        constraints: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        let _ = normals;
+        self.set_constraints(constraints).map(|()| false)
+    }
+
     /// Replaces the external loads (gravity, point loads).
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError>;
 

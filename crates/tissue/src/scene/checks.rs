@@ -197,17 +197,67 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
         i.radius
             .ok_or_else(|| format!("a {} needs `radius` (m)", i.kind))
     };
+    let only = |allowed: &[&str]| -> Result<(), String> {
+        let present = [
+            ("grasp_at", i.grasp_at.is_some()),
+            ("release_at", i.release_at.is_some()),
+            ("direction", i.direction.is_some()),
+            ("length", i.length.is_some()),
+            ("friction", i.friction.is_some()),
+            ("contact", i.contact.is_some()),
+            ("axis", i.axis.is_some()),
+            ("normal", i.normal.is_some()),
+            ("size", i.size.is_some()),
+        ];
+        for (key, here) in present {
+            if !allowed.contains(&key) {
+                forbid(key, here, &i.kind)?;
+            }
+        }
+        Ok(())
+    };
     let (kind, radius) = match i.kind.as_str() {
         "probe" => {
-            forbid("grasp_at", i.grasp_at.is_some(), "probe")?;
-            forbid("release_at", i.release_at.is_some(), "probe")?;
-            forbid("direction", i.direction.is_some(), "probe")?;
-            forbid("length", i.length.is_some(), "probe")?;
+            only(&["friction", "contact"])?;
             (InstrumentKind::Probe, need_radius()?)
         }
+        "capsule" => {
+            only(&["friction", "contact", "axis", "length"])?;
+            let axis = i
+                .axis
+                .ok_or("a capsule needs `axis` (its shaft direction)")?;
+            let length = i.length.ok_or("a capsule needs `length` (m)")?;
+            (
+                InstrumentKind::Capsule {
+                    axis: Vec3::from(axis),
+                    length,
+                },
+                need_radius()?,
+            )
+        }
+        "plane" => {
+            only(&["friction", "contact", "normal"])?;
+            let normal = i
+                .normal
+                .ok_or("a plane needs `normal` (out of the instrument, toward the tissue)")?;
+            // No size: the radius only sets the viewer's marker and the contact tolerance.
+            (
+                InstrumentKind::Plane {
+                    normal: Vec3::from(normal),
+                },
+                i.radius.unwrap_or(0.01),
+            )
+        }
+        "box" => {
+            only(&["friction", "contact", "size"])?;
+            let size = Vec3::from(i.size.ok_or("a box needs `size` (edge lengths, m)")?);
+            (
+                InstrumentKind::Box { half: 0.5 * size },
+                i.radius.unwrap_or(0.5 * size.min_element().abs()),
+            )
+        }
         "grasper" => {
-            forbid("direction", i.direction.is_some(), "grasper")?;
-            forbid("length", i.length.is_some(), "grasper")?;
+            only(&["grasp_at", "release_at"])?;
             let grasp_at = i.grasp_at.ok_or("a grasper needs `grasp_at` (s)")?;
             (
                 InstrumentKind::Grasper {
@@ -218,8 +268,7 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
             )
         }
         "scalpel" => {
-            forbid("grasp_at", i.grasp_at.is_some(), "scalpel")?;
-            forbid("release_at", i.release_at.is_some(), "scalpel")?;
+            only(&["direction", "length"])?;
             let direction = i.direction.ok_or("a scalpel needs `direction`")?;
             let length = i.length.ok_or("a scalpel needs `length` (m)")?;
             (
@@ -232,7 +281,8 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
         }
         other => {
             return Err(format!(
-                "unknown instrument kind `{other}`; known: probe, grasper, scalpel"
+                "unknown instrument kind `{other}`; known: probe, capsule, plane, box, grasper, \
+                 scalpel"
             ));
         }
     };
@@ -240,7 +290,23 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
         .name
         .clone()
         .unwrap_or_else(|| format!("{}{}", i.kind, k + 1));
-    Instrument::new(name, kind, radius, trajectory).map_err(|e| e.to_string())
+    let inst = Instrument::new(name, kind, radius, trajectory).map_err(|e| e.to_string())?;
+    // Sliding contact is opted into (`contact = "sliding"`, or a `friction`); sticking
+    // contact stays the default until every kind holds a contact along its normal only
+    // (docs/contact.md).
+    match (i.contact.as_deref(), i.friction) {
+        (None | Some("sticking"), None) => Ok(inst),
+        (None | Some("sliding"), mu) => inst
+            .with_friction(mu.unwrap_or(0.0))
+            .map_err(|e| e.to_string()),
+        (Some("sticking"), Some(_)) => Err(
+            "`friction` is for sliding contact: give `contact = \"sliding\"` or no `contact`"
+                .into(),
+        ),
+        (Some(other), _) => Err(format!(
+            "unknown contact `{other}`; known: sticking (the default), sliding"
+        )),
+    }
 }
 
 #[cfg(test)]
@@ -259,5 +325,32 @@ mod run_tests {
             );
         }
         assert!(run(0.999, 1e-9).is_ok());
+    }
+
+    /// Sticking is the default; `contact = "sliding"` and `friction` opt into sliding; a
+    /// contradiction or an unknown mode is refused by name.
+    #[test]
+    fn contact_mode_keys() {
+        let spec = |extra: &str| -> InstrumentSpec {
+            toml::from_str(&format!(
+                "kind = \"probe\"\nradius = 0.005\n{extra}\npath = [ {{ t = 0.0, position = [0.0, 0.0, 0.0] }} ]"
+            ))
+            .unwrap()
+        };
+        let friction = |extra: &str| make_instrument(&spec(extra), 0).map(|i| i.friction());
+        assert_eq!(friction(""), Ok(None));
+        assert_eq!(friction("contact = \"sticking\""), Ok(None));
+        assert_eq!(friction("contact = \"sliding\""), Ok(Some(0.0)));
+        assert_eq!(friction("friction = 0.3"), Ok(Some(0.3)));
+        assert_eq!(
+            friction("contact = \"sliding\"\nfriction = 0.2"),
+            Ok(Some(0.2))
+        );
+        let e = friction("contact = \"sticking\"\nfriction = 0.2").unwrap_err();
+        assert!(e.contains("`friction` is for sliding contact"), "{e}");
+        let e = friction("contact = \"glued\"").unwrap_err();
+        assert!(e.contains("unknown contact `glued`"), "{e}");
+        let e = friction("friction = -1.0").unwrap_err();
+        assert!(e.contains("friction"), "{e}");
     }
 }

@@ -18,8 +18,8 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::error::{Error, IoError, SceneError};
-use crate::interact::Loads;
 use crate::interact::plausibility::check_instrument_size;
+use crate::interact::{Loads, MappedSurface};
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::MeshData;
@@ -535,6 +535,39 @@ impl Scene {
                 })?;
             sim.add_instrument(inst);
         }
+        if let Some(visual) = self.mesh_spec().and_then(|m| m.visual.as_ref()) {
+            let surface = self.fine_surface(visual, sim.model())?;
+            sim.set_fine_surface(surface)?;
+        }
         Ok(sim)
+    }
+
+    /// `[mesh] visual`: the fine surface read, scaled like the body, and tied to the model's
+    /// rest surface.
+    fn fine_surface(&self, visual: &Path, model: &dyn Deformable) -> Result<MappedSurface, Error> {
+        let path = self.base_dir.join(visual);
+        let named =
+            |m: String| self.invalid(format!("[mesh] visual = \"{}\": {m}", visual.display()));
+        if !path.is_file() {
+            return Err(named(format!(
+                "no such file (looked for {})",
+                path.display()
+            )));
+        }
+        let mut mesh = crate::io::read(&path)?;
+        if mesh.triangles.is_empty() {
+            return Err(named("the file has no triangles".into()));
+        }
+        let scale = self.mesh_spec().map_or(1.0, |m| m.scale);
+        for v in &mut mesh.vertices {
+            *v *= scale;
+        }
+        MappedSurface::new(
+            mesh.vertices,
+            mesh.triangles,
+            model.rest_surface(),
+            model.surface().triangles,
+        )
+        .ok_or_else(|| named("the model has no surface triangles to tie it to".into()))
     }
 }

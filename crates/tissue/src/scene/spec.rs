@@ -18,6 +18,9 @@ pub struct MeshSpec {
     /// Lattice spacing (m, after `scale`) to mesh a surface-only file into tetrahedra by
     /// isosurface stuffing, for the kinds that need a volume.
     pub tet_size: Option<Real>,
+    /// A finer surface (same units as `file`, scaled alike) that instruments touch, mapped
+    /// onto the model's surface (`interact::fine_surface`); relative to the scene file.
+    pub visual: Option<PathBuf>,
 }
 
 fn one() -> Real {
@@ -113,16 +116,28 @@ pub struct GravitySpec {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InstrumentSpec {
-    /// probe | grasper | scalpel
+    /// probe | capsule | plane | box | grasper | scalpel
     pub kind: String,
     pub name: Option<String>,
-    /// Tip radius (probe), grasp radius (grasper), in m.
+    /// Tip radius (probe), shaft radius (capsule), grasp radius (grasper), in m.
     pub radius: Option<Real>,
+    /// Contact of a probe, capsule, plane or box: "sticking" (the default: a touched vertex
+    /// is held at its point of the instrument) or "sliding" (unilateral, Coulomb `friction`).
+    pub contact: Option<String>,
+    /// Coulomb friction coefficient of a sliding contact (default 0: frictionless); implies
+    /// `contact = "sliding"`.
+    pub friction: Option<Real>,
+    /// Capsule: the shaft's direction from the tip (the path point).
+    pub axis: Option<[Real; 3]>,
+    /// Plane: the normal pointing out of the instrument, toward the tissue.
+    pub normal: Option<[Real; 3]>,
+    /// Box: edge lengths along x, y, z, in m.
+    pub size: Option<[Real; 3]>,
     pub path: Vec<Keyframe>,
     /// Grasper: when it closes and opens, in s.
     pub grasp_at: Option<Real>,
     pub release_at: Option<Real>,
-    /// Scalpel: blade direction from the tip and blade length, in m.
+    /// Scalpel: blade direction from the tip and blade length, in m; capsule: shaft length.
     pub direction: Option<[Real; 3]>,
     pub length: Option<Real>,
 }

@@ -175,6 +175,9 @@ pub(crate) struct SurfaceCore {
     /// displacement of each (3 per contact).
     pub contacts: Vec<u32>,
     pub targets: Vec<Real>,
+    /// Per contact: the direction it is held along only (`set_constraints_along`), or zero
+    /// for a contact held in all three directions.
+    pub normals: Vec<Vec3>,
     contact_of: Vec<u32>,
     /// The fixed mask of the constraints being set (scratch).
     pub mask: Vec<bool>,
@@ -209,6 +212,7 @@ impl SurfaceCore {
             loads: Loads::default(),
             contacts: Vec::new(),
             targets: Vec::new(),
+            normals: Vec::new(),
             contact_of: vec![NONE; ns],
             mask: vec![false; ns],
             us: Vec::new(),
@@ -279,10 +283,17 @@ impl SurfaceCore {
     /// Records the constraints (validated by `fixed_mask`, same fixed set as installed):
     /// contact list and targets, reaction owners. Reuses every buffer.
     pub fn record(&mut self, c: &Constraints) {
+        self.record_along(c, &[]);
+    }
+
+    /// `record`, with the direction each prescribed entry is held along only (`None`,
+    /// missing: all three directions).
+    pub fn record_along(&mut self, c: &Constraints, normals: &[Option<Vec3>]) {
         let rest = self.fem.rest_surface();
         self.contacts.clear();
         self.targets.clear();
-        for p in &c.prescribed {
+        self.normals.clear();
+        for (entry, p) in c.prescribed.iter().enumerate() {
             let v = p.vertex as usize;
             if self.set.mask[v] {
                 continue;
@@ -294,11 +305,17 @@ impl SurfaceCore {
                 self.contact_of[v] = self.contacts.len() as u32;
                 self.contacts.push(self.set.slot[v]);
                 self.targets.extend_from_slice(&[0.0; 3]);
+                self.normals.push(Vec3::ZERO);
                 self.contacts.len() - 1
             } else {
                 k as usize
             };
             self.targets[3 * k..3 * k + 3].copy_from_slice(&[d.x, d.y, d.z]);
+            self.normals[k] = normals
+                .get(entry)
+                .copied()
+                .flatten()
+                .map_or(Vec3::ZERO, |n| n.normalize_or_zero());
         }
         for &a in &self.contacts {
             self.contact_of[self.set.free[a as usize] as usize] = NONE;
@@ -445,6 +462,9 @@ pub(crate) trait SurfaceResponse: Send {
     fn update_u0(&mut self);
     /// Solves for the core's contacts, writing `us_trial` and `lambda`.
     fn solve_contacts(&mut self) -> Result<(), SimError>;
+    /// Whether `solve_contacts` holds a contact along its direction only when the core has
+    /// one (`SurfaceCore::normals`); the others hold every contact in all three directions.
+    const HOLDS_ALONG_NORMALS: bool = false;
     /// The contacts' system as `solve_contacts` forms it (3m × 3m, all of it): A a = t − u₀
     /// for the contacts' unknowns a.
     fn contact_block(&self) -> Mat<Real>;
@@ -510,6 +530,22 @@ impl<T: SurfaceResponse> Deformable for T {
         Ok(())
     }
 
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        if !T::HOLDS_ALONG_NORMALS {
+            return self.set_constraints(c).map(|()| false);
+        }
+        if self.core_mut().check(c)? {
+            let progress = self.core().progress.clone();
+            self.rebuild(&|f| progress.report(T::REBUILD_STAGE, f))?;
+        }
+        self.core_mut().record_along(c, normals);
+        Ok(true)
+    }
+
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
         self.core_mut().set_loads(loads)?;
         if self.core().ready() {
@@ -542,6 +578,11 @@ impl<T: SurfaceResponse> Deformable for T {
     /// stiffness is −Σ_{k∈V} F_k (A⁻¹ E_V)_k, E_V the unit translation of V's targets. A
     /// fresh O(m³) factorisation of the contact block: once per full update, not per tick.
     fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        // A contact held along its normal only has a stiffness along it alone: not in the
+        // closed form below (the haptic loop then estimates it from successive updates).
+        if self.core().normals.iter().any(|n| *n != Vec3::ZERO) {
+            return None;
+        }
         let selected = self.core().contacts_of_entries(entries)?;
         if selected.is_empty() {
             return None;

@@ -24,6 +24,8 @@ use super::surface_response::{SurfaceCore, SurfaceResponse};
 
 #[cfg(test)]
 pub(crate) mod tests;
+#[cfg(test)]
+mod tests_along;
 
 /// The `[model]` settings of `fem-condensed` (none yet).
 #[derive(Clone, Copy, Debug, Default, Deserialize)]
@@ -133,6 +135,9 @@ impl SurfaceResponse for FemCondensed {
 
     /// W_pp λ = u_p − (W f̃)_p, then u_s = W f̃ + W_{:,p} λ.
     fn solve_contacts(&mut self) -> Result<(), SimError> {
+        if self.core.normals.iter().any(|n| *n != Vec3::ZERO) {
+            return self.solve_contacts_along();
+        }
         let m = self.core.targets.len();
         let contacts = &self.core.contacts;
         let dof = |r: usize| 3 * contacts[r / 3] as usize + r % 3;
@@ -152,6 +157,8 @@ impl SurfaceResponse for FemCondensed {
         self.core.lambda.copy_from_slice(rhs);
         Ok(())
     }
+
+    const HOLDS_ALONG_NORMALS: bool = true;
 
     fn contact_block(&self) -> Mat<Real> {
         let m = 3 * self.core.contacts.len();
@@ -192,5 +199,73 @@ fn fill_compliance_block(w: &Mat<Real>, contacts: &[u32], mut a: MatMut<'_, Real
         for r in if lower { c } else { 0 }..m {
             a[(r, c)] = w[(dof(r), dof(c))];
         }
+    }
+}
+
+impl FemCondensed {
+    /// The contact problem with some contacts held along their normal only, solved exactly
+    /// with the compliance (the survey's reason for pre-computing it). Each contact k gives
+    /// rows e (x, y, z; or its normal n alone), a force Σ μ_e e, and the equations
+    /// eᵀ(u₀ + W λ)_k = eᵀ t_k: the block Bᵀ W_CC B (symmetric positive definite as W_CC is),
+    /// one row per held direction.
+    fn solve_contacts_along(&mut self) -> Result<(), SimError> {
+        let core = &mut self.core;
+        let rows: Vec<(usize, Vec3)> = core
+            .normals
+            .iter()
+            .enumerate()
+            .flat_map(|(k, &n)| {
+                let dirs: &[Vec3] = if n == Vec3::ZERO {
+                    &[Vec3::X, Vec3::Y, Vec3::Z]
+                } else {
+                    std::slice::from_ref(&core.normals[k])
+                };
+                dirs.iter().map(move |&e| (k, e))
+            })
+            .collect();
+        let m = rows.len();
+        let contacts = &core.contacts;
+        let dof = |k: usize, i: usize| 3 * contacts[k] as usize + i;
+        let w = &self.w;
+        let (mut block, rhs) = core.small.block_and_rhs(m);
+        for c in 0..m {
+            let (kc, ec) = rows[c];
+            for r in c..m {
+                let (kr, er) = rows[r];
+                let mut sum = 0.0;
+                for i in 0..3 {
+                    for j in 0..3 {
+                        sum += er[i] * w[(dof(kr, i), dof(kc, j))] * ec[j];
+                    }
+                }
+                block[(r, c)] = sum;
+            }
+        }
+        for (r, x) in rhs.iter_mut().enumerate() {
+            let (k, e) = rows[r];
+            let t = &core.targets[3 * k..3 * k + 3];
+            *x = (0..3).map(|i| e[i] * (t[i] - self.u0[dof(k, i)])).sum();
+        }
+        let mu = core.small.solve_spd_rhs(m)?;
+        core.lambda.iter_mut().for_each(|l| *l = 0.0);
+        for (r, &l) in mu.iter().enumerate() {
+            let (k, e) = rows[r];
+            for i in 0..3 {
+                core.lambda[3 * k + i] += l * e[i];
+            }
+        }
+        let us = &mut core.us_trial;
+        us.copy_from_slice(&self.u0);
+        for (k, &a) in contacts.iter().enumerate() {
+            for i in 0..3 {
+                let l = core.lambda[3 * k + i];
+                if l != 0.0 {
+                    for (u, &w) in us.iter_mut().zip(w.col_as_slice(3 * a as usize + i)) {
+                        *u += w * l;
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 }
