@@ -46,8 +46,10 @@ pub struct SplitDamping {
     /// and the conjugate-gradient vectors that solve with it.
     current: Vec<Real>,
     cg: [Vec<Real>; 4],
-    /// Preconditioned CG iterations of the last `apply` (0: the rest matrix solved directly).
+    /// Preconditioned CG iterations of the last `apply` (0: the rest matrix solved directly)
+    /// and whether they reached their tolerance.
     last_iterations: usize,
+    last_converged: bool,
 }
 
 impl Clone for SplitDamping {
@@ -65,6 +67,7 @@ impl Clone for SplitDamping {
             current: self.current.clone(),
             cg: self.cg.clone(),
             last_iterations: 0,
+            last_converged: true,
         }
     }
 }
@@ -100,6 +103,7 @@ impl SplitDamping {
             current: Vec::new(),
             cg: Default::default(),
             last_iterations: 0,
+            last_converged: true,
         }
     }
 
@@ -299,6 +303,7 @@ impl SplitDamping {
             }
         }
         self.last_iterations = 0;
+        self.last_converged = true;
         if use_current {
             return self.pcg(k, s, masses);
         }
@@ -357,7 +362,8 @@ impl SplitDamping {
         for it in 1..=MAX_ITERATIONS {
             apply(p, z);
             let pap = dot(p, z);
-            if !(pap > 0.0) {
+            // Not positive (or NaN): the matrix lost definiteness; stop with what we have.
+            if pap.is_nan() || pap <= 0.0 {
                 break;
             }
             let alpha = rz / pap;
@@ -382,11 +388,20 @@ impl SplitDamping {
             }
         }
         self.rhs.copy_from_slice(x);
-        converged
+        // Not converged to 1e-10 within the cap (a body far from rest: the rest factor is a
+        // weaker preconditioner there): the iterate is still the best in the energy norm of
+        // those searched, so it is used rather than skipping the damping of this step.
+        self.last_converged = converged;
+        x.iter().all(|v| v.is_finite())
     }
 
     /// Preconditioned CG iterations of the last `apply` (0: the rest matrix, solved directly).
     pub fn last_iterations(&self) -> usize {
         self.last_iterations
+    }
+
+    /// Whether the last `apply`'s iterations reached their tolerance (1e-10).
+    pub fn last_converged(&self) -> bool {
+        self.last_converged
     }
 }
