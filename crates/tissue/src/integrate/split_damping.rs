@@ -42,6 +42,14 @@ pub struct SplitDamping {
     rhs: Vec<Real>,
     tmp: Vec<Real>,
     held: Vec<bool>,
+    /// The damping matrix at the current state, when it is not the rest one (`set_current_edges`),
+    /// and the conjugate-gradient vectors that solve with it.
+    current: Vec<Real>,
+    cg: [Vec<Real>; 4],
+    /// Preconditioned CG iterations of the last `apply` (0: the rest matrix solved directly)
+    /// and whether they reached their tolerance.
+    last_iterations: usize,
+    last_converged: bool,
 }
 
 impl Clone for SplitDamping {
@@ -56,6 +64,10 @@ impl Clone for SplitDamping {
             rhs: self.rhs.clone(),
             tmp: self.tmp.clone(),
             held: self.held.clone(),
+            current: self.current.clone(),
+            cg: self.cg.clone(),
+            last_iterations: 0,
+            last_converged: true,
         }
     }
 }
@@ -64,7 +76,18 @@ impl SplitDamping {
     /// The pattern of `tets` over `nodes` nodes, with K₀ to be assembled by `assemble`.
     pub fn new(nodes: usize, tets: &[[u32; 4]], beta: Real) -> Self {
         let flat: Vec<u32> = tets.iter().flatten().copied().collect();
-        let pattern = BlockPattern::from_elements(nodes, 3, &flat, 4);
+        Self::on_elements(nodes, &flat, 4, beta)
+    }
+
+    /// The pattern of springs (2-node elements) over `nodes` nodes. A spring network damps
+    /// with its own constants c (not β k), so it assembles C itself with β = 1.
+    pub fn for_edges(nodes: usize, edges: &[[u32; 2]]) -> Self {
+        let flat: Vec<u32> = edges.iter().flatten().copied().collect();
+        Self::on_elements(nodes, &flat, 2, 1.0)
+    }
+
+    fn on_elements(nodes: usize, flat: &[u32], per_element: usize, beta: Real) -> Self {
+        let pattern = BlockPattern::from_elements(nodes, 3, flat, per_element);
         let nnz = pattern.nnz();
         let dim = pattern.dim();
         Self {
@@ -77,6 +100,10 @@ impl SplitDamping {
             rhs: vec![0.0; dim],
             tmp: vec![0.0; dim],
             held: Vec::new(),
+            current: Vec::new(),
+            cg: Default::default(),
+            last_iterations: 0,
+            last_converged: true,
         }
     }
 
@@ -93,11 +120,37 @@ impl SplitDamping {
     /// Rebuilds K₀ from the 4×4 blocks of the given tetrahedra (block (a, b) couples the
     /// force on corner a to the displacement of corner b); the next step refactorises.
     pub fn assemble(&mut self, blocks: impl Iterator<Item = ([u32; 4], [[Mat3; 4]; 4])>) {
-        self.k.iter_mut().for_each(|v| *v = 0.0);
+        self.assemble_elements(blocks);
+    }
+
+    /// Rebuilds the damping matrix of springs (a, b) with 3×3 blocks c u uᵀ (the force
+    /// on a is c u uᵀ (v_b − v_a)); the next step refactorises.
+    pub fn assemble_edges(&mut self, springs: impl Iterator<Item = ([u32; 2], Mat3)>) {
+        self.assemble_elements(springs.map(|(e, c)| (e, [[c, -c], [-c, c]])));
+    }
+
+    fn assemble_elements<const N: usize>(
+        &mut self,
+        blocks: impl Iterator<Item = ([u32; N], [[Mat3; N]; N])>,
+    ) {
+        let mut k = std::mem::take(&mut self.k);
+        self.sum_blocks(blocks, &mut k);
+        self.k = k;
+        self.factored_for = None;
+    }
+
+    /// `out` = the sum of the element blocks on the pattern.
+    fn sum_blocks<const N: usize>(
+        &self,
+        blocks: impl Iterator<Item = ([u32; N], [[Mat3; N]; N])>,
+        out: &mut Vec<Real>,
+    ) {
+        out.clear();
+        out.resize(self.pattern.nnz(), 0.0);
         let p = &self.pattern;
-        for (tet, k) in blocks {
-            for (a, &na) in tet.iter().enumerate() {
-                for (b, &nb) in tet.iter().enumerate() {
+        for (el, k) in blocks {
+            for (a, &na) in el.iter().enumerate() {
+                for (b, &nb) in el.iter().enumerate() {
                     let (na, nb) = (na as usize, nb as usize);
                     let Some(pos) = p.neighbour_position(nb, na) else {
                         continue;
@@ -107,13 +160,21 @@ impl SplitDamping {
                         let base = p.col_ptr[col] + pos * 3;
                         let c = k[a][b].col(j);
                         for (i, v) in c.to_array().iter().enumerate() {
-                            self.k[base + i] += v;
+                            out[base + i] += v;
                         }
                     }
                 }
             }
         }
-        self.factored_for = None;
+    }
+
+    /// Sets the damping matrix of the current state (springs (a, b) with blocks c u uᵀ at
+    /// their current directions) that the next `apply` solves with, the factorised rest
+    /// matrix serving as its preconditioner. Without it `apply` uses the rest matrix.
+    pub fn set_current_edges(&mut self, springs: impl Iterator<Item = ([u32; 2], Mat3)>) {
+        let mut cur = std::mem::take(&mut self.current);
+        self.sum_blocks(springs.map(|(e, c)| (e, [[c, -c], [-c, c]])), &mut cur);
+        self.current = cur;
     }
 
     /// Factorises M + dt β K₀ for these masses and held particles unless it already is
@@ -170,8 +231,10 @@ impl SplitDamping {
     }
 
     /// Applies the damping to `v` (free particles; held ones keep their velocity) and writes
-    /// the damping force −β K₀ v of the new velocities into `force` (what the held particles
-    /// feel from it). Does nothing unless `prepare` succeeded for these masses and holds.
+    /// the damping force −β K v of the new velocities into `force` (what the held particles
+    /// feel from it). K is the current matrix when one was set (`set_current_edges`), solved
+    /// by conjugate gradients preconditioned with the rest factor, else the rest K₀ solved
+    /// directly. Does nothing unless `prepare` succeeded for these masses and holds.
     pub fn apply(&mut self, masses: &[Real], v: &mut [Vec3], force: &mut [Vec3]) -> bool {
         let Some((dt, _, _)) = self.factored_for else {
             return false;
@@ -181,14 +244,54 @@ impl SplitDamping {
             return false;
         }
         let s = dt * self.beta;
-        // rhs = M v* − dt β K₀ v_h on free rows, v_h on held rows.
+        let use_current = self.current.len() == self.k.len();
+        let k = if use_current {
+            std::mem::take(&mut self.current)
+        } else {
+            std::mem::take(&mut self.k)
+        };
+        let solved = self.solve(&k, s, masses, v, use_current);
+        if solved {
+            for (i, vi) in v.iter_mut().enumerate() {
+                if !self.held[i] {
+                    *vi = Vec3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
+                }
+            }
+            for (i, vi) in v.iter().enumerate() {
+                for j in 0..3 {
+                    self.tmp[3 * i + j] = vi[j];
+                }
+            }
+            self.pattern.mul_vec(&k, &self.tmp, &mut self.rhs);
+            for (i, f) in force.iter_mut().enumerate() {
+                *f = -self.beta
+                    * Vec3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
+            }
+        }
+        if use_current {
+            self.current = k;
+        } else {
+            self.k = k;
+        }
+        solved
+    }
+
+    /// Solves (M + s K) v = M v* − s K v_h (held rows: v = v_h) into `rhs`.
+    fn solve(
+        &mut self,
+        k: &[Real],
+        s: Real,
+        masses: &[Real],
+        v: &[Vec3],
+        use_current: bool,
+    ) -> bool {
         for (i, vi) in v.iter().enumerate() {
             let held = self.held[i];
             for j in 0..3 {
                 self.tmp[3 * i + j] = if held { vi[j] } else { 0.0 };
             }
         }
-        self.pattern.mul_vec(&self.k, &self.tmp, &mut self.rhs);
+        self.pattern.mul_vec(k, &self.tmp, &mut self.rhs);
         for (i, vi) in v.iter().enumerate() {
             for j in 0..3 {
                 let r = &mut self.rhs[3 * i + j];
@@ -199,26 +302,106 @@ impl SplitDamping {
                 };
             }
         }
+        self.last_iterations = 0;
+        self.last_converged = true;
+        if use_current {
+            return self.pcg(k, s, masses);
+        }
+        // The rest matrix: its factor solves it.
         let Some(chol) = self.chol.as_mut() else {
             return false;
         };
-        if chol.solve_in_place(&mut self.rhs).is_err() {
+        chol.solve_in_place(&mut self.rhs).is_ok()
+    }
+
+    /// Conjugate gradients on (M + s K) x = rhs (held rows identity), preconditioned by the
+    /// factorised rest matrix; the answer replaces `rhs`.
+    fn pcg(&mut self, k: &[Real], s: Real, masses: &[Real]) -> bool {
+        const TOLERANCE: Real = 1e-10;
+        const MAX_ITERATIONS: usize = 50;
+        let dim = self.rhs.len();
+        let Some(chol) = self.chol.as_mut() else {
+            return false;
+        };
+        for c in &mut self.cg {
+            c.clear();
+            c.resize(dim, 0.0);
+        }
+        let [x, r, z, p] = &mut self.cg;
+        let held = &self.held;
+        let pattern = &self.pattern;
+        let tmp = &mut self.tmp;
+        // y = (M + s K) q on free rows (held columns dropped), q on held rows.
+        let mut apply = |q: &[Real], y: &mut [Real]| {
+            for (i, t) in tmp.iter_mut().enumerate() {
+                *t = if held[i / 3] { 0.0 } else { q[i] };
+            }
+            pattern.mul_vec(k, tmp, y);
+            for i in 0..y.len() {
+                y[i] = if held[i / 3] {
+                    q[i]
+                } else {
+                    masses[i / 3] * q[i] + s * y[i]
+                };
+            }
+        };
+        let norm = |a: &[Real]| a.iter().map(|v| v * v).sum::<Real>().sqrt();
+        let dot = |a: &[Real], b: &[Real]| a.iter().zip(b).map(|(a, b)| a * b).sum::<Real>();
+        let b_norm = norm(&self.rhs);
+        if b_norm == 0.0 {
+            return true;
+        }
+        r.copy_from_slice(&self.rhs);
+        z.copy_from_slice(r);
+        if chol.solve_in_place(z).is_err() {
             return false;
         }
-        for (i, vi) in v.iter_mut().enumerate() {
-            if !self.held[i] {
-                *vi = Vec3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
+        p.copy_from_slice(z);
+        let mut rz = dot(r, z);
+        let mut converged = false;
+        for it in 1..=MAX_ITERATIONS {
+            apply(p, z);
+            let pap = dot(p, z);
+            // Not positive (or NaN): the matrix lost definiteness; stop with what we have.
+            if pap.is_nan() || pap <= 0.0 {
+                break;
+            }
+            let alpha = rz / pap;
+            for i in 0..dim {
+                x[i] += alpha * p[i];
+                r[i] -= alpha * z[i];
+            }
+            self.last_iterations = it;
+            if norm(r) <= TOLERANCE * b_norm {
+                converged = true;
+                break;
+            }
+            z.copy_from_slice(r);
+            if chol.solve_in_place(z).is_err() {
+                return false;
+            }
+            let rz_new = dot(r, z);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for i in 0..dim {
+                p[i] = z[i] + beta * p[i];
             }
         }
-        for (i, vi) in v.iter().enumerate() {
-            for j in 0..3 {
-                self.tmp[3 * i + j] = vi[j];
-            }
-        }
-        self.pattern.mul_vec(&self.k, &self.tmp, &mut self.rhs);
-        for (i, f) in force.iter_mut().enumerate() {
-            *f = -self.beta * Vec3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
-        }
-        true
+        self.rhs.copy_from_slice(x);
+        // Not converged to 1e-10 within the cap (a body far from rest: the rest factor is a
+        // weaker preconditioner there): the iterate is still the best in the energy norm of
+        // those searched, so it is used rather than skipping the damping of this step.
+        self.last_converged = converged;
+        x.iter().all(|v| v.is_finite())
+    }
+
+    /// Preconditioned CG iterations of the last `apply` (0: the rest matrix, solved directly).
+    pub fn last_iterations(&self) -> usize {
+        self.last_iterations
+    }
+
+    /// Whether the last `apply`'s iterations reached their tolerance (1e-10).
+    pub fn last_converged(&self) -> bool {
+        self.last_converged
     }
 }

@@ -8,12 +8,13 @@
 
 use crate::error::SimError;
 use crate::integrate::ParticleSystem;
+use crate::integrate::split_damping::SplitDamping;
 use crate::math::{Real, Vec3};
 
 use super::pressure::Pressure;
 use super::springs::SpringNetwork;
 
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct SpringBody {
     pub network: SpringNetwork,
     pub masses: Vec<Real>,
@@ -26,6 +27,30 @@ pub struct SpringBody {
     /// for the energy where they just evaluated forces, which saves a pass over the springs.
     energy_at: Vec<Vec3>,
     energy: Option<Real>,
+    /// Explicit schemes: the spring damping taken out of `forces` and applied once per step
+    /// implicitly (`integrate::split_damping`), with the springs' rest directions; `None`
+    /// when off or when no spring is damped. Rebuilt after a change of springs.
+    split: Option<Box<SplitDamping>>,
+    /// Rest positions the split's directions come from (empty: split off).
+    split_rest: Vec<Vec3>,
+    split_dirty: bool,
+}
+
+impl Clone for SpringBody {
+    fn clone(&self) -> Self {
+        Self {
+            network: self.network.clone(),
+            masses: self.masses.clone(),
+            friction: self.friction,
+            pressure: self.pressure.clone(),
+            external: self.external.clone(),
+            energy_at: self.energy_at.clone(),
+            energy: self.energy,
+            split: None,
+            split_rest: self.split_rest.clone(),
+            split_dirty: true,
+        }
+    }
 }
 
 impl SpringBody {
@@ -39,6 +64,9 @@ impl SpringBody {
             external: vec![Vec3::ZERO; n],
             energy_at: Vec::new(),
             energy: None,
+            split: None,
+            split_rest: Vec::new(),
+            split_dirty: false,
         }
     }
 
@@ -46,6 +74,57 @@ impl SpringBody {
     /// pressure or masses.
     pub fn changed(&mut self) {
         self.energy = None;
+        self.split_dirty = true;
+    }
+
+    /// Takes the spring damping out of the forces and applies it once per step implicitly
+    /// (`on`: what explicit schemes need, see `integrate::split_damping`; its directions are
+    /// the springs' at `rest`), or puts it back (implicit Euler, which integrates it in its
+    /// own solve). Call again with the new rest positions after a cut.
+    pub fn set_split_damping(&mut self, on: bool, rest: &[Vec3]) {
+        self.split_rest.clear();
+        if on && rest.len() == self.masses.len() {
+            self.split_rest.extend_from_slice(rest);
+        }
+        self.split = None;
+        self.split_dirty = true;
+        self.energy = None;
+    }
+
+    /// Whether the spring damping is split off (see `set_split_damping`).
+    pub fn split_damping(&self) -> bool {
+        !self.split_rest.is_empty() && self.network.springs.iter().any(|s| s.damping > 0.0)
+    }
+
+    /// The damping matrix of the springs at their rest directions, factorisable.
+    fn build_split(&self) -> Option<Box<SplitDamping>> {
+        let rest = &self.split_rest;
+        let damped = |s: &&super::springs::Spring| {
+            s.damping > 0.0 && (s.a as usize) < rest.len() && (s.b as usize) < rest.len()
+        };
+        let edges: Vec<[u32; 2]> = self
+            .network
+            .springs
+            .iter()
+            .filter(damped)
+            .map(|s| [s.a, s.b])
+            .collect();
+        if edges.is_empty() {
+            return None;
+        }
+        let mut split = SplitDamping::for_edges(rest.len(), &edges);
+        split.assemble_edges(self.network.springs.iter().filter(damped).map(|s| {
+            let d = rest[s.b as usize] - rest[s.a as usize];
+            let l = d.length();
+            let c = if l > 0.0 {
+                let u = d / l;
+                super::springs::outer(u, u) * s.damping
+            } else {
+                crate::math::Mat3::ZERO
+            };
+            ([s.a, s.b], c)
+        }));
+        Some(Box::new(split))
     }
 
     /// Internal (elastic + pressure) forces only, without damping or loads.
@@ -69,7 +148,8 @@ impl ParticleSystem for SpringBody {
     }
 
     fn forces(&mut self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) {
-        let mut energy = self.network.add_forces(x, v, f);
+        let damped = !self.split_damping();
+        let mut energy = self.network.add_forces_with(x, v, f, damped);
         if let Some(p) = &self.pressure {
             energy += p.add_forces(x, f);
         }
@@ -112,6 +192,50 @@ impl ParticleSystem for SpringBody {
             *o = self.friction * *m * *d;
         }
         self.network.add_damping_product(dv, out);
+    }
+
+    fn prepare_velocity_split(&mut self, dt: Real, held: &[bool]) -> Result<bool, SimError> {
+        if !self.split_damping() {
+            return Ok(false);
+        }
+        if self.split_dirty || self.split.is_none() {
+            self.split = self.build_split();
+            self.split_dirty = false;
+        }
+        match self.split.as_mut() {
+            Some(split) => {
+                split.prepare(dt, &self.masses, held)?;
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+
+    /// The damping is that of the springs' current directions (as in the force it replaces,
+    /// so a rotating body is not damped), solved with the rest matrix's factor as the
+    /// preconditioner; the positions are those of the last force evaluation, the step's end
+    /// (the integrators evaluate the forces there last).
+    fn apply_velocity_split(&mut self, v: &mut [Vec3], force: &mut [Vec3]) -> bool {
+        let Some(split) = self.split.as_mut() else {
+            return false;
+        };
+        let x = &self.energy_at;
+        if x.len() == self.masses.len() {
+            split.set_current_edges(self.network.springs.iter().filter(|s| s.damping > 0.0).map(
+                |s| {
+                    let d = x[s.b as usize] - x[s.a as usize];
+                    let l = d.length();
+                    let c = if l > 0.0 && l.is_finite() {
+                        let u = d / l;
+                        super::springs::outer(u, u) * s.damping
+                    } else {
+                        crate::math::Mat3::ZERO
+                    };
+                    ([s.a, s.b], c)
+                },
+            ));
+        }
+        split.apply(&self.masses, v, force)
     }
 
     fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {

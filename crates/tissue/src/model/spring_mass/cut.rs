@@ -183,6 +183,8 @@ pub(crate) fn cut_model(model: &mut SpringModel, blade: &CutPath) -> Result<CutI
     model.state.x = xs;
     model.state.v = vs;
     model.rest = rest;
+    let explicit = model.integrator.scheme != crate::integrate::Scheme::ImplicitEuler;
+    model.body.set_split_damping(explicit, &model.rest);
     model.link = SurfaceLink::Nodes((0..n as u32).collect());
     model.triangles = triangles;
     model.surface_rest = model.rest.clone();

@@ -211,6 +211,10 @@ impl Deformable for SpringModel {
             ("stiffness".into(), format!("{:?}", self.params.stiffness)),
             ("springs".into(), self.body.network.len().to_string()),
             ("pressure".into(), self.body.pressure.is_some().to_string()),
+            (
+                "split_spring_damping".into(),
+                self.body.split_damping().to_string(),
+            ),
             ("steps".into(), self.integrator.steps().to_string()),
             (
                 "last_cg_iterations".into(),

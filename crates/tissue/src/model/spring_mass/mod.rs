@@ -261,6 +261,8 @@ impl SpringModel {
         };
         m.surface_rest = m.surface_of(&m.rest.clone());
         m.surface_positions = m.surface_rest.clone();
+        m.body
+            .set_split_damping(m.integrator.scheme != Scheme::ImplicitEuler, &m.rest);
         m
     }
 
@@ -290,6 +292,8 @@ impl SpringModel {
     pub fn set_scheme(&mut self, scheme: Scheme) {
         self.integrator.scheme = scheme;
         self.integrator.invalidate();
+        self.body
+            .set_split_damping(scheme != Scheme::ImplicitEuler, &self.rest);
     }
     /// The particles each surface vertex follows (`None` for the simplex kind).
     pub fn surface_nodes(&self) -> Option<&[u32]> {
@@ -361,3 +365,5 @@ impl SpringModel {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_damping;

@@ -57,6 +57,12 @@ impl SpringNetwork {
     /// Adds the spring and damping forces at positions `x`, velocities `v` to `f`; returns
     /// the elastic energy at `x` (the lengths are at hand, so it comes almost free).
     pub fn add_forces(&self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3]) -> Real {
+        self.add_forces_with(x, v, f, true)
+    }
+
+    /// `add_forces`, with the spring damping left out unless `damped` (the explicit schemes
+    /// apply it once per step implicitly, `integrate::split_damping`).
+    pub fn add_forces_with(&self, x: &[Vec3], v: &[Vec3], f: &mut [Vec3], damped: bool) -> Real {
         let mut energy = 0.0;
         for s in &self.springs {
             let (a, b) = (s.a as usize, s.b as usize);
@@ -68,7 +74,10 @@ impl SpringNetwork {
                 continue;
             }
             let u = d / l;
-            let magnitude = s.stiffness * stretch + s.damping * (v[b] - v[a]).dot(u);
+            let mut magnitude = s.stiffness * stretch;
+            if damped {
+                magnitude += s.damping * (v[b] - v[a]).dot(u);
+            }
             let fa = magnitude * u;
             f[a] += fa;
             f[b] -= fa;

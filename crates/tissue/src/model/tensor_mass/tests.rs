@@ -502,7 +502,7 @@ fn kernel_paths_agree(
     u: &[Vec3],
     kappa: Real,
 ) {
-    let k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, iso, list, kappa);
+    let mut k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, iso, list, kappa);
     let (mut fv, mut fb) = (vec![Vec3::ZERO; u.len()], vec![Vec3::ZERO; u.len()]);
     let mut fs = fb.clone();
     let wv = k.add_forces(u, &mut fv);
@@ -536,4 +536,38 @@ fn kernel_paths_agree(
     }
     assert!(max_diff(&fv, &fr) < 1e-12 * max_norm(&fr));
     assert!((wv - wr).abs() < 1e-12 * wr);
+}
+
+#[cfg(feature = "parallel")]
+#[test]
+fn parallel_kernel_pass_gives_one_threads_bits() {
+    // Above `PARALLEL_MIN_BLOCKS` the blocks are computed on two threads and summed in
+    // block order: forces and energy are the same bits as one thread's.
+    let mesh = box_tets(Vec3::ZERO, Vec3::splat(0.05), [12, 12, 8], BoxSplit::Six);
+    let n = mesh.tets.len();
+    assert!(
+        n.div_ceil(kernel::LANES) >= kernel::PARALLEL_MIN_BLOCKS,
+        "{n} tetrahedra"
+    );
+    let s = mixed_system(&mesh, Some(NonlinearForm::Elements));
+    let iso = vec![elasticity::Elasticity::isotropic(1000.0, 300.0); n];
+    let list: Vec<u32> = (0..n as u32 - 1).collect();
+    let u = random_field(mesh.vertices.len(), 43, 0.01);
+    for kappa in [0.0, 700.0] {
+        let mut k = kernel::ElementKernel::new(&s.tets, &s.rest_tets, &iso, &list, kappa);
+        let run = |threads: usize, k: &mut kernel::ElementKernel| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut f = vec![Vec3::ZERO; u.len()];
+            let w = pool.install(|| k.add_forces(&u, &mut f));
+            (f, w)
+        };
+        let (f1, w1) = run(1, &mut k);
+        let (f2, w2) = run(2, &mut k);
+        assert_eq!(f1, f2);
+        assert_eq!(w1, w2);
+        assert!(w1 > 0.0);
+    }
 }

@@ -7,6 +7,7 @@ use crate::integrate::Scheme;
 use crate::interact::{Constraints, Loads};
 use crate::mesh::generate::{BoxSplit, box_tets};
 use crate::model::Deformable;
+use crate::model::testing::decay;
 
 /// A clamped beam 0.5 m × 0.1 m × 0.1 m (10 × 2 × 2 cells, 240 tetrahedra), E = 1e6 Pa,
 /// β = `beta`, under gravity `g` from rest; returns the tip's vertical position per step.
@@ -65,31 +66,6 @@ fn tip_history(
             tip_nodes.iter().map(|&n| x[n].z).sum::<Real>() / tip_nodes.len() as Real
         })
         .collect()
-}
-
-/// (σ, ω_d): the decay rate and damped frequency of the oscillation in `z`, from its
-/// extrema after `skip` samples: consecutive extrema are half a damped period apart and
-/// their differences shrink by e^{−σ T/2}.
-fn decay(z: &[Real], dt: Real, skip: usize) -> (Real, Real) {
-    let mut ext = Vec::new();
-    for k in skip.max(1)..z.len() - 1 {
-        if (z[k] - z[k - 1]) * (z[k + 1] - z[k]) < 0.0 {
-            // Parabolic refinement of the extremum's time and value.
-            let (a, b, c) = (z[k - 1], z[k], z[k + 1]);
-            let den = a - 2.0 * b + c;
-            let s = if den != 0.0 { 0.5 * (a - c) / den } else { 0.0 };
-            ext.push(((k as Real + s) * dt, b - 0.25 * (a - c) * s));
-        }
-    }
-    assert!(ext.len() >= 5, "too few extrema: {ext:?}");
-    let swings: Vec<(Real, Real)> = ext
-        .windows(2)
-        .map(|w| (0.5 * (w[0].0 + w[1].0), (w[1].1 - w[0].1).abs()))
-        .collect();
-    let (first, last) = (swings[0], swings[swings.len() - 1]);
-    let sigma = (first.1 / last.1).ln() / (last.0 - first.0);
-    let half = (ext[ext.len() - 1].0 - ext[0].0) / (ext.len() - 1) as Real;
-    (sigma, std::f64::consts::PI / half)
 }
 
 #[test]
