@@ -103,7 +103,10 @@ fn emulated_device_feels_the_liver_through_the_loop() {
     assert_eq!(coupling.errors, 0);
     assert!(coupling.steps >= 50, "{coupling:?}");
     assert_eq!(rep.poses_sent, 1200);
-    assert!(rep.forces_received >= 1000, "{rep:?}");
+    // That the loop answered, not how punctually: rates, percentiles and missed deadlines are
+    // measured by `tissue haptic-bench` on a quiet machine. Here the four threads share CI's
+    // two cores with the other tests, and a count near 1,200 failed one run in five.
+    assert!(rep.forces_received >= rep.poses_sent / 2, "{rep:?}");
     // Held 8 mm in: the last force felt is the full model's force there, pushing up.
     let f_full = sim.instruments()[0].force();
     assert!(f_full.y > 0.01, "{f_full:?}");
@@ -112,5 +115,5 @@ fn emulated_device_feels_the_liver_through_the_loop() {
         "device {:?} vs model {f_full:?}",
         rep.last_force
     );
-    assert!(stats.ticks >= 1000, "{stats:?}");
+    assert!(stats.ticks >= 500, "{stats:?}");
 }
