@@ -100,13 +100,18 @@ impl FemSemiImplicit {
         self.core.set_state(u, velocity, dt)
     }
 
-    /// One step: K̂ U⁺ = F̂ with F̂ = F + M [ (2/Δt²) U − (1/Δt² − α/(2Δt)) U⁻ ] (eq. (10)).
+    /// One step: K̂ U⁺ = F̂ with F̂ = F + M [ (2/Δt²) U − (1/Δt² − α/(2Δt)) U⁻ ] (eq. (10)),
+    /// plus Rayleigh stiffness damping β K on the central velocity (U⁺ − U⁻)/(2Δt), which the
+    /// survey's form leaves out: K̂ gains β/(2Δt) K and F̂ gains β/(2Δt) K U⁻.
     fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
         Core::check_dt(dt)?;
         let alpha = self.core.material.damping;
         let (inv2, damp) = (1.0 / (dt * dt), alpha / (2.0 * dt));
+        let stiff_damp = self.core.material.stiffness_damping / (2.0 * dt);
         if self.factored_dt != Some(dt) {
-            self.khat.copy_from_slice(&self.core.k);
+            for (kh, &k) in self.khat.iter_mut().zip(&self.core.k) {
+                *kh = (1.0 + stiff_damp) * k;
+            }
             for (d, &s) in self.diag.iter().enumerate() {
                 self.khat[s] += (inv2 + damp) * self.core.mass[d];
             }
@@ -119,9 +124,16 @@ impl FemSemiImplicit {
         self.hat.constrained.clone_from(&p.constrained);
         self.hat.list.clone_from(&p.list);
         self.hat.targets.clone_from(&p.targets);
+        if stiff_damp > 0.0 {
+            // K U⁻ into `ku`, which is recomputed from U⁺ below.
+            c.assembler.pattern.mul_vec(&c.k, &c.u_prev, &mut c.ku);
+        } else {
+            c.ku.iter_mut().for_each(|v| *v = 0.0);
+        }
         for d in 0..c.u.len() {
-            self.hat.forces[d] =
-                p.forces[d] + c.mass[d] * (2.0 * inv2 * c.u[d] - (inv2 - damp) * c.u_prev[d]);
+            self.hat.forces[d] = p.forces[d]
+                + c.mass[d] * (2.0 * inv2 * c.u[d] - (inv2 - damp) * c.u_prev[d])
+                + stiff_damp * c.ku[d];
         }
         let solved = self
             .system
