@@ -204,6 +204,28 @@ pub fn project_to_sphere(p: Vec3, center: Vec3, radius: Real, fallback: Vec3) ->
     center + radius * dir
 }
 
+/// The vertices of the `candidates` triangles whose position passes `inside`, ascending,
+/// each once, without those `skip` leaves out.
+fn vertices_of(
+    candidates: &[u32],
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    skip: &dyn Fn(u32) -> bool,
+    inside: impl Fn(Vec3) -> bool,
+) -> Vec<u32> {
+    let mut found: Vec<u32> = candidates
+        .iter()
+        .filter_map(|&t| triangles.get(t as usize))
+        .flatten()
+        .copied()
+        .filter(|&v| positions.get(v as usize).is_some_and(|&p| inside(p)))
+        .collect();
+    found.sort_unstable();
+    found.dedup();
+    found.retain(|&v| !skip(v));
+    found
+}
+
 /// Surface vertices deeper than the tolerance inside the ball, ascending, with their
 /// targets on the sphere. `skip(v)` leaves out vertices that are taken (fixed, other tools).
 pub fn vertices_in_ball(
@@ -216,29 +238,17 @@ pub fn vertices_in_ball(
 ) -> Vec<Contact> {
     let candidates = bvh.query_sphere(center, radius);
     let limit = radius * (1.0 - PENETRATION_TOLERANCE);
-    let mut inside: Vec<u32> = candidates
-        .iter()
-        .filter_map(|&t| triangles.get(t as usize))
-        .flatten()
-        .copied()
-        .filter(|&v| {
-            positions
-                .get(v as usize)
-                .is_some_and(|p| p.distance(center) < limit)
-        })
-        .collect();
-    inside.sort_unstable();
-    inside.dedup();
-    inside.retain(|&v| !skip(v));
-    inside
-        .into_iter()
-        .map(|v| {
-            let p = positions[v as usize];
-            // Its triangles are all among the candidates: the vertex lies inside the query box.
-            let normal = vertex_normal(v, &candidates, positions, triangles);
-            Contact::on_surface(v, push_out(p, center, radius, normal))
-        })
-        .collect()
+    vertices_of(&candidates, positions, triangles, skip, |p| {
+        p.distance(center) < limit
+    })
+    .into_iter()
+    .map(|v| {
+        let p = positions[v as usize];
+        // Its triangles are all among the candidates: the vertex lies inside the query box.
+        let normal = vertex_normal(v, &candidates, positions, triangles);
+        Contact::on_surface(v, push_out(p, center, radius, normal))
+    })
+    .collect()
 }
 
 /// Surface vertices deeper than the tolerance inside `shape` placed at `at`, ascending, with
@@ -260,27 +270,15 @@ pub fn vertices_in_shape(
         None => (0..triangles.len() as u32).collect(),
     };
     let limit = -PENETRATION_TOLERANCE * shape.size();
-    let mut inside: Vec<u32> = candidates
-        .iter()
-        .filter_map(|&t| triangles.get(t as usize))
-        .flatten()
-        .copied()
-        .filter(|&v| {
-            positions
-                .get(v as usize)
-                .is_some_and(|p| shape.closest(at, *p, Vec3::ZERO).depth < limit)
-        })
-        .collect();
-    inside.sort_unstable();
-    inside.dedup();
-    inside.retain(|&v| !skip(v));
-    inside
-        .into_iter()
-        .map(|v| {
-            let normal = vertex_normal(v, &candidates, positions, triangles);
-            Contact::on_surface(v, shape.closest(at, positions[v as usize], normal).point)
-        })
-        .collect()
+    vertices_of(&candidates, positions, triangles, skip, |p| {
+        shape.closest(at, p, Vec3::ZERO).depth < limit
+    })
+    .into_iter()
+    .map(|v| {
+        let normal = vertex_normal(v, &candidates, positions, triangles);
+        Contact::on_surface(v, shape.closest(at, positions[v as usize], normal).point)
+    })
+    .collect()
 }
 
 /// True when the force the tissue exerts on the instrument at a contact on its surface (with

@@ -124,16 +124,16 @@ impl FemSemiImplicit {
         self.hat.constrained.clone_from(&p.constrained);
         self.hat.list.clone_from(&p.list);
         self.hat.targets.clone_from(&p.targets);
+        for d in 0..c.u.len() {
+            self.hat.forces[d] =
+                p.forces[d] + c.mass[d] * (2.0 * inv2 * c.u[d] - (inv2 - damp) * c.u_prev[d]);
+        }
         if stiff_damp > 0.0 {
             // K U⁻ into `ku`, which is recomputed from U⁺ below.
             c.assembler.pattern.mul_vec(&c.k, &c.u_prev, &mut c.ku);
-        } else {
-            c.ku.iter_mut().for_each(|v| *v = 0.0);
-        }
-        for d in 0..c.u.len() {
-            self.hat.forces[d] = p.forces[d]
-                + c.mass[d] * (2.0 * inv2 * c.u[d] - (inv2 - damp) * c.u_prev[d])
-                + stiff_damp * c.ku[d];
+            for (f, ku) in self.hat.forces.iter_mut().zip(&c.ku) {
+                *f += stiff_damp * ku;
+            }
         }
         let solved = self
             .system
