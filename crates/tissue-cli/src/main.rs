@@ -74,7 +74,7 @@ pub struct DemoArgs {
 #[derive(Subcommand, Debug)]
 pub enum MeshCommand {
     /// Counts, bounds, volume, quality histogram and problems of a mesh file; dimensions,
-    /// spacing and value range of an image (.nii, .mhd, .mha).
+    /// spacing and value range of an image (.nii, .mhd, .mha, .nrrd).
     Inspect {
         file: PathBuf,
         /// Print JSON instead of text.
@@ -102,7 +102,7 @@ pub enum MeshCommand {
         tolerance: f64,
     },
     /// Tetrahedral mesh of a closed surface (.obj .stl .ply .off .vtk ...) or of a segmented
-    /// image (.nii .nii.gz .mhd .mha) by isosurface stuffing, with its quality report; refuses
+    /// image (.nii .nii.gz .mhd .mha .nrrd .nhdr .seg.nrrd) by isosurface stuffing, with its quality report; refuses
     /// to write a mesh that breaks a guarantee (min dihedral 10°, boundary within h/2,
     /// volume within 1 %) unless --force.
     Tetrahedralize {
@@ -113,9 +113,10 @@ pub enum MeshCommand {
         /// tetrahedra.
         #[arg(long)]
         size: Option<f64>,
-        /// Image voxel values to mesh (each tagged with its label), e.g. --labels 1,2.
+        /// Image voxel values to mesh (each tagged with its label), e.g. --labels 1,2, or
+        /// segment names of a 3D Slicer segmentation, e.g. --labels liver,tumor.
         #[arg(long, value_delimiter = ',')]
-        labels: Option<Vec<f32>>,
+        labels: Option<Vec<tissue::image::LabelRef>>,
         /// Image value window to mesh, --threshold lo,hi.
         #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
         threshold: Option<Vec<f32>>,

@@ -192,13 +192,15 @@ fn counts(mesh: &MeshData) -> String {
     parts.join(", ")
 }
 
-/// `mesh inspect` of a volume image (.nii, .hdr/.img, .mhd, .mha): grid, value range, zeros.
+/// `mesh inspect` of a volume image (.nii, .hdr/.img, .mhd, .mha, .nrrd): grid, value range,
+/// zeros, and the segments of a segmentation.
 fn inspect_image(file: &Path, format: ImageFormat, json: bool) -> anyhow::Result<()> {
     // MetaImage has no unit; report its numbers as they are rather than guess a scale.
     let image = read_image(file, 1.0)?;
     let unit = match format {
         ImageFormat::Nifti => "m",
         ImageFormat::MetaImage => "file units, MetaImage states none",
+        ImageFormat::Nrrd => "m",
     };
     let s = image.stats();
     let [sx, sy, sz] = image.spacing.to_array();
@@ -219,6 +221,7 @@ fn inspect_image(file: &Path, format: ImageFormat, json: bool) -> anyhow::Result
             "mean": s.mean,
             "zeros": s.zeros,
             "negatives": s.negatives,
+            "segments": image.segments,
         });
         crate::outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -235,6 +238,15 @@ fn inspect_image(file: &Path, format: ImageFormat, json: bool) -> anyhow::Result
         let pct = |n: usize| 100.0 * n as f64 / s.count.max(1) as f64;
         crate::outln!("zeros:   {} ({:.2} %)", s.zeros, pct(s.zeros));
         crate::outln!("negative: {} ({:.2} %)", s.negatives, pct(s.negatives));
+        for seg in &image.segments {
+            let n = image.values.iter().filter(|&&v| v == seg.label).count();
+            crate::outln!(
+                "segment: {} ({}): value {}, {n} voxels",
+                seg.name,
+                seg.id,
+                seg.label
+            );
+        }
     }
     Ok(())
 }

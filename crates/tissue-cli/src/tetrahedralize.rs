@@ -19,7 +19,7 @@ pub struct Request<'a> {
     pub input: &'a Path,
     pub output: &'a Path,
     pub size: Option<f64>,
-    pub labels: Option<&'a [f32]>,
+    pub labels: Option<&'a [tissue::image::LabelRef]>,
     pub threshold: Option<&'a [f32]>,
     pub scale: f64,
     pub smooth: Option<f64>,
@@ -44,8 +44,13 @@ pub fn tetrahedralize(r: &Request) -> anyhow::Result<()> {
         match (r.labels, r.threshold) {
             (Some(_), Some(_)) => anyhow::bail!("give --labels or --threshold, not both"),
             (Some(l), None) => Box::new(smooth_image(
-                ImageDomain::from_labels(&image, l)
-                    .with_context(|| format!("{}: values span {range}", r.input.display()))?,
+                ImageDomain::from_labels(
+                    &image,
+                    &image
+                        .label_values(l)
+                        .map_err(|e| anyhow::anyhow!("{}: --labels: {e}", r.input.display()))?,
+                )
+                .with_context(|| format!("{}: values span {range}", r.input.display()))?,
                 r.smooth,
                 size_given,
             )),

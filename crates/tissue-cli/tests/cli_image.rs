@@ -58,3 +58,95 @@ fn inspect_gzipped_nifti_fails_with_the_reason() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("brain.nii.gz"), "{err}");
 }
+
+/// A 3D Slicer-style segmentation: a ball "tumour" (label 2) inside a ball "liver" (label 1),
+/// 40³ voxels of 1 mm, one layer, raw.
+fn nested_balls_seg_nrrd() -> Vec<u8> {
+    let n = 40usize;
+    let c = (n as f64 - 1.0) / 2.0;
+    let mut data = Vec::with_capacity(n * n * n);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let r = ((i as f64 - c).powi(2) + (j as f64 - c).powi(2) + (k as f64 - c).powi(2))
+                    .sqrt();
+                data.push(if r < 7.0 {
+                    2u8
+                } else if r < 16.0 {
+                    1
+                } else {
+                    0
+                });
+            }
+        }
+    }
+    let mut out = format!(
+        "NRRD0004\ntype: uchar\ndimension: 3\nspace: left-posterior-superior\n\
+         sizes: {n} {n} {n}\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n\
+         kinds: domain domain domain\nencoding: raw\nspace origin: (0,0,0)\n\
+         Segment0_ID:=Segment_1\nSegment0_Name:=liver\nSegment0_LabelValue:=1\n\
+         Segment0_Layer:=0\nSegment1_ID:=Segment_2\nSegment1_Name:=tumour\n\
+         Segment1_LabelValue:=2\nSegment1_Layer:=0\n\n"
+    )
+    .into_bytes();
+    out.extend(data);
+    out
+}
+
+#[test]
+fn a_segmentation_is_inspected_and_meshed_by_segment_names() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cli_image_seg");
+    std::fs::create_dir_all(&dir).unwrap();
+    let seg = dir.join("balls.seg.nrrd");
+    std::fs::write(&seg, nested_balls_seg_nrrd()).unwrap();
+    let out = inspect(&["--json"], seg.clone());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["segments"][1]["name"], "tumour");
+    assert_eq!(v["segments"][1]["label"], 2.0);
+    let mesh = dir.join("balls.vtu");
+    let run = |labels: &str| {
+        Command::new(env!("CARGO_BIN_EXE_tissue"))
+            .args(["mesh", "tetrahedralize"])
+            .arg(&seg)
+            .arg(&mesh)
+            .args(["--labels", labels, "--size", "0.002", "--smooth", "0"])
+            .output()
+            .unwrap()
+    };
+    let out = run("liver,tumour");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let m = tissue::io::read(&mesh).unwrap();
+    let mut tags: Vec<i32> = m.tet_tags.clone();
+    tags.sort_unstable();
+    tags.dedup();
+    assert_eq!(tags, vec![1, 2]);
+    // The tumour's tetrahedra hold its voxel volume: a ball of radius ~7 mm.
+    let tumour: f64 = m
+        .tets
+        .iter()
+        .zip(&m.tet_tags)
+        .filter(|(_, t)| **t == 2)
+        .map(|(t, _)| {
+            let p = t.map(|i| m.vertices[i as usize]);
+            ((p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]) / 6.0).abs()
+        })
+        .sum();
+    let ball = 4.0 / 3.0 * std::f64::consts::PI * 0.007f64.powi(3);
+    assert!((tumour / ball - 1.0).abs() < 0.25, "{tumour} vs {ball}");
+    let out = run("liver,spleen");
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("balls.seg.nrrd") && e.contains("spleen") && e.contains("liver, tumour"),
+        "{e}"
+    );
+}

@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
 use tissue::Vec3;
-use tissue::image::{ByteOrder, SourceType, VoxelImage, metaimage, nifti, read_image};
+use tissue::image::{
+    ByteOrder, LabelRef, SourceType, VoxelImage, metaimage, nifti, nrrd, read_image,
+};
 
 fn asset(name: &str) -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/images")).join(name)
@@ -292,6 +294,101 @@ fn mha_local() -> Vec<u8> {
     b
 }
 
+/// The shipped NIfTI written as a gzip NRRD in LPS with its x axis flipped (as Slicer writes
+/// it), millimetres, big-endian shorts.
+fn anatomical_as_nrrd(im: &VoxelImage) -> Vec<u8> {
+    use std::io::Write;
+    let [nx, ny, nz] = im.dims;
+    let mm = im.spacing * 1000.0;
+    // File axis 0 runs along −x: its first sample is the image's last column.
+    let start = (im.origin + Vec3::X * im.spacing.x * (nx - 1) as f64) * 1000.0;
+    let mut data = Vec::with_capacity(2 * im.len());
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in (0..nx).rev() {
+                let v = im.value(i, j, k).unwrap() as i16;
+                data.extend(v.to_be_bytes());
+            }
+        }
+    }
+    let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    z.write_all(&data).unwrap();
+    let mut out = format!(
+        "NRRD0004\n# Complete NRRD file format specification at:\n\
+         type: short\ndimension: 3\nspace: left-posterior-superior\nsizes: {nx} {ny} {nz}\n\
+         space directions: ({},0,0) (0,{},0) (0,0,{})\nkinds: domain domain domain\n\
+         endian: big\nencoding: gzip\nspace origin: ({},{},{})\n\n",
+        -mm.x, mm.y, mm.z, start.x, start.y, start.z
+    )
+    .into_bytes();
+    out.extend(z.finish().unwrap());
+    out
+}
+
+#[test]
+fn image_nrrd_of_the_anatomical_nii_reads_the_same_voxels_at_the_same_places() {
+    let nii = read_image(asset("anatomical.nii"), 1.0).unwrap();
+    let path = tmp("anatomical.nrrd");
+    std::fs::write(&path, anatomical_as_nrrd(&nii)).unwrap();
+    let im = read_image(&path, 1.0).unwrap();
+    assert_eq!(im.dims, nii.dims);
+    assert!(close(im.spacing, nii.spacing, 1e-15));
+    assert!(
+        close(im.origin, nii.origin, 1e-15),
+        "{} {}",
+        im.origin,
+        nii.origin
+    );
+    assert_eq!(im.values, nii.values);
+    assert_eq!(im.source_type, SourceType::I16);
+    assert_eq!(im.byte_order, ByteOrder::Big);
+}
+
+#[test]
+fn image_seg_nrrd_segments_select_by_name() {
+    // A 4×1×1 label volume, one layer: background, liver (3), tumour (5), liver.
+    let head = "NRRD0004\ntype: unsigned char\ndimension: 3\nsizes: 4 1 1\nencoding: raw\n\
+                space directions: (1,0,0) (0,1,0) (0,0,1)\nSegment0_ID:=Segment_1\n\
+                Segment0_Name:=liver\nSegment0_LabelValue:=3\nSegment1_ID:=Segment_2\n\
+                Segment1_Name:=tumour\nSegment1_LabelValue:=5\n\n";
+    let mut bytes = head.as_bytes().to_vec();
+    bytes.extend([0u8, 3, 5, 3]);
+    let path = tmp("two.seg.nrrd");
+    std::fs::write(&path, &bytes).unwrap();
+    let im = read_image(&path, 1.0).unwrap();
+    let names = ["tumour", "liver"].map(|n| LabelRef::Name(n.into()));
+    assert_eq!(im.label_values(&names), Ok(vec![5.0, 3.0]));
+    assert_eq!(
+        im.label_values(&[LabelRef::Name("Segment_2".into())]),
+        Ok(vec![5.0])
+    );
+}
+
+/// A small layered segmentation with every field the reader knows.
+fn nrrd_seed() -> &'static [u8] {
+    b"NRRD0004\ntype: short\ndimension: 4\nspace: left-posterior-superior\n\
+sizes: 2 2 2 1\nspace directions: none (-1.5,0,0) (0,2,0) (0,0,1)\n\
+kinds: list domain domain domain\nendian: little\nencoding: raw\n\
+space origin: (1,2,3)\nspace units: \"mm\" \"mm\" \"mm\"\nbyte skip: 0\nline skip: 0\n\
+Segment0_Name:=a\nSegment0_LabelValue:=1\nSegment0_Layer:=0\n\
+Segment1_Name:=b\nSegment1_LabelValue:=1\nSegment1_Layer:=1\n\n\
+\x01\x00\x00\x00\x00\x00\x01\x00\x01\x00\x01\x00\x00\x00\x00\x00"
+}
+
+#[test]
+fn image_nrrd_fuzz_seed_is_a_valid_file() {
+    // Layers (a, b) per voxel in file order: (1,0) (0,1) (1,1) (0,0); file axis 0 runs along
+    // −x, so each row comes out reversed; where both layers hold, the first segment wins.
+    let im = nrrd::parse_with(nrrd_seed(), Path::new("seed.nrrd"), &no_file).unwrap();
+    assert_eq!(im.dims, [2, 2, 1]);
+    assert_eq!(im.values, vec![2.0, 1.0, 0.0, 1.0]);
+    assert!(
+        close(im.origin, Vec3::new(-0.0005, 0.002, 0.003), 1e-15),
+        "{}",
+        im.origin
+    );
+}
+
 fn no_file(_: &Path) -> std::io::Result<Vec<u8>> {
     Ok(vec![0; 16])
 }
@@ -306,6 +403,21 @@ fn consistent(im: &VoxelImage) -> bool {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn image_mutated_nrrd_files_never_panic(
+        edits in proptest::collection::vec((0usize..400, any::<u8>()), 1..12),
+    ) {
+        let mut b = nrrd_seed().to_vec();
+        for (at, byte) in edits {
+            if let Some(slot) = b.get_mut(at) {
+                *slot = byte;
+            }
+        }
+        if let Ok(im) = nrrd::parse_with(&b, Path::new("fuzz.nrrd"), &no_file) {
+            prop_assert!(consistent(&im));
+        }
+    }
 
     #[test]
     fn image_mutated_nifti_headers_never_panic(

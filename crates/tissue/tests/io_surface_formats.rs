@@ -89,6 +89,34 @@ fn io_round_trips_of_real_meshes() {
 }
 
 #[test]
+fn io_vtp_round_trips_a_surface_and_writes_a_volume_as_its_surface() {
+    let mut smooth = load("liver-smooth.obj");
+    smooth.triangle_tags = (0..smooth.triangles.len() as i32).map(|t| t % 3).collect();
+    for binary in [false, true] {
+        let back = round_trip(&smooth, Format::Vtp, binary);
+        assert_eq!(back.triangles, smooth.triangles);
+        assert_eq!(back.triangle_tags, smooth.triangle_tags);
+        let err = back
+            .vertices
+            .iter()
+            .zip(&smooth.vertices)
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, f64::max);
+        // Ascii writes shortest round-trip decimals, binary the bits.
+        assert!(err == 0.0, "binary {binary}: {err}");
+    }
+    let wound = load("wound_deformable.ply");
+    let back = round_trip(&wound, Format::Vtp, true);
+    assert!(back.tets.is_empty());
+    assert_eq!(back.triangles.len(), 540);
+    assert!(
+        (volume(&back) - 9.28e-5).abs() < 0.01e-5,
+        "{}",
+        volume(&back)
+    );
+}
+
+#[test]
 fn io_stl_round_trips_ascii_and_binary() {
     // STL welds by position and orders vertices by first use; f32 for binary. Build the
     // expected mesh accordingly from liver-smooth (closed, every vertex used).
@@ -195,7 +223,13 @@ property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_he
 
 /// Every reader over arbitrary bytes: `Ok` or `Err`, never a panic.
 fn no_panic(bytes: &[u8]) {
-    for f in [Format::Obj, Format::Stl, Format::Ply, Format::Medit] {
+    for f in [
+        Format::Obj,
+        Format::Stl,
+        Format::Ply,
+        Format::Medit,
+        Format::Vtp,
+    ] {
         let _ = io::parse(f, bytes, Path::new("fuzz"));
     }
 }
@@ -215,6 +249,8 @@ fn make_seeds() -> Vec<Vec<u8>> {
         (Format::Stl, true),
         (Format::Stl, false),
         (Format::Medit, false),
+        (Format::Vtp, false),
+        (Format::Vtp, true),
     ] {
         let o = WriteOptions {
             binary: b,

@@ -141,6 +141,15 @@ fn bad_image_keys_are_named() {
             "labels = [1.0]\nthreshold = [6000.0, 40000.0]",
             &["exactly one of `threshold"],
         ),
+        (
+            "threshold = [6000.0, 40000.0]",
+            "labels = [\"liver\"]",
+            &[
+                "labels",
+                "`liver` is a segment name",
+                "only NRRD segmentations",
+            ],
+        ),
         ("stride = 2", "stride = 0", &["stride = 0"]),
         (
             "stride = 2",

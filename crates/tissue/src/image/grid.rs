@@ -24,6 +24,10 @@ pub enum SourceType {
     I32,
     #[serde(rename = "uint32")]
     U32,
+    #[serde(rename = "int64")]
+    I64,
+    #[serde(rename = "uint64")]
+    U64,
     #[serde(rename = "float32")]
     F32,
     #[serde(rename = "float64")]
@@ -37,7 +41,7 @@ impl SourceType {
             SourceType::U8 | SourceType::I8 => 1,
             SourceType::I16 | SourceType::U16 => 2,
             SourceType::I32 | SourceType::U32 | SourceType::F32 => 4,
-            SourceType::F64 => 8,
+            SourceType::I64 | SourceType::U64 | SourceType::F64 => 8,
         }
     }
 
@@ -49,6 +53,8 @@ impl SourceType {
             SourceType::U16 => "uint16",
             SourceType::I32 => "int32",
             SourceType::U32 => "uint32",
+            SourceType::I64 => "int64",
+            SourceType::U64 => "uint64",
             SourceType::F32 => "float32",
             SourceType::F64 => "float64",
         }
@@ -94,6 +100,50 @@ pub struct VoxelImage {
     pub source_type: SourceType,
     /// Byte order of the stored samples.
     pub byte_order: ByteOrder,
+    /// Named segments of a segmentation file (3D Slicer's `.seg.nrrd`), each with the value
+    /// its voxels hold in `values`; empty for other images.
+    pub segments: Vec<Segment>,
+}
+
+/// A named segment of a segmentation image.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Segment {
+    /// The name the user gave it (`liver`, `tumor`).
+    pub name: String,
+    /// The file's identifier (`Segment_1`).
+    pub id: String,
+    /// The value of its voxels in `VoxelImage::values`.
+    pub label: f32,
+}
+
+/// One item of a label selection: a voxel value, or a segment's name.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(untagged)]
+pub enum LabelRef {
+    Value(f32),
+    Name(String),
+}
+
+impl std::str::FromStr for LabelRef {
+    type Err = std::convert::Infallible;
+
+    /// A number is a voxel value, anything else a segment's name.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let s = s.trim();
+        Ok(match s.parse::<f32>() {
+            Ok(v) => LabelRef::Value(v),
+            Err(_) => LabelRef::Name(s.to_string()),
+        })
+    }
+}
+
+impl fmt::Display for LabelRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LabelRef::Value(v) => write!(f, "{v}"),
+            LabelRef::Name(n) => f.write_str(n),
+        }
+    }
 }
 
 /// Summary numbers of an image (NaN samples are left out of all but `count`).
@@ -150,6 +200,34 @@ impl VoxelImage {
         self.values.iter().map(|&v| lo <= v && v <= hi).collect()
     }
 
+    /// The voxel values a label selection stands for: numbers as given, names looked up
+    /// among the segments (the error lists the names the image has).
+    pub fn label_values(&self, labels: &[LabelRef]) -> Result<Vec<f32>, String> {
+        labels
+            .iter()
+            .map(|l| match l {
+                LabelRef::Value(v) => Ok(*v),
+                LabelRef::Name(n) => self
+                    .segments
+                    .iter()
+                    .find(|s| s.name == *n || s.id == *n)
+                    .map(|s| s.label)
+                    .ok_or_else(|| {
+                        if self.segments.is_empty() {
+                            format!("`{n}` is not a number and the image names no segments")
+                        } else {
+                            let names: Vec<&str> =
+                                self.segments.iter().map(|s| s.name.as_str()).collect();
+                            format!(
+                                "no segment is named `{n}`; the image has {}",
+                                names.join(", ")
+                            )
+                        }
+                    }),
+            })
+            .collect()
+    }
+
     /// Count, range, mean, zero and negative voxels.
     pub fn stats(&self) -> ImageStats {
         let (min, max) = self.min_max().unwrap_or((f32::NAN, f32::NAN));
@@ -203,6 +281,10 @@ pub(crate) fn decode(
             SourceType::U16 => f64::from(u16::from_le_bytes(arr(c, order))),
             SourceType::I32 => f64::from(i32::from_le_bytes(arr(c, order))),
             SourceType::U32 => f64::from(u32::from_le_bytes(arr(c, order))),
+            // Labels and intensities far beyond 2^53 do not occur in images; the nearest
+            // f64 is what f32 samples could hold anyway.
+            SourceType::I64 => i64::from_le_bytes(arr(c, order)) as f64,
+            SourceType::U64 => u64::from_le_bytes(arr(c, order)) as f64,
             SourceType::F32 => f64::from(f32::from_le_bytes(arr(c, order))),
             SourceType::F64 => f64::from_le_bytes(arr(c, order)),
         }
@@ -231,6 +313,7 @@ mod tests {
             values: (0..24).map(|v| v as f32 - 3.0).collect(),
             source_type: SourceType::I8,
             byte_order: ByteOrder::Little,
+            segments: Vec::new(),
         }
     }
 

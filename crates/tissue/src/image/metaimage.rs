@@ -91,6 +91,7 @@ pub fn parse_with(
         values: decode(block, h.ty, h.order, None),
         source_type: h.ty,
         byte_order: h.order,
+        segments: Vec::new(),
     })
 }
 

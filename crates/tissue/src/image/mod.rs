@@ -1,22 +1,26 @@
-//! Medical volume images (MRI, CT) as input: NIfTI-1 and MetaImage files read into a
-//! `VoxelImage`, a scalar grid in metres, for thresholding, voxel models and meshing.
+//! Medical volume images (MRI, CT) and segmentations as input: NIfTI-1, MetaImage and NRRD
+//! files read into a `VoxelImage`, a scalar grid in metres, for thresholding, voxel models and
+//! meshing.
 //!
 //! | format | ext | notes |
 //! |---|---|---|
 //! | NIfTI-1 | `.nii`, `.nii.gz`, `.hdr` + `.img` | either byte order; units from the header |
 //! | MetaImage | `.mhd` + raw, `.mha` | header has no unit: multiply by `scale` |
+//! | NRRD | `.nrrd`, `.nhdr` + data, `.seg.nrrd` | raw, gzip, ascii, hex; millimetres unless `space units` says; segment names |
 //!
-//! Both keep the grid axis-aligned: spacing and origin are read, orientation is not.
+//! All keep the grid axis-aligned: spacing and origin are read; NRRD also applies flipped or
+//! permuted axes; no reader applies an oblique orientation.
 
 pub mod grid;
 pub mod metaimage;
 pub mod nifti;
+pub mod nrrd;
 
 use std::path::Path;
 
 use crate::error::{IoError, Location};
 
-pub use grid::{ByteOrder, ImageStats, SourceType, VoxelImage};
+pub use grid::{ByteOrder, ImageStats, LabelRef, Segment, SourceType, VoxelImage};
 
 /// An image file format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -25,6 +29,8 @@ pub enum ImageFormat {
     Nifti,
     /// `.mhd`, `.mha`.
     MetaImage,
+    /// `.nrrd`, `.nhdr` (and 3D Slicer's `.seg.nrrd`).
+    Nrrd,
 }
 
 impl ImageFormat {
@@ -36,6 +42,7 @@ impl ImageFormat {
             "nii" | "hdr" | "img" => Some(ImageFormat::Nifti),
             "gz" if name.ends_with(".nii.gz") => Some(ImageFormat::Nifti),
             "mhd" | "mha" => Some(ImageFormat::MetaImage),
+            "nrrd" | "nhdr" => Some(ImageFormat::Nrrd),
             _ => None,
         }
     }
@@ -44,17 +51,18 @@ impl ImageFormat {
 /// Reads a volume image, the format chosen by the extension.
 ///
 /// `scale` is metres per header unit for formats whose header has no unit (MetaImage: SOFA's
-/// `pelvis_f.mhd`, for one, is in arbitrary units). NIfTI headers state their unit, so NIfTI
-/// images come in metres and `scale` is not applied to them.
+/// `pelvis_f.mhd`, for one, is in arbitrary units). NIfTI and NRRD headers state their unit
+/// (NRRD: millimetres when it does not), so they come in metres and `scale` is not applied.
 pub fn read_image(path: impl AsRef<Path>, scale: f64) -> Result<VoxelImage, IoError> {
     let path = path.as_ref();
     match ImageFormat::from_path(path) {
         Some(ImageFormat::MetaImage) => metaimage::read(path, scale),
         Some(ImageFormat::Nifti) => nifti::read(path),
+        Some(ImageFormat::Nrrd) => nrrd::read(path),
         None => Err(IoError::new(
             path,
             Location::File,
-            "unknown image format; supported: .nii .hdr/.img .mhd .mha",
+            "unknown image format; supported: .nii .nii.gz .hdr/.img .mhd .mha .nrrd .nhdr",
         )),
     }
 }

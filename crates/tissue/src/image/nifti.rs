@@ -337,6 +337,7 @@ impl Header {
             values: decode(block, self.ty, self.order, self.scaling),
             source_type: self.ty,
             byte_order: self.order,
+            segments: Vec::new(),
         })
     }
 }

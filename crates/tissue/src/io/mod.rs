@@ -11,6 +11,7 @@
 //! | Gmsh v1, v2 (ascii, binary), v4.1 ascii | `.msh` | yes | v2 and v4.1 ascii |
 //! | VTK legacy unstructured grid / polydata | `.vtk` | yes | yes |
 //! | VTK XML unstructured grid: ascii, base64, appended raw/base64, zlib | `.vtu` | yes | ascii, base64; `vtu::encode_appended` |
+//! | VTK XML PolyData (polygons, triangle strips), same encodings | `.vtp` | yes | ascii, base64 (the surface) |
 //! | MEDIT | `.mesh` | yes | yes |
 //! | Geomview OFF | `.off` | yes | yes |
 //! | TetGen `.node` + `.ele` + `.face` | `.node`, `.ele`, `.face` | yes (the set by stem) | yes |
@@ -42,6 +43,8 @@ pub enum Format {
     Msh,
     Vtk,
     Vtu,
+    /// VTK XML PolyData: a surface.
+    Vtp,
     Medit,
     Off,
     /// A TetGen set `.node` / `.ele` / `.face`, named by any of them.
@@ -88,6 +91,7 @@ impl Format {
             Some("msh") => Ok(Format::Msh),
             Some("vtk") => Ok(Format::Vtk),
             Some("vtu") => Ok(Format::Vtu),
+            Some("vtp") => Ok(Format::Vtp),
             Some("mesh") => Ok(Format::Medit),
             Some("off") => Ok(Format::Off),
             Some("node" | "ele" | "face") => Ok(Format::TetGen),
@@ -95,7 +99,7 @@ impl Format {
                 path,
                 Location::File,
                 format!(
-                    "unknown mesh format `{}`; supported: .obj .stl .ply .msh .vtk .vtu .mesh .off .node/.ele/.face",
+                    "unknown mesh format `{}`; supported: .obj .stl .ply .msh .vtk .vtu .vtp .mesh .off .node/.ele/.face",
                     other.unwrap_or("")
                 ),
             )),
@@ -128,7 +132,7 @@ pub fn parse(format: Format, bytes: &[u8], path: &Path) -> Result<MeshData, IoEr
         Format::Ply => ply::parse(bytes, path)?,
         Format::Msh => msh::parse(bytes, path)?,
         Format::Vtk => vtk::parse(bytes, path)?,
-        Format::Vtu => vtu::parse(bytes, path)?,
+        Format::Vtu | Format::Vtp => vtu::parse(bytes, path)?,
         Format::Medit => medit::parse(bytes, path)?,
         Format::Off => off::parse(bytes, path)?,
         Format::TetGen => {
@@ -172,6 +176,7 @@ pub fn encode(format: Format, mesh: &MeshData, options: &WriteOptions) -> Result
         Format::Msh => msh::encode(mesh, options.msh_version),
         Format::Vtk => vtk::encode(mesh),
         Format::Vtu => vtu::encode(mesh, options.binary),
+        Format::Vtp => vtu::encode_poly(&surface_for_writing(mesh)?, options.binary),
         Format::Medit => medit::encode(mesh),
         Format::Off => off::encode(&surface_for_writing(mesh)?),
         Format::TetGen => Err("a TetGen set is three files: write it with io::write".into()),

@@ -11,8 +11,9 @@ pub(crate) struct CellSink {
 
 impl CellSink {
     /// Adds cell `cell` of VTK type `ty` with point ids `c`: triangles, polygons and quads are
-    /// fan-split, tetrahedra (10) and quadratic tetrahedra (24, already in VTK order) kept,
-    /// every other type skipped. The error says why the cell does not fit its type.
+    /// fan-split, triangle strips (6) unrolled with every other triangle turned so that all
+    /// keep the strip's orientation, tetrahedra (10) and quadratic tetrahedra (24, already in
+    /// VTK order) kept, every other type skipped. The error says why the cell does not fit its type.
     pub fn add(
         &mut self,
         mesh: &mut MeshData,
@@ -36,6 +37,16 @@ impl CellSink {
             5 | 7 | 9 => {
                 for w in c.get(1..).unwrap_or(&[]).windows(2) {
                     mesh.triangles.push([c[0], w[0], w[1]]);
+                    self.tri_cells.push(cell);
+                }
+            }
+            6 => {
+                for (i, w) in c.windows(3).enumerate() {
+                    mesh.triangles.push(if i % 2 == 0 {
+                        [w[0], w[1], w[2]]
+                    } else {
+                        [w[1], w[0], w[2]]
+                    });
                     self.tri_cells.push(cell);
                 }
             }

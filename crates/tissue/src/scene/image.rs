@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use crate::error::{Error, MeshError, SimError};
-use crate::image::{ImageFormat, VoxelImage, read_image};
+use crate::image::{ImageFormat, LabelRef, VoxelImage, read_image};
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::model::Deformable;
@@ -31,7 +31,7 @@ const VOXELISATION_KEYS: [&str; 2] = ["voxel_size", "resolution"];
 pub(super) fn check_image(spec: &ImageSpec) -> Result<(), String> {
     let format = ImageFormat::from_path(&spec.file).ok_or_else(|| {
         format!(
-            "file = \"{}\": not an image format tissue reads (.nii, .hdr/.img, .mhd, .mha)",
+            "file = \"{}\": not an image format tissue reads (.nii, .nii.gz, .hdr/.img, .mhd, .mha, .nrrd, .nhdr)",
             spec.file.display()
         )
     })?;
@@ -45,8 +45,19 @@ pub(super) fn check_image(spec: &ImageSpec) -> Result<(), String> {
             }
         }
         (None, Some(labels)) => {
-            if labels.is_empty() || labels.iter().any(|l| !l.is_finite()) {
-                return Err("labels: needs at least one finite value".into());
+            let finite = |l: &LabelRef| !matches!(l, LabelRef::Value(v) if !v.is_finite());
+            if labels.is_empty() || !labels.iter().all(finite) {
+                return Err(
+                    "labels: needs at least one label (a finite value or a segment's name)".into(),
+                );
+            }
+            if let Some(name) = labels.iter().find(|l| matches!(l, LabelRef::Name(_)))
+                && format != ImageFormat::Nrrd
+            {
+                return Err(format!(
+                    "labels: `{name}` is a segment name, but only NRRD segmentations \
+                     (.seg.nrrd) name their labels; give this image's label values"
+                ));
             }
         }
     }
@@ -72,9 +83,9 @@ pub(super) fn check_image(spec: &ImageSpec) -> Result<(), String> {
         ));
     }
     match (format, spec.scale) {
-        (ImageFormat::Nifti, Some(_)) => Err(
-            "scale applies to MetaImage files (their header has no unit); a NIfTI header \
-             states its own (use `spacing` to override it)"
+        (ImageFormat::Nifti | ImageFormat::Nrrd, Some(_)) => Err(
+            "scale applies to MetaImage files (their header has no unit); a NIfTI or NRRD \
+             header states its own (use `spacing` to override it)"
                 .into(),
         ),
         (_, Some(s)) if !(s.is_finite() && s > 0.0) => {
@@ -120,8 +131,13 @@ pub(super) fn image_grid(spec: &ImageSpec, path: &Path) -> Result<VoxelGrid, Fai
     let mut grid = match (&spec.threshold, &spec.labels) {
         (Some([lo, hi]), _) => from_image_threshold(&image, *lo, *hi, spec.stride)
             .map_err(|e| key_error("threshold", why(e)))?,
-        (None, Some(labels)) => from_image_labels(&image, labels, spec.stride)
-            .map_err(|e| key_error("labels", why(e)))?,
+        (None, Some(labels)) => {
+            let values = image
+                .label_values(labels)
+                .map_err(|e| key_error("labels", e))?;
+            from_image_labels(&image, &values, spec.stride)
+                .map_err(|e| key_error("labels", why(e)))?
+        }
         (None, None) => return Err(key_error("threshold", "needs threshold or labels".into())),
     };
     match spec.seed {

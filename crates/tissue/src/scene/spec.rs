@@ -37,8 +37,9 @@ pub struct ImageSpec {
     pub file: PathBuf,
     /// Occupied where `lo <= value <= hi` (the image's own intensity units).
     pub threshold: Option<[f32; 2]>,
-    /// Occupied where the value is one of these (segmentation label images).
-    pub labels: Option<Vec<f32>>,
+    /// Occupied where the value is one of these (segmentation label images): values, or
+    /// segment names of a `.seg.nrrd` (`labels = ["liver", "tumor"]`).
+    pub labels: Option<Vec<crate::image::LabelRef>>,
     /// Sample every `stride`-th voxel along each axis (coarsens the lattice), default 1.
     #[serde(default = "one_step")]
     pub stride: usize,

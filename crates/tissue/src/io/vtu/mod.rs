@@ -1,4 +1,6 @@
-//! VTK XML unstructured grids (`.vtu`): read data arrays of any numeric type, either byte
+//! VTK XML unstructured grids (`.vtu`) and polygon data (`.vtp`, a surface: its polygons
+//! and triangle strips; vertices and lines are not a surface and are skipped): read data
+//! arrays of any numeric type, either byte
 //! order and header size, stored as ascii, inline base64 (`format="binary"`) or in
 //! `<AppendedData>` (raw or base64), each binary form plain or zlib-compressed; that covers
 //! what ParaView writes by default. Write ascii or base64 files that ParaView opens.
@@ -16,7 +18,7 @@ mod tests;
 mod write;
 mod zlib;
 
-pub use write::{encode, encode_appended};
+pub use write::{encode, encode_appended, encode_poly};
 
 use std::path::Path;
 
@@ -39,6 +41,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
         compressed: false,
         appended,
         offsets: Vec::new(),
+        poly: false,
         piece: None,
         arrays: Vec::new(),
     };

@@ -18,6 +18,9 @@ use crate::mesh::{Field, MeshData};
 pub(super) enum Section {
     Points,
     Cells,
+    /// PolyData topology: polygons and triangle strips.
+    Polys,
+    Strips,
     PointData,
     CellData,
     Other,
@@ -48,6 +51,26 @@ pub(super) struct Array {
     pub(super) values: Vec<f64>,
 }
 
+/// A `<Piece>`'s counts and where it starts. PolyData cells are numbered verts, lines,
+/// polys, strips (VTK's order for their cell data).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Piece {
+    pub(super) points: usize,
+    /// UnstructuredGrid cells.
+    pub(super) cells: usize,
+    pub(super) verts: usize,
+    pub(super) lines: usize,
+    pub(super) polys: usize,
+    pub(super) strips: usize,
+    pub(super) at: usize,
+}
+
+impl Piece {
+    fn total(&self) -> usize {
+        self.cells + self.verts + self.lines + self.polys + self.strips
+    }
+}
+
 pub(super) struct Parser<'a> {
     pub(super) path: &'a Path,
     pub(super) bytes: &'a [u8],
@@ -57,7 +80,9 @@ pub(super) struct Parser<'a> {
     pub(super) appended: Option<Appended<'a>>,
     /// Offsets of all appended arrays: the end of an appended base64 array is the next one.
     pub(super) offsets: Vec<usize>,
-    pub(super) piece: Option<(usize, usize, usize)>,
+    /// A PolyData file (`.vtp`) rather than an UnstructuredGrid.
+    pub(super) poly: bool,
+    pub(super) piece: Option<Piece>,
     pub(super) arrays: Vec<Array>,
 }
 
@@ -100,15 +125,20 @@ impl Parser<'_> {
         let get = |k: &str| attrs.iter().find(|(a, _)| a == k).map(|(_, v)| v.as_str());
         match name.as_str() {
             "VTKFile" => {
-                if get("type") != Some("UnstructuredGrid") {
-                    return Err(self.error(
-                        at,
-                        format!(
-                            "VTKFile type `{}` is not supported: only UnstructuredGrid",
-                            get("type").unwrap_or("")
-                        ),
-                    ));
-                }
+                self.poly = match get("type") {
+                    Some("UnstructuredGrid") => false,
+                    Some("PolyData") => true,
+                    other => {
+                        return Err(self.error(
+                            at,
+                            format!(
+                                "VTKFile type `{}` is not supported: only UnstructuredGrid \
+                                 (.vtu) and PolyData (.vtp)",
+                                other.unwrap_or("")
+                            ),
+                        ));
+                    }
+                };
                 self.compressed = match get("compressor").unwrap_or("") {
                     "" => false,
                     "vtkZLibDataCompressor" => true,
@@ -134,18 +164,54 @@ impl Parser<'_> {
                 if self.piece.is_some() {
                     return Err(self.error(at, "several Pieces are not supported"));
                 }
-                let count = |k: &str| -> Result<usize, IoError> {
-                    let v = get(k).unwrap_or("");
-                    v.trim().parse().map_err(|_| {
-                        self.error(at, format!("Piece {k} should be a count, found `{v}`"))
-                    })
+                let count = |k: &str, required: bool| -> Result<usize, IoError> {
+                    match get(k) {
+                        None if !required => Ok(0),
+                        v => v.unwrap_or("").trim().parse().map_err(|_| {
+                            self.error(
+                                at,
+                                format!("Piece {k} should be a count, found `{}`", v.unwrap_or("")),
+                            )
+                        }),
+                    }
                 };
-                self.piece = Some((count("NumberOfPoints")?, count("NumberOfCells")?, at));
+                let poly = self.poly;
+                self.piece = Some(Piece {
+                    points: count("NumberOfPoints", true)?,
+                    cells: if poly {
+                        0
+                    } else {
+                        count("NumberOfCells", true)?
+                    },
+                    verts: if poly {
+                        count("NumberOfVerts", false)?
+                    } else {
+                        0
+                    },
+                    lines: if poly {
+                        count("NumberOfLines", false)?
+                    } else {
+                        0
+                    },
+                    polys: if poly {
+                        count("NumberOfPolys", false)?
+                    } else {
+                        0
+                    },
+                    strips: if poly {
+                        count("NumberOfStrips", false)?
+                    } else {
+                        0
+                    },
+                    at,
+                });
             }
             "DataArray" => {
                 let section = match parent {
                     Some("Points") => Section::Points,
                     Some("Cells") => Section::Cells,
+                    Some("Polys") => Section::Polys,
+                    Some("Strips") => Section::Strips,
                     Some("PointData") => Section::PointData,
                     Some("CellData") => Section::CellData,
                     _ => Section::Other,
@@ -187,7 +253,10 @@ impl Parser<'_> {
                     // ParaView puts String arrays in FieldData and sometimes in point or
                     // cell data: they carry nothing a mesh needs, so only the geometry must
                     // be numeric.
-                    if matches!(section, Section::Points | Section::Cells) {
+                    if matches!(
+                        section,
+                        Section::Points | Section::Cells | Section::Polys | Section::Strips
+                    ) {
                         return Err(self.error(at, format!("unsupported DataArray type `{ty}`")));
                     }
                     return Ok(None);
@@ -212,14 +281,79 @@ impl Parser<'_> {
             .find(|a| a.head.section == section && name.is_none_or(|n| a.head.name == n))
     }
 
+    /// The connectivity and cell ends of `count` cells in `section`, every index checked.
+    fn topology(
+        &self,
+        section: Section,
+        count: usize,
+        piece: &Piece,
+    ) -> Result<(Vec<u32>, Vec<usize>), IoError> {
+        if count == 0 {
+            return Ok((Vec::new(), Vec::new()));
+        }
+        let npts = piece.points;
+        let what = match section {
+            Section::Polys => "Polys",
+            Section::Strips => "Strips",
+            _ => "Cells",
+        };
+        let array = |name: &str| -> Result<&Array, IoError> {
+            self.array(section, Some(name))
+                .ok_or_else(|| self.error(piece.at, format!("the {what} have no `{name}` array")))
+        };
+        let (c, o) = (array("connectivity")?, array("offsets")?);
+        if o.values.len() != count {
+            return Err(self.error(
+                o.head.at,
+                format!(
+                    "{what} offsets has {} values, but the Piece needs {count}",
+                    o.values.len()
+                ),
+            ));
+        }
+        let index =
+            |v: f64| (v >= 0.0 && v.fract() == 0.0 && (v as usize) < npts).then_some(v as u32);
+        let conn: Vec<u32> = c
+            .values
+            .iter()
+            .map(|&v| {
+                index(v).ok_or_else(|| {
+                    self.error(
+                        c.head.at,
+                        format!(
+                            "connectivity refers to point {v}, but the Piece has {npts} points"
+                        ),
+                    )
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        let mut prev = 0usize;
+        let mut ends = Vec::with_capacity(count);
+        for (k, &v) in o.values.iter().enumerate() {
+            if !(v >= prev as f64 && v.fract() == 0.0 && v as usize <= conn.len()) {
+                return Err(self.error(
+                    o.head.at,
+                    format!(
+                        "offset {k} = {v} is not increasing within the {} connectivity entries",
+                        conn.len()
+                    ),
+                ));
+            }
+            prev = v as usize;
+            ends.push(prev);
+        }
+        Ok((conn, ends))
+    }
+
     pub(super) fn finish(self) -> Result<MeshData, IoError> {
-        let Some((npts, ncells, piece_at)) = self.piece else {
+        let Some(piece) = self.piece else {
             return Err(IoError::new(
                 self.path,
                 Location::File,
-                "no <Piece> element: not an unstructured grid",
+                "no <Piece> element: not an unstructured grid or polygon data",
             ));
         };
+        let (npts, piece_at) = (piece.points, piece.at);
         let count_error = |a: &Array, what: &str, need: usize| {
             self.error(
                 a.head.at,
@@ -262,75 +396,57 @@ impl Parser<'_> {
                 .collect(),
             ..MeshData::default()
         };
-        let cell_array = |name: &str| -> Result<&Array, IoError> {
-            self.array(Section::Cells, Some(name))
-                .ok_or_else(|| self.error(piece_at, format!("the Cells have no `{name}` array")))
-        };
-        let (conn, offsets, types) = if ncells == 0 {
-            (Vec::new(), Vec::new(), Vec::new())
-        } else {
-            let (c, o, t) = (
-                cell_array("connectivity")?,
-                cell_array("offsets")?,
-                cell_array("types")?,
-            );
-            for a in [o, t] {
-                if a.values.len() != ncells {
-                    return Err(count_error(a, &a.head.name, ncells));
-                }
-            }
-            let index =
-                |v: f64| (v >= 0.0 && v.fract() == 0.0 && (v as usize) < npts).then_some(v as u32);
-            let conn: Vec<u32> = c
-                .values
-                .iter()
-                .map(|&v| {
-                    index(v).ok_or_else(|| {
-                        self.error(
-                            c.head.at,
-                            format!(
-                                "connectivity refers to point {v}, but the Piece has {npts} points"
-                            ),
-                        )
-                    })
-                })
-                .collect::<Result<_, _>>()?;
-            let mut prev = 0usize;
-            let mut ends = Vec::with_capacity(ncells);
-            for (k, &v) in o.values.iter().enumerate() {
-                if !(v >= prev as f64 && v.fract() == 0.0 && v as usize <= conn.len()) {
-                    return Err(self.error(
-                        o.head.at,
-                        format!(
-                            "offset {k} = {v} is not increasing within the {} connectivity entries",
-                            conn.len()
-                        ),
-                    ));
-                }
-                prev = v as usize;
-                ends.push(prev);
-            }
-            let types = t
-                .values
-                .iter()
-                .map(|&v| {
-                    if (0.0..=255.0).contains(&v) {
-                        v as u8
-                    } else {
-                        0
-                    }
-                })
-                .collect();
-            (conn, ends, types)
-        };
         let mut sink = CellSink::default();
-        let mut start = 0usize;
-        for (i, (&end, &ty)) in offsets.iter().zip(&types).enumerate() {
-            let c = conn.get(start..end).unwrap_or(&[]);
-            start = end;
-            sink.add(&mut mesh, i, ty, c)
-                .map_err(|m| IoError::new(self.path, Location::Element(i), m))?;
+        let add = |sink: &mut CellSink, mesh: &mut MeshData, cell, ty, c: &[u32]| {
+            sink.add(mesh, cell, ty, c)
+                .map_err(|m| IoError::new(self.path, Location::Element(cell), m))
+        };
+        if self.poly {
+            // Cell numbers run through verts and lines (skipped) before polys and strips.
+            let first = piece.verts + piece.lines;
+            for (section, count, ty, base) in [
+                (Section::Polys, piece.polys, 7u8, first),
+                (Section::Strips, piece.strips, 6u8, first + piece.polys),
+            ] {
+                let (conn, ends) = self.topology(section, count, &piece)?;
+                let mut start = 0usize;
+                for (k, &end) in ends.iter().enumerate() {
+                    let c = conn.get(start..end).unwrap_or(&[]);
+                    start = end;
+                    add(&mut sink, &mut mesh, base + k, ty, c)?;
+                }
+            }
+        } else {
+            let ncells = piece.cells;
+            let (conn, ends) = self.topology(Section::Cells, ncells, &piece)?;
+            let types: Vec<u8> = if ncells == 0 {
+                Vec::new()
+            } else {
+                let t = self
+                    .array(Section::Cells, Some("types"))
+                    .ok_or_else(|| self.error(piece_at, "the Cells have no `types` array"))?;
+                if t.values.len() != ncells {
+                    return Err(count_error(t, "types", ncells));
+                }
+                t.values
+                    .iter()
+                    .map(|&v| {
+                        if (0.0..=255.0).contains(&v) {
+                            v as u8
+                        } else {
+                            0
+                        }
+                    })
+                    .collect()
+            };
+            let mut start = 0usize;
+            for (i, (&end, &ty)) in ends.iter().zip(&types).enumerate() {
+                let c = conn.get(start..end).unwrap_or(&[]);
+                start = end;
+                add(&mut sink, &mut mesh, i, ty, c)?;
+            }
         }
+        let ncells = piece.total();
         for a in self
             .arrays
             .iter()

@@ -212,3 +212,62 @@ fn points_with_two_components_say_so() {
         "p.vtu:1: Points has NumberOfComponents = 2, but points in space need 3"
     );
 }
+
+#[test]
+fn polydata_reads_polygons_and_strips_and_skips_vertices_and_lines() {
+    // Cells are numbered verts (1), lines (1), polys (1 quad), strips (1 strip of 5 points):
+    // the tags of cells 2 and 3 belong to the quad and the strip.
+    let f = "<VTKFile type=\"PolyData\"><PolyData>\
+         <Piece NumberOfPoints=\"6\" NumberOfVerts=\"1\" NumberOfLines=\"1\" NumberOfPolys=\"1\" NumberOfStrips=\"1\">\
+         <Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\
+         0 0 0 1 0 0 0 1 0 1 1 0 0 2 0 1 2 0</DataArray></Points>\
+         <CellData><DataArray type=\"Int32\" Name=\"tag\" format=\"ascii\">9 8 5 6</DataArray></CellData>\
+         <Verts><DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0</DataArray>\
+         <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">1</DataArray></Verts>\
+         <Lines><DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0 1</DataArray>\
+         <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">2</DataArray></Lines>\
+         <Polys><DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0 1 3 2</DataArray>\
+         <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</DataArray></Polys>\
+         <Strips><DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">2 3 4 5 0</DataArray>\
+         <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">5</DataArray></Strips>\
+         </Piece></PolyData></VTKFile>";
+    let m = parse(f.as_bytes(), Path::new("s.vtp")).unwrap();
+    assert_eq!(
+        m.triangles,
+        vec![[0, 1, 3], [0, 3, 2], [2, 3, 4], [4, 3, 5], [4, 5, 0]]
+    );
+    assert_eq!(m.triangle_tags, vec![5, 5, 6, 6, 6]);
+    // The strip's triangles all face the way its first one does (+z here).
+    for t in &m.triangles[2..4] {
+        let [a, b, c] = t.map(|i| m.vertices[i as usize]);
+        assert!((b - a).cross(c - a).z > 0.0, "{t:?}");
+    }
+}
+
+#[test]
+fn polydata_counts_are_checked_by_section() {
+    let f = "<VTKFile type=\"PolyData\"><PolyData>\n<Piece NumberOfPoints=\"3\" NumberOfPolys=\"2\">\
+         <Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\
+         0 0 0 1 0 0 0 1 0</DataArray></Points>\n<Polys>\
+         <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0 1 2</DataArray>\n\
+         <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">3</DataArray></Polys>\
+         </Piece></PolyData></VTKFile>";
+    let e = parse(f.as_bytes(), Path::new("p.vtp"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("p.vtp:4:")
+            && e.contains("Polys offsets has 1 values, but the Piece needs 2"),
+        "{e}"
+    );
+    let e = parse(
+        b"<VTKFile type=\"ImageData\"></VTKFile>",
+        Path::new("i.vti"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("only UnstructuredGrid (.vtu) and PolyData (.vtp)"),
+        "{e}"
+    );
+}

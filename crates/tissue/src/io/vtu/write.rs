@@ -117,7 +117,14 @@ fn data_array(
 /// types, Int32 `tag` cell data when the mesh has tags), ascii or base64 with UInt64 headers.
 pub fn encode(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
     let mode = if binary { Mode::Base64 } else { Mode::Ascii };
-    write(mesh, mode)
+    write(mesh, mode, false)
+}
+
+/// Writes a `.vtp` polygon data file of the mesh's triangles (Int32 `tag` cell data when
+/// they have tags); the caller passes a surface (a volume's tetrahedra are not written).
+pub fn encode_poly(mesh: &MeshData, binary: bool) -> Result<Vec<u8>, String> {
+    let mode = if binary { Mode::Base64 } else { Mode::Ascii };
+    write(mesh, mode, true)
 }
 
 /// Writes a `.vtu` with all arrays in one raw `<AppendedData>` section (UInt64 headers), as
@@ -129,10 +136,11 @@ pub fn encode_appended(mesh: &MeshData, compress: bool) -> Result<Vec<u8>, Strin
             data: Vec::new(),
             compress,
         },
+        false,
     )
 }
 
-fn write(mesh: &MeshData, mut mode: Mode) -> Result<Vec<u8>, String> {
+fn write(mesh: &MeshData, mut mode: Mode, poly: bool) -> Result<Vec<u8>, String> {
     let n = mesh.vertices.len();
     for f in &mesh.point_data {
         if f.components == 0 || Some(f.values.len()) != f.components.checked_mul(n) {
@@ -144,25 +152,39 @@ fn write(mesh: &MeshData, mut mode: Mode) -> Result<Vec<u8>, String> {
             ));
         }
     }
+    let (tets, tets10): (&[[u32; 4]], &[[u32; 10]]) = if poly {
+        (&[], &[])
+    } else {
+        (&mesh.tets, &mesh.tets10)
+    };
     let cells: Vec<&[u32]> = mesh
         .triangles
         .iter()
         .map(|t| &t[..])
-        .chain(mesh.tets.iter().map(|t| &t[..]))
-        .chain(mesh.tets10.iter().map(|t| &t[..]))
+        .chain(tets.iter().map(|t| &t[..]))
+        .chain(tets10.iter().map(|t| &t[..]))
         .collect();
+    let kind = if poly { "PolyData" } else { "UnstructuredGrid" };
     let compressor = match mode {
         Mode::Appended { compress: true, .. } => " compressor=\"vtkZLibDataCompressor\"",
         _ => "",
     };
     let mut out = format!(
-        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\"{compressor}>\n  <UnstructuredGrid>\n",
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"{kind}\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\"{compressor}>\n  <{kind}>\n",
     );
-    let _ = writeln!(
-        out,
-        "    <Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{}\">",
-        cells.len()
-    );
+    if poly {
+        let _ = writeln!(
+            out,
+            "    <Piece NumberOfPoints=\"{n}\" NumberOfVerts=\"0\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"{}\">",
+            cells.len()
+        );
+    } else {
+        let _ = writeln!(
+            out,
+            "    <Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{}\">",
+            cells.len()
+        );
+    }
     out.push_str("      <PointData>\n");
     for f in &mesh.point_data {
         data_array(
@@ -179,8 +201,8 @@ fn write(mesh: &MeshData, mut mode: Mode) -> Result<Vec<u8>, String> {
         let tag = |t: &[i32], i| t.get(i).copied().unwrap_or(0);
         let tags: Vec<i32> = (0..mesh.triangles.len())
             .map(|i| tag(&mesh.triangle_tags, i))
-            .chain((0..mesh.tets.len()).map(|i| tag(&mesh.tet_tags, i)))
-            .chain(std::iter::repeat_n(0, mesh.tets10.len()))
+            .chain((0..tets.len()).map(|i| tag(&mesh.tet_tags, i)))
+            .chain(std::iter::repeat_n(0, tets10.len()))
             .collect();
         data_array(&mut out, "Int32", "tag", 1, Values::I32(tags), &mut mode);
     }
@@ -193,7 +215,11 @@ fn write(mesh: &MeshData, mut mode: Mode) -> Result<Vec<u8>, String> {
         Values::F64(crate::math::flatten(&mesh.vertices)),
         &mut mode,
     );
-    out.push_str("      </Points>\n      <Cells>\n");
+    out.push_str(if poly {
+        "      </Points>\n      <Polys>\n"
+    } else {
+        "      </Points>\n      <Cells>\n"
+    });
     let conn: Vec<i64> = cells
         .iter()
         .flat_map(|c| c.iter().map(|&v| i64::from(v)))
@@ -230,8 +256,12 @@ fn write(mesh: &MeshData, mut mode: Mode) -> Result<Vec<u8>, String> {
         Values::I64(offsets),
         &mut mode,
     );
-    data_array(&mut out, "UInt8", "types", 1, Values::U8(types), &mut mode);
-    out.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n");
+    if poly {
+        out.push_str("      </Polys>\n    </Piece>\n  </PolyData>\n");
+    } else {
+        data_array(&mut out, "UInt8", "types", 1, Values::U8(types), &mut mode);
+        out.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n");
+    }
     let mut bytes = out.into_bytes();
     if let Mode::Appended { data, .. } = mode {
         bytes.extend(b"  <AppendedData encoding=\"raw\">\n   _");

@@ -56,6 +56,7 @@ impl ImageDomain {
             values: Vec::new(),
             source_type: crate::image::SourceType::U8,
             byte_order: crate::image::ByteOrder::Little,
+            segments: Vec::new(),
         };
         let mask = grid.labels.iter().map(|&l| l > 0).collect();
         let tags = grid.labels.iter().map(|&l| i32::from(l)).collect();

@@ -129,6 +129,7 @@ fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
         values,
         source_type: SourceType::U8,
         byte_order: ByteOrder::Little,
+        segments: Vec::new(),
     };
     let d = ImageDomain::from_labels(&image, &[1.0, 2.0]).unwrap_or_else(|e| panic!("{e}"));
     let s = stuff(&d, 0.002, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
