@@ -101,7 +101,7 @@ pub enum MeshCommand {
         #[arg(long, default_value_t = 1e-9)]
         tolerance: f64,
     },
-    /// Tetrahedral mesh of a closed surface (.obj .stl .ply .off .vtk ...) or of a segmented
+    /// Tetrahedral mesh of a closed surface (.obj .stl .ply .off .vtp .vtk ...) or of a segmented
     /// image (.nii .nii.gz .mhd .mha .nrrd .nhdr .seg.nrrd) by isosurface stuffing, with its quality report; refuses
     /// to write a mesh that breaks a guarantee (min dihedral 10°, boundary within h/2,
     /// volume within 1 %) unless --force.

@@ -348,10 +348,8 @@ impl Header {
                     }
                     h.unit = m.first().copied().unwrap_or(1e-3);
                 }
-                "space dimension" => {
-                    if value != "3" {
-                        return Err(bad("only 3-D space is supported"));
-                    }
+                "space dimension" if value != "3" => {
+                    return Err(bad("only 3-D space is supported"));
                 }
                 "space" => {
                     let three = [
