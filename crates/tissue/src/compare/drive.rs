@@ -25,7 +25,14 @@ pub struct Stepping {
     /// Longest simulated time of dynamic models, s.
     pub max_time: Real,
     pub increments: usize,
+    /// Computing time a dynamic run may take, s: past it the run stops with an error that
+    /// says so (the cell shows it), and the comparison goes on.
+    pub budget: Real,
 }
+
+/// Computing time of one quasi-static run of a dynamic model, s (`--quick`, full run). A
+/// model that needs more (a tiny stable step on the refined organ) gets a cell saying so.
+pub const BUDGET_SECONDS: [Real; 2] = [60.0, 240.0];
 
 impl Stepping {
     pub fn new(is_static: bool, dt: Real, s: &Settings) -> Self {
@@ -35,6 +42,7 @@ impl Stepping {
             ramp: s.ramp,
             max_time: s.settle_time,
             increments: s.increments,
+            budget: BUDGET_SECONDS[usize::from(!s.quick)],
         }
     }
 }
@@ -85,6 +93,18 @@ fn run<M: ?Sized>(
     let mut history: Vec<Real> = Vec::new();
     for k in 1..=steps {
         let t = k as Real * dt;
+        if k % 16 == 0 && start.elapsed().as_secs_f64() > st.budget {
+            return Err(SimError::Unsupported {
+                model: "(comparison)",
+                operation: "this run within its time budget",
+                reason: format!(
+                    "stopped after {:.0} s of computing at t = {t:.3} s of {:.3} s \
+                     (dt = {dt:.2e} s)",
+                    st.budget, st.max_time
+                ),
+            }
+            .into());
+        }
         let s = (t / st.ramp).min(1.0);
         apply(m, s)?;
         step(m, dt)?;

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::error::Error;
+use crate::error::{Error, SimError};
 use crate::interact::{Constraints, Instrument, InstrumentKind, Keyframe, Loads, Trajectory};
 use crate::material::Material;
 use crate::math::{Real, Vec3};
@@ -947,7 +947,24 @@ pub(super) fn step_response(
     )?);
     let steps = (s.dynamics_time / dt).ceil() as usize;
     let mut side = Vec::with_capacity(steps);
-    for _ in 0..steps {
+    let (start, budget) = (
+        Instant::now(),
+        super::drive::BUDGET_SECONDS[usize::from(!s.quick)],
+    );
+    for k in 0..steps {
+        if k % 16 == 15 && start.elapsed().as_secs_f64() > budget {
+            return Err(SimError::Unsupported {
+                model: "(comparison)",
+                operation: "the step response within its time budget",
+                reason: format!(
+                    "stopped after {budget:.0} s of computing at t = {:.3} s of {:.3} s \
+                     (dt = {dt:.2e} s)",
+                    k as Real * dt,
+                    s.dynamics_time
+                ),
+            }
+            .into());
+        }
         sim.step(dt)?;
         check_finite(sim.model())?;
         side.push(sim.model().surface().positions[far].distance(rest[far]));

@@ -1,11 +1,14 @@
 //! Linear algebra for the models: sparse matrices with a fixed pattern and a sparse Cholesky
 //! factorisation whose symbolic analysis (AMD or nested dissection, whichever fills less) is
-//! done once and reused; a matrix-free Jacobi-
+//! done once and reused, with extra held unknowns imposed through a Schur complement instead of
+//! a new factorisation (`schur`); a matrix-free Jacobi-
 //! preconditioned conjugate gradient for the implicit dynamic models.
 
 pub mod cg;
 pub mod ordering;
+pub mod schur;
 pub mod sparse;
 
 pub use cg::{CgResult, CgWorkspace};
+pub use schur::HeldSchur;
 pub use sparse::{BlockPattern, Ordering, SparseCholesky};

@@ -445,6 +445,31 @@ impl SparseCholesky {
         );
         Ok(())
     }
+
+    /// Solves A X = B in place for `ncols` right-hand sides stored column after column in
+    /// `rhs` (length `ncols · dim`). One blocked pass over the factor serves every column,
+    /// which is several times cheaper per column than `solve_in_place` on each. Allocates
+    /// its work memory.
+    pub fn solve_many_in_place(&self, rhs: &mut [Real], ncols: usize) -> Result<(), SimError> {
+        if !self.factored {
+            return Err(internal("solve before a successful factorisation"));
+        }
+        let n = self.symbolic.nrows();
+        if rhs.len() != n * ncols {
+            return Err(internal("right-hand side length does not match the matrix"));
+        }
+        let par = Par::Seq;
+        let mut mem = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<Real>(ncols, par))
+            .map_err(|_| internal("out of memory for the Cholesky work space"))?;
+        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.l_values);
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, ncols),
+            par,
+            MemStack::new(&mut mem),
+        );
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -159,6 +159,10 @@ impl Deformable for FemStatic {
                     "refactorizations".into(),
                     self.system.refactorizations.to_string(),
                 ),
+                (
+                    "schur_columns".into(),
+                    self.system.schur_columns.to_string(),
+                ),
                 ("solves".into(), self.system.solves.to_string()),
             ],
         }

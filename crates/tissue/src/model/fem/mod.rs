@@ -46,7 +46,7 @@ pub use dynamic::{FemExplicit, FemSemiImplicit};
 pub use precomputed::FemPrecomputedTensors;
 pub use quadratic_mesh::QuadraticMesh;
 pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};
-pub use system::DofProblem;
+pub use system::{DofProblem, SchurRule};
 
 #[cfg(test)]
 mod tests;

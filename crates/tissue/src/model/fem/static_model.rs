@@ -217,9 +217,20 @@ impl FemStatic {
     pub fn surface_nodes(&self) -> &[u32] {
         &self.boundary.nodes
     }
-    /// Numeric factorisations so far (a new one only when the constrained set changes).
+    /// Numeric factorisations so far (a new one only when the constrained set changes and
+    /// the change cannot be imposed through the Schur complement on the last one).
     pub fn refactorizations(&self) -> usize {
         self.system.refactorizations
+    }
+
+    /// Columns of the Schur complement computed for held dofs beyond the factorised set.
+    pub fn schur_columns(&self) -> usize {
+        self.system.schur_columns
+    }
+
+    /// When extra held dofs go through the Schur complement (studies compare the rules).
+    pub fn set_schur_rule(&mut self, rule: super::SchurRule) {
+        self.system.schur_rule = rule;
     }
 
     /// Nodal forces (flat, per dof) of a uniform body force density `b` (N/m³), consistent

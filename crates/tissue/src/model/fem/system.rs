@@ -4,21 +4,50 @@
 //! columns of K are zeroed except the diagonal, which keeps K_cc (a scaled identity keeps the
 //! matrix as well conditioned as K), and the right-hand side becomes f − K_{:,c} g on free
 //! rows and K_cc g_c on constrained ones. The symbolic factorisation is therefore computed
-//! once; the numeric one only when the set of constrained dofs changes; new targets and loads
-//! only need a new solve.
+//! once; new targets and loads only need a new solve.
+//!
+//! A change of the held set does not always cost a numeric factorisation: when the new set
+//! H contains the set H0 the factorisation was made for, the extra dofs are imposed through
+//! their Schur complement on it (`solve::schur`: one sparse solve per dof when it is first
+//! held, then two solves and a small dense one per problem). A contact loop whose probe
+//! gains and loses vertices thus keeps one factorisation with the supports. The system
+//! refactorises when H drops a dof of H0 (then with the dofs held in every problem so far,
+//! typically the supports, as the new base, when the rest is cheap to add back), when the new
+//! columns would cost more than a factorisation (both timed as they happen), when the extra
+//! solves of the Schur path have cost a factorisation since the last one, or above
+//! `SCHUR_CAP` extra dofs (memory).
 //!
 //! Before factorising, each connected piece of the mesh is checked for rigid-body modes left
 //! free by the constraints, so that a free body gives a clear error instead of a solution
 //! made of roundoff.
 
+use std::time::Instant;
+
 use crate::error::SimError;
 use crate::math::{Real, Vec3};
-use crate::solve::SparseCholesky;
+use crate::solve::{HeldSchur, SparseCholesky};
 
 use super::assembly::Assembler;
 
 const FREE_BODY_HINT: &str = "is the body fixed? a free body has rigid-motion modes; \
     constrain at least three non-collinear vertices of every separate piece";
+
+/// Most dofs the Schur complement keeps columns for: its entries take `SCHUR_CAP²` values
+/// (72 MB at 3000).
+const SCHUR_CAP: usize = 3000;
+
+/// When `System` imposes extra held dofs through the Schur complement.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SchurRule {
+    /// When the new columns cost less than a factorisation (timed as they happen).
+    #[default]
+    Timed,
+    /// Whenever the held set contains the factorised one (under the cap): tests.
+    Always,
+    /// Never: every change of the held set refactorises (the reference path of tests and
+    /// benches).
+    Never,
+}
 
 /// One problem at the dof level: which components are held, where, and the nodal forces.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -84,17 +113,32 @@ pub struct System {
     a: Vec<Real>,
     diag: Vec<usize>,
     chol: SparseCholesky,
+    /// The held set H0 of the factorisation, and its list.
     factored_for: Option<Vec<bool>>,
+    base_list: Vec<usize>,
+    /// The dofs held in every problem so far (typically the supports).
+    always_held: Option<Vec<bool>>,
+    schur: HeldSchur,
     rhs: Vec<Real>,
+    base_rhs: Vec<Real>,
+    /// Seconds of the last factorisation, of the last plain solve, and per Schur column.
+    refactor_seconds: f64,
+    solve_seconds: f64,
+    column_seconds: Option<f64>,
+    /// Seconds of the Schur path's extra solves since the last factorisation.
+    schur_overhead: f64,
     rest: Vec<Vec3>,
     component: Vec<u32>,
     components: usize,
     /// Numeric factorisations done so far.
     pub refactorizations: usize,
+    /// Columns A0⁻¹ e_j computed for the Schur complement of extra held dofs so far.
+    pub schur_columns: usize,
     /// Solves done so far.
     pub solves: usize,
     /// Skips the rigid-mode check: for K + cM (dynamics), definite even for a free body.
     pub allow_free_body: bool,
+    pub schur_rule: SchurRule,
 }
 
 impl System {
@@ -110,13 +154,23 @@ impl System {
             diag,
             chol,
             factored_for: None,
+            base_list: Vec::new(),
+            always_held: None,
+            schur: HeldSchur::default(),
             rhs: vec![0.0; n],
+            base_rhs: vec![0.0; n],
+            refactor_seconds: 0.0,
+            solve_seconds: 0.0,
+            column_seconds: None,
+            schur_overhead: 0.0,
             rest,
             component,
             components,
             refactorizations: 0,
+            schur_columns: 0,
             solves: 0,
             allow_free_body: false,
+            schur_rule: SchurRule::Timed,
             assembler,
         })
     }
@@ -125,6 +179,7 @@ impl System {
     pub fn set_values(&mut self, k: &[Real]) {
         self.k.copy_from_slice(k);
         self.factored_for = None;
+        self.schur.clear();
     }
 
     pub fn dofs(&self) -> usize {
@@ -166,35 +221,40 @@ impl System {
                 reason: "the list must hold each marked dof once, ascending (call finish)".into(),
             });
         }
-        if self.factored_for.as_deref() != Some(p.constrained.as_slice()) {
-            self.factored_for = None;
-            if !self.allow_free_body {
-                self.check_rigid_modes(p)?;
+        match &mut self.always_held {
+            Some(a) => a.iter_mut().zip(&p.constrained).for_each(|(a, &h)| *a &= h),
+            None => self.always_held = Some(p.constrained.clone()),
+        }
+        let extra = self.plan(p)?;
+        if extra.is_empty() {
+            let t = Instant::now();
+            build_rhs(
+                &self.k,
+                &self.assembler,
+                &self.diag,
+                p,
+                &p.list,
+                &mut self.rhs,
+            );
+            self.chol.solve_in_place(&mut self.rhs)?;
+            self.solve_seconds = t.elapsed().as_secs_f64();
+        } else if let Err(e) = self.solve_schur(p, &extra) {
+            // A Schur complement that is not positive definite (roundoff on a nearly
+            // dependent set): the factorisation of the whole set decides.
+            if !matches!(e, SimError::NotPositiveDefinite { .. }) {
+                return Err(e);
             }
-            self.eliminate(p);
-            self.chol
-                .factorize(&self.assembler.pattern, &self.a, FREE_BODY_HINT)?;
-            self.refactorizations += 1;
-            self.factored_for = Some(p.constrained.clone());
+            self.refactor(p.constrained.clone(), p)?;
+            build_rhs(
+                &self.k,
+                &self.assembler,
+                &self.diag,
+                p,
+                &p.list,
+                &mut self.rhs,
+            );
+            self.chol.solve_in_place(&mut self.rhs)?;
         }
-        let (cp, ri) = (
-            &self.assembler.pattern.col_ptr,
-            &self.assembler.pattern.row_idx,
-        );
-        self.rhs.copy_from_slice(&p.forces);
-        for &c in &p.list {
-            let g = p.targets[c];
-            if g != 0.0 {
-                let range = cp[c]..cp[c + 1];
-                for (&row, &kv) in ri[range.clone()].iter().zip(&self.k[range]) {
-                    self.rhs[row] -= kv * g;
-                }
-            }
-        }
-        for &c in &p.list {
-            self.rhs[c] = self.k[self.diag[c]] * p.targets[c];
-        }
-        self.chol.solve_in_place(&mut self.rhs)?;
         self.solves += 1;
         u.copy_from_slice(&self.rhs);
         for &c in &p.list {
@@ -208,7 +268,12 @@ impl System {
             });
         }
         r.iter_mut().for_each(|v| *v = 0.0);
-        // Row c of K is column c (K is symmetric).
+        let (cp, ri) = (
+            &self.assembler.pattern.col_ptr,
+            &self.assembler.pattern.row_idx,
+        );
+        // Row c of K is column c (K is symmetric). On the extra dofs of the Schur path this
+        // is −λ: their rows of A0 u = b + E λ are rows of K u = f + λ.
         for &c in &p.list {
             let range = cp[c]..cp[c + 1];
             let ku: Real = ri[range.clone()]
@@ -221,19 +286,120 @@ impl System {
         Ok(())
     }
 
-    /// Builds the constrained matrix in `a` from `k`.
-    fn eliminate(&mut self, p: &DofProblem) {
+    /// Decides how `p` is solved, refactorising when needed; returns the held dofs to impose
+    /// through the Schur complement (empty: the factorisation holds exactly `p`'s set).
+    fn plan(&mut self, p: &DofProblem) -> Result<Vec<usize>, SimError> {
+        if let Some(h0) = &self.factored_for
+            && p.constrained.iter().zip(h0).all(|(&h, &b)| h || !b)
+        {
+            let extra: Vec<usize> = p.list.iter().copied().filter(|&c| !h0[c]).collect();
+            let overhead_ok =
+                self.schur_rule != SchurRule::Timed || self.schur_overhead <= self.refactor_seconds;
+            if extra.is_empty() || (self.affordable(&extra) && overhead_ok) {
+                return Ok(extra);
+            }
+            self.refactor(p.constrained.clone(), p)?;
+            return Ok(Vec::new());
+        }
+        // A dof of H0 was released (or nothing is factorised): refactorise, with the dofs
+        // held in every problem so far as the base when the rest is cheap to add back.
+        if self.factored_for.is_some()
+            && let Some(always) = &self.always_held
+        {
+            let base: Vec<bool> = always.clone();
+            let extra: Vec<usize> = p.list.iter().copied().filter(|&c| !base[c]).collect();
+            self.schur.clear();
+            let cheap = !extra.is_empty() && self.affordable(&extra);
+            if cheap && (self.allow_free_body || self.rigid_modes_held(&base).is_ok()) {
+                let mut bp = DofProblem::new(p.constrained.len());
+                bp.list = (0..base.len()).filter(|&c| base[c]).collect();
+                bp.constrained = base;
+                self.refactor(bp.constrained.clone(), &bp)?;
+                return Ok(extra);
+            }
+        }
+        self.refactor(p.constrained.clone(), p)?;
+        Ok(Vec::new())
+    }
+
+    /// True when the missing Schur columns of `extra` cost less than a factorisation and
+    /// stay under the cap.
+    fn affordable(&self, extra: &[usize]) -> bool {
+        let new = self.schur.missing(extra);
+        let per_column = self.column_seconds.unwrap_or(self.solve_seconds);
+        let cheap = match self.schur_rule {
+            SchurRule::Timed => new as f64 * per_column <= self.refactor_seconds,
+            SchurRule::Always => true,
+            SchurRule::Never => false,
+        };
+        cheap && self.schur.len() + new <= SCHUR_CAP
+    }
+
+    /// Numeric factorisation with `held` (the set of `p`) eliminated.
+    fn refactor(&mut self, held: Vec<bool>, p: &DofProblem) -> Result<(), SimError> {
+        self.factored_for = None;
+        self.schur.clear();
+        if !self.allow_free_body {
+            self.rigid_modes_held(&held)?;
+        }
+        let t = Instant::now();
+        self.eliminate(&held);
+        self.chol
+            .factorize(&self.assembler.pattern, &self.a, FREE_BODY_HINT)?;
+        self.refactor_seconds = t.elapsed().as_secs_f64();
+        self.refactorizations += 1;
+        self.schur_overhead = 0.0;
+        self.base_list = p.list.clone();
+        self.factored_for = Some(held);
+        Ok(())
+    }
+
+    /// Solves `p` into `rhs` with the dofs `extra` (held by `p`, free in the factorisation)
+    /// imposed through their Schur complement.
+    fn solve_schur(&mut self, p: &DofProblem, extra: &[usize]) -> Result<(), SimError> {
+        let n = self.dofs();
+        let t = Instant::now();
+        let added = self.schur.add_columns(&self.chol, n, extra)?;
+        if added > 0 {
+            self.column_seconds = Some(t.elapsed().as_secs_f64() / added as f64);
+            self.schur_columns += added;
+        }
+        let t = Instant::now();
+        build_rhs(
+            &self.k,
+            &self.assembler,
+            &self.diag,
+            p,
+            &self.base_list,
+            &mut self.base_rhs,
+        );
+        self.rhs.copy_from_slice(&self.base_rhs);
+        self.chol.solve_in_place(&mut self.rhs)?;
+        let d: Vec<Real> = extra.iter().map(|&c| p.targets[c] - self.rhs[c]).collect();
+        let lambda = self.schur.multipliers(extra, &d)?;
+        self.rhs.copy_from_slice(&self.base_rhs);
+        for (&c, l) in extra.iter().zip(lambda) {
+            self.rhs[c] += l;
+        }
+        self.chol.solve_in_place(&mut self.rhs)?;
+        // The first solve is the extra one: the plain path would take the second only.
+        self.schur_overhead += 0.5 * t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Builds the constrained matrix in `a` from `k`, the dofs `held` eliminated.
+    fn eliminate(&mut self, held: &[bool]) {
         let (cp, ri) = (
             &self.assembler.pattern.col_ptr,
             &self.assembler.pattern.row_idx,
         );
         for col in 0..self.dofs() {
-            let held = p.constrained[col];
+            let col_held = held[col];
             let range = cp[col]..cp[col + 1];
             let rows = ri[range.clone()].iter().zip(&self.k[range.clone()]);
             for (a, (&row, &kv)) in self.a[range].iter_mut().zip(rows) {
                 // Off-diagonal entries in a held row or column vanish.
-                *a = if row != col && (held || p.constrained[row]) {
+                *a = if row != col && (col_held || held[row]) {
                     0.0
                 } else {
                     kv
@@ -244,7 +410,7 @@ impl System {
 
     /// Fails when the held dofs of some connected piece leave one of its six rigid motions
     /// (three translations, three rotations about its centroid) free.
-    fn check_rigid_modes(&self, p: &DofProblem) -> Result<(), SimError> {
+    fn rigid_modes_held(&self, held: &[bool]) -> Result<(), SimError> {
         let nc = self.components;
         let mut centroid = vec![Vec3::ZERO; nc];
         let mut count = vec![0usize; nc];
@@ -260,7 +426,7 @@ impl System {
             radius2[c as usize] += (*x - centroid[c as usize]).length_squared();
         }
         let mut gram = vec![[[0.0; 6]; 6]; nc];
-        for &d in &p.list {
+        for d in (0..held.len()).filter(|&d| held[d]) {
             let (node, axis) = (d / 3, d % 3);
             let c = self.component[node] as usize;
             let scale = (radius2[c] / count[c].max(1) as Real)
@@ -307,6 +473,32 @@ impl System {
     }
 }
 
+/// The right-hand side of `p` with the dofs of `list` (ascending, all held by `p`) eliminated:
+/// f − K_{:,c} g_c on the other rows, K_cc g_c on held ones.
+fn build_rhs(
+    k: &[Real],
+    assembler: &Assembler,
+    diag: &[usize],
+    p: &DofProblem,
+    list: &[usize],
+    rhs: &mut [Real],
+) {
+    let (cp, ri) = (&assembler.pattern.col_ptr, &assembler.pattern.row_idx);
+    rhs.copy_from_slice(&p.forces);
+    for &c in list {
+        let g = p.targets[c];
+        if g != 0.0 {
+            let range = cp[c]..cp[c + 1];
+            for (&row, &kv) in ri[range.clone()].iter().zip(&k[range]) {
+                rhs[row] -= kv * g;
+            }
+        }
+    }
+    for &c in list {
+        rhs[c] = k[diag[c]] * p.targets[c];
+    }
+}
+
 /// Connected pieces of the mesh (nodes sharing an element), by union-find.
 fn connected_components(assembler: &Assembler, nodes: usize) -> (Vec<u32>, usize) {
     let mut parent: Vec<u32> = (0..nodes as u32).collect();
@@ -340,4 +532,149 @@ fn connected_components(assembler: &Assembler, nodes: usize) -> (Vec<u32>, usize
         *comp = label[r];
     }
     (component, count as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::Material;
+    use crate::mesh::generate::{BoxSplit, box_tets};
+    use crate::model::fem::static_model::{FemStatic, Order};
+
+    /// The stiffness of a 6 × 2 × 2 cm bar of linear tetrahedra, as a fresh `System`.
+    fn bar_system(rule: SchurRule) -> System {
+        let mesh = box_tets(
+            Vec3::ZERO,
+            Vec3::new(0.06, 0.02, 0.02),
+            [6, 2, 2],
+            BoxSplit::Six,
+        );
+        let m = FemStatic::new(&mesh, Material::new(5000.0, 0.35).unwrap(), Order::Linear).unwrap();
+        let mut s = System::new(
+            m.system.assembler.clone(),
+            m.system.k.clone(),
+            m.rest.clone(),
+        )
+        .unwrap();
+        s.schur_rule = rule;
+        s
+    }
+
+    /// Nodes of the bar at x = 0 (the support) and on its top face (y = 0.02), by x.
+    fn nodes(s: &System) -> (Vec<usize>, Vec<usize>) {
+        let support = (0..s.rest.len()).filter(|&i| s.rest[i].x < 1e-9).collect();
+        let mut top: Vec<usize> = (0..s.rest.len())
+            .filter(|&i| s.rest[i].y > 0.02 - 1e-9 && s.rest[i].x > 1e-9)
+            .collect();
+        top.sort_by(|&a, &b| s.rest[a].x.total_cmp(&s.rest[b].x));
+        (support, top)
+    }
+
+    /// A sequence of held sets that grows, shrinks, changes its targets, loses a support dof
+    /// and grows again: the Schur path agrees with refactorising to 1e-10, reactions
+    /// included, with fewer factorisations.
+    #[test]
+    fn schur_complement_matches_refactorising() {
+        let mut fast = bar_system(SchurRule::Always);
+        let mut slow = bar_system(SchurRule::Never);
+        let n = fast.dofs();
+        let (support, top) = nodes(&fast);
+        let steps: Vec<(Vec<usize>, Real, bool)> = vec![
+            (vec![], 0.0, true),
+            (vec![top[9]], 1e-4, true),
+            (vec![top[9], top[10], top[11]], 2e-4, true),
+            (vec![top[9], top[10], top[11], top[12], top[8]], 3e-4, true),
+            (vec![top[10], top[11]], 3e-4, true),
+            (vec![top[10], top[11]], 5e-4, true),
+            (vec![top[9], top[10], top[11], top[12]], 4e-4, true),
+            // One support dof released: H no longer contains H0.
+            (vec![top[9], top[10]], 4e-4, false),
+            (vec![top[9], top[10], top[13], top[14]], 6e-4, false),
+            (vec![top[13]], 1e-4, true),
+        ];
+        for (k, (pressed, depth, full_support)) in steps.iter().enumerate() {
+            let mut p = DofProblem::new(n);
+            for (i, &s) in support.iter().enumerate() {
+                for a in 0..3 {
+                    if *full_support || i != 0 || a != 1 {
+                        p.hold(3 * s + a, 0.0).unwrap();
+                    }
+                }
+            }
+            for (j, &t) in pressed.iter().enumerate() {
+                p.hold_node(t, Vec3::new(1e-5 * j as Real, -depth, 0.0))
+                    .unwrap();
+            }
+            p.finish();
+            // A load on a free node: the right-hand side matters too.
+            p.forces[3 * top[5] + 2] = 0.3 * k as Real;
+            let (mut u1, mut r1, mut u2, mut r2) =
+                (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            fast.solve(&p, &mut u1, &mut r1).unwrap();
+            slow.solve(&p, &mut u2, &mut r2).unwrap();
+            let umax = u2.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+            let rmax = r2.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+            for d in 0..n {
+                assert!(
+                    (u1[d] - u2[d]).abs() <= 1e-10 * umax,
+                    "step {k} dof {d}: {} vs {}",
+                    u1[d],
+                    u2[d]
+                );
+                assert!(
+                    (r1[d] - r2[d]).abs() <= 1e-10 * rmax,
+                    "step {k} dof {d}: reaction {} vs {}",
+                    r1[d],
+                    r2[d]
+                );
+            }
+            // Equilibrium: Σ (f − K u) over all dofs is Σ f (K has the rigid translations in
+            // its kernel), and it is zero on free rows.
+            let sum = |r: &[Real], a: usize| (0..n).filter(|d| d % 3 == a).map(|d| r[d]).sum();
+            let rz: Real = sum(&r1, 2);
+            assert!(
+                (rz - 0.3 * k as Real).abs() < 1e-9 * (1.0 + rmax),
+                "step {k}: {rz}"
+            );
+        }
+        // The refactorising path factorised at every change of the held set (9 sets), the
+        // Schur path once, then once more when a support dof was released (the base is then
+        // the dofs held every time). Its columns: 5 pressed nodes, then after the new base
+        // 4 pressed nodes and the support dof held again.
+        assert_eq!(slow.refactorizations, 9);
+        assert_eq!(slow.schur_columns, 0);
+        assert_eq!(fast.refactorizations, 2);
+        assert_eq!(fast.schur_columns, 3 * 5 + 3 * 4 + 1);
+    }
+
+    /// The timed rule: on a tiny system a factorisation is as cheap as a few solves, so a
+    /// large new set refactorises; the answer is the same either way.
+    #[test]
+    fn timed_rule_gives_the_same_answer() {
+        let mut timed = bar_system(SchurRule::Timed);
+        let mut slow = bar_system(SchurRule::Never);
+        let n = timed.dofs();
+        let (support, top) = nodes(&timed);
+        for (k, count) in [0usize, 2, 8, 3, 12].iter().enumerate() {
+            let mut p = DofProblem::new(n);
+            for &s in &support {
+                p.hold_node(s, Vec3::ZERO).unwrap();
+            }
+            for &t in &top[4..4 + count] {
+                p.hold_node(t, Vec3::new(0.0, -1e-4 * (k + 1) as Real, 0.0))
+                    .unwrap();
+            }
+            p.finish();
+            let (mut u1, mut r1, mut u2, mut r2) =
+                (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            timed.solve(&p, &mut u1, &mut r1).unwrap();
+            slow.solve(&p, &mut u2, &mut r2).unwrap();
+            let umax = u2.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+            for d in 0..n {
+                assert!((u1[d] - u2[d]).abs() <= 1e-10 * umax.max(1e-300));
+                assert!((r1[d] - r2[d]).abs() <= 1e-9 * (1.0 + r2[d].abs()));
+            }
+        }
+        assert!(timed.refactorizations <= slow.refactorizations);
+    }
 }

@@ -626,3 +626,104 @@ fn reference_factorisation_study() {
         }
     }
 }
+
+/// A probe pressing 3 mm into the built-in liver (quadratic `fem-static`, on the organ and on
+/// it refined once) and sliding 2 cm and back, as in the viewer's or the haptic loop: the
+/// Schur complement on the support factorisation against refactorising at every change of
+/// the held set. Prints seconds per step, factorisations, Schur columns and the largest
+/// difference of the probe force between the two (run with `-- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn probe_sliding_over_the_liver_schur_study() {
+    use crate::interact::{Instrument, InstrumentKind, Keyframe, Trajectory};
+    use crate::sim::Simulation;
+    let m = crate::io::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/meshes/liver.msh"
+    ))
+    .unwrap()
+    .tet_mesh("liver.msh")
+    .unwrap();
+    let organ = TetMesh::new(m.vertices.iter().map(|v| *v * 0.01).collect(), m.tets);
+    let fine = crate::mesh::split_tets(&organ).unwrap();
+    for (name, mesh) in [("organ", &organ), ("organ refined once", &fine)] {
+        let (lo, hi) = mesh
+            .vertices
+            .iter()
+            .fold((Vec3::splat(1e9), Vec3::splat(-1e9)), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        let centre = 0.5 * (lo + hi);
+        let top = mesh
+            .vertices
+            .iter()
+            .filter(|p| (p.x - centre.x).abs() < 0.1 * (hi.x - lo.x))
+            .copied()
+            .max_by(|a, b| a.y.total_cmp(&b.y))
+            .unwrap();
+        let r = 0.01;
+        let start = top + Vec3::Y * r;
+        let key = |t: Real, p: Vec3| Keyframe {
+            t,
+            position: p.into(),
+        };
+        let down = start - Vec3::Y * 0.003;
+        let path = Trajectory::new(vec![
+            key(0.0, start),
+            key(0.03, down),
+            key(0.13, down + Vec3::X * 0.02),
+            key(0.23, down),
+        ])
+        .unwrap();
+        let mut forces = Vec::new();
+        for rule in [SchurRule::Never, SchurRule::Timed] {
+            let mut model =
+                FemStatic::new(mesh, Material::new(3000.0, 0.45).unwrap(), Order::Quadratic)
+                    .unwrap();
+            model.set_schur_rule(rule);
+            let rest = model.rest_surface().to_vec();
+            let fixed: Vec<u32> = (0..rest.len() as u32)
+                .filter(|&i| rest[i as usize].y < lo.y + 0.1 * (hi.y - lo.y))
+                .collect();
+            let mut sim = Simulation::new(Box::new(model), fixed, Loads::default()).unwrap();
+            sim.add_instrument(
+                Instrument::new("probe", InstrumentKind::Probe, r, path.clone()).unwrap(),
+            );
+            sim.step(1e-3).unwrap();
+            let t = std::time::Instant::now();
+            let mut f = Vec::new();
+            for _ in 0..230 {
+                sim.step(1e-3).unwrap();
+                f.push(sim.instrument_forces()[0]);
+            }
+            let per_step = t.elapsed().as_secs_f64() / 230.0;
+            let info = sim.model().info();
+            let detail = |k: &str| {
+                info.details
+                    .iter()
+                    .find(|(n, _)| n == k)
+                    .map(|(_, v)| v.clone())
+                    .unwrap_or_default()
+            };
+            println!(
+                "{name} ({} unknowns), {rule:?}: {:.3} ms per step, {} factorisations, {} Schur \
+                 columns, {} solves, peak force {:.4} N",
+                info.dofs,
+                1e3 * per_step,
+                detail("refactorizations"),
+                detail("schur_columns"),
+                detail("solves"),
+                f.iter().map(|v| v.length()).fold(0.0, Real::max),
+            );
+            forces.push(f);
+        }
+        let diff = forces[0]
+            .iter()
+            .zip(&forces[1])
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, Real::max);
+        let scale = forces[0].iter().map(|v| v.length()).fold(0.0, Real::max);
+        println!("{name}: largest probe force difference {diff:.2e} N (of {scale:.3e} N)");
+        assert!(diff <= 1e-8 * scale.max(1e-12));
+    }
+}

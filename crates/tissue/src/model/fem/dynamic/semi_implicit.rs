@@ -174,6 +174,10 @@ impl FemSemiImplicit {
                     "refactorizations".into(),
                     self.system.refactorizations.to_string(),
                 ),
+                (
+                    "schur_columns".into(),
+                    self.system.schur_columns.to_string(),
+                ),
             ],
         )
     }
