@@ -474,6 +474,21 @@ fn hybrid_speed_through_simulation() {
             })
             .unwrap()
         };
+        if std::env::var("HYBRID_FRACTION").is_ok() {
+            // Where the time goes: the same model with a probe that never touches, and
+            // pressed by prescribed vertices without `Simulation` (the study above).
+            let away = [(0.0, above + Vec3::new(0.0, 0.05, 0.0))];
+            let idle = probe_run(Box::new(build()), &away, radius, false);
+            let mut h = build();
+            let surf = h.surf_nodes.clone();
+            let c = constraints(h.rest_surface(), |v| surf[v]);
+            let direct = press(&mut h, 1e-3, 800, &c, false);
+            println!(
+                "  no contact through Simulation: {:.0} us/step; prescribed press without \
+                 Simulation: {:.0} us/step",
+                idle.us_per_step, direct.us_per_step
+            );
+        }
         let h = build();
         let (region, tets) = (h.region_fraction(), h.region_tets());
         let near = probe_run(Box::new(h), &path, radius, false);
