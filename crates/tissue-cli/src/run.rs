@@ -88,6 +88,12 @@ fn precompute_progress(quiet: bool) -> Progress {
             bar.set_style(style);
         }
         return Progress::new(move |stage, fraction| {
+            // A stage reported after the build (a model's notice, e.g. `hybrid`'s region
+            // covering the organ) is a line of its own: the bar is gone.
+            if bar.is_finished() {
+                eprintln!("{stage}");
+                return;
+            }
             bar.set_message(stage.to_string());
             bar.set_position((fraction * 1000.0) as u64);
             if fraction >= 1.0 {
@@ -95,14 +101,19 @@ fn precompute_progress(quiet: bool) -> Progress {
             }
         });
     }
-    let quarter = Mutex::new(-1);
+    // The last stage and quarter printed: a new stage (a later build stage, or a model's
+    // notice during the run) starts its quarters again.
+    let quarter = Mutex::new((String::new(), -1));
     Progress::new(move |stage, fraction| {
         let q = (fraction * 4.0).floor() as i32;
-        if let Ok(mut last) = quarter.lock()
-            && q > *last
-        {
-            *last = q;
-            eprintln!("{stage}: {:.0}%", fraction * 100.0);
+        if let Ok(mut last) = quarter.lock() {
+            if last.0 != stage {
+                *last = (stage.to_string(), -1);
+            }
+            if q > last.1 {
+                last.1 = q;
+                eprintln!("{stage}: {:.0}%", fraction * 100.0);
+            }
         }
     })
 }
@@ -336,6 +347,17 @@ impl Writer {
                 "details": details,
             },
         });
+        // What the model said during the run that changes how to read it (`hybrid`: its
+        // region came to cover the organ, so it is whole-organ tensor-mass).
+        let notices: Vec<Value> = info
+            .details
+            .iter()
+            .filter(|(k, _)| k == "whole_organ")
+            .map(|(_, v)| Value::String(v.clone()))
+            .collect();
+        if let Some(map) = summary.as_object_mut() {
+            map.insert("notices".into(), Value::Array(notices));
+        }
         if let (Some(e), Some(map)) = (&o.error, summary.as_object_mut()) {
             map.insert("error".into(), Value::String(e.clone()));
         }

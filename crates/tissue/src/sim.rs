@@ -311,8 +311,9 @@ impl Simulation {
                 self.topology_version = self.topology_version.max(info.topology_version);
             }
         }
+        self.set_reach(next);
         self.refresh_bvh();
-        let n = self.model.surface().positions.len();
+        let n = self.model.contact_surface().positions.len();
         let mut taken = vec![false; n];
         let mut returned = std::mem::take(&mut self.returned);
         returned.reset(n);
@@ -376,8 +377,30 @@ impl Simulation {
         })
     }
 
+    /// Tells the model where this step's contact searches look: each instrument's reach
+    /// (its shape's bounding ball, or the grasper's ball, grown past the contact
+    /// tolerances); everywhere for a half-space or a fine surface (which reads every
+    /// vertex). A scalpel touches nothing.
+    fn set_reach(&mut self, next: &[Instrument]) {
+        let mut balls = Vec::with_capacity(next.len());
+        let mut everywhere = self.fine.is_some();
+        for inst in next {
+            let ball = match *inst.kind() {
+                InstrumentKind::Scalpel { .. } => continue,
+                InstrumentKind::Grasper { .. } => Some((inst.position, inst.radius())),
+                _ => inst.shape().and_then(|s| s.bounds(inst.position)),
+            };
+            match ball {
+                Some((c, r)) => balls.push((c, r * (1.0 + 4.0 * PENETRATION_TOLERANCE))),
+                None => everywhere = true,
+            }
+        }
+        self.model
+            .set_contact_reach((!everywhere).then_some(balls.as_slice()));
+    }
+
     fn refresh_bvh(&mut self) {
-        let s = self.model.surface();
+        let s = self.model.contact_surface();
         if s.triangles.len() == self.bvh.triangle_count()
             && self.bvh_topology == self.topology_version
         {
@@ -390,7 +413,7 @@ impl Simulation {
 
     /// The contact sets at the start of a step, from the surface as the last step left it.
     fn place_contacts(&self, t1: Real, next: &mut [Instrument], taken: &mut [bool]) {
-        let s = self.model.surface();
+        let s = self.model.contact_surface();
         let (positions, triangles) = (s.positions, s.triangles);
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             let (c, r) = (inst.position, inst.radius());
@@ -503,7 +526,7 @@ impl Simulation {
                 // reactions have no tangential part. Each target goes to where its vertex
                 // slid to, on the instrument (the tangent plane it was held on leaves the
                 // surface of a curved one), and the loop solves again while they move.
-                let positions = self.model.surface().positions;
+                let positions = self.model.contact_surface().positions;
                 let mut r = SlideResidual::default();
                 for (k, f) in inst.contacts.iter_mut().zip(&inst.reactions) {
                     let normal = k.normal(&shape, inst.position);
@@ -552,7 +575,7 @@ impl Simulation {
         taken: &mut [bool],
         returned: &mut Returned,
     ) -> bool {
-        let s = self.model.surface();
+        let s = self.model.contact_surface();
         let mut changed = false;
         for inst in next.iter_mut() {
             let Some(shape) = inst.shape() else { continue };

@@ -13,6 +13,19 @@ pub struct SurfaceView<'a> {
     pub triangles: &'a [[u32; 3]],
 }
 
+/// The surface as a contact search near the reach last set (`Deformable::set_contact_reach`)
+/// needs it: `positions[v]` is where vertex `v` is now whenever `slack` is empty or
+/// `slack[v] == 0`; otherwise the vertex is within `slack[v]` of `positions[v]`, and both are
+/// outside every ball of the reach. Every vertex that can be inside the reach, every vertex of
+/// a triangle that has one, and every vertex the model holds are exact.
+#[derive(Clone, Copy, Debug)]
+pub struct ContactSurface<'a> {
+    pub positions: &'a [Vec3],
+    pub triangles: &'a [[u32; 3]],
+    /// Per vertex, how far it may be from `positions` (m); empty: every vertex exact.
+    pub slack: &'a [Real],
+}
+
 /// The mechanical volume mesh as it is now, for models that have one (written to VTU).
 #[derive(Clone, Copy, Debug)]
 pub struct VolumeView<'a> {
@@ -224,6 +237,23 @@ pub trait Deformable: Send {
     fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
         let _ = entries;
         None
+    }
+
+    /// Where the next contact searches look: balls (centre, radius, m), or `None` for
+    /// everywhere. Models whose surface costs to compute where nobody looks (`hybrid`: the
+    /// pre-computed rest's dense G·u) then compute only what `contact_surface` must give
+    /// exactly; the others ignore it.
+    fn set_contact_reach(&mut self, _reach: Option<&[(Vec3, Real)]>) {}
+
+    /// The surface for a contact search within the reach set by `set_contact_reach` (see
+    /// `ContactSurface`). The default is `surface()`, every vertex exact.
+    fn contact_surface(&self) -> ContactSurface<'_> {
+        let s = self.surface();
+        ContactSurface {
+            positions: s.positions,
+            triangles: s.triangles,
+            slack: &[],
+        }
     }
 
     /// A small integer label per surface vertex for models made of parts, for a viewer to

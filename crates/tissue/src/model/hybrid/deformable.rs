@@ -4,7 +4,8 @@ use crate::error::SimError;
 use crate::interact::{Constraints, Loads};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{
-    CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView, VolumeView,
+    ContactSurface, CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo,
+    SurfaceView, VolumeView,
 };
 
 use super::CutRegion;
@@ -20,6 +21,21 @@ impl Deformable for Hybrid {
         SurfaceView {
             positions: self.surface_positions(),
             triangles: &self.triangles,
+        }
+    }
+
+    fn set_contact_reach(&mut self, reach: Option<&[(Vec3, Real)]>) {
+        self.set_reach(reach);
+    }
+
+    /// The region's vertices and, of the pre-computed rest, only those a search within the
+    /// reach can touch (see `Hybrid::contact_positions`).
+    fn contact_surface(&self) -> ContactSurface<'_> {
+        let (positions, slack) = self.contact_positions();
+        ContactSurface {
+            positions,
+            triangles: &self.triangles,
+            slack,
         }
     }
 

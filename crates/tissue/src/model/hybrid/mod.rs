@@ -215,4 +215,6 @@ fn mean_edge(mesh: &crate::mesh::TetMesh) -> Real {
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
+mod tests_contact;
+#[cfg(test)]
 mod tests_speed;

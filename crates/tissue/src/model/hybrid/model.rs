@@ -1,7 +1,7 @@
 //! `Hybrid`: the tensor-mass region, the pre-computed rest, the surface drawn over both,
 //! and the split of constraints and loads between them.
 
-use std::cell::OnceCell;
+use std::cell::{OnceCell, RefCell};
 use std::time::Instant;
 
 use faer::Mat;
@@ -74,6 +74,15 @@ pub struct Hybrid {
     /// which a caller that steps without looking (a haptic loop between display frames)
     /// need not pay for every step. Never stale: every step and every cut empties it.
     surf_pos: OnceCell<Vec<Vec3>>,
+    /// Where contact searches look (`Deformable::set_contact_reach`); `None`: everywhere.
+    reach: Option<Vec<(Vec3, Real)>>,
+    /// The surface a contact search within `reach` needs (`contact_positions`): positions
+    /// and slack, emptied with `surf_pos` and whenever the reach or the held set changes.
+    near: OnceCell<(Vec<Vec3>, Vec<Real>)>,
+    /// The last whole surface computed, with the interface displacements and contact forces
+    /// it came from: `contact_positions` bounds how far each vertex has moved since.
+    /// Dropped when the surface's vertices, the split or the loads change.
+    surf_ref: RefCell<Option<SurfaceRef>>,
 
     pub(super) triangles: Vec<[u32; 3]>,
     pub(super) constraints: Constraints,
@@ -106,6 +115,18 @@ pub struct Hybrid {
     /// That notice was given.
     whole_noticed: bool,
 }
+
+/// A whole surface as computed, and the state of the rest it came from.
+struct SurfaceRef {
+    u: Mat<Real>,
+    z: Vec<(u32, Vec3)>,
+    positions: Vec<Vec3>,
+}
+
+/// A contact search that needs more than this fraction of the rest's outer vertices gets
+/// the whole surface (which becomes the new reference): the rows cost what the whole
+/// product does, and a fresh reference shrinks the next searches' slack.
+const NEAR_FRACTION: Real = 0.3;
 
 /// What `ModelInfo::details` (`whole_organ`) and the one notice say when the region covers
 /// every tetrahedron.
@@ -160,6 +181,9 @@ impl Hybrid {
             region_iface: Vec::new(),
             tm_vertex: Vec::new(),
             surf_pos: OnceCell::new(),
+            reach: None,
+            near: OnceCell::new(),
+            surf_ref: RefCell::new(None),
 
             surf_rest,
             surf_nodes,
@@ -207,7 +231,8 @@ impl Hybrid {
             let z = self.rest.contact_forces(&u);
             let uo = self.rest.outer_displacements(&u, &z);
             let x = self.tm.positions();
-            self.surf_nodes
+            let positions: Vec<Vec3> = self
+                .surf_nodes
                 .iter()
                 .zip(&self.surf_rest)
                 .map(|(&g, &p)| {
@@ -223,8 +248,153 @@ impl Hybrid {
                         p
                     }
                 })
-                .collect()
+                .collect();
+            *self.surf_ref.borrow_mut() = Some(SurfaceRef {
+                z: self.rest.forces_by_slot(&z),
+                u,
+                positions: positions.clone(),
+            });
+            positions
         })
+    }
+
+    /// Sets where contact searches look (see `contact_positions`).
+    pub(super) fn set_reach(&mut self, reach: Option<&[(Vec3, Real)]>) {
+        if self.reach.as_deref() != reach {
+            self.reach = reach.map(<[_]>::to_vec);
+            self.near.take();
+        }
+    }
+
+    /// The surface as a contact search within the reach needs it, with each vertex's slack
+    /// (empty: every vertex exact; see `ContactSurface`). The whole surface when it was
+    /// already read this step, when the reach is everywhere, or when there is no whole
+    /// surface to start from. Otherwise the region's vertices (free to read), and of the
+    /// rest's outer surface only the vertices that can be within the reach, those of their
+    /// triangles and the held ones, are computed (three rows of G·u_I each); every other
+    /// vertex is left where the last whole surface had it, with the slack
+    /// ‖G_o‖_F |Δu_I| + Σ_c ‖W_oc‖_F |Δλ_c| (rounding included), a bound on how far it has
+    /// moved since: when that position is farther than this from every ball, the vertex is
+    /// outside all of them wherever it is exactly.
+    pub(super) fn contact_positions(&self) -> (&[Vec3], &[Real]) {
+        if let Some(full) = self.surf_pos.get() {
+            return (full, &[]);
+        }
+        let Some(reach) = self.reach.as_deref() else {
+            return (self.surface_positions(), &[]);
+        };
+        if !self.rest.exists() {
+            return (self.surface_positions(), &[]);
+        }
+        if let Some((positions, slack)) = self.near.get() {
+            return (positions, slack);
+        }
+        let Some(near) = self.near_positions(reach) else {
+            return (self.surface_positions(), &[]);
+        };
+        let (positions, slack) = self.near.get_or_init(|| near);
+        (positions, slack)
+    }
+
+    /// `contact_positions`' partial surface, or `None` when the whole one is due (no
+    /// reference, a state that is not finite, or too many vertices near the reach).
+    fn near_positions(&self, reach: &[(Vec3, Real)]) -> Option<(Vec<Vec3>, Vec<Real>)> {
+        let reference = self.surf_ref.borrow();
+        let reference = reference.as_ref()?;
+        let n = self.surf_nodes.len();
+        if reference.positions.len() != n {
+            return None;
+        }
+        let u = self
+            .rest
+            .coupling(&self.region_iface, &self.split.region.mesh.vertices)
+            .interface_displacements(self.tm.positions());
+        if reference.u.nrows() != u.nrows() {
+            return None;
+        }
+        let z = self.rest.contact_forces(&u);
+        let norm = |m: &Mat<Real>| m.col_as_slice(0).iter().map(|x| x * x).sum::<Real>().sqrt();
+        let du = u
+            .col_as_slice(0)
+            .iter()
+            .zip(reference.u.col_as_slice(0))
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<Real>()
+            .sqrt();
+        // Contact force changes by slot, over the contacts now and at the reference.
+        let now = self.rest.forces_by_slot(&z);
+        let mut dz: Vec<(u32, Real)> = now
+            .iter()
+            .map(|&(s, f)| {
+                let before = reference.z.iter().find(|(r, _)| *r == s).map(|(_, g)| *g);
+                (s, (f - before.unwrap_or(Vec3::ZERO)).length())
+            })
+            .collect();
+        dz.extend(
+            reference
+                .z
+                .iter()
+                .filter(|(s, _)| !now.iter().any(|(r, _)| r == s))
+                .map(|&(s, g)| (s, g.length())),
+        );
+        // Both surfaces' rounding: relative to the sizes of the products themselves.
+        let mut sizes: Vec<(u32, Real)> = now.iter().map(|&(s, f)| (s, f.length())).collect();
+        sizes.extend(reference.z.iter().map(|&(s, g)| (s, g.length())));
+        let u_size = norm(&u) + norm(&reference.u);
+        if !(du.is_finite() && dz.iter().all(|(_, z)| z.is_finite()) && u_size.is_finite()) {
+            return None;
+        }
+        let x = self.tm.positions();
+        let mut positions = Vec::with_capacity(n);
+        let mut slack = vec![0.0; n];
+        // Per vertex: its outer slot when it is on the rest's outer surface.
+        let mut slots = vec![NONE; n];
+        let mut exact = vec![false; n];
+        let mut outer = 0;
+        for (v, &g) in self.surf_nodes.iter().enumerate() {
+            let r = self.split.region.local[g as usize];
+            if r != NONE {
+                positions.push(x[r as usize]);
+                continue;
+            }
+            let b = reference.positions[v];
+            let Some(slot) = self.rest.outer_slot(self.split.rest.local[g as usize]) else {
+                positions.push(b);
+                continue;
+            };
+            outer += 1;
+            let s = self.rest.displacement_bound(slot, du, &dz) * (1.0 + 1e-6)
+                + 1e-9 * self.rest.displacement_bound(slot, u_size, &sizes)
+                + 4.0 * Real::EPSILON * b.length();
+            slots[v] = slot;
+            slack[v] = s;
+            exact[v] = reach.iter().any(|&(c, r)| b.distance(c) <= r + s);
+            positions.push(b);
+        }
+        for &v in &self.rest_contact {
+            exact[v as usize] = true;
+        }
+        // The vertices of a triangle with one that can be inside: a contact's normal is
+        // taken from its triangles.
+        let seeds = exact.clone();
+        for t in &self.triangles {
+            if t.iter().any(|&v| seeds[v as usize]) {
+                for &v in t {
+                    exact[v as usize] = true;
+                }
+            }
+        }
+        let count = (0..n).filter(|&v| exact[v] && slots[v] != NONE).count();
+        if count as Real > NEAR_FRACTION * outer as Real {
+            return None;
+        }
+        for v in 0..n {
+            if exact[v] && slots[v] != NONE {
+                positions[v] = self.surf_rest[v] + self.rest.outer_displacement(slots[v], &u, &z);
+                slack[v] = 0.0;
+            }
+        }
+        Some((positions, slack))
     }
 
     /// Rebuilds the maps that follow the split and the region model's surface.
@@ -251,6 +421,8 @@ impl Hybrid {
     /// (nodes a cut exposes get new vertex numbers at the end).
     fn rebuild_triangles(&mut self) {
         self.surf_pos.take();
+        self.near.take();
+        self.surf_ref.take();
         self.alive_tets = self
             .mesh
             .tets
@@ -502,6 +674,7 @@ impl Hybrid {
         self.tm.set_constraints(&tm_c)?;
         self.tm_entry = tm_entry;
         self.rest_contact = rest_contact;
+        self.near.take();
         self.constraints = c.clone();
         self.reactions.set(c);
         Ok(())
@@ -548,6 +721,8 @@ impl Hybrid {
         }
         self.rest.set_loads(loads.gravity, &rest_points)?;
         self.tm.set_loads(&tm_loads)?;
+        self.near.take();
+        self.surf_ref.take();
         self.loads = loads.clone();
         Ok(())
     }
@@ -587,6 +762,7 @@ impl Hybrid {
         let z = self.rest.interface_forces(&u, &mut fi);
         // The surface follows on its first read (`surface_positions`).
         self.surf_pos.take();
+        self.near.take();
         let mut force = vec![Vec3::ZERO; self.surf_nodes.len()];
         let tm_prescribed = self.tm.reactions().prescribed;
         for (v, &e) in self.tm_entry.iter().enumerate() {

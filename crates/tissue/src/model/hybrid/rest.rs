@@ -41,6 +41,24 @@ fn gemv(y: &mut Mat<Real>, accum: Accum, a: MatRef<'_, Real>, x: MatRef<'_, Real
     faer::linalg::matmul::matmul(y.as_mut(), accum, a, x, alpha, Par::Seq);
 }
 
+/// x · y with four partial sums (so that it vectorises).
+fn dot(x: &[Real], y: &[Real]) -> Real {
+    let mut acc = [0.0; 4];
+    let (xc, yc) = (x.chunks_exact(4), y.chunks_exact(4));
+    let tail: Real = xc
+        .remainder()
+        .iter()
+        .zip(yc.remainder())
+        .map(|(a, b)| a * b)
+        .sum();
+    for (a, b) in xc.zip(yc) {
+        for k in 0..4 {
+            acc[k] += a[k] * b[k];
+        }
+    }
+    acc.iter().sum::<Real>() + tail
+}
+
 /// A symmetric matrix stored as its upper triangle, column by column (column j holds rows
 /// 0..=j, contiguous): the product every substep reads half the bytes of the dense S
 /// (0.44 MB instead of 0.87 MB at 330 interface dofs, which then stays in a core's L2).
@@ -151,13 +169,19 @@ pub(super) struct RestPart {
     s: Mat<Real>,
     /// S packed, for the product every force evaluation takes.
     s_packed: SymPacked,
-    /// Outer displacements per unit interface displacement: 3n_O × 3n_I.
-    g: Mat<Real>,
+    /// Outer displacements per unit interface displacement, G (3n_O × 3n_I), stored
+    /// transposed: the three rows of one outer node are contiguous, for the few nodes a
+    /// contact search needs (`outer_displacement`).
+    gt: Mat<Real>,
+    /// Per outer slot, the Frobenius norm of its three rows of G: |G_o u| ≤ this · |u|.
+    g_norms: Vec<Real>,
     /// Interface reactions and outer displacements under the loads, interface at rest.
     r0: Mat<Real>,
     u0: Mat<Real>,
-    /// Outer displacements per unit force at an outer node (3n_O × 3), by outer slot.
+    /// Outer displacements per unit force at an outer node (3n_O × 3), by outer slot, with
+    /// the Frobenius norm of each outer node's 3 × 3 block of it.
     columns: HashMap<u32, Mat<Real>>,
+    column_norms: HashMap<u32, Vec<Real>>,
     contacts: Contacts,
     /// The forces on every dof of the rest from the loads.
     forces: Vec<Real>,
@@ -208,7 +232,7 @@ impl RestPart {
         let (ni, no) = (3 * iface.len(), 3 * outer.len());
         let mut dp = held(&iface, nodes)?;
         let mut s = Mat::zeros(ni, ni);
-        let mut g = Mat::zeros(no, ni);
+        let mut gt = Mat::zeros(ni, no);
         for (a, &n) in iface.iter().enumerate() {
             for k in 0..3 {
                 let col = 3 * a + k;
@@ -224,7 +248,7 @@ impl RestPart {
                 for (b, &m) in outer.iter().enumerate() {
                     let u = sol.displacements[m as usize];
                     for l in 0..3 {
-                        g[(3 * b + l, col)] = u[l];
+                        gt[(col, 3 * b + l)] = u[l];
                     }
                 }
             }
@@ -238,6 +262,15 @@ impl RestPart {
                 s[(j, i)] = m;
             }
         }
+        let g_norms = (0..outer.len())
+            .map(|b| {
+                (0..ni)
+                    .flat_map(|j| (0..3).map(move |l| (j, 3 * b + l)))
+                    .map(|(j, r)| gt[(j, r)] * gt[(j, r)])
+                    .sum::<Real>()
+                    .sqrt()
+            })
+            .collect();
         let rest = Self {
             density: material.density,
             iface,
@@ -245,10 +278,12 @@ impl RestPart {
             outer_slot,
             s_packed: SymPacked::from_dense(&s),
             s,
-            g,
+            gt,
+            g_norms,
             r0: Mat::zeros(ni, 1),
             u0: Mat::zeros(no, 1),
             columns: HashMap::new(),
+            column_norms: HashMap::new(),
             contacts: Contacts {
                 slots: Vec::new(),
                 rhs: Mat::zeros(0, 1),
@@ -277,10 +312,12 @@ impl RestPart {
             outer_slot: Vec::new(),
             s: Mat::zeros(0, 0),
             s_packed: SymPacked::default(),
-            g: Mat::zeros(0, 0),
+            gt: Mat::zeros(0, 0),
+            g_norms: Vec::new(),
             r0: Mat::zeros(0, 1),
             u0: Mat::zeros(0, 1),
             columns: HashMap::new(),
+            column_norms: HashMap::new(),
             contacts: Contacts {
                 slots: Vec::new(),
                 rhs: Mat::zeros(0, 1),
@@ -385,6 +422,16 @@ impl RestPart {
             }
         }
         self.column_solves += 3;
+        let norms = (0..self.outer.len())
+            .map(|b| {
+                (0..3)
+                    .flat_map(|k| (0..3).map(move |l| (3 * b + l, k)))
+                    .map(|(r, k)| w[(r, k)] * w[(r, k)])
+                    .sum::<Real>()
+                    .sqrt()
+            })
+            .collect();
+        self.column_norms.insert(slot, norms);
         self.columns.insert(slot, w);
         Ok(())
     }
@@ -431,7 +478,7 @@ impl RestPart {
                 let row = 3 * s as usize + l;
                 c.rhs[(3 * k + l, 0)] = targets[3 * k + l] - self.u0[(row, 0)];
                 for j in 0..ni {
-                    c.g[(3 * k + l, j)] = self.g[(row, j)];
+                    c.g[(3 * k + l, j)] = self.gt[(j, row)];
                 }
                 for (q, &s2) in slots.iter().enumerate() {
                     for l2 in 0..3 {
@@ -590,7 +637,13 @@ impl RestPart {
     /// Displacements of the outer nodes (3n_O) for `u_i` and contact forces `z`.
     pub fn outer_displacements(&self, u_i: &Mat<Real>, z: &Mat<Real>) -> Mat<Real> {
         let mut u = self.u0.clone();
-        gemv(&mut u, Accum::Add, self.g.as_ref(), u_i.as_ref(), 1.0);
+        gemv(
+            &mut u,
+            Accum::Add,
+            self.gt.as_ref().transpose(),
+            u_i.as_ref(),
+            1.0,
+        );
         for (k, &s) in self.contacts.slots.iter().enumerate() {
             let col = &self.columns[&s];
             for l in 0..3 {
@@ -603,6 +656,65 @@ impl RestPart {
             }
         }
         u
+    }
+
+    /// The displacement of outer slot `slot` under the loads alone, interface at rest (u₀).
+    pub fn base_displacement(&self, slot: u32) -> Vec3 {
+        let s = 3 * slot as usize;
+        Vec3::new(self.u0[(s, 0)], self.u0[(s + 1, 0)], self.u0[(s + 2, 0)])
+    }
+
+    /// How far outer slot `slot` can move when the interface displacements change by a
+    /// vector of norm `du` and the contact forces by vectors of norms `dz` (per contact
+    /// node: outer slot, norm): |G_o Δu| + Σ_c |W_oc Δz_c| ≤ ‖G_o‖_F |Δu| +
+    /// Σ_c ‖W_oc‖_F |Δz_c|. In exact arithmetic; the caller adds the rounding.
+    pub fn displacement_bound(&self, slot: u32, du: Real, dz: &[(u32, Real)]) -> Real {
+        let o = slot as usize;
+        let mut b = self.g_norms[o] * du;
+        for (c, zn) in dz {
+            if let Some(norms) = self.column_norms.get(c) {
+                b += norms[o] * zn;
+            }
+        }
+        b
+    }
+
+    /// The contact forces `z` (as `contact_forces` gives them) by outer slot.
+    pub fn forces_by_slot(&self, z: &Mat<Real>) -> Vec<(u32, Vec3)> {
+        self.contacts
+            .slots
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| {
+                (
+                    s,
+                    Vec3::new(z[(3 * k, 0)], z[(3 * k + 1, 0)], z[(3 * k + 2, 0)]),
+                )
+            })
+            .collect()
+    }
+
+    /// The displacement of outer slot `slot` for `u_i` and contact forces `z`: its three
+    /// rows of `outer_displacements`, without the others.
+    pub fn outer_displacement(&self, slot: u32, u_i: &Mat<Real>, z: &Mat<Real>) -> Vec3 {
+        let o = 3 * slot as usize;
+        let u = u_i.col_as_slice(0);
+        let mut d = self.base_displacement(slot);
+        for l in 0..3 {
+            d[l] += dot(self.gt.col_as_slice(o + l), u);
+        }
+        for (k, s) in self.contacts.slots.iter().enumerate() {
+            let col = &self.columns[s];
+            for m in 0..3 {
+                let f = z[(3 * k + m, 0)];
+                if f != 0.0 {
+                    for l in 0..3 {
+                        d[l] += col[(o + l, m)] * f;
+                    }
+                }
+            }
+        }
+        d
     }
 
     /// Displacements of every node of the rest (a sparse solve): for a region growth, whose
@@ -676,8 +788,8 @@ impl RestPart {
             .map_or(0, |f| f.borrow().info().memory_bytes)
             + 8 * (self.s.nrows() * self.s.ncols()
                 + self.s_packed.data.len()
-                + self.g.nrows() * self.g.ncols()
-                + self.columns.len() * 3 * self.g.nrows())
+                + self.gt.nrows() * self.gt.ncols()
+                + self.columns.len() * 3 * self.gt.ncols())
     }
 
     /// The coupling seen from the region: interface node `i` is region node `region_node[i]`,

@@ -318,3 +318,192 @@ fn hybrid_speed_against_whole_organ_tensor_mass() {
         h.growths().len()
     );
 }
+
+/// One model pressed by a probe through `Simulation` (as `tissue run` steps a scene):
+/// CPU µs per outer step, the largest substep count, the probe's force at the end.
+fn probe_run(model: Box<dyn Deformable>, path: &[(Real, Vec3)], radius: Real, read: bool) -> Run {
+    use crate::interact::instrument::{Instrument, InstrumentKind};
+    use crate::interact::trajectory::{Keyframe, Trajectory};
+    let nodes: Vec<u32> = (0..model.rest_surface().len() as u32).collect();
+    let fixed = ligaments(model.as_ref(), &nodes);
+    let mut sim = crate::sim::Simulation::new(model, fixed, Default::default()).unwrap();
+    let keys = path
+        .iter()
+        .map(|&(t, p)| Keyframe {
+            t,
+            position: p.into(),
+        })
+        .collect();
+    sim.add_instrument(
+        Instrument::new(
+            "probe",
+            InstrumentKind::Probe,
+            radius,
+            Trajectory::new(keys).unwrap(),
+        )
+        .unwrap(),
+    );
+    let (dt, steps) = (1e-3, 800);
+    let wall = Instant::now();
+    let t0 = cpu_seconds(wall);
+    let mut substeps = 0;
+    let mut force = Vec3::ZERO;
+    for _ in 0..steps {
+        let r = sim.step(dt).unwrap();
+        substeps = substeps.max(r.info.substeps);
+        force = r.forces[0];
+        if read {
+            std::hint::black_box(sim.model().surface().positions.last().copied());
+        }
+    }
+    let t1 = cpu_seconds(wall);
+    Run {
+        us_per_step: (t1 - t0) / steps as Real * 1e6,
+        substeps,
+        force,
+    }
+}
+
+/// The surface vertices at the ligament nodes 3, 39, 64, found by rest position.
+fn ligaments(model: &dyn Deformable, _nodes: &[u32]) -> Vec<u32> {
+    let mesh = refined_liver();
+    let at: Vec<Vec3> = [3, 39, 64].map(|n| mesh.vertices[n]).to_vec();
+    (0..model.rest_surface().len() as u32)
+        .filter(|&v| {
+            at.iter()
+                .any(|p| p.distance(model.rest_surface()[v as usize]) < 1e-12)
+        })
+        .collect()
+}
+
+/// The speed table through `Simulation`: a probe (8 mm) presses the right lobe's top 5 mm
+/// (ramped over 0.16 s, held to 0.8 s), each model at its own automatic substeps and the
+/// outer dt of 1 ms; the hybrids with the contact search reading only the reachable part of
+/// the surface, and again with the whole surface read after every step (a display frame
+/// every step: the cost before `contact_surface`). The probe's force against `fem-static`'s
+/// with the probe where it ends.
+#[test]
+#[ignore = "speed study: prints a table"]
+fn hybrid_speed_through_simulation() {
+    let mesh = refined_liver();
+    let data = MeshData::from_tets(&mesh);
+    let radius = 0.008;
+    // The topmost surface vertex within 1 cm of the right lobe's top (x, z of the press).
+    let fem =
+        crate::model::fem::FemStatic::new(&mesh, material(), crate::model::fem::Order::Linear)
+            .unwrap();
+    let top = fem
+        .rest_surface()
+        .iter()
+        .copied()
+        .filter(|p| (p.x.powi(2) + (p.z - 0.005).powi(2)).sqrt() < 0.01)
+        .fold(Vec3::new(0.0, Real::MIN, 0.0), |a, p| {
+            if p.y > a.y { p } else { a }
+        });
+    let above = top + Vec3::new(0.0, radius + 0.001, 0.0);
+    let pressed = top + Vec3::new(0.0, radius - 0.005, 0.0);
+    let path = [(0.0, above), (0.16, pressed)];
+    let reference = {
+        let static_path = [(0.0, pressed)];
+        let mut run = probe_run(Box::new(fem), &static_path, radius, false);
+        run.us_per_step = 0.0;
+        run.force
+    };
+    println!(
+        "refined liver: {} tetrahedra; probe {radius} m pressing 5 mm at {top:?}; fem-static \
+         force {reference:?} N",
+        mesh.tets.len()
+    );
+    let error = |f: Vec3| (f - reference).length() / reference.length();
+    println!(
+        "| model | region fraction | region tets | CPU us/step (contact surface / whole \
+         surface every step) | substeps | speed-up vs whole StVK | force error vs fem-static |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    let mut whole_us = 0.0;
+    for nonlinear in [true, false] {
+        let build = || {
+            Box::new(
+                TensorMass::new(
+                    &mesh,
+                    material(),
+                    Default::default(),
+                    nonlinear,
+                    Scheme::SymplecticEuler,
+                )
+                .unwrap(),
+            )
+        };
+        let kind = build().kind();
+        let run = probe_run(build(), &path, radius, false);
+        if nonlinear {
+            whole_us = run.us_per_step;
+        }
+        println!(
+            "| whole {kind} | 1 | {} | {:.0} | {} | {:.2} | {:.1e} |",
+            mesh.tets.len(),
+            run.us_per_step,
+            run.substeps,
+            whole_us / run.us_per_step,
+            error(run.force)
+        );
+    }
+    let centre = Vec3::new(0.005, 0.04, 0.005);
+    for (fraction, nonlinear) in [(0.1, true), (0.25, true), (0.25, false), (0.5, true)] {
+        // `HYBRID_FRACTION=0.25` (for a profiler): that region size alone.
+        if std::env::var("HYBRID_FRACTION")
+            .ok()
+            .and_then(|f| f.parse::<Real>().ok())
+            .is_some_and(|f| f != fraction || !nonlinear)
+        {
+            continue;
+        }
+        let r = sphere_for_fraction(&mesh, centre, fraction);
+        let params: toml::Table = toml::from_str(&format!(
+            "cut_region = {{ sphere = {{ center = [{}, {}, {}], radius = {r} }} }}\n\
+             nonlinear = {nonlinear}\nintegrator = \"symplectic-euler\"",
+            centre.x, centre.y, centre.z
+        ))
+        .unwrap();
+        let build = || {
+            Hybrid::from_input(&BuildInput {
+                mesh: &data,
+                source: "refined liver",
+                material: material(),
+                params: &params,
+            })
+            .unwrap()
+        };
+        if std::env::var("HYBRID_FRACTION").is_ok() {
+            // Where the time goes: the same model with a probe that never touches, and
+            // pressed by prescribed vertices without `Simulation` (the study above).
+            let away = [(0.0, above + Vec3::new(0.0, 0.05, 0.0))];
+            let idle = probe_run(Box::new(build()), &away, radius, false);
+            let mut h = build();
+            let surf = h.surf_nodes.clone();
+            let c = constraints(h.rest_surface(), |v| surf[v]);
+            let direct = press(&mut h, 1e-3, 800, &c, false);
+            println!(
+                "  no contact through Simulation: {:.0} us/step; prescribed press without \
+                 Simulation: {:.0} us/step",
+                idle.us_per_step, direct.us_per_step
+            );
+        }
+        let h = build();
+        let (region, tets) = (h.region_fraction(), h.region_tets());
+        let near = probe_run(Box::new(h), &path, radius, false);
+        let whole = probe_run(Box::new(build()), &path, radius, true);
+        println!(
+            "| hybrid {} | {region:.2} | {tets} | {:.0} / {:.0} | {} | **{:.2}** / {:.2} | \
+             {:.1e} (whole surface: {:.1e}) |",
+            if nonlinear { "StVK" } else { "linear" },
+            near.us_per_step,
+            whole.us_per_step,
+            near.substeps,
+            whole_us / near.us_per_step,
+            whole_us / whole.us_per_step,
+            error(near.force),
+            error(whole.force)
+        );
+    }
+}
