@@ -228,3 +228,24 @@ fn bad_messages_get_errors_and_the_connection_goes_on() {
     assert!(again.read().is_ok());
     assert!(get(port, "/").contains("hello"));
 }
+
+/// Messages the fuzzer found to break the parser (`fuzz/regressions/viewer_message/`, from
+/// `scripts/fuzz.sh`) give a command or an error, never a panic.
+#[test]
+fn messages_the_fuzzer_found_parse_or_err() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fuzz/regressions/viewer_message");
+    let Ok(files) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let bounds = Bounds {
+        center: Vec3::new(0.0, 0.05, 0.0),
+        radius: 0.1,
+    };
+    for file in files.flatten() {
+        let data = std::fs::read(file.path()).unwrap();
+        if let Ok(text) = std::str::from_utf8(&data) {
+            let _ = super::messages::parse(text, &bounds);
+        }
+    }
+}
