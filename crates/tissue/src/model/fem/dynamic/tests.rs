@@ -656,6 +656,9 @@ fn explicit_stiffness_damping_decays_the_first_mode_at_beta_omega_squared_over_t
     );
     assert!(split && !split0);
     assert!(substeps > 1, "{substeps}");
-    assert!((sigma / expected - 1.0).abs() < 0.02, "{sigma} vs {expected}");
+    assert!(
+        (sigma / expected - 1.0).abs() < 0.02,
+        "{sigma} vs {expected}"
+    );
     assert!(sigma0.abs() < 0.01 * expected, "β = 0 decays at {sigma0}");
 }
