@@ -161,8 +161,9 @@ fn spline_tube(duration: f64) {
     );
     // Runs to its end with finite, symmetric forces. Its force is NOT yet checked against
     // the scene's own implicit Euler at 5 ms (+7.9e-3 N along x at 1 s, pushing the probe
-    // back), which this explicit run does not reproduce (−2.9e-2 N at 1 s): an open defect,
-    // see docs/performance.md.
+    // back), which this explicit run does not reproduce (−2.9e-2 N at 1 s, negative from
+    // the first contact at 0.15 s and smooth from step to step, so not a ringing penalty
+    // spring seen at one instant): an open defect, see docs/performance.md.
     let lateral = (f.y * f.y + f.z * f.z).sqrt();
     assert!(
         f.is_finite() && lateral <= 1e-3 * f.length() + 1e-12,
@@ -178,8 +179,7 @@ fn every_explicit_kind_runs_the_liver_at_1ms_quick() {
 
 #[test]
 fn spline_runs_the_tube_at_1ms_with_its_default_integrator_quick() {
-    // 20 steps: the shell's force pass costs ~40 ms a step (its own scene runs implicit
-    // Euler at 5 ms).
+    // 20 steps (the whole second costs ~7 CPU s; its own scene runs implicit Euler at 5 ms).
     spline_tube(0.02);
 }
 

@@ -713,6 +713,12 @@ impl Integrator {
             info.substeps = 1;
             return Ok(info);
         }
+        if self.scheme != Scheme::ImplicitEuler {
+            let info = self.substepped_explicit(system, state, holds, dt, n)?;
+            self.steps += 1;
+            self.last_substeps = n;
+            return Ok(info);
+        }
         let saved = &mut self.saved;
         saved.state.clone_from(state);
         saved.held_forces.clone_from(&self.held_forces);
@@ -764,6 +770,115 @@ impl Integrator {
         self.last_substeps = n;
         info.substeps = n;
         Ok(info)
+    }
+
+    /// An explicit step of `n` substeps, lean: the substeps swap the workspace's start and
+    /// end buffers instead of copying the state, and the checks that cost a pass over the
+    /// particles (finite values, the energy test and the growth watch) run once, on the
+    /// whole step. Nothing is written to `state`, the held forces, the kept end-of-step
+    /// forces or the watch before the step has passed them, so a refused step leaves the
+    /// last good state without a saved copy. Held particles move in a straight line to
+    /// their targets, reaching k/n of the way at substep k; the work they do is summed
+    /// substep by substep (trapezoid rule).
+    fn substepped_explicit<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &mut ParticleState,
+        holds: &[Hold],
+        dt: Real,
+        n: u32,
+    ) -> Result<StepInfo, SimError> {
+        let h = dt / Real::from(n);
+        let mut sub = std::mem::take(&mut self.sub_holds);
+        sub.clear();
+        // Targets at fraction k/n of the way from where the step starts (`begin` reports a
+        // bad index or target).
+        let target_at = |hold: &Hold, k: u32| {
+            let from = state.x.get(hold.particle).copied().unwrap_or(hold.target);
+            if k == n {
+                hold.target
+            } else {
+                from + (hold.target - from) * (Real::from(k) / Real::from(n))
+            }
+        };
+        sub.extend(holds.iter().map(|hold| Hold {
+            particle: hold.particle,
+            target: target_at(hold, 1),
+        }));
+        let result = self.run_substeps(system, state, holds, &mut sub, h, n, &target_at);
+        self.sub_holds = sub;
+        let (energy, watch) = result?;
+        self.commit(state, holds, energy);
+        self.watch = watch;
+        Ok(StepInfo {
+            substeps: n,
+            ..StepInfo::default()
+        })
+    }
+
+    /// The substeps of `substepped_explicit` and their checks: the end state is left in
+    /// the workspace's x1, v1, f1.
+    #[allow(clippy::too_many_arguments)]
+    fn run_substeps<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &ParticleState,
+        holds: &[Hold],
+        sub: &mut [Hold],
+        h: Real,
+        n: u32,
+        target_at: &dyn Fn(&Hold, u32) -> Vec3,
+    ) -> Result<(Option<Real>, GrowthWatch), SimError> {
+        self.begin(system, state, sub, h)?;
+        // The ledger at the start: the kept one, else measured now (the system's energy
+        // cache is at x0 right after `begin`'s force evaluation).
+        let w = &self.work;
+        let e0 = match self.end.as_ref().and_then(|e| e.energy) {
+            Some(e) => Some(e),
+            None => system
+                .potential_energy(&w.x0)
+                .map(|p| p + free_kinetic(&w.v0, &w.inv_mass)),
+        };
+        // What the explicit kicks may add by themselves: ½h²Σ|f|²/m per substep.
+        let kick = 0.5 * h * h * Real::from(n) * kick_sum(w);
+        let (mut work, mut work_in) = (0.0, 0.0);
+        for k in 1..=n {
+            let w = &mut self.work;
+            if k > 1 {
+                for (s, hold) in sub.iter_mut().zip(holds) {
+                    s.target = target_at(hold, k);
+                    w.v0[s.particle] = (s.target - w.x0[s.particle]) / h;
+                }
+            }
+            match self.scheme {
+                Scheme::ExplicitEuler => schemes::explicit_euler(w, h),
+                Scheme::SymplecticEuler => schemes::symplectic_euler(w, h),
+                Scheme::VelocityVerlet => schemes::velocity_verlet(system, w, h),
+                Scheme::Rk4 => schemes::rk4(system, w, h),
+                Scheme::ImplicitEuler => unreachable!("implicit Euler substeps take `single`"),
+            };
+            for s in sub.iter() {
+                w.x1[s.particle] = s.target;
+            }
+            eval_forces(system, &w.x1, &w.v1, &mut w.f1);
+            let (dw, dw_abs) = held_work(w, sub);
+            work += dw;
+            work_in += dw_abs;
+            if k < n {
+                std::mem::swap(&mut w.x0, &mut w.x1);
+                std::mem::swap(&mut w.v0, &mut w.v1);
+                std::mem::swap(&mut w.f0, &mut w.f1);
+            }
+        }
+        let w = &self.work;
+        if let Some(node) = (0..w.x1.len()).find(|&i| !is_finite_vec(w.x1[i] + w.v1[i])) {
+            return Err(self.diverged(node, "its position or velocity is not finite".into()));
+        }
+        let (Some(e0), Some(p1)) = (e0, system.potential_energy(&w.x1)) else {
+            return Ok((None, self.watch));
+        };
+        let k1 = free_kinetic(&w.v1, &w.inv_mass);
+        self.energy_verdict(e0, k1 + p1, k1, work, work_in, kick)
     }
 
     /// One step of the scheme over `dt` with the given holds; on error nothing changed.
@@ -884,40 +999,35 @@ impl Integrator {
         let Some(potential1) = system.potential_energy(&w.x1) else {
             return Ok((None, self.watch));
         };
-        let kinetic = |v: &[Vec3]| -> Real {
-            v.iter()
-                .zip(&w.inv_mass)
-                .filter(|(_, inv)| **inv > 0.0)
-                .map(|(v, inv)| 0.5 * v.length_squared() / inv)
-                .sum()
-        };
-        let k1 = kinetic(&w.v1);
-        let e1 = k1 + potential1;
+        let k1 = free_kinetic(&w.v1, &w.inv_mass);
         let e0 = match self.end.as_ref().and_then(|e| e.energy) {
             Some(e) => e,
-            None => kinetic(&w.v0) + system.potential_energy(&w.x0).unwrap_or(potential1),
+            None => {
+                free_kinetic(&w.v0, &w.inv_mass)
+                    + system.potential_energy(&w.x0).unwrap_or(potential1)
+            }
         };
         // Work the held particles did on the rest: −∫ f·dx along their straight path, by the
         // trapezoid rule (exact for linear forces).
-        let work: Real = holds
-            .iter()
-            .map(|h| {
-                let i = h.particle;
-                -0.5 * (w.f0[i] + w.f1[i]).dot(w.x1[i] - w.x0[i])
-            })
-            .sum();
-        let work_in: Real = holds
-            .iter()
-            .map(|h| {
-                let i = h.particle;
-                (-0.5 * (w.f0[i] + w.f1[i]).dot(w.x1[i] - w.x0[i])).abs()
-            })
-            .sum();
+        let (work, work_in) = held_work(w, holds);
         // What one explicit kick may add by itself: ½h²Σ|f|²/m (the kinetic energy of one
         // step's velocity change), so that a first step from rest under a load passes.
-        let kick: Real = (0..w.f0.len())
-            .map(|i| 0.5 * dt * dt * w.f0[i].length_squared() * w.inv_mass[i])
-            .sum();
+        let kick = 0.5 * dt * dt * kick_sum(w);
+        self.energy_verdict(e0, k1 + potential1, k1, work, work_in, kick)
+    }
+
+    /// The one-step test and the growth watch for a step that took the ledger from `e0` to
+    /// `e1` (kinetic part `k1`) while the held particles did `work` (absolute `work_in`),
+    /// `kick` being what the explicit kicks may add by themselves.
+    fn energy_verdict(
+        &self,
+        e0: Real,
+        e1: Real,
+        k1: Real,
+        work: Real,
+        work_in: Real,
+        kick: Real,
+    ) -> Result<(Option<Real>, GrowthWatch), SimError> {
         // The ledger's zero is arbitrary (the loads' potential): near a loaded equilibrium
         // e0 can pass through 0, so the recent kinetic peak is part of the scale too.
         let scale = e0.abs() + work_in + self.watch.kinetic_peak;
@@ -1006,4 +1116,30 @@ impl Integrator {
             reason,
         }
     }
+}
+
+/// ½ Σ m v² over the free particles (inverse mass > 0).
+fn free_kinetic(v: &[Vec3], inv_mass: &[Real]) -> Real {
+    v.iter()
+        .zip(inv_mass)
+        .filter(|(_, inv)| **inv > 0.0)
+        .map(|(v, inv)| 0.5 * v.length_squared() / inv)
+        .sum()
+}
+
+/// (signed, absolute) work the held particles did from x0 to x1: −½ (f0 + f1)·(x1 − x0).
+fn held_work(w: &Workspace, holds: &[Hold]) -> (Real, Real) {
+    holds.iter().fold((0.0, 0.0), |(s, a), h| {
+        let i = h.particle;
+        let dw = -0.5 * (w.f0[i] + w.f1[i]).dot(w.x1[i] - w.x0[i]);
+        (s + dw, a + dw.abs())
+    })
+}
+
+/// Σ |f0|²/m over the particles (zero for held ones).
+fn kick_sum(w: &Workspace) -> Real {
+    w.f0.iter()
+        .zip(&w.inv_mass)
+        .map(|(f, inv)| f.length_squared() * inv)
+        .sum()
 }

@@ -329,6 +329,16 @@ impl Deformable for SplineModel {
                 });
             }
         }
+        // The springs' stiffness depends on which vertices they hold, not on their
+        // targets: a probe moving its held vertices (every step of a press) keeps the
+        // measured stability limit, and only the kept forces and the energy ledger (whose
+        // zero moved with the targets) are dropped. Re-measuring on every step cost 60 force
+        // passes a step under an explicit scheme.
+        let same_vertices = springs.len() == self.net.springs.len()
+            && springs
+                .iter()
+                .zip(&self.net.springs)
+                .all(|(a, b)| a.vertex == b.vertex);
         self.net.springs = springs;
         let mut taken = vec![false; self.rest_surface.len()];
         self.fixed_owner = c
@@ -344,7 +354,11 @@ impl Deformable for SplineModel {
         self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
         self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
         self.constraints = c.clone();
-        self.integrator.invalidate();
+        if same_vertices {
+            self.integrator.forget_forces();
+        } else {
+            self.integrator.invalidate();
+        }
         self.collect_reactions();
         Ok(())
     }

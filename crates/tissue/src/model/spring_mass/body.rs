@@ -112,7 +112,7 @@ impl SpringBody {
         if edges.is_empty() {
             return None;
         }
-        let mut split = SplitDamping::for_edges(rest.len(), &edges);
+        let mut split = SplitDamping::for_edges(rest.len(), &edges).with_positions(rest);
         split.assemble_edges(self.network.springs.iter().filter(damped).map(|s| {
             let d = rest[s.b as usize] - rest[s.a as usize];
             let l = d.length();

@@ -265,11 +265,10 @@ impl TensorSystem {
     pub fn set_split_damping(&mut self, on: bool) {
         if on && self.stiffness_damping > 0.0 {
             if self.split.is_none() {
-                self.split = Some(Box::new(SplitDamping::new(
-                    self.rest.len(),
-                    &self.tets,
-                    self.stiffness_damping,
-                )));
+                self.split = Some(Box::new(
+                    SplitDamping::new(self.rest.len(), &self.tets, self.stiffness_damping)
+                        .with_positions(&self.rest),
+                ));
                 self.split_dirty = true;
             }
         } else {

@@ -7,18 +7,29 @@
 //! vertices moving in a straight line to their targets across them; `substeps = N` forces a
 //! count. A step whose result is not finite or whose energy jumps more than 10⁶-fold returns
 //! `SimError::Diverged` and keeps the state of the last good step (all its substeps undone).
+//!
+//! The material's Rayleigh stiffness damping β (`stiffness_damping`) is applied as the
+//! tensor-mass kinds apply it (`integrate::split_damping`): kept in the force, its rates β ω²
+//! would set a limit 2/(β ω²_max) far below the elastic one, so it is taken out of the
+//! scheme and applied once per step implicitly, (M + Δt β K) v = M v* − Δt β K_fh v_h, on
+//! the synchronous velocity v* = (U_t − U_{t−h})/h + (h/2) M⁻¹(F − K U_t) of the last
+//! substep h (damping the staggered difference alone is not dissipative for the central
+//! difference, as for symplectic Euler). U_{t−h} is then moved to carry the damped velocity,
+//! and the held vertices' reactions get the damping force −β K v.
 
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
 use crate::integrate::Substeps;
+use crate::integrate::split_damping::SplitDamping;
 use crate::integrate::stable_step::{MAX_SUBSTEPS, substeps_for};
 use crate::material::Material;
-use crate::math::Real;
+use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
 use crate::model::{BuildInput, StepInfo};
 
+use super::super::element_linear;
 use super::common::{Core, forward_deformable};
 
 /// `fem-explicit`'s `[model]` settings (the damping is the material's `damping`).
@@ -52,6 +63,12 @@ pub struct FemExplicit {
     substeps: Substeps,
     last_substeps: u32,
     saved: Saved,
+    /// The split stiffness damping (β > 0 only) and its per-node buffers.
+    split: Option<Box<SplitDamping>>,
+    split_v: Vec<Vec3>,
+    split_force: Vec<Vec3>,
+    node_mass: Vec<Real>,
+    held: Vec<bool>,
 }
 
 impl std::fmt::Debug for FemExplicit {
@@ -74,11 +91,43 @@ impl FemExplicit {
 
     /// Validates, assembles K and the lumped masses, estimates ω_max.
     pub fn new(mesh: &TetMesh, material: Material) -> Result<Self, Error> {
+        let core = Core::new(mesh, material)?;
+        let beta = core.material.stiffness_damping;
+        let split = (beta > 0.0).then(|| {
+            let m = &core.mesh;
+            let mut split =
+                SplitDamping::new(core.rest.len(), &m.tets, beta).with_positions(&core.rest);
+            split.assemble((0..m.tets.len()).filter_map(|e| {
+                let k = element_linear::stiffness(&m.corners(e), &core.material)?;
+                let block = |a: usize, b: usize| {
+                    let col = |j: usize| {
+                        Vec3::new(
+                            k[3 * a][3 * b + j],
+                            k[3 * a + 1][3 * b + j],
+                            k[3 * a + 2][3 * b + j],
+                        )
+                    };
+                    Mat3::from_cols(col(0), col(1), col(2))
+                };
+                Some((
+                    m.tets[e],
+                    std::array::from_fn(|a| std::array::from_fn(|b| block(a, b))),
+                ))
+            }));
+            Box::new(split)
+        });
+        let nodes = core.rest.len();
+        let node_mass = (0..nodes).map(|i| core.mass[3 * i]).collect();
         Ok(Self {
-            core: Core::new(mesh, material)?,
+            core,
             substeps: Substeps::Auto,
             last_substeps: 0,
             saved: Saved::default(),
+            split,
+            split_v: vec![Vec3::ZERO; nodes],
+            split_force: vec![Vec3::ZERO; nodes],
+            node_mass,
+            held: vec![false; nodes],
         })
     }
 
@@ -129,9 +178,70 @@ impl FemExplicit {
 
     /// One central-difference step, eq. (7):
     /// U⁺ = (α/2 + 1/Δt)⁻¹ [ (2/Δt) U + (α/2 − 1/Δt) U⁻ − Δt M⁻¹ (K U − F) ],
-    /// then held dofs take their targets.
+    /// then held dofs take their targets; then the split stiffness damping (β > 0).
     fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
         Core::check_dt(dt)?;
+        // Factorised before the step, so that a failure leaves the state as it was.
+        let split = self.prepare_split(dt)?;
+        let info = self.advance_elastic(dt)?;
+        if split {
+            self.apply_split(dt / Real::from(info.substeps.max(1)));
+        }
+        Ok(info)
+    }
+
+    /// Factorises the split damping's matrix for `dt` and the held nodes (once, again when
+    /// they change). False without β.
+    fn prepare_split(&mut self, dt: Real) -> Result<bool, SimError> {
+        let Some(split) = self.split.as_mut() else {
+            return Ok(false);
+        };
+        let constrained = &self.core.problem.constrained;
+        for (i, h) in self.held.iter_mut().enumerate() {
+            *h = constrained[3 * i];
+        }
+        split.prepare(dt, &self.node_mass, &self.held)?;
+        Ok(true)
+    }
+
+    /// The damping step after the elastic substeps of length `h` (see the module doc).
+    fn apply_split(&mut self, h: Real) {
+        let Some(split) = self.split.as_mut() else {
+            return;
+        };
+        let c = &mut self.core;
+        c.assembler.pattern.mul_vec(&c.k, &c.u, &mut c.ku);
+        let shift = |d: usize| {
+            if c.problem.constrained[d] {
+                0.0
+            } else {
+                0.5 * h * (c.problem.forces[d] - c.ku[d]) / c.mass[d]
+            }
+        };
+        for (i, v) in self.split_v.iter_mut().enumerate() {
+            *v = Vec3::from_array(std::array::from_fn(|j| {
+                let d = 3 * i + j;
+                (c.u[d] - c.u_prev[d]) / h + shift(d)
+            }));
+        }
+        if !split.apply(&self.node_mass, &mut self.split_v, &mut self.split_force) {
+            return;
+        }
+        for (i, (v, f)) in self.split_v.iter().zip(&self.split_force).enumerate() {
+            for j in 0..3 {
+                let d = 3 * i + j;
+                if c.problem.constrained[d] {
+                    c.r[d] += f[j];
+                } else {
+                    c.u_prev[d] = c.u[d] - h * (v[j] - shift(d));
+                }
+            }
+        }
+        c.update_reactions();
+    }
+
+    /// The elastic central-difference substeps of `advance`.
+    fn advance_elastic(&mut self, dt: Real) -> Result<StepInfo, SimError> {
         let n = match self.substeps {
             Substeps::Fixed(n) => n.max(1),
             Substeps::Auto => {
@@ -233,6 +343,10 @@ impl FemExplicit {
             0,
             vec![
                 ("scheme".into(), "central difference (7)".into()),
+                (
+                    "split_stiffness_damping".into(),
+                    self.split.is_some().to_string(),
+                ),
                 ("substeps_setting".into(), self.substeps.describe()),
                 ("stable_dt".into(), format!("{:.6e}", self.stable_dt())),
                 ("substeps".into(), self.last_substeps.to_string()),
