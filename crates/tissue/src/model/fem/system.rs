@@ -228,15 +228,7 @@ impl System {
         let extra = self.plan(p)?;
         if extra.is_empty() {
             let t = Instant::now();
-            build_rhs(
-                &self.k,
-                &self.assembler,
-                &self.diag,
-                p,
-                &p.list,
-                &mut self.rhs,
-            );
-            self.chol.solve_in_place(&mut self.rhs)?;
+            self.solve_factored(p)?;
             self.solve_seconds = t.elapsed().as_secs_f64();
         } else if let Err(e) = self.solve_schur(p, &extra) {
             // A Schur complement that is not positive definite (roundoff on a nearly
@@ -245,15 +237,7 @@ impl System {
                 return Err(e);
             }
             self.refactor(p.constrained.clone(), p)?;
-            build_rhs(
-                &self.k,
-                &self.assembler,
-                &self.diag,
-                p,
-                &p.list,
-                &mut self.rhs,
-            );
-            self.chol.solve_in_place(&mut self.rhs)?;
+            self.solve_factored(p)?;
         }
         self.solves += 1;
         u.copy_from_slice(&self.rhs);
@@ -352,6 +336,19 @@ impl System {
         self.base_list = p.list.clone();
         self.factored_for = Some(held);
         Ok(())
+    }
+
+    /// Solves `p` into `rhs` when the factorisation holds exactly `p`'s held dofs.
+    fn solve_factored(&mut self, p: &DofProblem) -> Result<(), SimError> {
+        build_rhs(
+            &self.k,
+            &self.assembler,
+            &self.diag,
+            p,
+            &p.list,
+            &mut self.rhs,
+        );
+        self.chol.solve_in_place(&mut self.rhs)
     }
 
     /// Solves `p` into `rhs` with the dofs `extra` (held by `p`, free in the factorisation)
