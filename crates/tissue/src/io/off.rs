@@ -62,7 +62,8 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<MeshData, IoError> {
         if n < 3 {
             return Err(c.error(format!("a face needs at least 3 vertices, found {n}")));
         }
-        let mut ids = Vec::with_capacity(n);
+        // The count is the file's word: the line's length bounds what it can list.
+        let mut ids = Vec::with_capacity(n.min(l.len()));
         for k in 0..n {
             let tok = t
                 .next()
