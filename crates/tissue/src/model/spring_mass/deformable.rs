@@ -3,7 +3,8 @@
 //!
 //! A surface vertex follows one particle (surface and volumetric kinds) or the k T2 nodes
 //! around it (simplex kind, weight 1/k each). A fixed vertex holds its particles at rest; a
-//! prescribed one moves them by its displacement (averaged when two prescribed vertices share
+//! prescribed one holds its particle at the target, or translates its ring from where it is
+//! now by the vertex's gap to the target (targets averaged when two prescribed vertices share
 //! a particle); fixed wins. A particle's held force is shared equally among the constraints
 //! that hold it, so the sum over an instrument's vertices is the total force it feels.
 
@@ -111,10 +112,20 @@ impl Deformable for SpringModel {
                     reason: "the target position is not finite".into(),
                 });
             }
-            let d = pr.position - self.surface_rest[pr.vertex as usize];
+            // Where each supporting particle must go for the vertex to reach its target.
+            // A node-linked vertex is its particle: the target itself. A simplex vertex is
+            // rebuilt from its ring, and the rebuild commutes with translation, so the ring
+            // moves by the vertex's remaining gap from where it is now and keeps its current
+            // shape. (Moving it to its rest shape instead snapped a stretched or crumpled
+            // membrane back under the probe, with reactions of several newtons.)
+            let v = pr.vertex as usize;
+            let gap = pr.position - self.surface_positions[v];
             for (p, _) in support {
                 prescribed[p].0.push(k as u32);
-                prescribed[p].1 += d;
+                prescribed[p].1 += match self.link {
+                    SurfaceLink::Nodes(_) => pr.position,
+                    SurfaceLink::Dual(_) => self.state.x[p] + gap,
+                };
             }
         }
         let mut holds = Vec::new();
@@ -127,10 +138,10 @@ impl Deformable for SpringModel {
                 });
                 claims.push(fixed[p].iter().map(|&k| (true, k)).collect());
             } else if !prescribed[p].0.is_empty() {
-                let (ks, d) = &prescribed[p];
+                let (ks, sum) = &prescribed[p];
                 holds.push(Hold {
                     particle: p,
-                    target: self.rest[p] + *d / ks.len() as Real,
+                    target: *sum / ks.len() as Real,
                 });
                 claims.push(ks.iter().map(|&k| (false, k)).collect());
             }

@@ -75,9 +75,13 @@ pub struct SpringParams {
     /// Membrane thickness of the surface kinds, in m (default 0.005).
     #[serde(default = "default_thickness")]
     pub thickness: Real,
-    /// Volume preservation of a closed surface by an internal pressure (default false).
+    /// Volume preservation of a closed surface by an internal pressure. Unset (the
+    /// default): on for the surface kinds when the surface is closed (an organ is not an
+    /// empty bag: without it a probe that slips between vertices collapses the membrane
+    /// around itself), off for the volumetric kind, whose springs fill the volume. `true`
+    /// on an open surface is refused.
     #[serde(default)]
-    pub pressure: bool,
+    pub pressure: Option<bool>,
     /// Volumetric kind on a surface: build internal parent nodes (default false).
     #[serde(default)]
     pub parents: bool,
@@ -114,7 +118,7 @@ impl Default for SpringParams {
             integrator: Scheme::default(),
             stiffness: StiffnessRule::default(),
             thickness: default_thickness(),
-            pressure: false,
+            pressure: None,
             parents: false,
             parent_depth: default_depth(),
             cg_iterations: default_cg_iterations(),

@@ -21,8 +21,13 @@ pub(crate) fn build(
     let mesh = checked_compact(mesh)?;
     let (network, masses) = membrane_parts(&mesh.vertices, &mesh.triangles, &material, &params);
     let mut body = SpringBody::new(network, masses, material.damping);
-    if params.pressure {
-        body.pressure = Some(closed_pressure(&mesh, &material)?);
+    match params.pressure {
+        Some(true) => body.pressure = Some(closed_pressure(&mesh, &material)?),
+        // Auto: a closed surface keeps its volume; a sheet has none to keep.
+        None if edge_faces(&mesh.triangles).border_edges().next().is_none() => {
+            body.pressure = Some(closed_pressure(&mesh, &material)?);
+        }
+        _ => {}
     }
     let n = mesh.vertices.len();
     Ok(SpringModel::assemble(

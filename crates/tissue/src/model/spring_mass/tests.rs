@@ -261,7 +261,7 @@ fn implicit_euler_steps_the_surface_model_at_a_large_step() {
         &s,
         material(3.0e5),
         SpringParams {
-            pressure: true,
+            pressure: Some(true),
             ..params(Scheme::ImplicitEuler)
         },
     )
@@ -363,7 +363,7 @@ fn progressive_sweeps_make_one_continuous_incision() {
         &s,
         material(3000.0),
         SpringParams {
-            pressure: true,
+            pressure: Some(true),
             ..params(Scheme::ImplicitEuler)
         },
     )
@@ -425,4 +425,106 @@ fn only_the_surface_kind_cuts() {
     };
     assert!(matches!(m.cut(&blade), Err(SimError::Unsupported { .. })));
     assert_eq!(m.body.masses().len(), 80);
+}
+
+/// An organ is not an empty bag: a closed surface keeps its volume unless told otherwise,
+/// a sheet has none to keep, and asking for one on a sheet is refused.
+#[test]
+fn closed_surfaces_keep_their_volume_by_default() {
+    let ball = icosphere(Vec3::ZERO, 0.05, 1);
+    let params = SpringParams::default();
+    assert!(
+        surface::build(&ball, material(3000.0), params.clone())
+            .unwrap()
+            .body()
+            .pressure
+            .is_some()
+    );
+    assert!(
+        simplex::build(&ball, material(3000.0), params.clone())
+            .unwrap()
+            .body()
+            .pressure
+            .is_some()
+    );
+    let off = SpringParams {
+        pressure: Some(false),
+        ..params.clone()
+    };
+    assert!(
+        surface::build(&ball, material(3000.0), off)
+            .unwrap()
+            .body()
+            .pressure
+            .is_none()
+    );
+    let mut sheet = ball.clone();
+    sheet.triangles.pop();
+    assert!(
+        surface::build(&sheet, material(3000.0), params.clone())
+            .unwrap()
+            .body()
+            .pressure
+            .is_none()
+    );
+    let on = SpringParams {
+        pressure: Some(true),
+        ..params
+    };
+    assert!(surface::build(&sheet, material(3000.0), on).is_err());
+}
+
+/// Each simplex link carries its primal edge's stiffness scaled by (l_e / l_link)², the
+/// dilation match, up to `MAX_LENGTH_RATIO_SQUARED` = 12: kept exactly on a regular sphere,
+/// capped on the liver's sliver pairs (uncapped, one link was 98 k_e).
+#[test]
+fn simplex_links_match_dilation_and_are_capped_on_slivers() {
+    let liver = crate::io::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/meshes/liver.msh"
+    ))
+    .unwrap();
+    let liver = crate::mesh::boundary::boundary_surface(&TetMesh {
+        vertices: liver.vertices,
+        tets: liver.tets,
+    })
+    .surface;
+    let ball = icosphere(Vec3::ZERO, 0.05, 2);
+    for (name, s, capped) in [("sphere", &ball, false), ("liver", &liver, true)] {
+        let s = surface::checked_compact(s).unwrap();
+        let model = simplex::build(&s, material(3000.0), SpringParams::default()).unwrap();
+        let edges = crate::mesh::topology::triangle_edges(&s.triangles);
+        let kp = super::stiffness::membrane_stiffness(
+            &s.vertices,
+            &s.triangles,
+            &edges,
+            3000.0,
+            0.3,
+            0.005,
+            StiffnessRule::default(),
+        );
+        let centre = |t: u32| {
+            let [a, b, c] = s.triangles[t as usize].map(|i| s.vertices[i as usize]);
+            (a + b + c) / 3.0
+        };
+        let mut most: Real = 0.0;
+        for spring in &model.body().network.springs {
+            let (ta, tb) = (
+                s.triangles[spring.a as usize],
+                s.triangles[spring.b as usize],
+            );
+            let shared: Vec<u32> = ta.iter().copied().filter(|v| tb.contains(v)).collect();
+            let e = super::stiffness::edge_index(&edges, shared[0], shared[1]).unwrap();
+            let le2 =
+                (s.vertices[shared[0] as usize] - s.vertices[shared[1] as usize]).length_squared();
+            let ratio = le2 / (centre(spring.a) - centre(spring.b)).length_squared();
+            let expected = kp[e] * ratio.min(12.0);
+            assert!(
+                (spring.stiffness - expected).abs() < 1e-9 * expected,
+                "{name}"
+            );
+            most = most.max(ratio);
+        }
+        assert_eq!(most > 12.0, capped, "{name}: largest (l_e/l_link)² {most}");
+    }
 }

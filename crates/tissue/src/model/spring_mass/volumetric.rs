@@ -37,7 +37,7 @@ pub(crate) fn build(
     let boundary = boundary_surface(&mesh);
     let triangles = boundary.surface.triangles.clone();
     let mut body = SpringBody::new(network, masses, material.damping);
-    if params.pressure {
+    if params.pressure == Some(true) {
         closed_pressure(&boundary.surface, &material)?;
         let over_nodes = triangles
             .iter()
@@ -66,7 +66,7 @@ pub(crate) fn build_parents(
     let tets = parent_tets(&s, params.parent_depth);
     let (network, masses) = tet_parts(&tets.vertices, &tets.tets, &material, &params)?;
     let mut body = SpringBody::new(network, masses, material.damping);
-    if params.pressure {
+    if params.pressure == Some(true) {
         body.pressure = Some(closed_pressure(&s, &material)?);
     }
     let ns = s.vertices.len() as u32;
