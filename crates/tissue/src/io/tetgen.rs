@@ -123,15 +123,14 @@ pub fn parse_ele(bytes: &[u8], path: &Path, base: u32, mesh: &mut MeshData) -> R
             "{per} nodes per tetrahedron; TetGen writes 4 or 10"
         )));
     }
+    // The header's attribute count is the file's word: saturate rather than overflow (the
+    // fuzzer gave 2^64 - 1), and the line-length check below refuses it.
+    let values = attrs.saturating_add(1 + per);
     let nv = mesh.vertices.len();
     for _ in 0..n {
         let t = lines(&mut c, "a tetrahedron")?;
-        if t.len() < 1 + per + attrs {
-            return Err(c.error(format!(
-                "expected {} values, found {}",
-                1 + per + attrs,
-                t.len()
-            )));
+        if t.len() < values {
+            return Err(c.error(format!("expected {values} values, found {}", t.len())));
         }
         let mut ids = [0u32; 10];
         for k in 0..per {
