@@ -1035,7 +1035,10 @@ impl Integrator {
             + self.settings.energy_growth * scale
             + 2.0 * work_in
             + kick
-            + 1e-12 * (scale + kick);
+            + 1e-12 * (scale + kick)
+            // From rest (after a Reset) every term above is ~0 and round-off alone "grew"
+            // the energy from 0 to 4e-36 J; the same absolute floor as the growth watch.
+            + ENERGY_NOISE;
         let hint = || {
             if self.settings.substeps == Substeps::Auto {
                 format!(

@@ -494,3 +494,24 @@ fn a_first_step_from_rest_under_gravity_is_not_taken_for_a_blow_up() {
         assert!(state.x[1].z < 0.0, "{scheme}: {}", state.x[1]);
     }
 }
+
+#[test]
+fn round_off_from_rest_is_not_taken_for_a_blow_up() {
+    // After a viewer's Reset the body is exactly at rest (zero energy, no kinetic peak) and a
+    // new grasp's target is its vertex up to round-off (c + (p − c) ≠ p): the held particle
+    // moves 1e-18 m and the energy "grows" from 0 to ~1e-36 J with no work to account for it.
+    for scheme in Scheme::ALL {
+        let mut system = Springs::new(vec![1.0, 2.0], vec![(0, 1, 8.0, 0.1, 0.0)]);
+        let mut state = ParticleState::at_rest(vec![Vec3::ZERO, Vec3::new(0.1, 0.0, 0.0)]);
+        let holds = [Hold {
+            particle: 0,
+            target: Vec3::new(-1e-18, 0.0, 0.0),
+        }];
+        let mut integrator = Integrator::new(scheme);
+        for k in 0..10 {
+            integrator
+                .step(&mut system, &mut state, &holds, 1e-3)
+                .unwrap_or_else(|e| panic!("{scheme}: step {k}: {e}"));
+        }
+    }
+}
