@@ -66,4 +66,8 @@ impl<S: ParticleSystem + ?Sized, C: NodeCoupling + ?Sized> ParticleSystem for Co
     fn apply_velocity_split(&mut self, v: &mut [Vec3], force: &mut [Vec3]) -> bool {
         self.system.apply_velocity_split(v, force)
     }
+
+    fn set_step_time(&mut self, s: Real) {
+        self.system.set_step_time(s);
+    }
 }

@@ -96,6 +96,19 @@ pub trait ParticleSystem {
         let _ = (v, force);
         false
     }
+
+    /// Systems with loads that move during a step (the spline's penalty springs pulling
+    /// surface vertices to an instrument's moving targets): the forces and energies asked
+    /// for next are those at fraction `s` of the step being taken, 0 at its start and 1 at
+    /// its end. The explicit schemes set it before every force evaluation (the start of a
+    /// substep, a stage, its end); implicit Euler evaluates everything at the end (1), and a
+    /// step leaves it at 1. A held particle moves the same way, in a straight line over
+    /// the step. Without it a target that jumps at the start of every step (a probe
+    /// pressing on) kicks its vertex by the whole step's motion, and an explicit scheme
+    /// reports the reaction at one phase of the ringing that follows.
+    fn set_step_time(&mut self, s: Real) {
+        let _ = s;
+    }
 }
 
 /// An integration scheme, named in scenes as `integrator = "symplectic-euler"` etc.
@@ -231,6 +244,9 @@ pub(crate) struct Workspace {
     pub b: Vec<Vec3>,
     pub c: Vec<Vec3>,
     pub d: Vec<Vec3>,
+    /// The fractions of the step at which the scheme's current (sub)step starts and ends
+    /// (`ParticleSystem::set_step_time`).
+    pub span: (Real, Real),
 }
 
 impl Workspace {
@@ -597,6 +613,7 @@ impl Integrator {
         if split && result.is_ok() {
             self.apply_split(system, state, holds, dt);
         }
+        system.set_step_time(1.0);
         result
     }
 
@@ -707,6 +724,7 @@ impl Integrator {
         n: u32,
     ) -> Result<StepInfo, SimError> {
         if n <= 1 {
+            self.work.span = (0.0, 1.0);
             let mut info = self.single(system, state, holds, dt)?;
             self.steps += 1;
             self.last_substeps = 1;
@@ -745,6 +763,7 @@ impl Integrator {
                     target: from + (hold.target - from) * f,
                 });
             }
+            self.work.span = ((Real::from(k) - 1.0) / Real::from(n), f);
             match self.single(system, state, &sub, h) {
                 Ok(i) => {
                     info.iterations += i.iterations;
@@ -829,21 +848,32 @@ impl Integrator {
         n: u32,
         target_at: &dyn Fn(&Hold, u32) -> Vec3,
     ) -> Result<(Option<Real>, GrowthWatch), SimError> {
+        system.set_step_time(0.0);
         self.begin(system, state, sub, h)?;
         // The ledger at the start: the kept one, else measured now (the system's energy
         // cache is at x0 right after `begin`'s force evaluation).
         let w = &self.work;
+        // Loads that move over the step (`ParticleSystem::set_step_time`) are counted at
+        // their end, at the start as at the end (as `single` does): the ledger then measures
+        // what the dynamics did under the step's loads, not the work of a target ramping in.
         let e0 = match self.end.as_ref().and_then(|e| e.energy) {
             Some(e) => Some(e),
-            None => system
-                .potential_energy(&w.x0)
-                .map(|p| p + free_kinetic(&w.v0, &w.inv_mass)),
+            None => {
+                system.set_step_time(1.0);
+                system
+                    .potential_energy(&w.x0)
+                    .map(|p| p + free_kinetic(&w.v0, &w.inv_mass))
+            }
         };
         // What the explicit kicks may add by themselves: ½h²Σ|f|²/m per substep.
         let kick = 0.5 * h * h * Real::from(n) * kick_sum(w);
         let (mut work, mut work_in) = (0.0, 0.0);
         for k in 1..=n {
             let w = &mut self.work;
+            w.span = (
+                (Real::from(k) - 1.0) / Real::from(n),
+                Real::from(k) / Real::from(n),
+            );
             if k > 1 {
                 for (s, hold) in sub.iter_mut().zip(holds) {
                     s.target = target_at(hold, k);
@@ -860,6 +890,7 @@ impl Integrator {
             for s in sub.iter() {
                 w.x1[s.particle] = s.target;
             }
+            system.set_step_time(w.span.1);
             eval_forces(system, &w.x1, &w.v1, &mut w.f1);
             let (dw, dw_abs) = held_work(w, sub);
             work += dw;
@@ -889,6 +920,14 @@ impl Integrator {
         holds: &[Hold],
         dt: Real,
     ) -> Result<StepInfo, SimError> {
+        // Backward Euler evaluates every force at the end of its step (its linearisation
+        // point is the start's positions, not its time).
+        let (start, end) = self.work.span;
+        system.set_step_time(if self.scheme == Scheme::ImplicitEuler {
+            end
+        } else {
+            start
+        });
         self.begin(system, state, holds, dt)?;
         let info = match self.scheme {
             Scheme::ExplicitEuler => schemes::explicit_euler(&mut self.work, dt),
@@ -907,6 +946,7 @@ impl Integrator {
         if let Some(node) = (0..w.x1.len()).find(|&i| !is_finite_vec(w.x1[i] + w.v1[i])) {
             return Err(self.diverged(node, "its position or velocity is not finite".into()));
         }
+        system.set_step_time(end);
         eval_forces(system, &w.x1, &w.v1, &mut w.f1);
         let (energy, watch) = self.check_energy(system, holds, dt)?;
         self.commit(state, holds, energy);

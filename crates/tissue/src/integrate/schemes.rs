@@ -37,6 +37,7 @@ pub(super) fn velocity_verlet<S: ParticleSystem + ?Sized>(
         w.x1[i] = w.x0[i] + h * w.v0[i] + 0.5 * h * h * a0;
         w.a[i] = w.v0[i] + h * a0;
     }
+    system.set_step_time(w.span.1);
     eval_forces(system, &w.x1, &w.a, &mut w.b);
     for i in 0..w.x0.len() {
         let a_sum = w.inv_mass[i] * (w.f0[i] + w.b[i]);
@@ -71,6 +72,7 @@ pub(super) fn rk4<S: ParticleSystem + ?Sized>(
         }
         // The stage force goes into `b` (the previous acceleration is no longer needed once
         // c and d are formed).
+        system.set_step_time(w.span.0 + fraction * (w.span.1 - w.span.0));
         eval_forces(system, &w.c, &w.d, &mut w.b);
         for i in 0..n {
             w.a[i] = w.d[i];

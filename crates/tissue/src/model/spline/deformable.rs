@@ -317,18 +317,30 @@ impl Deformable for SplineModel {
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
         let disp = c.surface_displacements(&self.rest_surface)?;
         let mut springs = Vec::new();
-        self.spring_of.fill(u32::MAX);
+        let mut new_of = vec![u32::MAX; self.spring_of.len()];
         for (v, d) in disp.iter().enumerate() {
             if let (Some(d), Some((nodes, weights))) = (d, self.tess.weights(v)) {
-                self.spring_of[v] = springs.len() as u32;
+                // The target moves over the step from the spring's last one, or from the
+                // vertex itself when the spring is new (module `system`).
+                let from = match self.spring_of.get(v) {
+                    Some(&s) if s != u32::MAX => self.net.springs.get(s as usize),
+                    _ => None,
+                }
+                .filter(|s| s.vertex as usize == v)
+                .map(|s| s.target)
+                .or_else(|| self.surface_positions.get(v).copied())
+                .unwrap_or(self.rest_surface[v] + *d);
+                new_of[v] = springs.len() as u32;
                 springs.push(Spring {
                     vertex: v as u32,
                     nodes,
                     weights,
                     target: self.rest_surface[v] + *d,
+                    from,
                 });
             }
         }
+        self.spring_of = new_of;
         // The springs' stiffness depends on which vertices they hold, not on their
         // targets: a probe moving its held vertices (every step of a press) keeps the
         // measured stability limit, and only the kept forces and the energy ledger (whose
