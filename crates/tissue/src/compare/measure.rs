@@ -679,6 +679,100 @@ impl Rng {
     }
 }
 
+/// One randomized path: where it starts, how deep and how long it goes, and whether it
+/// grasps (odd paths) or probes.
+#[derive(Clone, Copy, Debug)]
+struct RandomPath {
+    at: Vec3,
+    depth: Real,
+    duration: Real,
+    grasp: bool,
+}
+
+/// The first `n` randomized paths over the organ's upper surface (seeded: the same paths
+/// every run and every kind).
+fn random_path_list(organ: &Organ, sc: &Scenario, n: usize) -> Result<Vec<RandomPath>, Error> {
+    let surface = organ.mesh.surface_mesh()?;
+    let centre = 0.5 * (Vec3::from(sc.lo) + Vec3::from(sc.hi));
+    let upper: Vec<Vec3> = surface
+        .vertices
+        .iter()
+        .copied()
+        .filter(|p| p.y > centre.y)
+        .collect();
+    let mut rng = Rng(0x5EED);
+    Ok((0..n)
+        .map(|i| {
+            let at = upper
+                [((rng.next() * upper.len() as Real) as usize).min(upper.len().saturating_sub(1))];
+            let depth = sc.height * (0.05 + 0.3 * rng.next());
+            let duration = 0.02 + 0.3 * rng.next();
+            RandomPath {
+                at,
+                depth,
+                duration,
+                grasp: i % 2 == 1,
+            }
+        })
+        .collect())
+}
+
+/// Runs one randomized path to its end (`random_step_cap` steps at most): the steps taken
+/// and the largest instrument force felt, N.
+fn run_random_path(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    mat: Material,
+    st: &Stepping,
+    s: &Settings,
+    rp: &RandomPath,
+) -> Result<(usize, Real), Error> {
+    let centre = 0.5 * (Vec3::from(sc.lo) + Vec3::from(sc.hi));
+    let (p, depth, duration) = (rp.at, rp.depth, rp.duration);
+    let inward = (centre - p).normalize_or_zero();
+    let model = organ.build(kind, mat)?;
+    let fixed = sc.fixed(model.rest_surface());
+    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    let (kindi, start, end) = if rp.grasp {
+        (
+            InstrumentKind::Grasper {
+                grasp_at: 0.0,
+                release_at: Some(duration),
+            },
+            p,
+            p - inward * depth,
+        )
+    } else {
+        (
+            InstrumentKind::Probe,
+            p - inward * sc.probe_radius,
+            p + inward * depth,
+        )
+    };
+    let key = |t: Real, q: Vec3| Keyframe {
+        t,
+        position: q.into(),
+    };
+    let path = Trajectory::new(vec![key(0.0, start), key(duration, end)]).map_err(|e| {
+        crate::error::SimError::BadParameter {
+            name: "path",
+            value: "random".into(),
+            reason: e.to_string(),
+        }
+    })?;
+    sim.add_instrument(Instrument::new("random", kindi, sc.probe_radius, path)?);
+    let dt = if st.is_static { duration / 8.0 } else { st.dt };
+    let steps = (((duration * 1.25) / dt).ceil() as usize).min(s.random_step_cap);
+    let mut max_force: Real = 0.0;
+    for _ in 0..steps {
+        let r = sim.step(dt)?;
+        check_finite(sim.model())?;
+        max_force = r.forces.iter().fold(max_force, |m, f| m.max(f.length()));
+    }
+    Ok((steps, max_force))
+}
+
 /// Randomized probe and grasp paths (fast and deep ones included): how many finish with no
 /// error and no non-finite value.
 fn random_paths(
@@ -689,72 +783,19 @@ fn random_paths(
     st: &Stepping,
     s: &Settings,
 ) -> (usize, usize, Option<String>) {
-    let Ok(surface) = organ.mesh.surface_mesh() else {
+    let Ok(paths) = random_path_list(organ, sc, s.random_paths) else {
         return (0, s.random_paths, Some("no surface".into()));
     };
-    let centre = 0.5 * (Vec3::from(sc.lo) + Vec3::from(sc.hi));
-    let upper: Vec<Vec3> = surface
-        .vertices
-        .iter()
-        .copied()
-        .filter(|p| p.y > centre.y)
-        .collect();
-    let mut rng = Rng(0x5EED);
     let (mut ok, mut first) = (0, None);
-    for i in 0..s.random_paths {
-        let p =
-            upper[((rng.next() * upper.len() as Real) as usize).min(upper.len().saturating_sub(1))];
-        let depth = sc.height * (0.05 + 0.3 * rng.next());
-        let duration = 0.02 + 0.3 * rng.next();
-        let grasp = i % 2 == 1;
-        let inward = (centre - p).normalize_or_zero();
-        let r = guarded(|| -> Result<(), Error> {
-            let model = organ.build(kind, mat)?;
-            let fixed = sc.fixed(model.rest_surface());
-            let mut sim = Simulation::new(model, fixed, Loads::default())?;
-            let (kindi, start, end) = if grasp {
-                (
-                    InstrumentKind::Grasper {
-                        grasp_at: 0.0,
-                        release_at: Some(duration),
-                    },
-                    p,
-                    p - inward * depth,
-                )
-            } else {
-                (
-                    InstrumentKind::Probe,
-                    p - inward * sc.probe_radius,
-                    p + inward * depth,
-                )
-            };
-            let key = |t: Real, q: Vec3| Keyframe {
-                t,
-                position: q.into(),
-            };
-            let path = Trajectory::new(vec![key(0.0, start), key(duration, end)]).map_err(|e| {
-                crate::error::SimError::BadParameter {
-                    name: "path",
-                    value: "random".into(),
-                    reason: e.to_string(),
-                }
-            })?;
-            sim.add_instrument(Instrument::new("random", kindi, sc.probe_radius, path)?);
-            let dt = if st.is_static { duration / 8.0 } else { st.dt };
-            let steps = (((duration * 1.25) / dt).ceil() as usize).min(s.random_step_cap);
-            for _ in 0..steps {
-                sim.step(dt)?;
-                check_finite(sim.model())?;
-            }
-            Ok(())
-        });
+    for (i, rp) in paths.iter().enumerate() {
+        let r = guarded(|| run_random_path(kind, organ, sc, mat, st, s, rp));
         match r {
-            Ok(Ok(())) => ok += 1,
+            Ok(Ok(_)) => ok += 1,
             Ok(Err(e)) | Err(e) => {
                 if first.is_none() {
                     first = Some(format!(
                         "{} {i}: {e}",
-                        if grasp { "grasp" } else { "probe" }
+                        if rp.grasp { "grasp" } else { "probe" }
                     ));
                 }
             }
@@ -1167,5 +1208,50 @@ mod tests {
         assert_eq!(reached.value, Some(4768.0));
         let flat = elements_for_target(&[[596.0, 0.2], [4768.0, 0.2]], None);
         assert!(flat.value.is_none() && flat.note.unwrap().contains("does not fall"));
+    }
+
+    /// `tissue compare --models hybrid --quick`'s random probe path 0 on the built-in liver
+    /// at the step the comparison runs it at: to its end, every surface position finite and
+    /// the probe's force within the plausibility bound (10 E L²). Fails today, and not in
+    /// the hybrid: at t = 0.066 s the sticking probe (radius 24.7 mm, wider than the lobe it
+    /// presses) newly holds an interface vertex 0.055 mm inside its sphere whose normal
+    /// faces away from the centre ((p − c)·n = 0.86 |p − c|: the lobe's far side), and
+    /// `contact::push_out` reads that as "the centre went past the vertex" and sends it to
+    /// the sphere's inner side, 42 mm away in one step (vertex speed 42 m/s). The same
+    /// happens at dt = 4, 1 and 0.25 ms (docs/hybrid.md, "Known problems").
+    #[test]
+    #[ignore = "diverges: contact::push_out sends a vertex barely inside a wide probe 42 mm through the lobe (docs/hybrid.md)"]
+    fn the_hybrid_runs_the_comparisons_random_probe_path_0_to_its_end() {
+        let mut mesh = crate::io::read(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../assets/meshes/liver.msh"
+        ))
+        .unwrap();
+        for v in &mut mesh.vertices {
+            *v *= 0.01;
+        }
+        let s = Settings::quick();
+        let material = Material::new(3000.0, 0.3).unwrap();
+        let organ = Organ::new(mesh, "liver".into(), material, 0.0, s.surface_tets).unwrap();
+        let sc = Scenario::of(&organ.mesh).unwrap();
+        let mat = settling(material, &sc);
+        let dt = match std::env::var("HYBRID_PATH_DT") {
+            Ok(d) => d.parse().unwrap(),
+            Err(_) => {
+                let stable = stable_step("hybrid", &organ, &sc, mat, &s).unwrap();
+                (0.5 * stable).min(s.run_dt_max)
+            }
+        };
+        let st = Stepping::new(false, dt, &s);
+        let rp = random_path_list(&organ, &sc, 1).unwrap()[0];
+        let run = run_random_path("hybrid", &organ, &sc, mat, &st, &s, &rp);
+        println!("dt {dt:e}: {rp:?}: {run:?}");
+        let (steps, max_force) = run.unwrap();
+        assert!(steps > 30, "{steps} steps");
+        let bound = crate::interact::plausibility::FORCE_FACTOR * 3000.0 * sc.size * sc.size;
+        assert!(
+            max_force.is_finite() && max_force < bound,
+            "{max_force} N, bound {bound} N"
+        );
     }
 }

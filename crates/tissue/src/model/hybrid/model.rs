@@ -94,7 +94,6 @@ pub struct Hybrid {
     rest_contact: Vec<u32>,
     /// Forces applied to the rest at its contacts after the last step (3 per contact).
     pub(super) contact_forces: Mat<Real>,
-    pub(super) interface_forces: Mat<Real>,
     pub(super) topology_version: u32,
     pub(super) real_time: bool,
     pub(super) growth: Option<Growth>,
@@ -195,7 +194,6 @@ impl Hybrid {
             tm_entry: Vec::new(),
             rest_contact: Vec::new(),
             contact_forces: Mat::zeros(0, 1),
-            interface_forces: Mat::zeros(0, 1),
             topology_version: 0,
             real_time: false,
             growth: None,
@@ -344,6 +342,8 @@ impl Hybrid {
         if !(du.is_finite() && dz.iter().all(|(_, z)| z.is_finite()) && u_size.is_finite()) {
             return None;
         }
+        // The contacts' compliance norms looked up once, not per vertex.
+        let (dz, sizes) = (self.rest.bound_terms(&dz), self.rest.bound_terms(&sizes));
         let x = self.tm.positions();
         let mut positions = Vec::with_capacity(n);
         let mut slack = vec![0.0; n];
@@ -407,7 +407,6 @@ impl Hybrid {
             .collect();
         self.refresh_tm_vertices();
         self.rebuild_triangles();
-        self.interface_forces = Mat::zeros(3 * self.region_iface.len(), 1);
     }
 
     fn refresh_tm_vertices(&mut self) {
@@ -594,7 +593,14 @@ impl Hybrid {
     /// The forces the rest exerts on the interface nodes after the last step (global node,
     /// force), and the forces the contacts on the rest apply to it.
     pub fn interface_balance(&self) -> (Vec<(u32, Vec3)>, Vec<Vec3>) {
-        let f = &self.interface_forces;
+        // F_I from the current state (one product with S): `update_state` does not keep it,
+        // a step needs only the contact forces.
+        let u = self
+            .rest
+            .coupling(&self.region_iface, &self.split.region.mesh.vertices)
+            .interface_displacements(self.tm.positions());
+        let mut f = Mat::zeros(u.nrows(), 1);
+        self.rest.interface_forces(&u, &mut f);
         let iface = self
             .split
             .interface
@@ -758,8 +764,9 @@ impl Hybrid {
             .rest
             .coupling(&self.region_iface, &self.split.region.mesh.vertices);
         let u = coupling.interface_displacements(self.tm.positions());
-        let mut fi = Mat::zeros(u.nrows(), 1);
-        let z = self.rest.interface_forces(&u, &mut fi);
+        // The reactions need the contact forces only (G_c u_I, small), not F_I (S u_I:
+        // `interface_balance` computes it when asked).
+        let z = self.rest.contact_forces(&u);
         // The surface follows on its first read (`surface_positions`).
         self.surf_pos.take();
         self.near.take();
@@ -777,7 +784,6 @@ impl Hybrid {
         self.reactions
             .distribute(|v| force.get(v as usize).copied().unwrap_or(Vec3::ZERO));
         self.contact_forces = z;
-        self.interface_forces = fi;
         Ok(())
     }
 

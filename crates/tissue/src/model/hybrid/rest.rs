@@ -664,19 +664,24 @@ impl RestPart {
         Vec3::new(self.u0[(s, 0)], self.u0[(s + 1, 0)], self.u0[(s + 2, 0)])
     }
 
+    /// The compliance columns' norms of the contacts in `dz` (outer slot, norm of its
+    /// force change), for `displacement_bound`: looked up once per search, not per vertex.
+    /// A slot with no column (never touched) moves nothing and is left out.
+    pub fn bound_terms<'a>(&'a self, dz: &[(u32, Real)]) -> Vec<(&'a [Real], Real)> {
+        dz.iter()
+            .filter_map(|(c, zn)| self.column_norms.get(c).map(|n| (n.as_slice(), *zn)))
+            .collect()
+    }
+
     /// How far outer slot `slot` can move when the interface displacements change by a
-    /// vector of norm `du` and the contact forces by vectors of norms `dz` (per contact
-    /// node: outer slot, norm): |G_o Δu| + Σ_c |W_oc Δz_c| ≤ ‖G_o‖_F |Δu| +
-    /// Σ_c ‖W_oc‖_F |Δz_c|. In exact arithmetic; the caller adds the rounding.
-    pub fn displacement_bound(&self, slot: u32, du: Real, dz: &[(u32, Real)]) -> Real {
+    /// vector of norm `du` and the contact forces by vectors of norms `dz` (per contact:
+    /// its column norms from `bound_terms`, the norm of its change): |G_o Δu| +
+    /// Σ_c |W_oc Δz_c| ≤ ‖G_o‖_F |Δu| + Σ_c ‖W_oc‖_F |Δz_c|. In exact arithmetic; the
+    /// caller adds the rounding.
+    pub fn displacement_bound(&self, slot: u32, du: Real, dz: &[(&[Real], Real)]) -> Real {
         let o = slot as usize;
-        let mut b = self.g_norms[o] * du;
-        for (c, zn) in dz {
-            if let Some(norms) = self.column_norms.get(c) {
-                b += norms[o] * zn;
-            }
-        }
-        b
+        dz.iter()
+            .fold(self.g_norms[o] * du, |b, (norms, zn)| b + norms[o] * zn)
     }
 
     /// The contact forces `z` (as `contact_forces` gives them) by outer slot.

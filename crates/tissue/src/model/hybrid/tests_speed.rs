@@ -322,6 +322,17 @@ fn hybrid_speed_against_whole_organ_tensor_mass() {
 /// One model pressed by a probe through `Simulation` (as `tissue run` steps a scene):
 /// CPU µs per outer step, the largest substep count, the probe's force at the end.
 fn probe_run(model: Box<dyn Deformable>, path: &[(Real, Vec3)], radius: Real, read: bool) -> Run {
+    probe_run_steps(model, path, radius, read, 800)
+}
+
+/// `probe_run` over `steps` outer steps of 1 ms.
+fn probe_run_steps(
+    model: Box<dyn Deformable>,
+    path: &[(Real, Vec3)],
+    radius: Real,
+    read: bool,
+    steps: usize,
+) -> Run {
     use crate::interact::instrument::{Instrument, InstrumentKind};
     use crate::interact::trajectory::{Keyframe, Trajectory};
     let nodes: Vec<u32> = (0..model.rest_surface().len() as u32).collect();
@@ -343,7 +354,7 @@ fn probe_run(model: Box<dyn Deformable>, path: &[(Real, Vec3)], radius: Real, re
         )
         .unwrap(),
     );
-    let (dt, steps) = (1e-3, 800);
+    let dt = 1e-3;
     let wall = Instant::now();
     let t0 = cpu_seconds(wall);
     let mut substeps = 0;
@@ -506,4 +517,72 @@ fn hybrid_speed_through_simulation() {
             error(whole.force)
         );
     }
+}
+
+/// One model through `Simulation` for a profiler (`valgrind --tool=callgrind`): the 25 %
+/// StVK hybrid of the table above (`HYBRID_PROFILE=hybrid`, the default), the same with a
+/// probe that never touches (`idle`), or whole-organ `tensor-mass-nonlinear` (`whole`);
+/// `HYBRID_STEPS` outer steps (default 300).
+#[test]
+#[ignore = "profiling entry: one run, prints its CPU time"]
+fn hybrid_probe_profile() {
+    let which = std::env::var("HYBRID_PROFILE").unwrap_or_else(|_| "hybrid".into());
+    let steps: usize = std::env::var("HYBRID_STEPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(300);
+    let mesh = refined_liver();
+    let data = MeshData::from_tets(&mesh);
+    let radius = 0.008;
+    let top = mesh
+        .vertices
+        .iter()
+        .copied()
+        .filter(|p| (p.x.powi(2) + (p.z - 0.005).powi(2)).sqrt() < 0.01)
+        .fold(Vec3::new(0.0, Real::MIN, 0.0), |a, p| {
+            if p.y > a.y { p } else { a }
+        });
+    let above = top + Vec3::new(0.0, radius + 0.001, 0.0);
+    let pressed = top + Vec3::new(0.0, radius - 0.005, 0.0);
+    let ramp = 0.16 * (steps as Real / 800.0);
+    let path = if which == "idle" {
+        vec![(0.0, above + Vec3::new(0.0, 0.05, 0.0))]
+    } else {
+        vec![(0.0, above), (ramp, pressed)]
+    };
+    let model: Box<dyn Deformable> = if which == "whole" {
+        Box::new(
+            TensorMass::new(
+                &mesh,
+                material(),
+                Default::default(),
+                true,
+                Scheme::SymplecticEuler,
+            )
+            .unwrap(),
+        )
+    } else {
+        let centre = Vec3::new(0.005, 0.04, 0.005);
+        let r = sphere_for_fraction(&mesh, centre, 0.25);
+        let params: toml::Table = toml::from_str(&format!(
+            "cut_region = {{ sphere = {{ center = [{}, {}, {}], radius = {r} }} }}\n\
+             integrator = \"symplectic-euler\"",
+            centre.x, centre.y, centre.z
+        ))
+        .unwrap();
+        Box::new(
+            Hybrid::from_input(&BuildInput {
+                mesh: &data,
+                source: "refined liver",
+                material: material(),
+                params: &params,
+            })
+            .unwrap(),
+        )
+    };
+    let run = probe_run_steps(model, &path, radius, false, steps);
+    println!(
+        "{which}: {:.0} us/step, {} substeps, force {:?}",
+        run.us_per_step, run.substeps, run.force
+    );
 }
