@@ -226,17 +226,23 @@ impl TensorMass {
     }
 
     /// Holds from surface constraints: fixed vertices at rest, prescribed ones at their
-    /// target (fixed wins; the last of two prescriptions wins).
-    pub(super) fn apply_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = c.surface_displacements(&self.surface.rest_positions)?;
-        self.holds = disp
+    /// target (fixed wins; the last of two prescriptions wins), the prescribed entry k held
+    /// along `normals[k]` only where given (`integrate::Hold::along`).
+    pub(super) fn apply_constraints(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<(), SimError> {
+        let holds = c.surface_holds(&self.surface.rest_positions, normals)?;
+        self.holds = holds
             .iter()
             .enumerate()
-            .filter_map(|(s, d)| {
+            .filter_map(|(s, h)| {
                 let n = self.surface.nodes[s] as usize;
-                d.map(|d| Hold {
+                h.map(|h| Hold {
                     particle: n,
-                    target: self.mesh.vertices[n] + d,
+                    target: self.mesh.vertices[n] + h.displacement,
+                    along: h.along,
                 })
             })
             .collect();
@@ -264,6 +270,7 @@ impl TensorMass {
                 self.step_holds.push(Hold {
                     particle: n,
                     target: *x,
+                    along: None,
                 });
             }
         }
