@@ -40,16 +40,7 @@ impl Deformable for TensorMass {
     }
 
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        self.apply_constraints(c, &[])
-    }
-
-    /// Held along a direction by the integrator's projection (`integrate::Hold::along`).
-    fn set_constraints_along(
-        &mut self,
-        c: &Constraints,
-        normals: &[Option<Vec3>],
-    ) -> Result<bool, SimError> {
-        self.apply_constraints(c, normals).map(|()| true)
+        self.apply_constraints(c)
     }
 
     /// Gravity acts as the lumped share m_i g; point loads on their vertex's node.

@@ -226,23 +226,18 @@ impl TensorMass {
     }
 
     /// Holds from surface constraints: fixed vertices at rest, prescribed ones at their
-    /// target (fixed wins; the last of two prescriptions wins), the prescribed entry k held
-    /// along `normals[k]` only where given (`integrate::Hold::along`).
-    pub(super) fn apply_constraints(
-        &mut self,
-        c: &Constraints,
-        normals: &[Option<Vec3>],
-    ) -> Result<(), SimError> {
-        let holds = c.surface_holds(&self.surface.rest_positions, normals)?;
-        self.holds = holds
+    /// target (fixed wins; the last of two prescriptions wins).
+    pub(super) fn apply_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        let disp = c.surface_displacements(&self.surface.rest_positions)?;
+        self.holds = disp
             .iter()
             .enumerate()
-            .filter_map(|(s, h)| {
+            .filter_map(|(s, d)| {
                 let n = self.surface.nodes[s] as usize;
-                h.map(|h| Hold {
+                d.map(|d| Hold {
                     particle: n,
-                    target: self.mesh.vertices[n] + h.displacement,
-                    along: h.along,
+                    target: self.mesh.vertices[n] + d,
+                    along: None,
                 })
             })
             .collect();
