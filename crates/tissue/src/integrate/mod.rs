@@ -212,10 +212,65 @@ impl ParticleState {
 }
 
 /// A particle held by a constraint: it reaches `target` at the end of the step.
+///
+/// With `along = Some(n)` (a unit direction; a frictionless contact) it is held along n
+/// only: it moves as a free particle, and after each (sub)step its position's component
+/// along n is set to the target's and its velocity's to that of the straight path there
+/// (a projection), so it slides freely across n; its held force is the component along n
+/// of the force on it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hold {
     pub particle: usize,
     pub target: Vec3,
+    pub along: Option<Vec3>,
+}
+
+impl Hold {
+    /// Held in all three directions.
+    pub fn new(particle: usize, target: Vec3) -> Self {
+        Self {
+            particle,
+            target,
+            along: None,
+        }
+    }
+
+    /// The part of a force on the particle its hold takes: all of it, or its component
+    /// along the hold's direction.
+    pub fn held_part(&self, f: Vec3) -> Vec3 {
+        match self.along {
+            Some(n) => n * n.dot(f),
+            None => f,
+        }
+    }
+}
+
+/// Puts the held particles where their holds say at the end of a (sub)step of length `h`
+/// from x0: a full hold at its target, one along n projected (position along n at the
+/// target's, velocity along n that of the straight path from x0). The kinetic energy the
+/// projection gave the particles held along a direction is work of their holds
+/// (`Workspace::along_work`).
+fn place_holds(w: &mut Workspace, holds: &[Hold], h: Real) {
+    w.along_work = 0.0;
+    for hold in holds {
+        let i = hold.particle;
+        match hold.along {
+            None => w.x1[i] = hold.target,
+            Some(n) => {
+                let x = w.x1[i] + n * n.dot(hold.target - w.x1[i]);
+                let vn = n.dot(x - w.x0[i]) / h;
+                let v = w.v1[i];
+                w.x1[i] = x;
+                w.v1[i] = v + n * (vn - n.dot(v));
+                let m = if w.inv_mass[i] > 0.0 {
+                    1.0 / w.inv_mass[i]
+                } else {
+                    0.0
+                };
+                w.along_work += 0.5 * m * (w.v1[i].length_squared() - v.length_squared());
+            }
+        }
+    }
 }
 
 /// Forces at the end of the last step, valid while the state is the one they were computed at.
@@ -247,6 +302,8 @@ pub(crate) struct Workspace {
     /// The fractions of the step at which the scheme's current (sub)step starts and ends
     /// (`ParticleSystem::set_step_time`).
     pub span: (Real, Real),
+    /// Kinetic energy the last `place_holds` gave the particles held along a direction, J.
+    pub along_work: Real,
 }
 
 impl Workspace {
@@ -513,7 +570,7 @@ impl Integrator {
                 0.0
             }
         }));
-        for h in holds {
+        for h in holds.iter().filter(|h| h.along.is_none()) {
             if let Some(i) = inv.get_mut(h.particle) {
                 *i = 0.0;
             }
@@ -631,7 +688,7 @@ impl Integrator {
         let n = state.x.len();
         self.split_held.clear();
         self.split_held.resize(n, false);
-        for h in holds {
+        for h in holds.iter().filter(|h| h.along.is_none()) {
             if let Some(f) = self.split_held.get_mut(h.particle) {
                 *f = true;
             }
@@ -707,7 +764,7 @@ impl Integrator {
         }
         let after = kinetic(&state.v, system.masses(), &self.split_held);
         for (f, h) in self.held_forces.iter_mut().zip(holds) {
-            *f += self.split_force[h.particle];
+            *f += h.held_part(self.split_force[h.particle]);
         }
         if let Some(last) = self.watch.last.as_mut() {
             *last -= (before - after).max(0.0);
@@ -759,8 +816,8 @@ impl Integrator {
                     .copied()
                     .unwrap_or(hold.target);
                 sub.push(Hold {
-                    particle: hold.particle,
                     target: from + (hold.target - from) * f,
+                    ..*hold
                 });
             }
             self.work.span = ((Real::from(k) - 1.0) / Real::from(n), f);
@@ -821,8 +878,8 @@ impl Integrator {
             }
         };
         sub.extend(holds.iter().map(|hold| Hold {
-            particle: hold.particle,
             target: target_at(hold, 1),
+            ..*hold
         }));
         let result = self.run_substeps(system, state, holds, &mut sub, h, n, &target_at);
         self.sub_holds = sub;
@@ -877,7 +934,9 @@ impl Integrator {
             if k > 1 {
                 for (s, hold) in sub.iter_mut().zip(holds) {
                     s.target = target_at(hold, k);
-                    w.v0[s.particle] = (s.target - w.x0[s.particle]) / h;
+                    if s.along.is_none() {
+                        w.v0[s.particle] = (s.target - w.x0[s.particle]) / h;
+                    }
                 }
             }
             match self.scheme {
@@ -887,9 +946,7 @@ impl Integrator {
                 Scheme::Rk4 => schemes::rk4(system, w, h),
                 Scheme::ImplicitEuler => unreachable!("implicit Euler substeps take `single`"),
             };
-            for s in sub.iter() {
-                w.x1[s.particle] = s.target;
-            }
+            place_holds(w, sub, h);
             system.set_step_time(w.span.1);
             eval_forces(system, &w.x1, &w.v1, &mut w.f1);
             let (dw, dw_abs) = held_work(w, sub);
@@ -940,9 +997,7 @@ impl Integrator {
             }
         };
         let w = &mut self.work;
-        for h in holds {
-            w.x1[h.particle] = h.target;
-        }
+        place_holds(w, holds, dt);
         if let Some(node) = (0..w.x1.len()).find(|&i| !is_finite_vec(w.x1[i] + w.v1[i])) {
             return Err(self.diverged(node, "its position or velocity is not finite".into()));
         }
@@ -1000,6 +1055,17 @@ impl Integrator {
                     value: format!("particle {} -> {}", h.particle, h.target),
                     reason: "the target is not finite".into(),
                 });
+            }
+            if let Some(n) = h.along {
+                if !(is_finite_vec(n) && (n.length() - 1.0).abs() < 1e-6) {
+                    return Err(SimError::BadParameter {
+                        name: "hold",
+                        value: format!("particle {} along {n}", h.particle),
+                        reason: "the direction must be a finite unit vector".into(),
+                    });
+                }
+                // Free in the scheme, projected after it (`place_holds`).
+                continue;
             }
             w.inv_mass[h.particle] = 0.0;
             w.held[h.particle] = true;
@@ -1131,7 +1197,7 @@ impl Integrator {
         state.v.copy_from_slice(&w.v1);
         self.held_forces.clear();
         self.held_forces
-            .extend(holds.iter().map(|h| w.f1[h.particle]));
+            .extend(holds.iter().map(|h| h.held_part(w.f1[h.particle])));
         let end = self.end.get_or_insert_with(EndOfStep::default);
         end.x.clone_from(&w.x1);
         end.v.clone_from(&w.v1);
@@ -1170,11 +1236,14 @@ fn free_kinetic(v: &[Vec3], inv_mass: &[Real]) -> Real {
         .sum()
 }
 
-/// (signed, absolute) work the held particles did from x0 to x1: −½ (f0 + f1)·(x1 − x0).
+/// (signed, absolute) work the held particles did from x0 to x1: −½ (f0 + f1)·(x1 − x0),
+/// along its direction only for a hold along one (across it the particle is free), plus
+/// the kinetic energy such holds' projection gave.
 fn held_work(w: &Workspace, holds: &[Hold]) -> (Real, Real) {
-    holds.iter().fold((0.0, 0.0), |(s, a), h| {
+    let snap = (w.along_work, w.along_work.abs());
+    holds.iter().fold(snap, |(s, a), h| {
         let i = h.particle;
-        let dw = -0.5 * (w.f0[i] + w.f1[i]).dot(w.x1[i] - w.x0[i]);
+        let dw = -0.5 * h.held_part(w.f0[i] + w.f1[i]).dot(w.x1[i] - w.x0[i]);
         (s + dw, a + dw.abs())
     })
 }

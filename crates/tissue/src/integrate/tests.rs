@@ -143,6 +143,7 @@ pub(super) fn oscillator(damping: Real) -> (Springs, ParticleState, [Hold; 1]) {
         [Hold {
             particle: 0,
             target: Vec3::ZERO,
+            along: None,
         }],
     )
 }
@@ -309,6 +310,7 @@ fn a_hanging_chain_comes_to_rest_with_its_weight_on_the_support() {
         let holds = [Hold {
             particle: 0,
             target: Vec3::ZERO,
+            along: None,
         }];
         let mut integrator = Integrator::new(scheme);
         integrator.settings.cg_tolerance = 1e-12;
@@ -401,6 +403,7 @@ fn non_finite_forces_and_bad_input_leave_the_state_alone() {
     let far = [Hold {
         particle: 7,
         target: Vec3::ZERO,
+        along: None,
     }];
     let err = integrator
         .step(&mut system, &mut state, &far, 0.01)
@@ -431,10 +434,7 @@ fn a_held_particle_reaches_its_target_and_feels_the_spring() {
         let (mut system, mut state, _) = oscillator(0.0);
         state.v[1] = Vec3::ZERO;
         let target = Vec3::new(0.05, 0.0, 0.0);
-        let holds = [Hold {
-            particle: 0,
-            target,
-        }];
+        let holds = [Hold::new(0, target)];
         let mut integrator = Integrator::new(scheme);
         integrator
             .step(&mut system, &mut state, &holds, 1e-3)
@@ -503,15 +503,63 @@ fn round_off_from_rest_is_not_taken_for_a_blow_up() {
     for scheme in Scheme::ALL {
         let mut system = Springs::new(vec![1.0, 2.0], vec![(0, 1, 8.0, 0.1, 0.0)]);
         let mut state = ParticleState::at_rest(vec![Vec3::ZERO, Vec3::new(0.1, 0.0, 0.0)]);
-        let holds = [Hold {
-            particle: 0,
-            target: Vec3::new(-1e-18, 0.0, 0.0),
-        }];
+        let holds = [Hold::new(0, Vec3::new(-1e-18, 0.0, 0.0))];
         let mut integrator = Integrator::new(scheme);
         for k in 0..10 {
             integrator
                 .step(&mut system, &mut state, &holds, 1e-3)
                 .unwrap_or_else(|e| panic!("{scheme}: step {k}: {e}"));
+        }
+    }
+}
+
+/// A particle held along z only, on a zero-length spring to an anchor off to the side: it
+/// slides across z to below the anchor, its height is the target's after every step, and
+/// its held force is the spring's pull along z alone, k·d at rest (every scheme, and with
+/// substeps).
+#[test]
+fn a_hold_along_a_direction_slides_across_it_and_takes_the_normal_force() {
+    let (k, d) = (100.0, 0.01);
+    for scheme in Scheme::ALL {
+        for substeps in [Substeps::Fixed(1), Substeps::Fixed(3)] {
+            // Critically damped: c = 2√(km).
+            let mut sys = Springs::new(vec![1.0, 1.0], vec![(0, 1, k, 0.0, 20.0)]);
+            let anchor = Vec3::new(0.05, 0.02, 0.0);
+            let mut state = ParticleState::at_rest(vec![anchor, Vec3::ZERO]);
+            let holds = [
+                Hold::new(0, anchor),
+                Hold {
+                    particle: 1,
+                    target: Vec3::new(-0.3, 0.7, -d),
+                    along: Some(Vec3::Z),
+                },
+            ];
+            let mut integ = Integrator::with_settings(
+                scheme,
+                IntegratorSettings {
+                    substeps,
+                    ..IntegratorSettings::default()
+                },
+            );
+            for _ in 0..4000 {
+                integ.step(&mut sys, &mut state, &holds, 2e-3).unwrap();
+                assert!((state.x[1].z + d).abs() < 1e-15, "{scheme}: {}", state.x[1]);
+                let f = integ.held_forces()[1];
+                assert!(f.x == 0.0 && f.y == 0.0, "{scheme}: {f}");
+            }
+            let slid = Vec3::new(anchor.x, anchor.y, -d);
+            assert!(
+                (state.x[1] - slid).length() < 1e-9,
+                "{scheme}: {}",
+                state.x[1]
+            );
+            let f = integ.held_forces()[1];
+            assert!((f.z - k * d).abs() < 1e-8 * k * d, "{scheme}: {f}");
+            // The anchor, held in full, takes the whole spring force (implicit Euler: to its
+            // CG tolerance).
+            let f0 = integ.held_forces()[0];
+            let gap = (f0 + Vec3::new(0.0, 0.0, k * d)).length();
+            assert!(gap < 1e-6 * k * d, "{scheme}: {f0}");
         }
     }
 }

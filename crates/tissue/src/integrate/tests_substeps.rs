@@ -49,10 +49,7 @@ fn auto_substeps_equal_the_same_steps_taken_by_hand() {
     // move it in a straight line, as 7 steps of 5/7 s with targets at k/7 do.
     let (mut system, mut state, _) = oscillator(0.0);
     let target = Vec3::new(1.0, 0.0, 0.0);
-    let holds = [Hold {
-        particle: 0,
-        target,
-    }];
+    let holds = [Hold::new(0, target)];
     let mut auto = integrator(Scheme::SymplecticEuler, Substeps::Auto);
     let info = auto.step(&mut system, &mut state, &holds, 5.0).unwrap();
     assert_eq!(info.substeps, 7);
@@ -70,6 +67,7 @@ fn auto_substeps_equal_the_same_steps_taken_by_hand() {
         let h = [Hold {
             particle: 0,
             target: target * (k as Real / 7.0),
+            along: None,
         }];
         single
             .step(&mut system2, &mut by_hand, &h, 5.0 / 7.0)
@@ -128,6 +126,7 @@ fn slow_growth_is_refused_long_before_blow_up_and_keeps_the_last_good_state() {
         let holds = [Hold {
             particle: 0,
             target: Vec3::ZERO,
+            along: None,
         }];
         (system, state, holds)
     };
@@ -215,6 +214,7 @@ fn a_hardening_spring_is_measured_again_as_it_stiffens() {
         let holds = [Hold {
             particle: 0,
             target: Vec3::new(SPEED * dt * step as Real, 0.0, 0.0),
+            along: None,
         }];
         i.step(&mut system, &mut state, &holds, dt)
             .unwrap_or_else(|e| panic!("step {step}: {e}"));

@@ -65,6 +65,53 @@ impl Constraints {
         }
         Ok(disp)
     }
+
+    /// `surface_displacements` with the direction each held vertex is held along only
+    /// (`Deformable::set_constraints_along`): `normals[k]` of the prescribed entry k whose
+    /// target the vertex takes (its last), normalised; `None` for fixed vertices, for entries
+    /// without a direction (or past the end of `normals`) and for a direction that does not
+    /// normalise (zero or not finite), which are held in all three directions.
+    pub fn surface_holds(
+        &self,
+        rest: &[Vec3],
+        normals: &[Option<Vec3>],
+    ) -> Result<Vec<Option<SurfaceHold>>, SimError> {
+        let disp = self.surface_displacements(rest)?;
+        let mut along: Vec<Option<Vec3>> = vec![None; disp.len()];
+        let fixed: Vec<bool> = {
+            let mut f = vec![false; disp.len()];
+            for &v in &self.fixed {
+                f[v as usize] = true;
+            }
+            f
+        };
+        for (k, p) in self.prescribed.iter().enumerate() {
+            let v = p.vertex as usize;
+            if !fixed[v] {
+                let n = normals.get(k).copied().flatten();
+                along[v] = n.map(Vec3::normalize_or_zero).filter(|n| *n != Vec3::ZERO);
+            }
+        }
+        Ok(disp
+            .into_iter()
+            .zip(along)
+            .map(|(d, along)| {
+                d.map(|displacement| SurfaceHold {
+                    displacement,
+                    along,
+                })
+            })
+            .collect())
+    }
+}
+
+/// How a surface vertex is held (`Constraints::surface_holds`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHold {
+    /// The held displacement from rest, in m (along `along` only when it is given).
+    pub displacement: Vec3,
+    /// A unit direction: held along it only (free across it), else in all three directions.
+    pub along: Option<Vec3>,
 }
 
 /// External loads.

@@ -13,7 +13,7 @@ pub mod sliding;
 pub mod trajectory;
 
 pub use bvh::Bvh;
-pub use constraints::{Constraints, Loads, Prescribed};
+pub use constraints::{Constraints, Loads, Prescribed, SurfaceHold};
 pub use contact::Contact;
 pub use fine_surface::MappedSurface;
 pub use instrument::{Instrument, InstrumentKind};

@@ -13,6 +13,12 @@
 //! from): a column A0⁻¹ e_j is computed once, when unknown j is first held, in blocks of
 //! right-hand sides that share one pass over the factor. The dense factorisation of the
 //! active part of S is kept while the active set does not change.
+//!
+//! A held row may also combine several unknowns, cᵀu = g (a node held along a direction n
+//! only: c is n on its three unknowns): with C the rows' coefficients over the unknowns,
+//! the multipliers solve (Cᵀ S C) λ = g − Cᵀ A0⁻¹ b and the load is E C λ. The columns
+//! are still those of single unknowns, so they are shared by every direction a node is
+//! held along.
 
 use std::collections::HashMap;
 
@@ -23,6 +29,10 @@ use crate::error::SimError;
 use crate::math::Real;
 
 use super::SparseCholesky;
+
+/// One held row: its unknowns and their coefficients (a single unknown with 1: a held
+/// unknown).
+pub type HeldRow = Vec<(usize, Real)>;
 
 /// Bytes of right-hand sides solved together when computing new columns.
 const BLOCK_BYTES: usize = 64 << 20;
@@ -37,8 +47,9 @@ pub struct HeldSchur {
     unknowns: Vec<usize>,
     /// S over the slots, column after column (`unknowns.len()²` values).
     s: Vec<Real>,
-    /// The active unknowns of the last factorised part, and its factorisation.
-    active: Vec<usize>,
+    /// The active rows of the last factorised part (unknown, coefficient), and its
+    /// factorisation.
+    active: Vec<HeldRow>,
     llt: Option<Llt<Real>>,
 }
 
@@ -125,28 +136,53 @@ impl HeldSchur {
 
     /// λ with S_EE λ = `d` for the active unknowns `extra` (every one with a column).
     pub fn multipliers(&mut self, extra: &[usize], d: &[Real]) -> Result<Vec<Real>, SimError> {
-        if self.active != extra || self.llt.is_none() {
+        let rows: Vec<HeldRow> = extra.iter().map(|&e| vec![(e, 1.0)]).collect();
+        self.multipliers_rows(&rows, d)
+    }
+
+    /// λ with (Cᵀ S C) λ = `d` for the held rows `rows` (each a combination of unknowns
+    /// that all have a column).
+    pub fn multipliers_rows(
+        &mut self,
+        rows: &[HeldRow],
+        d: &[Real],
+    ) -> Result<Vec<Real>, SimError> {
+        if self.active != rows || self.llt.is_none() {
             self.llt = None;
             let h = self.unknowns.len();
-            let mut idx = Vec::with_capacity(extra.len());
-            for e in extra {
-                idx.push(*self.slot.get(e).ok_or_else(|| SimError::BadParameter {
-                    name: "held",
-                    value: format!("dof {e}"),
-                    reason: "no Schur column for it (internal)".into(),
-                })?);
+            let mut idx: Vec<Vec<(usize, Real)>> = Vec::with_capacity(rows.len());
+            for row in rows {
+                let mut r = Vec::with_capacity(row.len());
+                for &(e, c) in row {
+                    let slot = *self.slot.get(&e).ok_or_else(|| SimError::BadParameter {
+                        name: "held",
+                        value: format!("dof {e}"),
+                        reason: "no Schur column for it (internal)".into(),
+                    })?;
+                    r.push((slot, c));
+                }
+                idx.push(r);
             }
-            let m =
-                Mat::<Real>::from_fn(extra.len(), extra.len(), |i, j| self.s[idx[j] * h + idx[i]]);
+            let s = &self.s;
+            let m = Mat::<Real>::from_fn(rows.len(), rows.len(), |i, j| {
+                let mut v = 0.0;
+                for &(a, ca) in &idx[i] {
+                    for &(b, cb) in &idx[j] {
+                        v += ca * cb * s[b * h + a];
+                    }
+                }
+                v
+            });
+            let first = rows.first().and_then(|r| r.first()).map_or(0, |r| r.0);
             let llt = m
                 .llt(Side::Lower)
                 .map_err(|_| SimError::NotPositiveDefinite {
-                    row: extra.first().copied().unwrap_or(0),
+                    row: first,
                     hint: "the Schur complement of the held unknowns is not positive definite"
                         .into(),
                 })?;
             self.llt = Some(llt);
-            self.active = extra.to_vec();
+            self.active = rows.to_vec();
         }
         let llt = self.llt.as_ref().ok_or_else(|| SimError::BadParameter {
             name: "held",

@@ -8,12 +8,26 @@ use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, Volu
 
 use super::static_model::{FemStatic, Order};
 use super::surface_nodes::nodal_forces;
-use super::system::DofProblem;
+use super::system::{ALONG_CAP, DofProblem};
 
 impl FemStatic {
-    /// Surface vertex → held displacement, from constraints (fixed wins over prescribed).
-    fn surface_targets(&self, c: &Constraints) -> Result<Vec<Option<Vec3>>, SimError> {
-        c.surface_displacements(&self.boundary.surface.vertices)
+    /// The constraints as a dof problem (see `set_constraints`), the prescribed entry k held
+    /// along `normals[k]` only where given (none: every entry in full). Returns whether
+    /// every entry is held as asked: more than `ALONG_CAP` entries with a direction are held
+    /// in full instead (the Schur complement that holds them would be too large).
+    fn hold(&mut self, c: &Constraints, normals: &[Option<Vec3>]) -> Result<bool, SimError> {
+        let mut holds = c.surface_holds(&self.boundary.surface.vertices, normals)?;
+        let as_asked = holds.iter().flatten().filter(|h| h.along.is_some()).count() <= ALONG_CAP;
+        if !as_asked {
+            holds.iter_mut().flatten().for_each(|h| h.along = None);
+        }
+        let mut dp = DofProblem::new(self.system.dofs());
+        dp.hold_surface(&self.boundary.nodes, &self.surface_mids, &holds)?;
+        dp.finish();
+        dp.forces = std::mem::take(&mut self.problem.forces);
+        self.problem = dp;
+        self.reactions.set(c);
+        Ok(as_asked)
     }
 
     fn update_reactions(&mut self) {
@@ -21,13 +35,12 @@ impl FemStatic {
         for (s, &n) in self.boundary.nodes.iter().enumerate() {
             self.surface_reaction[s] = r(n as usize);
         }
-        // A held mid-edge node hands its reaction to the two ends that hold it.
+        // A held mid-edge node hands its reaction to the two ends that hold it (a free one
+        // has none: reactions are zero on free dofs).
         for &(m, a, b) in &self.surface_mids {
-            if self.problem.constrained[3 * m as usize] {
-                let half = r(m as usize) * 0.5;
-                self.surface_reaction[a as usize] += half;
-                self.surface_reaction[b as usize] += half;
-            }
+            let half = r(m as usize) * 0.5;
+            self.surface_reaction[a as usize] += half;
+            self.surface_reaction[b as usize] += half;
         }
         let surface_reaction = &self.surface_reaction;
         self.reactions.distribute(|v| surface_reaction[v as usize]);
@@ -73,23 +86,19 @@ impl Deformable for FemStatic {
     /// displacements. A vertex listed several times gets its reaction in its first fixed entry
     /// (else its last prescribed entry, whose target is used); the other entries get zero.
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = self.surface_targets(c)?;
-        let mut dp = DofProblem::new(self.system.dofs());
-        for (s, d) in disp.iter().enumerate() {
-            if let Some(d) = d {
-                dp.hold_node(self.boundary.nodes[s] as usize, *d)?;
-            }
-        }
-        for &(m, a, b) in &self.surface_mids {
-            if let (Some(da), Some(db)) = (disp[a as usize], disp[b as usize]) {
-                dp.hold_node(m as usize, (da + db) * 0.5)?;
-            }
-        }
-        dp.finish();
-        dp.forces = std::mem::take(&mut self.problem.forces);
-        self.problem = dp;
-        self.reactions.set(c);
-        Ok(())
+        self.hold(c, &[]).map(|_| ())
+    }
+
+    /// Held along a direction exactly: one more row nᵀu = nᵀd of the linear solve, through
+    /// the Schur complement on the factorisation of the other held dofs (`System`); the
+    /// reaction is λ n. A mid-edge node between two held ends is held along the mean of
+    /// their directions.
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.hold(c, normals)
     }
 
     /// Gravity becomes the consistent body load ρ g over every element; point loads act on

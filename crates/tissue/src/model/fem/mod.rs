@@ -46,7 +46,7 @@ pub use dynamic::{FemExplicit, FemSemiImplicit};
 pub use precomputed::FemPrecomputedTensors;
 pub use quadratic_mesh::QuadraticMesh;
 pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};
-pub use system::{DofProblem, SchurRule};
+pub use system::{ALONG_CAP, AlongHold, DofProblem, SchurRule};
 
 #[cfg(test)]
 mod tests;

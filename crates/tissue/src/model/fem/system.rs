@@ -17,6 +17,13 @@
 //! solves of the Schur path have cost a factorisation since the last one, or above
 //! `SCHUR_CAP` extra dofs (memory).
 //!
+//! A node may also be held along one direction n only (a frictionless contact: n·u = g,
+//! free across n, reaction along n). Such a row is not a unit row, so it is never part of
+//! the factorisation: it is always imposed through the Schur complement, with the columns
+//! of the node's three dofs (`HeldSchur::multipliers_rows`). The base factorisation is
+//! then the one of the other held dofs, and a change of direction costs only the small
+//! dense factorisation.
+//!
 //! Before factorising, each connected piece of the mesh is checked for rigid-body modes left
 //! free by the constraints, so that a free body gives a clear error instead of a solution
 //! made of roundoff.
@@ -24,7 +31,9 @@
 use std::time::Instant;
 
 use crate::error::SimError;
+use crate::interact::SurfaceHold;
 use crate::math::{Real, Vec3};
+use crate::solve::schur::HeldRow;
 use crate::solve::{HeldSchur, SparseCholesky};
 
 use super::assembly::Assembler;
@@ -35,6 +44,10 @@ const FREE_BODY_HINT: &str = "is the body fixed? a free body has rigid-motion mo
 /// Most dofs the Schur complement keeps columns for: its entries take `SCHUR_CAP²` values
 /// (72 MB at 3000).
 const SCHUR_CAP: usize = 3000;
+
+/// Most nodes held along a direction in one problem (their three columns each stay in the
+/// Schur complement, within `SCHUR_CAP`); a model with more holds them in full instead.
+pub const ALONG_CAP: usize = SCHUR_CAP / 6;
 
 /// When `System` imposes extra held dofs through the Schur complement.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -60,6 +73,18 @@ pub struct DofProblem {
     pub targets: Vec<Real>,
     /// Nodal forces, in N.
     pub forces: Vec<Real>,
+    /// Nodes held along one direction only (none of their dofs in `list`), by node.
+    pub along: Vec<AlongHold>,
+}
+
+/// A node held along a unit direction only: `normal · u_node = value`, free across it; its
+/// reaction lies along `normal`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlongHold {
+    pub node: usize,
+    pub normal: Vec3,
+    /// The held displacement along `normal`, in m.
+    pub value: Real,
 }
 
 impl DofProblem {
@@ -69,6 +94,7 @@ impl DofProblem {
             list: Vec::new(),
             targets: vec![0.0; dofs],
             forces: vec![0.0; dofs],
+            along: Vec::new(),
         }
     }
 
@@ -99,9 +125,77 @@ impl DofProblem {
         Ok(())
     }
 
-    /// Sorts the held list (after a series of `hold`).
+    /// Holds `node` along the unit direction `normal` only, at displacement `value` along
+    /// it. A node out of range or a direction that does not normalise is an error.
+    pub fn hold_along(&mut self, node: usize, normal: Vec3, value: Real) -> Result<(), SimError> {
+        let nodes = self.constrained.len() / 3;
+        let n = normal.normalize_or_zero();
+        if node >= nodes || n == Vec3::ZERO || !value.is_finite() {
+            return Err(SimError::BadParameter {
+                name: "held along",
+                value: format!("node {node}, direction {normal}, displacement {value}"),
+                reason: format!(
+                    "the model has {nodes} nodes; the direction must be non-zero and finite"
+                ),
+            });
+        }
+        self.along.push(AlongHold {
+            node,
+            normal: n,
+            value,
+        });
+        Ok(())
+    }
+
+    /// Holds the nodes of surface vertices (`nodes[s]` for vertex s) as `holds` says, in full
+    /// or along a direction; with `mids` (quadratic meshes: mid-edge node, ends), the mid
+    /// node of a boundary edge whose ends are both held follows the mean of their
+    /// displacements: in full when both ends are held in full, else along the mean of
+    /// their directions (the end held in full adding none).
+    pub(crate) fn hold_surface(
+        &mut self,
+        nodes: &[u32],
+        mids: &[(u32, u32, u32)],
+        holds: &[Option<SurfaceHold>],
+    ) -> Result<(), SimError> {
+        let hold = |dp: &mut Self, node: usize, d: Vec3, along: Option<Vec3>| match along {
+            Some(n) => dp.hold_along(node, n, n.dot(d)),
+            None => dp.hold_node(node, d),
+        };
+        for (s, h) in holds.iter().enumerate() {
+            if let (Some(h), Some(&node)) = (h, nodes.get(s)) {
+                hold(self, node as usize, h.displacement, h.along)?;
+            }
+        }
+        for &(m, a, b) in mids {
+            if let (Some(Some(ha)), Some(Some(hb))) = (holds.get(a as usize), holds.get(b as usize))
+            {
+                let d = (ha.displacement + hb.displacement) * 0.5;
+                let along = match (ha.along, hb.along) {
+                    (None, None) => None,
+                    (na, nb) => {
+                        let n = (na.unwrap_or(Vec3::ZERO) + nb.unwrap_or(Vec3::ZERO))
+                            .normalize_or_zero();
+                        // Opposite directions: nothing to hold along, hold in full.
+                        (n != Vec3::ZERO).then_some(n)
+                    }
+                };
+                hold(self, m as usize, d, along)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Sorts the held list and the nodes held along a direction (after a series of `hold`).
     pub fn finish(&mut self) {
         self.list.sort_unstable();
+        self.along.sort_unstable_by_key(|a| a.node);
+    }
+
+    /// Every held dof: the listed ones and the three of each node held along a direction.
+    pub fn held_dofs(&self) -> impl Iterator<Item = usize> + '_ {
+        let along = self.along.iter().flat_map(|a| 3 * a.node..3 * a.node + 3);
+        self.list.iter().copied().chain(along)
     }
 }
 
@@ -221,23 +315,41 @@ impl System {
                 reason: "the list must hold each marked dof once, ascending (call finish)".into(),
             });
         }
+        if p.along.windows(2).any(|w| w[0].node >= w[1].node)
+            || p.along.iter().any(|a| {
+                (3 * a.node..3 * a.node + 3).any(|d| p.constrained.get(d).copied().unwrap_or(true))
+            })
+        {
+            return Err(SimError::BadParameter {
+                name: "problem",
+                value: format!("{} nodes held along a direction", p.along.len()),
+                reason: "each must be a node of the model, once, ascending (call finish), with \
+                         none of its dofs held otherwise"
+                    .into(),
+            });
+        }
         match &mut self.always_held {
             Some(a) => a.iter_mut().zip(&p.constrained).for_each(|(a, &h)| *a &= h),
             None => self.always_held = Some(p.constrained.clone()),
         }
         let extra = self.plan(p)?;
-        if extra.is_empty() {
+        if extra.is_empty() && p.along.is_empty() {
             let t = Instant::now();
             self.solve_factored(p)?;
             self.solve_seconds = t.elapsed().as_secs_f64();
         } else if let Err(e) = self.solve_schur(p, &extra) {
             // A Schur complement that is not positive definite (roundoff on a nearly
-            // dependent set): the factorisation of the whole set decides.
+            // dependent set): the factorisation of the whole set decides (the rows along a
+            // direction stay in the Schur complement).
             if !matches!(e, SimError::NotPositiveDefinite { .. }) {
                 return Err(e);
             }
             self.refactor(p.constrained.clone(), p)?;
-            self.solve_factored(p)?;
+            if p.along.is_empty() {
+                self.solve_factored(p)?;
+            } else {
+                self.solve_schur(p, &[])?;
+            }
         }
         self.solves += 1;
         u.copy_from_slice(&self.rhs);
@@ -257,8 +369,9 @@ impl System {
             &self.assembler.pattern.row_idx,
         );
         // Row c of K is column c (K is symmetric). On the extra dofs of the Schur path this
-        // is −λ: their rows of A0 u = b + E λ are rows of K u = f + λ.
-        for &c in &p.list {
+        // is −λ: their rows of A0 u = b + E λ are rows of K u = f + λ (−λ n on a node held
+        // along n).
+        for c in p.held_dofs() {
             let range = cp[c]..cp[c + 1];
             let ku: Real = ri[range.clone()]
                 .iter()
@@ -352,11 +465,13 @@ impl System {
     }
 
     /// Solves `p` into `rhs` with the dofs `extra` (held by `p`, free in the factorisation)
-    /// imposed through their Schur complement.
+    /// and `p`'s nodes held along a direction imposed through their Schur complement.
     fn solve_schur(&mut self, p: &DofProblem, extra: &[usize]) -> Result<(), SimError> {
         let n = self.dofs();
         let t = Instant::now();
-        let added = self.schur.add_columns(&self.chol, n, extra)?;
+        let mut unknowns = extra.to_vec();
+        unknowns.extend(p.along.iter().flat_map(|a| 3 * a.node..3 * a.node + 3));
+        let added = self.schur.add_columns(&self.chol, n, &unknowns)?;
         if added > 0 {
             self.column_seconds = Some(t.elapsed().as_secs_f64() / added as f64);
             self.schur_columns += added;
@@ -372,15 +487,31 @@ impl System {
         );
         self.rhs.copy_from_slice(&self.base_rhs);
         self.chol.solve_in_place(&mut self.rhs)?;
-        let d: Vec<Real> = extra.iter().map(|&c| p.targets[c] - self.rhs[c]).collect();
-        let lambda = self.schur.multipliers(extra, &d)?;
+        let mut rows: Vec<HeldRow> = extra.iter().map(|&c| vec![(c, 1.0)]).collect();
+        let mut d: Vec<Real> = extra.iter().map(|&c| p.targets[c] - self.rhs[c]).collect();
+        for a in &p.along {
+            let dofs = 3 * a.node..3 * a.node + 3;
+            rows.push(dofs.clone().zip(a.normal.to_array()).collect());
+            let now: Real = dofs
+                .zip(a.normal.to_array())
+                .map(|(c, k)| k * self.rhs[c])
+                .sum();
+            d.push(a.value - now);
+        }
+        let lambda = self.schur.multipliers_rows(&rows, &d)?;
         self.rhs.copy_from_slice(&self.base_rhs);
-        for (&c, l) in extra.iter().zip(lambda) {
-            self.rhs[c] += l;
+        for (row, l) in rows.iter().zip(lambda) {
+            for &(c, k) in row {
+                self.rhs[c] += k * l;
+            }
         }
         self.chol.solve_in_place(&mut self.rhs)?;
-        // The first solve is the extra one: the plain path would take the second only.
-        self.schur_overhead += 0.5 * t.elapsed().as_secs_f64();
+        // The first solve is the extra one: the plain path would take the second only. Rows
+        // along a direction need both whatever the factorisation: no refactorisation saves
+        // them, so they do not count.
+        if p.along.is_empty() {
+            self.schur_overhead += 0.5 * t.elapsed().as_secs_f64();
+        }
         Ok(())
     }
 
@@ -642,6 +773,89 @@ mod tests {
         assert_eq!(slow.schur_columns, 0);
         assert_eq!(fast.refactorizations, 2);
         assert_eq!(fast.schur_columns, 3 * 5 + 3 * 4 + 1);
+    }
+
+    /// Nodes of the top held along tilted directions only, through the Schur complement on
+    /// the support's factorisation (and after a full refactorisation): each sits on its
+    /// plane, its reaction is along its direction, and holding every node in full where
+    /// that solution put it gives the same displacements and reactions (the same
+    /// equilibrium, reached by the plain solve). Both Schur rules agree.
+    #[test]
+    fn nodes_held_along_a_direction_match_the_full_hold_of_their_equilibrium() {
+        for rule in [SchurRule::Always, SchurRule::Never, SchurRule::Timed] {
+            let mut s = bar_system(rule);
+            let n = s.dofs();
+            let (support, top) = nodes(&s);
+            let normals = [
+                Vec3::new(0.3, 1.0, 0.1).normalize(),
+                Vec3::new(-0.2, 1.0, 0.4).normalize(),
+                Vec3::Y,
+            ];
+            // A first problem with the top node held in full: the base factorisation.
+            for round in 0..2 {
+                let mut p = DofProblem::new(n);
+                for &v in &support {
+                    p.hold_node(v, Vec3::ZERO).unwrap();
+                }
+                if round == 0 {
+                    p.hold_node(top[11], Vec3::new(0.0, -2e-4, 0.0)).unwrap();
+                }
+                for (k, nrm) in normals.iter().enumerate() {
+                    p.hold_along(top[8 + k], *nrm, -3e-4 * (k + 1) as Real)
+                        .unwrap();
+                }
+                p.forces[3 * top[4] + 2] = 0.05;
+                p.finish();
+                let (mut u, mut r) = (vec![0.0; n], vec![0.0; n]);
+                s.solve(&p, &mut u, &mut r).unwrap();
+                let node = |v: &[Real], i: usize| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+                let rmax = r.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+                let mut slid: Real = 0.0;
+                for (k, nrm) in normals.iter().enumerate() {
+                    let i = top[8 + k];
+                    let (ui, ri) = (node(&u, i), node(&r, i));
+                    assert!((ui.dot(*nrm) + 3e-4 * (k + 1) as Real).abs() < 1e-15);
+                    assert!(ri.cross(*nrm).length() < 1e-9 * rmax, "{rule:?}: {ri}");
+                    assert!(ri.length() > 1e-3 * rmax);
+                    slid = slid.max((ui - nrm * ui.dot(*nrm)).length());
+                }
+                assert!(slid > 1e-6, "{slid}");
+                // The same equilibrium, every node held in full where it went.
+                let mut full = DofProblem::new(n);
+                for d in p.held_dofs() {
+                    full.hold(d, u[d]).unwrap();
+                }
+                full.forces.clone_from(&p.forces);
+                full.finish();
+                let mut plain = bar_system(SchurRule::Never);
+                let (mut u2, mut r2) = (vec![0.0; n], vec![0.0; n]);
+                plain.solve(&full, &mut u2, &mut r2).unwrap();
+                let umax = u2.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+                for d in 0..n {
+                    assert!((u[d] - u2[d]).abs() < 1e-10 * umax, "{rule:?} dof {d}");
+                    assert!((r[d] - r2[d]).abs() < 1e-8 * rmax, "{rule:?} dof {d}");
+                }
+            }
+        }
+    }
+
+    /// A node held along a direction and in full at once, or twice, is refused.
+    #[test]
+    fn a_node_held_along_and_in_full_is_refused() {
+        let mut s = bar_system(SchurRule::Always);
+        let n = s.dofs();
+        let (support, top) = nodes(&s);
+        let mut p = DofProblem::new(n);
+        for &v in &support {
+            p.hold_node(v, Vec3::ZERO).unwrap();
+        }
+        p.hold_along(top[3], Vec3::Y, 0.0).unwrap();
+        p.hold(3 * top[3], 0.0).unwrap();
+        p.finish();
+        let (mut u, mut r) = (vec![0.0; n], vec![0.0; n]);
+        assert!(s.solve(&p, &mut u, &mut r).is_err());
+        assert!(p.hold_along(top[3], Vec3::ZERO, 0.0).is_err());
+        assert!(p.hold_along(n, Vec3::Y, 0.0).is_err());
     }
 
     /// The timed rule: on a tiny system a factorisation is as cheap as a few solves, so a

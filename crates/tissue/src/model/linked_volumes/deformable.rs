@@ -208,6 +208,7 @@ impl Deformable for LinkedVolumes {
                 .map(|(t, x0)| Hold {
                     particle: t.0 as usize,
                     target: *x0 + (t.1 - *x0) * f,
+                    along: None,
                 })
                 .collect();
             match self

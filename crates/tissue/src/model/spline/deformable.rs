@@ -156,6 +156,7 @@ impl SplineModel {
                     holds.push(Hold {
                         particle: p,
                         target: rest.control[p],
+                        along: None,
                     });
                 }
             }

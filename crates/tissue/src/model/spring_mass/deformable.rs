@@ -135,6 +135,7 @@ impl Deformable for SpringModel {
                 holds.push(Hold {
                     particle: p,
                     target: self.rest[p],
+                    along: None,
                 });
                 claims.push(fixed[p].iter().map(|&k| (true, k)).collect());
             } else if !prescribed[p].0.is_empty() {
@@ -142,6 +143,7 @@ impl Deformable for SpringModel {
                 holds.push(Hold {
                     particle: p,
                     target: *sum / ks.len() as Real,
+                    along: None,
                 });
                 claims.push(ks.iter().map(|&k| (false, k)).collect());
             }
@@ -151,6 +153,26 @@ impl Deformable for SpringModel {
         self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
         self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
         Ok(())
+    }
+
+    /// Held along a direction by the integrator's projection (`integrate::Hold::along`): a
+    /// particle whose claims are all prescribed entries with one direction; the others in
+    /// full.
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.set_constraints(c)?;
+        for (hold, claims) in self.holds.iter_mut().zip(&self.constraints.claims) {
+            let mut dirs = claims
+                .iter()
+                .map(|&(fixed, k)| (!fixed).then(|| normals.get(k as usize).copied().flatten()));
+            let first = dirs.next().flatten().flatten().map(Vec3::normalize_or_zero);
+            let same = dirs.all(|d| matches!((d.flatten(), first), (Some(d), Some(f)) if d.normalize_or_zero() == f));
+            hold.along = first.filter(|n| same && *n != Vec3::ZERO);
+        }
+        Ok(true)
     }
 
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {

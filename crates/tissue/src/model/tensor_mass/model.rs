@@ -237,6 +237,7 @@ impl TensorMass {
                 d.map(|d| Hold {
                     particle: n,
                     target: self.mesh.vertices[n] + d,
+                    along: None,
                 })
             })
             .collect();
@@ -264,6 +265,7 @@ impl TensorMass {
                 self.step_holds.push(Hold {
                     particle: n,
                     target: *x,
+                    along: None,
                 });
             }
         }

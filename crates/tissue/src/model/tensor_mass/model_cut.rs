@@ -25,6 +25,7 @@ impl TensorMass {
                 self.step_holds.push(Hold {
                     particle: n,
                     target: self.state.x[n],
+                    along: None,
                 });
             }
         }

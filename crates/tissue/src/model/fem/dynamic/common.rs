@@ -266,12 +266,13 @@ impl Core {
     }
 
     /// Accepts the trial level: reactions, rotation of the time levels, positions.
-    /// Reactions = F − (K U⁺ + M Ü + α M U̇) on held dofs, Ü and U̇ by central differences.
+    /// Reactions = F − (K U⁺ + M Ü + α M U̇) on held dofs, Ü and U̇ by central differences
+    /// (on a node held along n, the sum is along n: across it the node moved freely).
     pub fn accept(&mut self, dt: Real, energy: Real) {
         let p = &self.assembler.pattern;
         let alpha = self.material.damping;
         self.r.iter_mut().for_each(|v| *v = 0.0);
-        for &c in &self.problem.list {
+        for c in self.problem.held_dofs() {
             let ku: Real = (p.col_ptr[c]..p.col_ptr[c + 1])
                 .map(|s| self.k[s] * self.u_next[p.row_idx[s]])
                 .sum();

@@ -8,26 +8,38 @@ use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3};
 
 use super::super::surface_nodes::nodal_forces;
-use super::super::system::DofProblem;
+use super::super::system::{ALONG_CAP, DofProblem};
 use super::common::Core;
 
 impl Core {
     /// Fixed vertices are held at rest, prescribed ones reach their target at the end of
     /// each step; fixed wins. Checked fully before anything changes.
     pub fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = c.surface_displacements(&self.boundary.surface.vertices)?;
-        let mut dp = DofProblem::new(self.dofs());
-        for (s, d) in disp.iter().enumerate() {
-            if let Some(d) = d {
-                dp.hold_node(self.boundary.nodes[s] as usize, *d)?;
-            }
+        self.set_constraints_along(c, &[]).map(|_| ())
+    }
+
+    /// `set_constraints` with the prescribed entry k held along `normals[k]` only where
+    /// given (`DofProblem::along`; only a scheme whose solve imposes such rows may pass
+    /// any). Returns whether every entry is held as asked: more than `ALONG_CAP` entries
+    /// with a direction are held in full.
+    pub fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        let mut holds = c.surface_holds(&self.boundary.surface.vertices, normals)?;
+        let as_asked = holds.iter().flatten().filter(|h| h.along.is_some()).count() <= ALONG_CAP;
+        if !as_asked {
+            holds.iter_mut().flatten().for_each(|h| h.along = None);
         }
+        let mut dp = DofProblem::new(self.dofs());
+        dp.hold_surface(&self.boundary.nodes, &[], &holds)?;
         dp.finish();
         dp.forces = std::mem::take(&mut self.problem.forces);
         self.problem = dp;
         self.reactions.set(c);
         self.update_energy_floor();
-        Ok(())
+        Ok(as_asked)
     }
 
     /// Gravity gives each node its lumped mass times g (the consistent load of the linear
@@ -41,7 +53,8 @@ impl Core {
         Ok(())
     }
 
-    /// An energy scale of the current loads and targets (Σ f²/K_ii + Σ K_ii g²)/2, so that
+    /// An energy scale of the current loads and targets (Σ f²/K_ii + Σ K_ii g²)/2 (g along
+    /// its direction for a node held along one), so that
     /// the growth test has a reference even when starting from rest.
     pub(super) fn update_energy_floor(&mut self) {
         let diag = self.assembler.pattern.diagonal_slots();
@@ -53,6 +66,13 @@ impl Core {
             } else {
                 e += 0.5 * self.problem.forces[d].powi(2) / kd;
             }
+        }
+        // A node held along n at g: the stiffest of its diagonal entries times g².
+        for a in &self.problem.along {
+            let kd = (0..3)
+                .map(|k| self.k[diag[3 * a.node + k]])
+                .fold(0.0, Real::max);
+            e += 0.5 * kd * a.value.powi(2);
         }
         self.energy_floor = e.max(Real::MIN_POSITIVE);
     }

@@ -355,4 +355,4 @@ impl FemExplicit {
     }
 }
 
-forward_deformable!(FemExplicit, "fem-explicit");
+forward_deformable!(FemExplicit, "fem-explicit", false);

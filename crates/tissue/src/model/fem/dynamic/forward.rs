@@ -1,9 +1,10 @@
 //! The `Deformable` methods that only forward to `Core`, shared by both schemes.
 
 /// The `Deformable` methods that only forward to `Core`; the type provides `advance(dt)`
-/// and `details()`.
+/// and `details()`. `$along`: whether its solve holds entries along a direction
+/// (`DofProblem::along`); when false, `set_constraints_along` is the default (in full).
 macro_rules! forward_deformable {
-    ($ty:ty, $kind:literal) => {
+    ($ty:ty, $kind:literal, $along:literal) => {
         impl crate::model::Deformable for $ty {
             fn kind(&self) -> &'static str {
                 $kind
@@ -29,6 +30,17 @@ macro_rules! forward_deformable {
                 c: &crate::interact::Constraints,
             ) -> Result<(), crate::error::SimError> {
                 self.core.set_constraints(c)
+            }
+            fn set_constraints_along(
+                &mut self,
+                c: &crate::interact::Constraints,
+                normals: &[Option<crate::math::Vec3>],
+            ) -> Result<bool, crate::error::SimError> {
+                if $along {
+                    self.core.set_constraints_along(c, normals)
+                } else {
+                    self.core.set_constraints(c).map(|()| false)
+                }
             }
             fn set_loads(
                 &mut self,

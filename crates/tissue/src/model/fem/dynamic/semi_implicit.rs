@@ -124,6 +124,7 @@ impl FemSemiImplicit {
         self.hat.constrained.clone_from(&p.constrained);
         self.hat.list.clone_from(&p.list);
         self.hat.targets.clone_from(&p.targets);
+        self.hat.along.clone_from(&p.along);
         for d in 0..c.u.len() {
             self.hat.forces[d] =
                 p.forces[d] + c.mass[d] * (2.0 * inv2 * c.u[d] - (inv2 - damp) * c.u_prev[d]);
@@ -183,4 +184,4 @@ impl FemSemiImplicit {
     }
 }
 
-forward_deformable!(FemSemiImplicit, "fem-semi-implicit");
+forward_deformable!(FemSemiImplicit, "fem-semi-implicit", true);

@@ -662,3 +662,75 @@ fn explicit_stiffness_damping_decays_the_first_mode_at_beta_omega_squared_over_t
     );
     assert!(sigma0.abs() < 0.01 * expected, "β = 0 decays at {sigma0}");
 }
+
+/// Contacts held along a direction only (`set_constraints_along`): `fem-semi-implicit`,
+/// critically damped, settles to `fem-static`'s exact equilibrium with the same holds
+/// (two independent solves of the same rows: one with inertia, one without), reactions
+/// included, and every contact's reaction is along its direction at every step.
+#[test]
+fn semi_implicit_settles_to_fem_static_with_contacts_held_along_normals() {
+    let (mesh, fixed, mut m) = liver();
+    let mut st = FemStatic::new(&mesh, m, Order::Linear).unwrap();
+    let rest = st.rest_surface().to_vec();
+    // Three vertices far from the supports, pushed 2 mm along tilted directions.
+    let picks = [10usize, 50, 90];
+    let normals: Vec<Option<Vec3>> = vec![
+        Some(Vec3::new(0.2, 1.0, 0.1).normalize()),
+        Some(Vec3::new(-0.3, 0.2, 1.0).normalize()),
+        Some(Vec3::new(1.0, -0.1, 0.3).normalize()),
+    ];
+    let c = Constraints {
+        fixed: fixed.fixed.clone(),
+        prescribed: picks
+            .iter()
+            .zip(&normals)
+            .map(|(&v, n)| Prescribed {
+                vertex: v as u32,
+                position: rest[v] - n.unwrap() * 2e-3,
+            })
+            .collect(),
+    };
+    assert!(st.set_constraints_along(&c, &normals).unwrap());
+    st.step(0.0).unwrap();
+    let u_ref = st.displacements().to_vec();
+    let r_ref = st.reactions().prescribed.to_vec();
+    let scale: Real = r_ref.iter().map(|r| r.length()).sum();
+    assert!(scale > 0.0);
+
+    let mut probe = FemExplicit::new(&mesh, m).unwrap();
+    probe.set_constraints(&fixed).unwrap();
+    let (omega2, _) = lowest_mode(&probe.core, &probe.core.problem);
+    m.damping = 2.0 * omega2.sqrt();
+    let mut model = FemSemiImplicit::new(&mesh, m).unwrap();
+    assert!(model.set_constraints_along(&c, &normals).unwrap());
+    let dt = 0.2 / omega2.sqrt();
+    let mut steps = 0;
+    let u = loop {
+        model.step(dt).unwrap();
+        steps += 1;
+        for (r, n) in model.reactions().prescribed.iter().zip(&normals) {
+            assert!(r.cross(n.unwrap()).length() < 1e-9 * scale, "{r}");
+        }
+        let u = model.displacements().to_vec();
+        if rel(&u, &u_ref) < 5e-7 || steps > 20_000 {
+            break u;
+        }
+    };
+    eprintln!(
+        "semi-implicit along normals: {steps} steps of {dt:.3e} s, rel error {:.2e}",
+        rel(&u, &u_ref)
+    );
+    assert!(rel(&u, &u_ref) < 1e-6, "{}", rel(&u, &u_ref));
+    for (r, q) in model.reactions().prescribed.iter().zip(&r_ref) {
+        assert!((*r - *q).length() < 1e-5 * scale, "{r} vs {q}");
+    }
+    // The contacts slid: not at their targets, but on their planes.
+    let surface = model.surface().positions;
+    let mut slid: Real = 0.0;
+    for (p, n) in c.prescribed.iter().zip(&normals) {
+        let off = surface[p.vertex as usize] - p.position;
+        assert!(off.dot(n.unwrap()).abs() < 1e-12, "{off}");
+        slid = slid.max(off.length());
+    }
+    assert!(slid > 1e-5, "{slid}");
+}
