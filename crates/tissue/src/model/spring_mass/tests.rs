@@ -434,14 +434,14 @@ fn closed_surfaces_keep_their_volume_by_default() {
     let ball = icosphere(Vec3::ZERO, 0.05, 1);
     let params = SpringParams::default();
     assert!(
-        surface::build(&ball, material(3000.0), params.clone())
+        surface::build(&ball, material(3000.0), params)
             .unwrap()
             .body()
             .pressure
             .is_some()
     );
     assert!(
-        simplex::build(&ball, material(3000.0), params.clone())
+        simplex::build(&ball, material(3000.0), params)
             .unwrap()
             .body()
             .pressure
@@ -449,7 +449,7 @@ fn closed_surfaces_keep_their_volume_by_default() {
     );
     let off = SpringParams {
         pressure: Some(false),
-        ..params.clone()
+        ..params
     };
     assert!(
         surface::build(&ball, material(3000.0), off)
@@ -461,7 +461,7 @@ fn closed_surfaces_keep_their_volume_by_default() {
     let mut sheet = ball.clone();
     sheet.triangles.pop();
     assert!(
-        surface::build(&sheet, material(3000.0), params.clone())
+        surface::build(&sheet, material(3000.0), params)
             .unwrap()
             .body()
             .pressure
