@@ -1212,15 +1212,14 @@ mod tests {
 
     /// `tissue compare --models hybrid --quick`'s random probe path 0 on the built-in liver
     /// at the step the comparison runs it at: to its end, every surface position finite and
-    /// the probe's force within the plausibility bound (10 E L²). Fails today, and not in
-    /// the hybrid: at t = 0.066 s the sticking probe (radius 24.7 mm, wider than the lobe it
-    /// presses) newly holds an interface vertex 0.055 mm inside its sphere whose normal
-    /// faces away from the centre ((p − c)·n = 0.86 |p − c|: the lobe's far side), and
-    /// `contact::push_out` reads that as "the centre went past the vertex" and sends it to
-    /// the sphere's inner side, 42 mm away in one step (vertex speed 42 m/s). The same
-    /// happens at dt = 4, 1 and 0.25 ms (docs/hybrid.md, "Known problems").
+    /// the probe's force within the plausibility bound (10 E L²). It failed, and not in the
+    /// hybrid: at t = 0.066 s the sticking probe (radius 24.7 mm, wider than the lobe it
+    /// presses) newly held an interface vertex 0.055 mm inside its sphere whose normal faces
+    /// away from the centre ((p − c)·n = 0.86 |p − c|: the lobe's far side), and
+    /// `contact::push_out` read that as "the centre went past the vertex" and sent it to the
+    /// sphere's inner side, 42 mm away in one step (vertex speed 42 m/s), at dt = 4, 1 and
+    /// 0.25 ms alike. A vertex barely inside now goes radially out.
     #[test]
-    #[ignore = "diverges: contact::push_out sends a vertex barely inside a wide probe 42 mm through the lobe (docs/hybrid.md)"]
     fn the_hybrid_runs_the_comparisons_random_probe_path_0_to_its_end() {
         let mut mesh = crate::io::read(concat!(
             env!("CARGO_MANIFEST_DIR"),

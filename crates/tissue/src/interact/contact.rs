@@ -293,11 +293,16 @@ pub fn pulls(reaction: Vec3, normal: Vec3, scale: Real) -> bool {
 /// slip between vertices, or a vertex springs back behind it), radial projection would put
 /// the vertex on the far side of the ball and the tissue would hold the tool from behind.
 /// Then the vertex is pushed inward along its normal to the ball's inner side instead.
+/// A vertex less than `SHALLOW` of the radius inside is where the ball has just reached it,
+/// whatever its normal says, and goes radially out (a small move): a ball wider than a thin
+/// lobe touches the lobe's far side from within, and the inner side sent that vertex 42 mm
+/// through the tissue in one step (`hybrid` on compare's random path 0).
 fn push_out(p: Vec3, center: Vec3, radius: Real, normal: Vec3) -> Vec3 {
+    const SHALLOW: Real = 0.25;
     let n = normal.normalize_or_zero();
     let d = p - center;
     let along = d.dot(n);
-    if n == Vec3::ZERO || along <= 0.0 {
+    if n == Vec3::ZERO || along <= 0.0 || d.length() >= (1.0 - SHALLOW) * radius {
         return project_to_sphere(p, center, radius, normal);
     }
     // p − t·n on the sphere, the far root: t = d·n + sqrt((d·n)² − |d|² + r²).
@@ -343,6 +348,12 @@ mod tests {
         assert!(q.y < 0.0 && (q.x - p.x).abs() < 1e-18, "{q}");
         // In front of the centre: plain radial projection.
         let p = Vec3::new(0.001, -0.002, 0.0);
+        assert_eq!(
+            push_out(p, c, r, Vec3::Y),
+            project_to_sphere(p, c, r, Vec3::Y)
+        );
+        // Behind it but barely inside (0.1 mm of 5 mm): the nearest point of the sphere.
+        let p = Vec3::new(0.0, 0.0049, 0.0);
         assert_eq!(
             push_out(p, c, r, Vec3::Y),
             project_to_sphere(p, c, r, Vec3::Y)
