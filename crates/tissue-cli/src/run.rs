@@ -349,12 +349,7 @@ impl Writer {
         });
         // What the model said during the run that changes how to read it (`hybrid`: its
         // region came to cover the organ, so it is whole-organ tensor-mass).
-        let notices: Vec<Value> = info
-            .details
-            .iter()
-            .filter(|(k, _)| k == "whole_organ")
-            .map(|(_, v)| Value::String(v.clone()))
-            .collect();
+        let notices: Vec<Value> = info.notices().map(|v| Value::String(v.into())).collect();
         if let Some(map) = summary.as_object_mut() {
             map.insert("notices".into(), Value::Array(notices));
         }

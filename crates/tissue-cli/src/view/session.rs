@@ -71,6 +71,8 @@ pub struct Session {
     cut: Option<CutJob>,
     building: Option<Receiver<Built>>,
     build_status: Arc<Mutex<BuildStatus>>,
+    /// The model's notices already said on the page (`tell_notices`).
+    told: Vec<String>,
     substeps: u32,
     failure: Option<Failure>,
     steps_in_window: u64,
@@ -106,7 +108,7 @@ impl Session {
             None => None,
         };
         let dt = setup.scene.run.dt;
-        let s = Session {
+        let mut s = Session {
             setup: Arc::new(setup),
             kind,
             material,
@@ -126,8 +128,10 @@ impl Session {
             window_start: Instant::now(),
             sim_rate: 0.0,
             last_error: None,
+            told: Vec::new(),
         };
         s.publish_init();
+        s.tell_notices();
         Ok(s)
     }
 
@@ -360,6 +364,7 @@ impl Session {
                 self.dt = self.setup.scene.run.dt;
                 self.substeps = 0;
                 self.failure = None;
+                self.told.clear();
                 self.publish_init();
                 let took = lock(&self.build_status)
                     .started
@@ -371,6 +376,7 @@ impl Session {
                         self.kind, material.young_modulus, material.poisson_ratio, self.dt
                     ),
                 );
+                self.tell_notices();
                 true
             }
             Err(e) => {
@@ -423,6 +429,20 @@ impl Session {
             self.sim.remove_instrument(i);
         }
         self.hub.notify("info", message);
+        // A cut can change what the model is (`hybrid`: its region grows).
+        self.tell_notices();
+    }
+
+    /// Says each of the model's notices (`ModelInfo::notices`) once: after a build and after
+    /// a cut, the moments they can appear.
+    fn tell_notices(&mut self) {
+        let info = self.sim.model().info();
+        for notice in info.notices() {
+            if !self.told.iter().any(|t| t == notice) {
+                self.hub.notify("info", notice);
+                self.told.push(notice.to_string());
+            }
+        }
     }
 
     fn step_failed(&mut self, e: SimError) {

@@ -83,6 +83,23 @@ pub struct ModelInfo {
     pub details: Vec<(String, String)>,
 }
 
+impl ModelInfo {
+    /// Detail names whose values are notices: facts that change how a run must be read,
+    /// which `tissue run` lists in `summary.json` and the viewer says once.
+    pub const NOTICE_DETAILS: [&'static str; 1] = [
+        // `hybrid`: its region came to cover the organ (it is whole-organ tensor-mass).
+        "whole_organ",
+    ];
+
+    /// The details that are notices (`NOTICE_DETAILS`), in the order the model gives them.
+    pub fn notices(&self) -> impl Iterator<Item = &str> {
+        self.details
+            .iter()
+            .filter(|(k, _)| Self::NOTICE_DETAILS.contains(&k.as_str()))
+            .map(|(_, v)| v.as_str())
+    }
+}
+
 /// A scalpel sweep: the blade segment (tip, heel) at the start and at the end of the motion.
 /// The cut surface is the ruled quad between them.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -792,6 +792,7 @@ fn a_region_grown_over_every_tetrahedron_is_whole_organ_tensor_mass() {
         sink.lock().unwrap().push(stage.to_string())
     }));
     assert!(!h.is_whole_organ());
+    assert_eq!(h.info().notices().count(), 0);
     // Blades sweeping along the beam just above its top: they cut nothing, but each one
     // near the border grows the region.
     for k in 0..12 {
@@ -819,6 +820,13 @@ fn a_region_grown_over_every_tetrahedron_is_whole_organ_tensor_mass() {
             .iter()
             .any(|(k, v)| k == "whole_organ" && v.contains("tensor-mass")),
         "{details:?}"
+    );
+    // The notice `tissue run` lists and the viewer says once.
+    let info = h.info();
+    let notices: Vec<&str> = info.notices().collect();
+    assert!(
+        notices.len() == 1 && notices[0].contains("tensor-mass"),
+        "{notices:?}"
     );
     // Cutting continues, everywhere, and shrinks nothing.
     let before = h.info().elements;
