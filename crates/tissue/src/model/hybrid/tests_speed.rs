@@ -14,7 +14,14 @@ use crate::mesh::{MeshData, TetMesh};
 use crate::model::tensor_mass::TensorMass;
 use crate::model::{CutPath, Deformable};
 
+/// The shipped liver split once (4,768 tetrahedra), or the tetrahedral mesh in centimetres
+/// at `HYBRID_LIVER` (e.g. `tissue mesh tetrahedralize assets/meshes/liver-smooth.obj
+/// liver-7k.msh --size 0.42 --force`: 7,191 tetrahedra), for the studies on a larger organ.
 fn refined_liver() -> TetMesh {
+    if let Ok(path) = std::env::var("HYBRID_LIVER") {
+        let m = crate::io::read(&path).unwrap().tet_mesh(&path).unwrap();
+        return TetMesh::new(m.vertices.iter().map(|v| *v * 0.01).collect(), m.tets);
+    }
     let m = crate::io::read(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../assets/meshes/liver.msh"
