@@ -11,7 +11,7 @@ use crate::integrate::Scheme;
 use crate::integrate::coupling::NodeCoupling;
 use crate::interact::{Constraints, Loads, Prescribed};
 use crate::material::Material;
-use crate::math::{Mat3, Real, Vec3};
+use crate::math::{Mat3, Real, Vec3, closest_point_on_triangle};
 use crate::mesh::TET_FACES;
 use crate::mesh::TetMesh;
 use crate::mesh::topology::tet_neighbours;
@@ -23,7 +23,7 @@ use crate::model::{
 use super::CutRegion;
 use super::grow::{Built, Growth};
 use super::rest::RestPart;
-use super::split::{NONE, Split, centroids, segment_distance};
+use super::split::{NONE, Split, centroids};
 
 /// What the model was built with, kept for region growths.
 #[derive(Clone, Debug)]
@@ -810,15 +810,18 @@ impl Hybrid {
             .collect()
     }
 
-    /// The tetrahedra whose rest centroid is within `radius` of the blade.
+    /// The tetrahedra whose rest centroid is within `radius` of the surface the blade swept.
+    /// The whole swept quad counts, not its edges: a fast blade sweeps a wide quad whose
+    /// middle is far from every edge, and `touched` finds the tetrahedra it crosses there.
     fn near_blade(&self, blade: &CutPath, radius: Real) -> Vec<usize> {
+        let swept = blade.triangles();
         (0..self.mesh.tets.len())
             .filter(|&t| {
                 let c = self.centroids[t];
                 self.alive[t]
-                    && (segment_distance(c, blade.start[0], blade.start[1]) <= radius
-                        || segment_distance(c, blade.end[0], blade.end[1]) <= radius
-                        || segment_distance(c, blade.start[0], blade.end[0]) <= radius)
+                    && swept
+                        .iter()
+                        .any(|&tri| (closest_point_on_triangle(c, tri) - c).length() <= radius)
             })
             .collect()
     }

@@ -149,15 +149,3 @@ pub(super) fn centroids(mesh: &TetMesh) -> Vec<Vec3> {
         .map(|t| mesh.corners(t).iter().copied().sum::<Vec3>() * 0.25)
         .collect()
 }
-
-/// Distance from `p` to the segment a–b.
-pub(super) fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> Real {
-    let ab = b - a;
-    let len2 = ab.length_squared();
-    let s = if len2 > 0.0 {
-        ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    p.distance(a + ab * s)
-}

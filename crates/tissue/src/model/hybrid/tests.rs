@@ -491,6 +491,42 @@ fn the_automatic_region_follows_the_blade() {
     assert_eq!(removed_now, mesh.tets.len() - removed);
 }
 
+/// Automatic mode, one fast stroke: the blade sweeps a quad 10 cm long and deeper than the
+/// beam in a single step. The middle of that quad is farther than the growth radius from all
+/// of the blade's edges and from its tip's path, so the region must grow around the swept
+/// surface itself, or the stroke is refused (the soak found this with random jumps).
+#[test]
+fn a_fast_stroke_grows_the_automatic_region_around_all_it_sweeps() {
+    let mesh = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.24, 0.06, 0.03),
+        [24, 6, 3],
+        BoxSplit::Six,
+    );
+    let params = r#"
+        cut_region = "auto"
+        auto_radius = 0.01
+        auto_seeds = [[0.2, 0.03, 0.03]]
+        volume_penalty = 500.0
+    "#;
+    let mut h = hybrid(&mesh, material(20.0), params);
+    let rest = h.rest_surface().to_vec();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].x < 1e-9)
+        .collect();
+    h.set_constraints(&Constraints::fixed(fixed)).unwrap();
+    let blade = CutPath {
+        start: [Vec3::new(0.2, 0.03, 0.045), Vec3::new(0.2, 0.03, -0.015)],
+        end: [Vec3::new(0.1, 0.03, 0.045), Vec3::new(0.1, 0.03, -0.015)],
+    };
+    let removed = h.cut(&blade).unwrap().removed_elements;
+    h.step(2e-4).unwrap();
+    assert_closed_oriented(&h);
+    assert!(removed >= 10, "{removed}");
+    assert_eq!(h.border_removals, 0);
+    assert_eq!(h.info().elements, mesh.tets.len() - removed);
+}
+
 #[test]
 fn bad_settings_are_refused_with_the_key() {
     let mesh = beam();
