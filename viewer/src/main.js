@@ -123,8 +123,10 @@ function showStatus(frame) {
     const sub = frame && frame.substeps > 1 ? ` in ${frame.substeps} substeps` : '';
     step = `dt ${Number(dt).toExponential(2)} s${sub}`;
   }
+  // The scene's fine surface is drawn over the mechanical one until a cut (`visual`).
+  const drawn = init.visual ? ` (drawn: its ${init.visual}-vertex visual surface)` : '';
   const name = init.scene.split('/').pop();
-  $('status').textContent = `${name}: running ${kind}, ${step}`;
+  $('status').textContent = `${name}${drawn}: running ${kind}, ${step}`;
   state.status = $('status').textContent;
   const b = frame && frame.building;
   const bar = $('build');

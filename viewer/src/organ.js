@@ -104,8 +104,8 @@ export class Organ {
     restGeo.computeVertexNormals();
     this.restMesh = new THREE.Mesh(restGeo, new THREE.MeshBasicMaterial({ side: THREE.DoubleSide }));
     this.restMesh.visible = false;
-    const fixed = new Float32Array(msg.fixed.length * 3);
-    msg.fixed.forEach((v, i) => fixed.set(rest.subarray(3 * v, 3 * v + 3), 3 * i));
+    // The fixed vertices' places (the mechanical surface's; the surface drawn may be a finer one).
+    const fixed = new Float32Array(msg.fixed_points);
     const fgeo = new THREE.BufferGeometry();
     fgeo.setAttribute('position', new THREE.BufferAttribute(fixed, 3));
     this.fixed = new THREE.Points(fgeo, new THREE.PointsMaterial({

@@ -4,6 +4,7 @@
 
 use serde_json::{Value, json};
 use tissue::haptic::TimingSummary;
+use tissue::interact::fine_surface::MappedSurface;
 use tissue::model::KINDS;
 use tissue::sim::Simulation;
 use tissue::{Material, Real, Vec3};
@@ -18,6 +19,14 @@ fn flat_f32(points: &[Vec3]) -> Vec<f32> {
         .collect()
 }
 
+/// The scene's fine surface (`[mesh] visual`) while the organ is uncut: the page draws it
+/// instead of the mechanical surface, which it follows through the map. A cut changes the
+/// mechanical surface, not the fine one, so from the first cut on the page draws the
+/// mechanical surface, where the incision is.
+fn drawn_fine_surface(sim: &Simulation) -> Option<(&MappedSurface, &[Vec3])> {
+    sim.fine_surface().filter(|_| sim.topology_version() == 0)
+}
+
 pub fn init_message(
     sim: &Simulation,
     setup: &Setup,
@@ -26,7 +35,19 @@ pub fn init_message(
     dt: Real,
 ) -> String {
     let m = sim.model();
-    let triangles: Vec<u32> = m.surface().triangles.iter().flatten().copied().collect();
+    let fine = drawn_fine_surface(sim);
+    let (rest, triangles) = match fine {
+        Some((f, _)) => (&f.rest[..], &f.triangles[..]),
+        None => (m.rest_surface(), m.surface().triangles),
+    };
+    let triangles: Vec<u32> = triangles.iter().flatten().copied().collect();
+    // Markers go by position: the fixed vertices are the mechanical surface's, which may not
+    // be the surface drawn.
+    let fixed_points: Vec<Vec3> = sim
+        .fixed()
+        .iter()
+        .filter_map(|&v| m.rest_surface().get(v as usize).copied())
+        .collect();
     // Only what this body can be built as: an image scene lists its voxel kinds.
     let buildable = setup.buildable_kinds();
     let kinds: Vec<_> = KINDS
@@ -44,9 +65,12 @@ pub fn init_message(
             "young_modulus": material.young_modulus,
             "poisson_ratio": material.poisson_ratio,
         },
-        "rest": flat_f32(m.rest_surface()),
+        "rest": flat_f32(rest),
         "triangles": triangles,
         "fixed": sim.fixed(),
+        "fixed_points": flat_f32(&fixed_points),
+        // Drawn: the scene's fine surface (`visual`), or the mechanical one.
+        "visual": fine.map(|(f, _)| f.len()),
         "center": b.center.to_array(),
         "size": b.radius / 3.0,
         "probe_radius": setup.probe_radius,
@@ -94,7 +118,9 @@ pub fn frame_message(sim: &Simulation, f: &Figures<'_>, names: [&str; 3]) -> Str
         "time": sim.time(),
         "steps": sim.steps(),
         "dt": f.dt,
-        "positions": flat_f32(sim.model().surface().positions),
+        "positions": flat_f32(
+            drawn_fine_surface(sim).map_or(sim.model().surface().positions, |(_, now)| now)
+        ),
         "probe": tool(probe),
         "probe_active": f.probe_active,
         "grasper": tool(grasper),
@@ -118,4 +144,159 @@ pub fn frame_message(sim: &Simulation, f: &Figures<'_>, names: [&str; 3]) -> Str
         "labels": sim.model().vertex_labels(),
     })
     .to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use tissue::interact::{Instrument, InstrumentKind, Trajectory};
+    use tissue::model::Progress;
+    use tissue::scene::Scene;
+
+    use super::*;
+
+    fn floats(v: &Value) -> Vec<f32> {
+        v.as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|x| x.as_f64())
+                    .map(|x| x as f32)
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// A scene with a fine surface: the page gets it (its rest, its triangles, and each
+    /// frame where the map puts it), the fixed markers at the mechanical vertices; after a
+    /// cut it gets the mechanical surface, where the incision is.
+    #[test]
+    fn the_page_draws_the_visual_surface_until_a_cut() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+        let text = format!(
+            r#"
+            [mesh]
+            file = "{root}/assets/meshes/liver.msh"
+            scale = 0.01
+            visual = "{root}/assets/meshes/liver-smooth.obj"
+            [material]
+            young_modulus = 3000.0
+            poisson_ratio = 0.3
+            [model]
+            kind = "tensor-mass"
+            [[fixed]]
+            file_vertices = [3, 39, 64]
+            [run]
+            duration = 1.0
+            dt = 0.001
+            "#
+        );
+        let dir = std::env::temp_dir().join(format!("tissue-visual-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, text).unwrap_or_else(|e| panic!("{e}"));
+        let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let (setup, material) = Setup::load(&scene).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = setup
+            .build("tensor-mass", material, Progress::silent())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let (fine_len, fine_tris) = {
+            let (f, _) = sim
+                .fine_surface()
+                .unwrap_or_else(|| panic!("no fine surface"));
+            (f.len(), f.triangles.len())
+        };
+        let coarse_len = sim.model().rest_surface().len();
+        assert!(
+            fine_len > 10 * coarse_len,
+            "{fine_len} against {coarse_len}"
+        );
+
+        let init: Value =
+            serde_json::from_str(&init_message(&sim, &setup, "tensor-mass", material, 1e-3))
+                .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(init["visual"].as_u64(), Some(fine_len as u64));
+        assert_eq!(floats(&init["rest"]).len(), 3 * fine_len);
+        assert_eq!(
+            init["triangles"].as_array().map(Vec::len),
+            Some(3 * fine_tris)
+        );
+        // The markers sit on the mechanical surface's fixed vertices.
+        let fixed = floats(&init["fixed_points"]);
+        assert_eq!(fixed.len(), 3 * sim.fixed().len());
+        for (k, &v) in sim.fixed().iter().enumerate() {
+            let p = sim.model().rest_surface()[v as usize];
+            assert!((fixed[3 * k] as Real - p.x).abs() < 1e-6);
+        }
+
+        // Pressed 5 mm: each frame carries where the map puts the fine vertices.
+        let probe = sim
+            .instruments()
+            .iter()
+            .position(|i| i.name == super::super::setup::PROBE);
+        let probe = probe.unwrap_or_else(|| panic!("no probe"));
+        sim.set_instrument_position(probe, Some(Vec3::new(-0.005, 0.0505, 0.0067)))
+            .unwrap_or_else(|e| panic!("{e}"));
+        for _ in 0..50 {
+            sim.step(1e-3).unwrap_or_else(|e| panic!("{e}"));
+        }
+        let figures = Figures {
+            dt: 1e-3,
+            sim_rate: 0.0,
+            haptic: TimingSummary::default(),
+            haptic_force: Vec3::ZERO,
+            probe_active: true,
+            kind: "tensor-mass",
+            substeps: 1,
+            building: None,
+            cut: None,
+        };
+        let names = [super::super::setup::PROBE, "grasper", "scalpel"];
+        let frame: Value = serde_json::from_str(&frame_message(&sim, &figures, names))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let drawn = floats(&frame["positions"]);
+        let (_, now) = sim
+            .fine_surface()
+            .unwrap_or_else(|| panic!("no fine surface"));
+        assert_eq!(drawn.len(), 3 * fine_len);
+        let moved = now
+            .iter()
+            .zip(sim.fine_surface().map(|(f, _)| &f.rest[..]).unwrap_or(&[]))
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, Real::max);
+        assert!(moved > 1e-3, "the probe moved the fine surface {moved} m");
+        for (j, p) in now.iter().enumerate() {
+            assert!((drawn[3 * j + 1] as Real - p.y).abs() < 1e-6);
+        }
+
+        // A scalpel drawn across the top: the model's surface changes, and so does the
+        // surface drawn.
+        let scalpel = Instrument::new(
+            "scalpel",
+            InstrumentKind::Scalpel {
+                direction: Vec3::new(0.0, 1.0, 0.0),
+                length: 0.03,
+            },
+            0.005,
+            Trajectory::fixed(Vec3::new(-0.03, 0.04, 0.0067)),
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        sim.add_instrument(scalpel);
+        let k = sim.instruments().len() - 1;
+        for i in 0..=20 {
+            let x = -0.03 + 0.003 * i as Real;
+            sim.set_instrument_position(k, Some(Vec3::new(x, 0.04, 0.0067)))
+                .unwrap_or_else(|e| panic!("{e}"));
+            sim.step(1e-3).unwrap_or_else(|e| panic!("{e}"));
+        }
+        assert!(sim.topology_version() > 0, "the scalpel did not cut");
+        let init: Value =
+            serde_json::from_str(&init_message(&sim, &setup, "tensor-mass", material, 1e-3))
+                .unwrap_or_else(|e| panic!("{e}"));
+        assert!(init["visual"].is_null());
+        let n = sim.model().rest_surface().len();
+        assert_eq!(floats(&init["rest"]).len(), 3 * n);
+        let frame: Value = serde_json::from_str(&frame_message(&sim, &figures, names))
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(floats(&frame["positions"]).len(), 3 * n);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
