@@ -147,10 +147,20 @@ function updateLegend() {
   const on = $('cmap').checked;
   $('legend').style.display = on ? 'block' : 'none';
   $('legend-bar').style.background = legendGradient();
-  const mm = organ.colourScale * 1000;
-  $('legend-lo').textContent = '0 mm';
-  $('legend-hi').textContent = `${mm < 10 ? mm.toFixed(2) : mm.toFixed(1)} mm`;
-  $('legend-title').textContent = 'displacement |u| (scale grows with the largest, reset with R)';
+  const strain = organ.quantity === 'strain' && organ.hasStrain();
+  if (strain) {
+    const pct = organ.strainScale * 100;
+    $('legend-lo').textContent = '0 %';
+    $('legend-hi').textContent = `${pct < 10 ? pct.toFixed(2) : pct.toFixed(1)} %`;
+    $('legend-title').textContent = 'equivalent strain √(2/3 dev E : dev E), Green-Lagrange (scale grows with the largest, reset with R)';
+  } else {
+    const mm = organ.colourScale * 1000;
+    $('legend-lo').textContent = '0 mm';
+    $('legend-hi').textContent = `${mm < 10 ? mm.toFixed(2) : mm.toFixed(1)} mm`;
+    $('legend-title').textContent = organ.quantity === 'strain'
+      ? 'displacement |u| (this model has no tetrahedra: no strain to show)'
+      : 'displacement |u| (scale grows with the largest, reset with R)';
+  }
   state.legend = on ? `${$('legend-lo').textContent} – ${$('legend-hi').textContent}` : '';
 }
 
@@ -287,6 +297,12 @@ function updateProbe() {
 for (const b of document.querySelectorAll('.tool')) b.addEventListener('click', () => setTool(b.dataset.tool));
 $('wire').addEventListener('change', (e) => organ.setWireframe(e.target.checked));
 $('cmap').addEventListener('change', (e) => { organ.setColours(e.target.checked); updateLegend(); });
+$('quantity').addEventListener('change', (e) => {
+  organ.setQuantity(e.target.value);
+  if (!$('cmap').checked) { $('cmap').checked = true; organ.setColours(true); }
+  updateLegend();
+  e.target.blur();
+});
 // After a choice the selector lets go of the keyboard, so the shortcuts work again (a
 // focused select would take C, R, W... as type-to-search).
 $('kind').addEventListener('change', (e) => { send({ type: 'set_model', kind: e.target.value }); e.target.blur(); });

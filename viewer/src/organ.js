@@ -45,6 +45,11 @@ export class Organ {
     this.showFixed = true;
     this.maxDisplacement = 0;
     this.colourScale = 0;
+    // What the colours show: 'displacement' (m) or 'strain' (the frames' per-vertex
+    // equivalent strain, for models with tetrahedra).
+    this.quantity = 'displacement';
+    this.strain = null;
+    this.strainScale = 0;
     this.size = 1;
 
     const mat = (c, extra = {}) => new THREE.MeshStandardMaterial({ color: c, roughness: 0.5, ...extra });
@@ -141,8 +146,13 @@ export class Organ {
     this.incision.geometry.computeBoundingSphere();
   }
 
-  /// Forgets the colour scale's maximum (after a reset).
-  rescale() { this.colourScale = 0; this.paint(); }
+  /// Forgets the colour scales' maxima (after a reset).
+  rescale() { this.colourScale = 0; this.strainScale = 0; this.paint(); }
+
+  setQuantity(q) { this.quantity = q; this.paint(); }
+
+  /// True when the colours can show strain (the model has tetrahedra).
+  hasStrain() { return !!this.strain; }
 
   setWireframe(on) { this.wireframe = on; if (this.wire) this.wire.visible = on; }
   setColours(on) { this.colours = on; this.paint(); }
@@ -164,8 +174,17 @@ export class Organ {
     this.maxDisplacement = max;
     // The scale only grows (until reset) so colours do not flicker as the maximum moves.
     this.colourScale = Math.max(this.colourScale, max, 1e-3 * this.size);
+    let value = disp, scale = this.colourScale;
+    if (this.quantity === 'strain' && this.strain) {
+      let top = 0;
+      for (const e of this.strain) if (e > top) top = e;
+      // Never below 0.1 % strain: an organ at rest is uniformly blue, not noise.
+      this.strainScale = Math.max(this.strainScale, top, 1e-3);
+      value = this.strain;
+      scale = this.strainScale;
+    }
     for (let i = 0; i < disp.length; i++) {
-      if (this.colours) colormap(disp[i] / this.colourScale, col, 3 * i);
+      if (this.colours) colormap(value[i] / scale, col, 3 * i);
       else if (this.lips && this.lips[i]) col.set(CUT_COLOUR, 3 * i);
       else col.set(this.labels ? PART_COLOURS[this.labels[i]] || TISSUE_COLOUR : TISSUE_COLOUR, 3 * i);
     }
@@ -178,6 +197,7 @@ export class Organ {
     if (msg.positions.length !== attr.array.length) return; // a new init is on its way
     attr.array.set(msg.positions);
     this.labels = msg.labels && msg.labels.length === attr.array.length / 3 ? msg.labels : null;
+    this.strain = msg.strain && msg.strain.length === attr.array.length / 3 ? msg.strain : null;
     if (this.smoother) this.smoother.apply(attr.array);
     attr.needsUpdate = true;
     this.mesh.geometry.computeVertexNormals();

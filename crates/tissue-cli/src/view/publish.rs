@@ -93,10 +93,40 @@ pub struct Figures<'a> {
     /// The running model's kind and the internal steps its last step took.
     pub kind: &'a str,
     pub substeps: u32,
+    /// The volume node under each surface vertex, for models with tetrahedra: the frame
+    /// then carries the equivalent strain per drawn vertex.
+    pub strain_nodes: Option<&'a [Option<u32>]>,
     /// The build in progress, if any.
     pub building: Option<BuildStatus>,
     /// A cut in progress: path points swept, of how many.
     pub cut: Option<(usize, usize)>,
+}
+
+/// The equivalent strain (`metrics::node_strain`) at each vertex the page draws: the
+/// mechanical surface's vertices, or the fine surface's through its map's weights.
+fn drawn_strain(sim: &Simulation, nodes: &[Option<u32>]) -> Option<Vec<f32>> {
+    let volume = sim.model().volume()?;
+    let at_node = tissue::metrics::node_strain(&volume);
+    let coarse: Vec<Real> = nodes
+        .iter()
+        .map(|n| {
+            n.and_then(|i| at_node.get(i as usize).copied())
+                .unwrap_or(0.0)
+        })
+        .collect();
+    let values = match drawn_fine_surface(sim) {
+        Some((fine, _)) => (0..fine.len())
+            .map(|j| {
+                fine.tie(j).map_or(0.0, |(tri, w)| {
+                    (0..3)
+                        .map(|k| w[k] * coarse.get(tri[k] as usize).copied().unwrap_or(0.0))
+                        .sum()
+                })
+            })
+            .collect(),
+        None => coarse,
+    };
+    Some(values.into_iter().map(|x| x as f32).collect())
 }
 
 /// `names`: the viewer's probe, grasper and scalpel.
@@ -142,6 +172,8 @@ pub fn frame_message(sim: &Simulation, f: &Figures<'_>, names: [&str; 3]) -> Str
         // Parts of a composed model (hybrid: 0 the pre-computed rest, 1 the region's border,
         // 2 the cuttable region), per surface vertex; every frame, as a region can grow.
         "labels": sim.model().vertex_labels(),
+        // Equivalent Green-Lagrange strain per drawn vertex, for models with tetrahedra.
+        "strain": f.strain_nodes.and_then(|n| drawn_strain(sim, n)),
     })
     .to_string()
 }
@@ -180,6 +212,7 @@ mod tests {
             [material]
             young_modulus = 3000.0
             poisson_ratio = 0.3
+            damping = 20.0
             [model]
             kind = "tensor-mass"
             [[fixed]]
@@ -227,6 +260,14 @@ mod tests {
             assert!((fixed[3 * k] as Real - p.x).abs() < 1e-6);
         }
 
+        // At rest nothing is strained.
+        let nodes0 = tissue::metrics::surface_nodes(sim.model()).unwrap_or_default();
+        let volume = sim.model().volume().unwrap_or_else(|| panic!("no volume"));
+        let at_rest = tissue::metrics::node_strain(&volume);
+        let worst = at_rest.iter().fold(0.0, |a: Real, &b| a.max(b));
+        assert!(worst < 1e-12, "strain at rest {worst}");
+        assert!(nodes0.iter().all(Option::is_some));
+
         // Pressed 5 mm: each frame carries where the map puts the fine vertices.
         let probe = sim
             .instruments()
@@ -235,7 +276,8 @@ mod tests {
         let probe = probe.unwrap_or_else(|| panic!("no probe"));
         sim.set_instrument_position(probe, Some(Vec3::new(-0.005, 0.0505, 0.0067)))
             .unwrap_or_else(|e| panic!("{e}"));
-        for _ in 0..50 {
+        // Pressed in one move, then left to settle (mass damping 20/s): quasi-static.
+        for _ in 0..400 {
             sim.step(1e-3).unwrap_or_else(|e| panic!("{e}"));
         }
         let figures = Figures {
@@ -246,6 +288,7 @@ mod tests {
             probe_active: true,
             kind: "tensor-mass",
             substeps: 1,
+            strain_nodes: None,
             building: None,
             cut: None,
         };
@@ -266,6 +309,44 @@ mod tests {
         for (j, p) in now.iter().enumerate() {
             assert!((drawn[3 * j + 1] as Real - p.y).abs() < 1e-6);
         }
+        // Strain per drawn vertex: under the probe it is over twice the organ's median (the
+        // largest values may sit at the three point supports, where strain concentrates).
+        let nodes = tissue::metrics::surface_nodes(sim.model()).unwrap_or_default();
+        assert!(nodes.iter().all(Option::is_some));
+        let with_strain = Figures {
+            dt: 1e-3,
+            sim_rate: 0.0,
+            haptic: TimingSummary::default(),
+            haptic_force: Vec3::ZERO,
+            probe_active: true,
+            kind: "tensor-mass",
+            substeps: 1,
+            strain_nodes: Some(&nodes),
+            building: None,
+            cut: None,
+        };
+        let frame: Value = serde_json::from_str(&frame_message(&sim, &with_strain, names))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let strain = floats(&frame["strain"]);
+        assert_eq!(strain.len(), fine_len);
+        assert!(strain.iter().all(|e| e.is_finite() && *e >= 0.0));
+        let tip = Vec3::new(-0.005, 0.0505, 0.0067);
+        let near: Vec<f32> = (0..fine_len)
+            .filter(|&j| now[j].distance(tip) < 0.01)
+            .map(|j| strain[j])
+            .collect();
+        let mut sorted = strain.clone();
+        sorted.sort_by(f32::total_cmp);
+        let median = sorted[fine_len / 2];
+        let near_mean = near.iter().sum::<f32>() / near.len().max(1) as f32;
+        eprintln!(
+            "strain: median {median:.2e}, within 1 cm of the probe {near_mean:.2e} ({} vertices)",
+            near.len()
+        );
+        assert!(
+            !near.is_empty() && near_mean > 2.0 * median,
+            "near {near_mean}, median {median}"
+        );
 
         // A scalpel drawn across the top: the model's surface changes, and so does the
         // surface drawn.

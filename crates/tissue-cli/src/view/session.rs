@@ -74,6 +74,9 @@ pub struct Session {
     /// The model's notices already said on the page (`tell_notices`).
     told: Vec<String>,
     substeps: u32,
+    /// The volume node under each surface vertex (`metrics::surface_nodes`), for the strain
+    /// colours; refreshed with every init (a rebuild or a cut).
+    strain_nodes: Option<Vec<Option<u32>>>,
     failure: Option<Failure>,
     steps_in_window: u64,
     window_start: Instant,
@@ -123,6 +126,7 @@ impl Session {
             building: None,
             build_status: Arc::new(Mutex::new(BuildStatus::default())),
             substeps: 0,
+            strain_nodes: None,
             failure: None,
             steps_in_window: 0,
             window_start: Instant::now(),
@@ -526,7 +530,8 @@ impl Session {
         );
     }
 
-    fn publish_init(&self) {
+    fn publish_init(&mut self) {
+        self.strain_nodes = tissue::metrics::surface_nodes(self.sim.model());
         let msg = publish::init_message(&self.sim, &self.setup, &self.kind, self.material, self.dt);
         self.hub.set_init(msg);
     }
@@ -546,6 +551,7 @@ impl Session {
             probe_active: self.handle.pose().position != self.setup.park,
             kind: &self.kind,
             substeps: self.substeps,
+            strain_nodes: self.strain_nodes.as_deref(),
             building: self
                 .building
                 .is_some()
