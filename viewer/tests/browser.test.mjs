@@ -94,6 +94,23 @@ try {
     check('Reset rescales the colour map', hiReset < 0.5 * hiDrag, `legend top ${hiDrag} mm after the drag, ${hiReset} mm after Reset`);
     check('Reset restores the dt shown', r.dt === r.dt0 && (r.status.includes(`dt ${Number(r.dt0).toExponential(2)}`) || r.status.endsWith('static')),
       `dt ${r.dt} s (the scene's ${r.dt0} s): "${r.status}"`);
+
+    // The strain colours (the model has tetrahedra): the legend in %, grown by a drag.
+    await page.selectOption('#quantity', 'strain');
+    await page.mouse.move(p[0], p[1]);
+    await page.mouse.down();
+    for (let k = 1; k <= 10; k++) {
+      await page.mouse.move(p[0] + 6 * k, p[1] - 4 * k);
+      await page.waitForTimeout(50);
+    }
+    await page.waitForTimeout(1500);
+    const st = await page.evaluate(() => window.__tissue.legend);
+    await page.mouse.up();
+    const top = parseFloat(st.split('–')[1]);
+    check('strain colours: legend in % grown by a drag', /^0 % – \d+(\.\d+)? %$/.test(st) && top > 1, `"${st}"`);
+    await page.selectOption('#quantity', 'displacement');
+    await page.keyboard.press('r');
+    await page.waitForTimeout(600);
   }
   await page.keyboard.press('c');
 
