@@ -4,8 +4,9 @@
 #   scripts/fuzz.sh [RUNS] [TARGET...]
 #
 # RUNS executions of each target (default 1,000,000; every target in fuzz/Cargo.toml when none
-# is named). Seeds come from the repository's own files (meshes converted to every format by
-# `tissue mesh convert`, the shipped images, every scene, viewer messages), in
+# is named). FUZZ_MAX_LEN caps an input's bytes (default 65536). Seeds come from the
+# repository's own files (meshes converted to every format by `tissue mesh convert`, the
+# shipped images, every scene, viewer messages, the small files in fuzz/seeds/), in
 # fuzz/corpus/TARGET/ (not committed; libFuzzer adds what it finds there). A crashing input is
 # copied to fuzz/regressions/TARGET/ (committed), which `cargo test` replays
 # (crates/tissue/tests/fuzz_regressions.rs, and the viewer's in tissue-cli). A summary line per
@@ -48,8 +49,10 @@ for target in "${targets[@]}"; do
         mesh_ply) seed "$target" assets/meshes/wound_deformable.ply ;;
         mesh_msh) seed "$target" assets/meshes/liver.msh "$seeds/liver.msh" ;;
         mesh_vtk) seed "$target" "$seeds/liver.vtk" ;;
-        mesh_vtu) seed "$target" "$seeds/liver.vtu" ;;
-        mesh_vtp) seed "$target" "$seeds/liver.vtp" ;;
+        # Small hand-checked files too (ascii and binary arrays): with FUZZ_MAX_LEN=4096 the
+        # XML readers run several times faster and still see every kind of array.
+        mesh_vtu) seed "$target" "$seeds/liver.vtu" fuzz/seeds/tet.vtu fuzz/seeds/tet-ascii.vtu ;;
+        mesh_vtp) seed "$target" "$seeds/liver.vtp" fuzz/seeds/tet.vtp fuzz/seeds/tri-ascii.vtp ;;
         mesh_medit) seed "$target" "$seeds/liver.mesh" ;;
         mesh_off) seed "$target" "$seeds/liver.off" ;;
         mesh_tetgen)
@@ -89,7 +92,7 @@ for target in "${targets[@]}"; do
     log=$(mktemp)
     echo "== $target: $runs runs"
     if (cd fuzz && cargo +nightly fuzz run "$target" "corpus/$target" -- \
-        -runs="$runs" -max_len=65536 -rss_limit_mb=2048 -timeout=20 -print_final_stats=1) >"$log" 2>&1; then
+        -runs="$runs" -max_len="${FUZZ_MAX_LEN:-65536}" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1) >"$log" 2>&1; then
         verdict=ok
     else
         verdict=CRASH
