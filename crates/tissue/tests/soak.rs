@@ -8,7 +8,8 @@
 //! The quick test takes a few steps per scene; the long one (ignored) takes `SOAK_STEPS`
 //! (default 20000) per scene, a hundredth of that for static models, and stops a scene early
 //! when its wall-time budget `SOAK_SECONDS` (default: none) is spent; `SOAK_THREADS` (default
-//! 1) scenes run at once. The run of record (docs/hardening.md):
+//! 1) scenes run at once; `SOAK_SCENES=a.toml,b.toml` soaks only those, `SOAK_VERBOSE=1`
+//! prints every refusal. The run of record (docs/hardening.md):
 //! `SOAK_STEPS=150000 SOAK_SECONDS=200 SOAK_THREADS=2 cargo test --release --workspace --test
 //! soak a_long -- --ignored --nocapture`.
 
@@ -146,6 +147,13 @@ fn soak_scene(
                 if refused_here == 1 {
                     tally.examples.push(format!("{name}: {e}"));
                 }
+                if std::env::var_os("SOAK_VERBOSE").is_some() {
+                    eprintln!(
+                        "{name}: move {} refused after {:.1} s: {e}",
+                        tally.steps,
+                        started.elapsed().as_secs_f64()
+                    );
+                }
                 if in_a_row > STUCK_AFTER {
                     tally.examples.push(format!(
                         "{name}: stuck after {} refusals in a row, its soak ends",
@@ -161,9 +169,19 @@ fn soak_scene(
 }
 
 fn soak(steps: impl Fn(bool) -> u64 + Sync, budget: Option<Duration>, skip: &[&str]) -> Tally {
+    // `SOAK_SCENES=a.toml,b.toml` soaks only those.
+    let only: Option<Vec<String>> = std::env::var("SOAK_SCENES")
+        .ok()
+        .map(|s| s.split(',').map(str::to_owned).collect());
     let files: Vec<PathBuf> = scene_files()
         .into_iter()
         .filter(|f| !f.file_name().is_some_and(|n| skip.iter().any(|s| n == *s)))
+        .filter(|f| {
+            only.as_ref().is_none_or(|o| {
+                f.file_name()
+                    .is_some_and(|n| o.iter().any(|s| n == s.as_str()))
+            })
+        })
         .collect();
     let threads: usize = std::env::var("SOAK_THREADS")
         .ok()

@@ -280,6 +280,8 @@ struct EndOfStep {
     v: Vec<Vec3>,
     f: Vec<Vec3>,
     energy: Option<Real>,
+    /// The particles a hold moved in that step (their kinetic energy was not in `energy`).
+    held: Vec<bool>,
 }
 
 /// Buffers reused by every step, sized on first use.
@@ -924,7 +926,8 @@ impl Integrator {
         };
         // What the explicit kicks may add by themselves: ½h²Σ|f|²/m per substep.
         let kick = 0.5 * h * h * Real::from(n) * kick_sum(w);
-        let (mut work, mut work_in) = (0.0, 0.0);
+        let released = self.released_kinetic();
+        let (mut work, mut work_in) = (released, released);
         for k in 1..=n {
             let w = &mut self.work;
             w.span = (
@@ -1116,6 +1119,8 @@ impl Integrator {
         // Work the held particles did on the rest: −∫ f·dx along their straight path, by the
         // trapezoid rule (exact for linear forces).
         let (work, work_in) = held_work(w, holds);
+        let released = self.released_kinetic();
+        let (work, work_in) = (work + released, work_in + released);
         // What one explicit kick may add by itself: ½h²Σ|f|²/m (the kinetic energy of one
         // step's velocity change), so that a first step from rest under a load passes.
         let kick = 0.5 * dt * dt * kick_sum(w);
@@ -1203,6 +1208,28 @@ impl Integrator {
         end.v.clone_from(&w.v1);
         end.f.clone_from(&w.f1);
         end.energy = energy;
+        end.held.clone_from(&w.held);
+    }
+
+    /// Kinetic energy of the particles a hold moved in the last step and lets go of now.
+    /// A held particle moves with its target, and its kinetic energy is the hold's, not in
+    /// the ledger; let go, it keeps its velocity and that energy enters the ledger. The hold
+    /// put it in, so it counts as the holds' work: otherwise a probe that jumps into the
+    /// organ and out again (the viewer's and the haptic device's moves can) reads as a
+    /// blow-up of a stable step, and the retries inflate the substeps for good.
+    fn released_kinetic(&self) -> Real {
+        let (Some(end), w) = (self.end.as_ref(), &self.work) else {
+            return 0.0;
+        };
+        end.held
+            .iter()
+            .enumerate()
+            .filter(|&(i, &was)| was && !w.held.get(i).copied().unwrap_or(true))
+            .filter_map(|(i, _)| {
+                let (inv, v) = (*w.inv_mass.get(i)?, w.v0.get(i)?);
+                (inv > 0.0).then(|| 0.5 * v.length_squared() / inv)
+            })
+            .sum()
     }
 
     /// The free particle moving fastest in the trial state: where a blow-up shows first.
