@@ -342,8 +342,16 @@ impl Hybrid {
         if !(du.is_finite() && dz.iter().all(|(_, z)| z.is_finite()) && u_size.is_finite()) {
             return None;
         }
-        // The contacts' compliance norms looked up once, not per vertex.
-        let (dz, sizes) = (self.rest.bound_terms(&dz), self.rest.bound_terms(&sizes));
+        // One bound per vertex: the change with a margin (1e-6) plus both surfaces'
+        // rounding (1e-9 of the products' sizes), as one set of terms; the contacts'
+        // compliance norms looked up once, not per vertex.
+        let terms: Vec<(u32, Real)> = dz
+            .iter()
+            .map(|&(s, d)| (s, d * (1.0 + 1e-6)))
+            .chain(sizes.iter().map(|&(s, z)| (s, 1e-9 * z)))
+            .collect();
+        let terms = self.rest.bound_terms(&terms);
+        let du = du * (1.0 + 1e-6) + 1e-9 * u_size;
         let x = self.tm.positions();
         let mut positions = Vec::with_capacity(n);
         let mut slack = vec![0.0; n];
@@ -363,9 +371,8 @@ impl Hybrid {
                 continue;
             };
             outer += 1;
-            let s = self.rest.displacement_bound(slot, du, &dz) * (1.0 + 1e-6)
-                + 1e-9 * self.rest.displacement_bound(slot, u_size, &sizes)
-                + 4.0 * Real::EPSILON * b.length();
+            let s =
+                self.rest.displacement_bound(slot, du, &terms) + 4.0 * Real::EPSILON * b.length();
             slots[v] = slot;
             slack[v] = s;
             exact[v] = reach.iter().any(|&(c, r)| b.distance(c) <= r + s);

@@ -79,8 +79,8 @@ impl SymPacked {
     }
 
     /// y += alpha · S x: column j adds S[0..j, j] x_j to y[0..j] and S[0..=j, j] · x to
-    /// y_j, one pass over the stored triangle (AVX2 when the CPU has it, as the tensor-mass
-    /// kernel does).
+    /// y_j, one pass over the stored triangle (AVX2 and FMA when the CPU has them, as the
+    /// tensor-mass kernel does).
     fn mul_add(&self, x: &[Real], y: &mut [Real], alpha: Real) {
         assert!(x.len() >= self.n && y.len() >= self.n);
         #[cfg(target_arch = "x86_64")]
@@ -88,53 +88,99 @@ impl SymPacked {
             // SAFETY: the CPU supports the features this function is compiled for.
             return unsafe { sym_mul_add_avx2(self.n, &self.data, x, y, alpha) };
         }
-        sym_mul_add(self.n, &self.data, x, y, alpha);
+        sym_mul_add::<false>(self.n, &self.data, x, y, alpha);
     }
 }
 
-/// `SymPacked::mul_add` compiled for AVX2.
+/// `SymPacked::mul_add` compiled for AVX2 and FMA.
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn sym_mul_add_avx2(n: usize, data: &[Real], x: &[Real], y: &mut [Real], alpha: Real) {
-    sym_mul_add(n, data, x, y, alpha);
+    sym_mul_add::<true>(n, data, x, y, alpha);
+}
+
+/// a · b + c, fused when `FMA` (only inside functions compiled with the `fma` feature,
+/// where `f64::mul_add` is one instruction; elsewhere it would call the C library).
+#[inline(always)]
+fn fma<const FMA: bool>(a: Real, b: Real, c: Real) -> Real {
+    if FMA { a.mul_add(b, c) } else { a * b + c }
+}
+
+/// Offset of packed column `j` (rows 0..=j of the columns before it).
+#[inline(always)]
+fn column_start(j: usize) -> usize {
+    j * (j + 1) / 2
 }
 
 /// The packed product; inlined into its callers, so compiled for their target features.
+/// Four columns at a time: over the rows they share (0..j), one load and one store of y
+/// and one load of x serve the four columns (the product is bound by those, not by the
+/// multiplications); the 4 × 4 corner below row j and the last n mod 4 columns go one
+/// column at a time.
 #[inline(always)]
-fn sym_mul_add(n: usize, data: &[Real], x: &[Real], y: &mut [Real], alpha: Real) {
-    const W: usize = 8;
-    let mut off = 0;
-    for j in 0..n {
-        let col = &data[off..off + j];
-        let diagonal = data[off + j];
-        off += j + 1;
-        let xj = alpha * x[j];
-        // Eight partial sums (two AVX registers) so that the dot product vectorises.
-        let mut acc = [0.0; W];
-        let (yc, xc) = (&mut y[..j], &x[..j]);
-        let mut cc = col.chunks_exact(W);
-        let mut yi = yc.chunks_exact_mut(W);
-        let mut xi = xc.chunks_exact(W);
-        for ((c, yy), xx) in (&mut cc).zip(&mut yi).zip(&mut xi) {
-            for k in 0..W {
-                yy[k] += c[k] * xj;
-                acc[k] += c[k] * xx[k];
+fn sym_mul_add<const FMA: bool>(n: usize, data: &[Real], x: &[Real], y: &mut [Real], alpha: Real) {
+    const L: usize = 4;
+    let mut j = 0;
+    while j + 4 <= n {
+        let cols: [&[Real]; 4] = std::array::from_fn(|k| {
+            let o = column_start(j + k);
+            &data[o..o + j + k + 1]
+        });
+        let xs: [Real; 4] = std::array::from_fn(|k| alpha * x[j + k]);
+        // Per column, L partial sums of its dot product with x (so that it vectorises).
+        let mut acc = [[0.0; L]; 4];
+        let blocks = j / L;
+        for b in 0..blocks {
+            let r = b * L;
+            let xx: [Real; L] = x[r..r + L].try_into().unwrap_or([0.0; L]);
+            let c: [[Real; L]; 4] =
+                std::array::from_fn(|k| cols[k][r..r + L].try_into().unwrap_or([0.0; L]));
+            let mut yy: [Real; L] = y[r..r + L].try_into().unwrap_or([0.0; L]);
+            for l in 0..L {
+                for k in 0..4 {
+                    yy[l] = fma::<FMA>(c[k][l], xs[k], yy[l]);
+                    acc[k][l] = fma::<FMA>(c[k][l], xx[l], acc[k][l]);
+                }
             }
+            y[r..r + L].copy_from_slice(&yy);
         }
-        let mut dot = acc.iter().sum::<Real>();
-        for ((c, yy), xx) in cc
-            .remainder()
-            .iter()
-            .zip(yi.into_remainder())
-            .zip(xi.remainder())
-        {
-            *yy += c * xj;
-            dot += c * xx;
+        let mut dots: [Real; 4] = std::array::from_fn(|k| acc[k].iter().sum::<Real>());
+        for r in blocks * L..j {
+            let mut v = y[r];
+            for k in 0..4 {
+                v = fma::<FMA>(cols[k][r], xs[k], v);
+                dots[k] = fma::<FMA>(cols[k][r], x[r], dots[k]);
+            }
+            y[r] = v;
         }
-        y[j] += alpha * (dot + diagonal * x[j]);
+        // The corner: rows j..=j+k of column j+k.
+        for k in 0..4 {
+            let col = j + k;
+            for r in j..col {
+                y[r] = fma::<FMA>(cols[k][r], xs[k], y[r]);
+                dots[k] = fma::<FMA>(cols[k][r], x[r], dots[k]);
+            }
+            dots[k] = fma::<FMA>(cols[k][col], x[col], dots[k]);
+        }
+        for k in 0..4 {
+            y[j + k] = fma::<FMA>(alpha, dots[k], y[j + k]);
+        }
+        j += 4;
+    }
+    for col in j..n {
+        let o = column_start(col);
+        let c = &data[o..o + col + 1];
+        let xj = alpha * x[col];
+        let mut dot = 0.0;
+        for r in 0..col {
+            y[r] = fma::<FMA>(c[r], xj, y[r]);
+            dot = fma::<FMA>(c[r], x[r], dot);
+        }
+        dot = fma::<FMA>(c[col], x[col], dot);
+        y[col] = fma::<FMA>(alpha, dot, y[col]);
     }
 }
 
@@ -147,6 +193,10 @@ struct Contacts {
     rhs: Mat<Real>,
     /// G_c: rows of G at the contacts (3m × 3n_I).
     g: Mat<Real>,
+    /// G_c again, row after row (each row contiguous), for the products every force
+    /// evaluation takes: a few short dot products and axpys, which faer's general
+    /// product dispatch costs more than.
+    g_rows: Vec<Real>,
     /// W_cc and its inverse (3m × 3m).
     w: Mat<Real>,
     w_inv: Mat<Real>,
@@ -288,6 +338,7 @@ impl RestPart {
                 slots: Vec::new(),
                 rhs: Mat::zeros(0, 1),
                 g: Mat::zeros(0, ni),
+                g_rows: Vec::new(),
                 w: Mat::zeros(0, 0),
                 w_inv: Mat::zeros(0, 0),
             },
@@ -322,6 +373,7 @@ impl RestPart {
                 slots: Vec::new(),
                 rhs: Mat::zeros(0, 1),
                 g: Mat::zeros(0, 0),
+                g_rows: Vec::new(),
                 w: Mat::zeros(0, 0),
                 w_inv: Mat::zeros(0, 0),
             },
@@ -469,6 +521,7 @@ impl RestPart {
             slots: slots.to_vec(),
             rhs: Mat::zeros(m3, 1),
             g: Mat::zeros(m3, ni),
+            g_rows: Vec::new(),
             w: Mat::zeros(m3, m3),
             w_inv: Mat::zeros(m3, m3),
         };
@@ -505,6 +558,10 @@ impl RestPart {
                     })?;
             c.w_inv = llt.inverse();
         }
+        c.g_rows = (0..m3)
+            .flat_map(|i| (0..ni).map(move |j| (i, j)))
+            .map(|(i, j)| c.g[(i, j)])
+            .collect();
         self.contacts = c;
         Ok(())
     }
@@ -530,9 +587,14 @@ impl RestPart {
         if m3 == 0 {
             return;
         }
-        y.as_mut().copy_from(c.rhs.as_ref());
-        gemv(y, Accum::Add, c.g.as_ref(), u_i.as_ref(), -1.0);
-        gemv(z, Accum::Replace, c.w_inv.as_ref(), y.as_ref(), 1.0);
+        let ni = u_i.nrows();
+        let u = u_i.col_as_slice(0);
+        for (i, row) in c.g_rows.chunks_exact(ni.max(1)).enumerate() {
+            y[(i, 0)] = c.rhs[(i, 0)] - dot(row, u);
+        }
+        for i in 0..m3 {
+            z[(i, 0)] = (0..m3).map(|j| c.w_inv[(i, j)] * y[(j, 0)]).sum();
+        }
     }
 
     /// The forces the rest exerts on the interface nodes (3n_I) and the contact forces.
@@ -555,14 +617,14 @@ impl RestPart {
         out.as_mut().copy_from(self.r0.as_ref());
         self.s_packed
             .mul_add(u_i.col_as_slice(0), out.col_as_slice_mut(0), -1.0);
-        if z.nrows() > 0 {
-            gemv(
-                out,
-                Accum::Add,
-                self.contacts.g.as_ref().transpose(),
-                z.as_ref(),
-                1.0,
-            );
+        // + G_cᵀ z, row after row of G_c.
+        let ni = out.nrows();
+        let o = out.col_as_slice_mut(0);
+        for (i, row) in self.contacts.g_rows.chunks_exact(ni.max(1)).enumerate() {
+            let zi = z[(i, 0)];
+            for (oj, gj) in o.iter_mut().zip(row) {
+                *oj += gj * zi;
+            }
         }
     }
 
@@ -967,10 +1029,10 @@ mod packed_tests {
     use super::*;
 
     /// The packed symmetric product equals faer's dense one (odd and even sizes, sizes
-    /// below and above the four-lane chunk).
+    /// below and above the four-column block and the four-lane chunk).
     #[test]
     fn packed_symmetric_product_equals_the_dense_one() {
-        for n in [1, 3, 4, 7, 8, 9, 17, 33] {
+        for n in [1, 3, 4, 5, 7, 8, 9, 17, 33, 64, 67, 130] {
             let a = Mat::<Real>::from_fn(n, n, |i, j| ((3 * i + 7 * j) % 11) as Real - 5.0);
             let s = Mat::<Real>::from_fn(n, n, |i, j| a[(i, j)] + a[(j, i)]);
             let x = Mat::<Real>::from_fn(n, 1, |i, _| (i as Real * 0.37).sin());
@@ -978,10 +1040,19 @@ mod packed_tests {
             let mut packed = dense.clone();
             gemv(&mut dense, Accum::Add, s.as_ref(), x.as_ref(), -0.5);
             SymPacked::from_dense(&s).mul_add(x.col_as_slice(0), packed.col_as_slice_mut(0), -0.5);
+            // The portable path too (the AVX2 one above when the CPU has it).
+            let p = SymPacked::from_dense(&s);
+            let mut portable: Vec<Real> = (0..n).map(|i| i as Real).collect();
+            sym_mul_add::<false>(n, &p.data, x.col_as_slice(0), &mut portable, -0.5);
             for i in 0..n {
+                let tol = 1e-12 * (1.0 + dense[(i, 0)].abs());
                 assert!(
-                    (dense[(i, 0)] - packed[(i, 0)]).abs() < 1e-12,
+                    (dense[(i, 0)] - packed[(i, 0)]).abs() < tol,
                     "n = {n}, row {i}"
+                );
+                assert!(
+                    (dense[(i, 0)] - portable[i]).abs() < tol,
+                    "portable, n = {n}, row {i}"
                 );
             }
         }
