@@ -378,12 +378,14 @@ impl Hybrid {
             exact[v] = reach.iter().any(|&(c, r)| b.distance(c) <= r + s);
             positions.push(b);
         }
+        // The vertices of a triangle with one that can be inside: a contact's normal is
+        // taken from its triangles. The held vertices are exact too, but their triangles
+        // only when they are within the reach (an instrument's contact): a support far
+        // from every instrument needs no normal.
+        let seeds = exact.clone();
         for &v in &self.rest_contact {
             exact[v as usize] = true;
         }
-        // The vertices of a triangle with one that can be inside: a contact's normal is
-        // taken from its triangles.
-        let seeds = exact.clone();
         for t in &self.triangles {
             if t.iter().any(|&v| seeds[v as usize]) {
                 for &v in t {

@@ -88,18 +88,67 @@ impl SymPacked {
             // SAFETY: the CPU supports the features this function is compiled for.
             return unsafe { sym_mul_add_avx2(self.n, &self.data, x, y, alpha) };
         }
-        sym_mul_add::<false>(self.n, &self.data, x, y, alpha);
+        sym_columns::<false>(0, self.n, &self.data, x, y, alpha);
     }
 }
 
-/// `SymPacked::mul_add` compiled for AVX2 and FMA.
+/// `SymPacked::mul_add` with AVX2 and FMA: four columns at a time, so that over the rows
+/// they share (0..j) one load and one store of y and one load of x serve four columns of
+/// S (the product is bound by the loads, not by the multiplications: 1.4 instructions per
+/// stored entry at 309 dofs, against 2.3 for one column at a time); the 4 × 4 corner below
+/// row j and the last n mod 4 columns go one entry at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn sym_mul_add_avx2(n: usize, data: &[Real], x: &[Real], y: &mut [Real], alpha: Real) {
-    sym_mul_add::<true>(n, data, x, y, alpha);
+    use std::arch::x86_64::{
+        _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_set1_pd, _mm256_setzero_pd, _mm256_storeu_pd,
+    };
+    assert!(data.len() >= column_start(n) && x.len() >= n && y.len() >= n);
+    let mut j = 0;
+    while j + 4 <= n {
+        let o: [usize; 4] = std::array::from_fn(|k| column_start(j + k));
+        let xs: [Real; 4] = std::array::from_fn(|k| alpha * x[j + k]);
+        let blocks = j / 4;
+        let mut dots = [0.0; 4];
+        // SAFETY: rows r..r + 4 ≤ j of columns j..j + 4 lie in `data` (column j + k holds
+        // j + k + 1 entries from o[k]), and in x and y (j < n), as asserted above.
+        unsafe {
+            let p = data.as_ptr();
+            let (xp, yp) = (x.as_ptr(), y.as_mut_ptr());
+            let xv = xs.map(|v| _mm256_set1_pd(v));
+            let mut acc = [_mm256_setzero_pd(); 4];
+            for b in 0..blocks {
+                let r = 4 * b;
+                let xx = _mm256_loadu_pd(xp.add(r));
+                let mut yy = _mm256_loadu_pd(yp.add(r));
+                for k in 0..4 {
+                    let c = _mm256_loadu_pd(p.add(o[k] + r));
+                    yy = _mm256_fmadd_pd(c, xv[k], yy);
+                    acc[k] = _mm256_fmadd_pd(c, xx, acc[k]);
+                }
+                _mm256_storeu_pd(yp.add(r), yy);
+            }
+            for k in 0..4 {
+                let mut lanes = [0.0; 4];
+                _mm256_storeu_pd(lanes.as_mut_ptr(), acc[k]);
+                dots[k] = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+            }
+        }
+        for k in 0..4 {
+            let col = j + k;
+            let c = &data[o[k]..o[k] + col + 1];
+            let d = column_rows::<true>(c, 4 * blocks, col, x, y, xs[k], dots[k]);
+            dots[k] = fma::<true>(c[col], x[col], d);
+        }
+        for k in 0..4 {
+            y[j + k] = fma::<true>(alpha, dots[k], y[j + k]);
+        }
+        j += 4;
+    }
+    sym_columns::<true>(j, n, data, x, y, alpha);
 }
 
 /// a · b + c, fused when `FMA` (only inside functions compiled with the `fma` feature,
@@ -115,72 +164,42 @@ fn column_start(j: usize) -> usize {
     j * (j + 1) / 2
 }
 
-/// The packed product; inlined into its callers, so compiled for their target features.
-/// Four columns at a time: over the rows they share (0..j), one load and one store of y
-/// and one load of x serve the four columns (the product is bound by those, not by the
-/// multiplications); the 4 × 4 corner below row j and the last n mod 4 columns go one
-/// column at a time.
+/// Rows `from..col` of packed column `c` (column `col`), one at a time: y_r += S_r,col xs
+/// (xs = alpha x_col), and `dot` plus S_r,col x_r summed over them.
 #[inline(always)]
-fn sym_mul_add<const FMA: bool>(n: usize, data: &[Real], x: &[Real], y: &mut [Real], alpha: Real) {
-    const L: usize = 4;
-    let mut j = 0;
-    while j + 4 <= n {
-        let cols: [&[Real]; 4] = std::array::from_fn(|k| {
-            let o = column_start(j + k);
-            &data[o..o + j + k + 1]
-        });
-        let xs: [Real; 4] = std::array::from_fn(|k| alpha * x[j + k]);
-        // Per column, L partial sums of its dot product with x (so that it vectorises).
-        let mut acc = [[0.0; L]; 4];
-        let blocks = j / L;
-        for b in 0..blocks {
-            let r = b * L;
-            let xx: [Real; L] = x[r..r + L].try_into().unwrap_or([0.0; L]);
-            let c: [[Real; L]; 4] =
-                std::array::from_fn(|k| cols[k][r..r + L].try_into().unwrap_or([0.0; L]));
-            let mut yy: [Real; L] = y[r..r + L].try_into().unwrap_or([0.0; L]);
-            for l in 0..L {
-                for k in 0..4 {
-                    yy[l] = fma::<FMA>(c[k][l], xs[k], yy[l]);
-                    acc[k][l] = fma::<FMA>(c[k][l], xx[l], acc[k][l]);
-                }
-            }
-            y[r..r + L].copy_from_slice(&yy);
-        }
-        let mut dots: [Real; 4] = std::array::from_fn(|k| acc[k].iter().sum::<Real>());
-        for r in blocks * L..j {
-            let mut v = y[r];
-            for k in 0..4 {
-                v = fma::<FMA>(cols[k][r], xs[k], v);
-                dots[k] = fma::<FMA>(cols[k][r], x[r], dots[k]);
-            }
-            y[r] = v;
-        }
-        // The corner: rows j..=j+k of column j+k.
-        for k in 0..4 {
-            let col = j + k;
-            for r in j..col {
-                y[r] = fma::<FMA>(cols[k][r], xs[k], y[r]);
-                dots[k] = fma::<FMA>(cols[k][r], x[r], dots[k]);
-            }
-            dots[k] = fma::<FMA>(cols[k][col], x[col], dots[k]);
-        }
-        for k in 0..4 {
-            y[j + k] = fma::<FMA>(alpha, dots[k], y[j + k]);
-        }
-        j += 4;
+fn column_rows<const FMA: bool>(
+    c: &[Real],
+    from: usize,
+    col: usize,
+    x: &[Real],
+    y: &mut [Real],
+    xs: Real,
+    mut dot: Real,
+) -> Real {
+    for r in from..col {
+        y[r] = fma::<FMA>(c[r], xs, y[r]);
+        dot = fma::<FMA>(c[r], x[r], dot);
     }
-    for col in j..n {
+    dot
+}
+
+/// The packed product over columns `from..n`, one column at a time (the portable path,
+/// and the AVX2 one's last columns).
+#[inline(always)]
+fn sym_columns<const FMA: bool>(
+    from: usize,
+    n: usize,
+    data: &[Real],
+    x: &[Real],
+    y: &mut [Real],
+    alpha: Real,
+) {
+    for col in from..n {
         let o = column_start(col);
         let c = &data[o..o + col + 1];
-        let xj = alpha * x[col];
-        let mut dot = 0.0;
-        for r in 0..col {
-            y[r] = fma::<FMA>(c[r], xj, y[r]);
-            dot = fma::<FMA>(c[r], x[r], dot);
-        }
-        dot = fma::<FMA>(c[col], x[col], dot);
-        y[col] = fma::<FMA>(alpha, dot, y[col]);
+        let d = column_rows::<FMA>(c, 0, col, x, y, alpha * x[col], 0.0);
+        let d = fma::<FMA>(c[col], x[col], d);
+        y[col] = fma::<FMA>(alpha, d, y[col]);
     }
 }
 
@@ -1043,7 +1062,7 @@ mod packed_tests {
             // The portable path too (the AVX2 one above when the CPU has it).
             let p = SymPacked::from_dense(&s);
             let mut portable: Vec<Real> = (0..n).map(|i| i as Real).collect();
-            sym_mul_add::<false>(n, &p.data, x.col_as_slice(0), &mut portable, -0.5);
+            sym_columns::<false>(0, n, &p.data, x.col_as_slice(0), &mut portable, -0.5);
             for i in 0..n {
                 let tol = 1e-12 * (1.0 + dense[(i, 0)].abs());
                 assert!(
