@@ -341,13 +341,15 @@ impl Simulation {
             self.normals = normals;
             self.held.clear();
             self.held.extend(next.iter().map(|i| i.contacts.len()));
-            self.refresh_bvh();
             self.collect_forces(next);
             // Sliding moves the targets for the next solve (a dynamic model's next step).
             slide = self.relax_sliding(next);
             if !self.is_static {
+                // The next step refits at its start, where its search needs the tree.
                 break info;
             }
+            // The active set below searches the surface this solve left.
+            self.refresh_bvh();
             let changed = self.update_active_set(next, &mut taken, &mut returned);
             if !changed && slide.converged() {
                 break info;

@@ -434,10 +434,11 @@ fn hybrid_speed_through_simulation() {
     );
     let error = |f: Vec3| (f - reference).length() / reference.length();
     println!(
-        "| model | region fraction | region tets | CPU us/step (contact surface / whole \
-         surface every step) | substeps | speed-up vs whole StVK | force error vs fem-static |"
+        "| model | region fraction | region tets | interface nodes | CPU us/step (contact \
+         surface / whole surface every step) | substeps | speed-up vs whole StVK | force error \
+         vs fem-static | build s | MB |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut whole_us = 0.0;
     for nonlinear in [true, false] {
         let build = || {
@@ -452,13 +453,16 @@ fn hybrid_speed_through_simulation() {
                 .unwrap(),
             )
         };
-        let kind = build().kind();
-        let run = probe_run(build(), &path, radius, false);
+        let t0 = Instant::now();
+        let model = build();
+        let build_s = t0.elapsed().as_secs_f64();
+        let (kind, mb) = (model.kind(), model.info().memory_bytes as Real / 1e6);
+        let run = probe_run(model, &path, radius, false);
         if nonlinear {
             whole_us = run.us_per_step;
         }
         println!(
-            "| whole {kind} | 1 | {} | {:.0} | {} | {:.2} | {:.1e} |",
+            "| whole {kind} | 1 | {} | — | {:.0} | {} | {:.2} | {:.1e} | {build_s:.2} | {mb:.1} |",
             mesh.tets.len(),
             run.us_per_step,
             run.substeps,
@@ -467,7 +471,14 @@ fn hybrid_speed_through_simulation() {
         );
     }
     let centre = Vec3::new(0.005, 0.04, 0.005);
-    for (fraction, nonlinear) in [(0.1, true), (0.25, true), (0.25, false), (0.5, true)] {
+    for (fraction, nonlinear) in [
+        (0.1, true),
+        (0.15, true),
+        (0.2, true),
+        (0.25, true),
+        (0.25, false),
+        (0.5, true),
+    ] {
         // `HYBRID_FRACTION=0.25` (for a profiler): that region size alone.
         if std::env::var("HYBRID_FRACTION")
             .ok()
@@ -508,12 +519,13 @@ fn hybrid_speed_through_simulation() {
             );
         }
         let h = build();
-        let (region, tets) = (h.region_fraction(), h.region_tets());
+        let (region, tets, iface) = (h.region_fraction(), h.region_tets(), h.interface_nodes());
+        let info = h.info();
         let near = probe_run(Box::new(h), &path, radius, false);
         let whole = probe_run(Box::new(build()), &path, radius, true);
         println!(
-            "| hybrid {} | {region:.2} | {tets} | {:.0} / {:.0} | {} | **{:.2}** / {:.2} | \
-             {:.1e} (whole surface: {:.1e}) |",
+            "| hybrid {} | {region:.2} | {tets} | {iface} | {:.0} / {:.0} | {} | **{:.2}** / \
+             {:.2} | {:.1e} (whole surface: {:.1e}) | {:.2} | {:.1} |",
             if nonlinear { "StVK" } else { "linear" },
             near.us_per_step,
             whole.us_per_step,
@@ -521,7 +533,9 @@ fn hybrid_speed_through_simulation() {
             whole_us / near.us_per_step,
             whole_us / whole.us_per_step,
             error(near.force),
-            error(whole.force)
+            error(whole.force),
+            info.precompute_seconds,
+            info.memory_bytes as Real / 1e6
         );
     }
 }
