@@ -143,6 +143,15 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
     let base = {
         let mut h = fnv(env!("CARGO_PKG_VERSION").as_bytes(), 0xcbf2_9ce4_8422_2325);
         h = fnv(serde_json::to_string(&settings)?.as_bytes(), h);
+        // The contact laws: the reference's frictionless probe, and which kinds share it.
+        h = fnv(
+            format!(
+                "frictionless reference, all surface nodes; {}",
+                tissue::compare::drive::FRICTIONLESS_KINDS.join(",")
+            )
+            .as_bytes(),
+            h,
+        );
         h = fnv(serde_json::to_string(&scenario)?.as_bytes(), h);
         h = fnv(format!("{:?}", organ.material).as_bytes(), h);
         h = fnv(
@@ -177,7 +186,7 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
         }
     };
     rbar.finish_with_message(format!(
-        "done: probe force {:.4} N, convergence {:.2} %",
+        "done: probe force {:.4e} N, convergence {:.2} %",
         reference.force_shallow,
         100.0 * reference.record.convergence
     ));

@@ -47,7 +47,26 @@ const SCHUR_CAP: usize = 3000;
 
 /// Most nodes held along a direction in one problem (their three columns each stay in the
 /// Schur complement, within `SCHUR_CAP`); a model with more holds them in full instead.
-pub const ALONG_CAP: usize = SCHUR_CAP / 6;
+pub const ALONG_CAP: usize = 2000;
+
+/// The coordinate axis a unit direction lies along, if it does (to roundoff): a hold along
+/// it is a unit row, held in the factorisation, not through the Schur complement.
+pub fn axis_of(n: Vec3) -> Option<usize> {
+    (0..3).find(|&k| (n[k].abs() - 1.0).abs() <= 1e-14)
+}
+
+/// Nodes of `holds` held along a direction that is no coordinate axis: those take Schur
+/// columns, and `ALONG_CAP` bounds them.
+pub(crate) fn oblique_holds(holds: &[Option<SurfaceHold>]) -> usize {
+    holds
+        .iter()
+        .flatten()
+        .filter(|h| {
+            h.along
+                .is_some_and(|n| axis_of(n.normalize_or_zero()).is_none())
+        })
+        .count()
+}
 
 /// When `System` imposes extra held dofs through the Schur complement.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -138,6 +157,11 @@ impl DofProblem {
                     "the model has {nodes} nodes; the direction must be non-zero and finite"
                 ),
             });
+        }
+        // Along a coordinate axis the row is a unit row: held in the factorisation like any
+        // held dof (no Schur column, no cap), e.g. a frictionless plate's vertices.
+        if let Some(k) = axis_of(n) {
+            return self.hold(3 * node + k, value * n[k].signum());
         }
         self.along.push(AlongHold {
             node,
