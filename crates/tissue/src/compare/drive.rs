@@ -26,19 +26,16 @@ pub enum ContactLaw {
     Frictionless,
 }
 
-/// The kinds that hold a contact along its normal in their own solve (docs/contact.md):
-/// their probe is frictionless, like the reference's, so their error is the model's and not
-/// the contact law's. The others keep sticking contact: the shared relaxation that would slide
-/// them (`interact::sliding`) relaxes a dynamic model once per step and costs a static one
-/// many solves, which would measure the relaxation, not the model.
-pub const FRICTIONLESS_KINDS: &[&str] = &[
-    "fem-static",
-    "fem-condensed",
-    "fem-semi-implicit",
-    "spring-mass",
-    "simplex-spring-mass",
-    "volumetric-spring-mass",
-];
+/// The kinds whose probe is frictionless, like the reference's, so that their error is the
+/// model's and not the contact law's: the static kinds that hold a contact along its normal
+/// exactly in their own solve (docs/contact.md). The dynamic kinds that can hold normals too
+/// (`fem-semi-implicit`, the spring kinds) were measured frictionless in the full run and lost
+/// the probe during the hold on the built-in liver (spring-mass: the probe's force rose to
+/// 1.7 mN, then its top vertex slid off the sphere and the force ended at 0; the same for the
+/// others): vertex contact on a coarse surface lets a sliding vertex leave a sphere and the
+/// sphere pass between vertices, so they keep sticking contact, as every other kind does (the
+/// shared relaxation, `interact::sliding`, would measure itself rather than the model).
+pub const FRICTIONLESS_KINDS: &[&str] = &["fem-static", "fem-condensed"];
 
 /// Solves a static model's contact loop may take per step with a frictionless probe (the
 /// targets slide to their equilibrium: one back-substitution each).
