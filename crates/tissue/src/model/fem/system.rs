@@ -866,7 +866,8 @@ mod tests {
         }
     }
 
-    /// A node held along a direction and in full at once, or twice, is refused.
+    /// A node held along an oblique direction and in full at once, or twice, is refused. A
+    /// hold along a coordinate axis is a unit row (held in the factorisation, not along).
     #[test]
     fn a_node_held_along_and_in_full_is_refused() {
         let mut s = bar_system(SchurRule::Always);
@@ -876,7 +877,11 @@ mod tests {
         for &v in &support {
             p.hold_node(v, Vec3::ZERO).unwrap();
         }
-        p.hold_along(top[3], Vec3::Y, 0.0).unwrap();
+        p.hold_along(top[2], -Vec3::Y, 0.25).unwrap();
+        assert!(p.constrained[3 * top[2] + 1]);
+        assert_eq!(p.targets[3 * top[2] + 1], -0.25);
+        assert!(p.along.is_empty());
+        p.hold_along(top[3], Vec3::new(1.0, 1.0, 0.0), 0.0).unwrap();
         p.hold(3 * top[3], 0.0).unwrap();
         p.finish();
         let (mut u, mut r) = (vec![0.0; n], vec![0.0; n]);
