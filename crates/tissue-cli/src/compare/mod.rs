@@ -89,6 +89,12 @@ fn load_organ(args: &CompareArgs, settings: &Settings) -> anyhow::Result<Organ> 
     )?)
 }
 
+/// A kind's cache key: the shared inputs and the kind with its probe's contact law.
+fn kind_key(kind: &str, base: u64) -> u64 {
+    let law = tissue::compare::drive::ContactLaw::of(kind).name();
+    fnv(law.as_bytes(), fnv(kind.as_bytes(), base))
+}
+
 /// FNV-1a: a stable hash of a kind's inputs for the cache.
 fn fnv(bytes: &[u8], mut h: u64) -> u64 {
     for b in bytes {
@@ -143,6 +149,8 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
     let base = {
         let mut h = fnv(env!("CARGO_PKG_VERSION").as_bytes(), 0xcbf2_9ce4_8422_2325);
         h = fnv(serde_json::to_string(&settings)?.as_bytes(), h);
+        // The reference's contact law (a kind's own is in its key below).
+        h = fnv(b"frictionless reference, all surface nodes", h);
         h = fnv(serde_json::to_string(&scenario)?.as_bytes(), h);
         h = fnv(format!("{:?}", organ.material).as_bytes(), h);
         h = fnv(
@@ -177,7 +185,7 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
         }
     };
     rbar.finish_with_message(format!(
-        "done: probe force {:.4} N, convergence {:.2} %",
+        "done: probe force {:.4e} N, convergence {:.2} %",
         reference.force_shallow,
         100.0 * reference.record.convergence
     ));
@@ -193,7 +201,7 @@ pub fn compare(args: &CompareArgs) -> anyhow::Result<()> {
                     let file = args
                         .out
                         .join("cache")
-                        .join(format!("{kind}-{:016x}.json", fnv(kind.as_bytes(), base)));
+                        .join(format!("{kind}-{:016x}.json", kind_key(kind, base)));
                     let cached = std::fs::read_to_string(&file)
                         .ok()
                         .and_then(|t| serde_json::from_str::<KindRecord>(&t).ok());

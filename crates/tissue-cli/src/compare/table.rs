@@ -36,7 +36,12 @@ pub fn markdown(r: &CompareRecord) -> String {
         .reference
         .levels
         .iter()
-        .map(|l| format!("{} tets: {:.4} N", l.tets, l.probe_force))
+        .map(|l| {
+            format!(
+                "{} tets: {:.4e} N, {} contacts",
+                l.tets, l.probe_force, l.contacts
+            )
+        })
         .collect();
     s.push_str(&format!(
         "Reference: {} ({}); change between the two finest levels {:.2} %.\n\n",

@@ -12,7 +12,9 @@ use crate::mesh::MeshData;
 use crate::model::{CutPath, Deformable};
 use crate::sim::Simulation;
 
-use super::drive::{Stepping, check_finite, indent, prescribe, volume};
+use super::drive::{
+    ContactLaw, Stepping, check_finite, indent, prescribe, prescribe_along, volume,
+};
 use super::record::{Curve, KindRecord, Measure};
 use super::setup::{Organ, Scenario, build_on, guarded, nearest};
 use super::{Reference, Settings, survey};
@@ -163,7 +165,22 @@ pub fn measure_kind(
         }
     };
     let stable_dt = stable.as_ref().ok().copied();
-    let st = Stepping::new(is_static, dt_run, settings);
+    let st = Stepping {
+        contact: ContactLaw::of(kind),
+        ..Stepping::new(is_static, dt_run, settings)
+    };
+    rec.measures.insert(
+        "contact_law".into(),
+        Measure::of(
+            if st.contact == ContactLaw::Frictionless {
+                1.0
+            } else {
+                0.0
+            },
+            "frictionless",
+        )
+        .noted(st.contact.name()),
+    );
     rec.measures.insert(
         "run_dt".into(),
         Measure::of(if is_static { 1.0 } else { dt_run }, "s"),
@@ -573,6 +590,7 @@ pub(super) fn stable_step(
                 sc.probe_radius,
                 0.0,
                 1.0,
+                ContactLaw::of(kind),
             )?;
             sim.add_instrument(inst);
             for _ in 0..s.stability_steps {
@@ -641,6 +659,7 @@ fn cost_per_ms(
         sc.probe_radius,
         sc.shallow,
         total,
+        ContactLaw::of(kind),
     )?);
     // One step first: lazy factorisations belong to pre-computation, not to every step.
     sim.step(dt)?;
@@ -761,7 +780,11 @@ fn run_random_path(
             reason: e.to_string(),
         }
     })?;
-    sim.add_instrument(Instrument::new("random", kindi, sc.probe_radius, path)?);
+    let mut inst = Instrument::new("random", kindi, sc.probe_radius, path)?;
+    if !rp.grasp && ContactLaw::of(kind) == ContactLaw::Frictionless {
+        inst = inst.with_friction(0.0)?;
+    }
+    sim.add_instrument(inst);
     let dt = if st.is_static { duration / 8.0 } else { st.dt };
     let steps = (((duration * 1.25) / dt).ceil() as usize).min(s.random_step_cap);
     let mut max_force: Real = 0.0;
@@ -950,11 +973,14 @@ fn compression(
     let plate = sc.plate(&rest);
     let v0 = volume(model.as_ref());
     let travel = sc.compression;
-    let settled = prescribe(
+    // The plate is frictionless where the probe is (the vertices under it held along y only).
+    let along = (st.contact == ContactLaw::Frictionless).then_some(Vec3::Y);
+    let (settled, _) = prescribe_along(
         model.as_mut(),
         &fixed,
         &plate,
         |p, s| p - Vec3::Y * (s * travel),
+        along,
         st,
         |m| (volume(m) - v0) / v0,
     )?;
@@ -985,6 +1011,7 @@ pub(super) fn step_response(
         sc.probe_radius,
         0.0,
         1.0,
+        ContactLaw::of(kind),
     )?);
     let steps = (s.dynamics_time / dt).ceil() as usize;
     let mut side = Vec::with_capacity(steps);

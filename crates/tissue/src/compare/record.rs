@@ -114,6 +114,18 @@ pub struct ReferenceLevel {
     pub nodes: usize,
     pub probe_force: f64,
     pub build_seconds: f64,
+    /// Surface vertices the probe held at the end.
+    #[serde(default)]
+    pub contacts: usize,
+    /// False when the static contact loop stopped at its cap at some increment.
+    #[serde(default)]
+    pub contact_converged: bool,
+    /// Wall time of the indentation (the increments and their contact loops), s.
+    #[serde(default)]
+    pub solve_seconds: f64,
+    /// Numeric factorisations the indentation took.
+    #[serde(default)]
+    pub factorizations: usize,
 }
 
 /// The whole comparison.

@@ -8,7 +8,7 @@ use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, Volu
 
 use super::static_model::{FemStatic, Order};
 use super::surface_nodes::nodal_forces;
-use super::system::{ALONG_CAP, DofProblem};
+use super::system::{ALONG_CAP, DofProblem, oblique_holds};
 
 impl FemStatic {
     /// The constraints as a dof problem (see `set_constraints`), the prescribed entry k held
@@ -17,7 +17,7 @@ impl FemStatic {
     /// in full instead (the Schur complement that holds them would be too large).
     fn hold(&mut self, c: &Constraints, normals: &[Option<Vec3>]) -> Result<bool, SimError> {
         let mut holds = c.surface_holds(&self.boundary.surface.vertices, normals)?;
-        let as_asked = holds.iter().flatten().filter(|h| h.along.is_some()).count() <= ALONG_CAP;
+        let as_asked = oblique_holds(&holds) <= ALONG_CAP;
         if !as_asked {
             holds.iter_mut().flatten().for_each(|h| h.along = None);
         }

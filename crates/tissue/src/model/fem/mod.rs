@@ -45,7 +45,7 @@ pub use corotational::{CorotationalParams, CorotationalSolver, FemCorotational};
 pub use dynamic::{FemExplicit, FemSemiImplicit};
 pub use precomputed::FemPrecomputedTensors;
 pub use quadratic_mesh::QuadraticMesh;
-pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order};
+pub use static_model::{FemStatic, NodalProblem, NodalSolution, Order, SurfaceNodes};
 pub use system::{ALONG_CAP, AlongHold, DofProblem, SchurRule};
 
 #[cfg(test)]

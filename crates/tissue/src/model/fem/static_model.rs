@@ -35,12 +35,29 @@ pub enum Order {
     Quadratic,
 }
 
+/// Which mechanical nodes make the surface of a quadratic mesh (what is drawn, touched and
+/// held).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SurfaceNodes {
+    /// The corners only: each boundary triangle as it is; a mid-edge node follows the mean of
+    /// its ends when both are held.
+    #[default]
+    Corners,
+    /// Corners and mid-edge nodes: each boundary triangle split into four through its
+    /// mid-edge nodes, so instruments touch (and hold) every surface node: twice the contact
+    /// resolution of the corners for the same unknowns. Linear meshes have corners only.
+    All,
+}
+
 /// The `[model]` settings of `fem-static`.
 #[derive(Clone, Copy, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FemStaticParams {
     #[serde(default)]
     order: Order,
+    #[serde(default)]
+    surface_nodes: SurfaceNodes,
 }
 
 /// Held displacement components and forces on mechanical nodes: the node-level interface.
@@ -123,7 +140,52 @@ impl FemStatic {
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
         let params: FemStaticParams = parse_params("fem-static", input.params)?;
         let mesh = input.mesh.tet_mesh(input.source)?;
-        Self::new(&mesh, input.material, params.order)
+        let model = Self::new(&mesh, input.material, params.order)?;
+        Ok(match params.surface_nodes {
+            SurfaceNodes::Corners => model,
+            SurfaceNodes::All => model.with_mid_edge_surface(),
+        })
+    }
+
+    /// Makes every mid-edge node of the boundary a surface vertex (`SurfaceNodes::All`): each
+    /// boundary triangle becomes four. The corners keep their surface indices; the mid-edge
+    /// nodes follow them. No effect on a linear mesh.
+    pub fn with_mid_edge_surface(mut self) -> Self {
+        let Some(q) = &self.quadratic else {
+            return self;
+        };
+        let b = &self.boundary;
+        let mut vertices = b.surface.vertices.clone();
+        let mut nodes = b.nodes.clone();
+        let mut index: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        let mut triangles = Vec::with_capacity(4 * b.surface.triangles.len());
+        let mut face_tets = Vec::with_capacity(4 * b.face_tets.len());
+        for (t, tri) in b.surface.triangles.iter().enumerate() {
+            let mut mid = |x: u32, y: u32| -> u32 {
+                let (na, nb) = (b.nodes[x as usize], b.nodes[y as usize]);
+                // Every edge of a quadratic tetrahedron has its mid node.
+                let m = q.mid(na, nb).unwrap_or(na);
+                *index.entry(m).or_insert_with(|| {
+                    vertices.push(self.rest[m as usize]);
+                    nodes.push(m);
+                    (vertices.len() - 1) as u32
+                })
+            };
+            let [a, b_, c] = *tri;
+            let (ab, bc, ca) = (mid(a, b_), mid(b_, c), mid(c, a));
+            triangles.extend([[a, ab, ca], [ab, b_, bc], [ca, bc, c], [ab, bc, ca]]);
+            let ft = b.face_tets.get(t).copied().unwrap_or(0);
+            face_tets.extend([ft; 4]);
+        }
+        self.boundary = Boundary {
+            surface: crate::mesh::SurfaceMesh::new(vertices, triangles),
+            nodes,
+            face_tets,
+        };
+        self.surface_mids.clear();
+        self.surface_positions = self.boundary.surface.vertices.clone();
+        self.surface_reaction = vec![Vec3::ZERO; self.boundary.nodes.len()];
+        self
     }
 
     /// Validates mesh and material, assembles K and analyses it.
@@ -276,6 +338,8 @@ impl FemStatic {
             let area = triangle_area_vector(pa, pb, pc).length();
             let [na, nb, nc] = [a, b, c].map(|v| self.boundary.nodes[v as usize]);
             let targets: Vec<u32> = match &self.quadratic {
+                // Triangles split through their mid-edge nodes: a third per node.
+                _ if self.surface_mids.is_empty() => vec![na, nb, nc],
                 None => vec![na, nb, nc],
                 Some(q) => [(na, nb), (nb, nc), (nc, na)]
                     .iter()

@@ -8,7 +8,7 @@ use crate::interact::{Constraints, Loads};
 use crate::math::{Real, Vec3};
 
 use super::super::surface_nodes::nodal_forces;
-use super::super::system::{ALONG_CAP, DofProblem};
+use super::super::system::{ALONG_CAP, DofProblem, oblique_holds};
 use super::common::Core;
 
 impl Core {
@@ -28,7 +28,7 @@ impl Core {
         normals: &[Option<Vec3>],
     ) -> Result<bool, SimError> {
         let mut holds = c.surface_holds(&self.boundary.surface.vertices, normals)?;
-        let as_asked = holds.iter().flatten().filter(|h| h.along.is_some()).count() <= ALONG_CAP;
+        let as_asked = oblique_holds(&holds) <= ALONG_CAP;
         if !as_asked {
             holds.iter_mut().flatten().for_each(|h| h.along = None);
         }
