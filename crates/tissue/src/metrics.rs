@@ -74,7 +74,8 @@ pub fn node_strain(volume: &VolumeView<'_>) -> Vec<Real> {
         let [a, b, c, d] = idx.map(|i| volume.rest_positions[i]);
         let dm = Mat3::from_cols(b - a, c - a, d - a);
         let rest_volume = dm.determinant().abs() / 6.0;
-        if !(rest_volume > 0.0) {
+        // Degenerate (or NaN) at rest: no deformation gradient.
+        if rest_volume.is_nan() || rest_volume <= 0.0 {
             continue;
         }
         let [p, q, r, s] = idx.map(|i| volume.positions[i]);

@@ -7,10 +7,10 @@
 //!
 //! The quick test takes a few steps per scene; the long one (ignored) takes `SOAK_STEPS`
 //! (default 20000) per scene, a hundredth of that for static models, and stops a scene early
-//! when its wall-time budget `SOAK_SECONDS` (default: none) is spent; `SOAK_THREADS` (default
-//! 1) scenes run at once; `SOAK_SCENES=a.toml,b.toml` soaks only those, `SOAK_VERBOSE=1`
+//! when its wall-time budget `SOAK_SECONDS` (default: none) is spent. `SOAK_THREADS` (default
+//! one) scenes run at once; `SOAK_SCENES=a.toml,b.toml` soaks only those; `SOAK_VERBOSE=1`
 //! prints every refusal. The run of record (docs/hardening.md):
-//! `SOAK_STEPS=150000 SOAK_SECONDS=200 SOAK_THREADS=2 cargo test --release --workspace --test
+//! `SOAK_STEPS=300000 SOAK_SECONDS=150 SOAK_THREADS=2 cargo test --release --workspace --test
 //! soak a_long -- --ignored --nocapture`.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
