@@ -8,6 +8,18 @@
 // holds the probe for 2 s with no blow-up and a bounded force (or is refused with its reason).
 import { launch, open, check, info, verdict, switchTo, holdProbe, noticeCount, notices } from './lib.mjs';
 
+/// Presses at screen point `p` and drags up and right in ten moves, then holds 1.5 s (the
+/// button stays down: the caller releases it).
+async function dragFrom(page, p) {
+  await page.mouse.move(p[0], p[1]);
+  await page.mouse.down();
+  for (let k = 1; k <= 10; k++) {
+    await page.mouse.move(p[0] + 6 * k, p[1] - 4 * k);
+    await page.waitForTimeout(50);
+  }
+  await page.waitForTimeout(1500);
+}
+
 const [url, shot] = process.argv.slice(2);
 // Kinds that cannot represent a closed organ refuse it with the reason on the page (the
 // part of the message that must appear). hybrid builds with its automatic region at the
@@ -65,13 +77,7 @@ try {
   check('organ under the pointer', !!p, JSON.stringify(p));
   if (p) {
     const d0 = await page.evaluate(() => window.__tissue.maxDisplacement || 0);
-    await page.mouse.move(p[0], p[1]);
-    await page.mouse.down();
-    for (let k = 1; k <= 10; k++) {
-      await page.mouse.move(p[0] + 6 * k, p[1] - 4 * k);
-      await page.waitForTimeout(50);
-    }
-    await page.waitForTimeout(1500);
+    await dragFrom(page, p);
     const s = await page.evaluate(() => ({
       disp: window.__tissue.maxDisplacement,
       force: window.__tissue.forceMagnitude,
@@ -97,13 +103,7 @@ try {
 
     // The strain colours (the model has tetrahedra): the legend in %, grown by a drag.
     await page.selectOption('#quantity', 'strain');
-    await page.mouse.move(p[0], p[1]);
-    await page.mouse.down();
-    for (let k = 1; k <= 10; k++) {
-      await page.mouse.move(p[0] + 6 * k, p[1] - 4 * k);
-      await page.waitForTimeout(50);
-    }
-    await page.waitForTimeout(1500);
+    await dragFrom(page, p);
     const st = await page.evaluate(() => window.__tissue.legend);
     await page.mouse.up();
     const top = parseFloat(st.split('–')[1]);

@@ -367,7 +367,14 @@ where
             (x0 / 2.0..x1 * 2.0).log_scale(),
             (y0 / 2.0..y1 * 2.0).log_scale(),
         )?;
-    chart.configure_mesh().x_desc(xl).y_desc(yl).draw()?;
+    // Log axes put ticks at values like 0.30000000000000004: three significant digits.
+    chart
+        .configure_mesh()
+        .x_desc(xl)
+        .y_desc(yl)
+        .x_label_formatter(&|v| short_number(*v))
+        .y_label_formatter(&|v| short_number(*v))
+        .draw()?;
     if let Some(l) = level {
         chart.draw_series(DashedLineSeries::new(
             [(x0 / 2.0, l), (x1 * 2.0, l)],
@@ -468,6 +475,25 @@ where
     )
 }
 
+/// A tick label with at most three significant digits (0.3, 0.0001, 2e-5, 1500).
+fn short_number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if !(1e-4..1e5).contains(&a) {
+        return format!("{v:.1e}");
+    }
+    // Digits after the point that keep three significant ones, trailing zeros dropped.
+    let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
 fn pareto<DB: DrawingBackend>(r: &CompareRecord, a: &DrawingArea<DB, Shift>) -> Result<(), Err>
 where
     DB::ErrorType: 'static,
@@ -490,4 +516,20 @@ where
         true,
         None,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short_number;
+
+    #[test]
+    fn tick_labels_keep_three_significant_digits() {
+        assert_eq!(short_number(0.30000000000000004), "0.3");
+        assert_eq!(short_number(0.6000000000000001), "0.6");
+        assert_eq!(short_number(0.0001), "0.0001");
+        assert_eq!(short_number(0.001234567), "0.00123");
+        assert_eq!(short_number(1500.0), "1500");
+        assert_eq!(short_number(2e-5), "2.0e-5");
+        assert_eq!(short_number(0.0), "0");
+    }
 }

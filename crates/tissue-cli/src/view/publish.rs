@@ -186,6 +186,22 @@ mod tests {
 
     use super::*;
 
+    /// What the session would publish beside a running tensor-mass.
+    fn test_figures(strain_nodes: Option<&[Option<u32>]>) -> Figures<'_> {
+        Figures {
+            dt: 1e-3,
+            sim_rate: 0.0,
+            haptic: TimingSummary::default(),
+            haptic_force: Vec3::ZERO,
+            probe_active: true,
+            kind: "tensor-mass",
+            substeps: 1,
+            strain_nodes,
+            building: None,
+            cut: None,
+        }
+    }
+
     fn floats(v: &Value) -> Vec<f32> {
         v.as_array()
             .map(|a| {
@@ -280,18 +296,7 @@ mod tests {
         for _ in 0..400 {
             sim.step(1e-3).unwrap_or_else(|e| panic!("{e}"));
         }
-        let figures = Figures {
-            dt: 1e-3,
-            sim_rate: 0.0,
-            haptic: TimingSummary::default(),
-            haptic_force: Vec3::ZERO,
-            probe_active: true,
-            kind: "tensor-mass",
-            substeps: 1,
-            strain_nodes: None,
-            building: None,
-            cut: None,
-        };
+        let figures = test_figures(None);
         let names = [super::super::setup::PROBE, "grasper", "scalpel"];
         let frame: Value = serde_json::from_str(&frame_message(&sim, &figures, names))
             .unwrap_or_else(|e| panic!("{e}"));
@@ -313,18 +318,7 @@ mod tests {
         // largest values may sit at the three point supports, where strain concentrates).
         let nodes = tissue::metrics::surface_nodes(sim.model()).unwrap_or_default();
         assert!(nodes.iter().all(Option::is_some));
-        let with_strain = Figures {
-            dt: 1e-3,
-            sim_rate: 0.0,
-            haptic: TimingSummary::default(),
-            haptic_force: Vec3::ZERO,
-            probe_active: true,
-            kind: "tensor-mass",
-            substeps: 1,
-            strain_nodes: Some(&nodes),
-            building: None,
-            cut: None,
-        };
+        let with_strain = test_figures(Some(&nodes));
         let frame: Value = serde_json::from_str(&frame_message(&sim, &with_strain, names))
             .unwrap_or_else(|e| panic!("{e}"));
         let strain = floats(&frame["strain"]);

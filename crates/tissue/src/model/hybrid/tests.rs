@@ -439,27 +439,35 @@ fn cuts_inside_the_region_close_the_surface_and_stay_stable_outside_are_refused(
 
 /// Automatic mode: the region starts around the seed and grows ahead of a blade that
 /// travels along the beam, so every stroke cuts; each growth keeps the cuts made so far.
-#[test]
-fn the_automatic_region_follows_the_blade() {
+/// A 24 × 6 × 3 cm beam clamped at x = 0, hybrid in automatic mode seeded at its far top.
+fn auto_beam(auto_radius: Real) -> (TetMesh, Hybrid) {
     let mesh = box_tets(
         Vec3::ZERO,
         Vec3::new(0.24, 0.06, 0.03),
         [24, 6, 3],
         BoxSplit::Six,
     );
-    let params = r#"
+    let params = format!(
+        r#"
         cut_region = "auto"
-        auto_radius = 0.02
+        auto_radius = {auto_radius}
         auto_seeds = [[0.2, 0.03, 0.03]]
         volume_penalty = 500.0
-    "#;
-    let mut h = hybrid(&mesh, material(20.0), params);
-    let start = h.region_tets();
+    "#
+    );
+    let mut h = hybrid(&mesh, material(20.0), &params);
     let rest = h.rest_surface().to_vec();
     let fixed: Vec<u32> = (0..rest.len() as u32)
         .filter(|&v| rest[v as usize].x < 1e-9)
         .collect();
     h.set_constraints(&Constraints::fixed(fixed)).unwrap();
+    (mesh, h)
+}
+
+#[test]
+fn the_automatic_region_follows_the_blade() {
+    let (mesh, mut h) = auto_beam(0.02);
+    let start = h.region_tets();
     let mut removed = 0;
     // Along the beam at y = 0.03 from x = 0.2 to x = 0.13.
     for i in 0..14 {
@@ -497,24 +505,7 @@ fn the_automatic_region_follows_the_blade() {
 /// surface itself, or the stroke is refused (the soak found this with random jumps).
 #[test]
 fn a_fast_stroke_grows_the_automatic_region_around_all_it_sweeps() {
-    let mesh = box_tets(
-        Vec3::ZERO,
-        Vec3::new(0.24, 0.06, 0.03),
-        [24, 6, 3],
-        BoxSplit::Six,
-    );
-    let params = r#"
-        cut_region = "auto"
-        auto_radius = 0.01
-        auto_seeds = [[0.2, 0.03, 0.03]]
-        volume_penalty = 500.0
-    "#;
-    let mut h = hybrid(&mesh, material(20.0), params);
-    let rest = h.rest_surface().to_vec();
-    let fixed: Vec<u32> = (0..rest.len() as u32)
-        .filter(|&v| rest[v as usize].x < 1e-9)
-        .collect();
-    h.set_constraints(&Constraints::fixed(fixed)).unwrap();
+    let (mesh, mut h) = auto_beam(0.01);
     let blade = CutPath {
         start: [Vec3::new(0.2, 0.03, 0.045), Vec3::new(0.2, 0.03, -0.015)],
         end: [Vec3::new(0.1, 0.03, 0.045), Vec3::new(0.1, 0.03, -0.015)],
