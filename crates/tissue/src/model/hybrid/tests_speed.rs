@@ -410,16 +410,7 @@ fn hybrid_speed_through_simulation() {
     let fem =
         crate::model::fem::FemStatic::new(&mesh, material(), crate::model::fem::Order::Linear)
             .unwrap();
-    let top = fem
-        .rest_surface()
-        .iter()
-        .copied()
-        .filter(|p| (p.x.powi(2) + (p.z - 0.005).powi(2)).sqrt() < 0.01)
-        .fold(Vec3::new(0.0, Real::MIN, 0.0), |a, p| {
-            if p.y > a.y { p } else { a }
-        });
-    let above = top + Vec3::new(0.0, radius + 0.001, 0.0);
-    let pressed = top + Vec3::new(0.0, radius - 0.005, 0.0);
+    let (above, pressed) = probe_ends(fem.rest_surface(), radius);
     let path = [(0.0, above), (0.16, pressed)];
     let reference = {
         let static_path = [(0.0, pressed)];
@@ -428,7 +419,7 @@ fn hybrid_speed_through_simulation() {
         run.force
     };
     println!(
-        "refined liver: {} tetrahedra; probe {radius} m pressing 5 mm at {top:?}; fem-static \
+        "refined liver: {} tetrahedra; probe {radius} m pressing 5 mm to {pressed:?}; fem-static \
          force {reference:?} N",
         mesh.tets.len()
     );
@@ -555,16 +546,7 @@ fn hybrid_probe_profile() {
     let mesh = refined_liver();
     let data = MeshData::from_tets(&mesh);
     let radius = 0.008;
-    let top = mesh
-        .vertices
-        .iter()
-        .copied()
-        .filter(|p| (p.x.powi(2) + (p.z - 0.005).powi(2)).sqrt() < 0.01)
-        .fold(Vec3::new(0.0, Real::MIN, 0.0), |a, p| {
-            if p.y > a.y { p } else { a }
-        });
-    let above = top + Vec3::new(0.0, radius + 0.001, 0.0);
-    let pressed = top + Vec3::new(0.0, radius - 0.005, 0.0);
+    let (above, pressed) = probe_ends(&mesh.vertices, radius);
     let ramp = 0.16 * (steps as Real / 800.0);
     let path = if which == "idle" {
         vec![(0.0, above + Vec3::new(0.0, 0.05, 0.0))]
@@ -606,4 +588,20 @@ fn hybrid_probe_profile() {
         "{which}: {:.0} us/step, {} substeps, force {:?}",
         run.us_per_step, run.substeps, run.force
     );
+}
+
+/// The probe's path ends over the liver's top near (0, ·, 5 mm): 1 mm above the highest
+/// point there, and pressed 5 mm in.
+fn probe_ends(points: &[Vec3], radius: Real) -> (Vec3, Vec3) {
+    let top = points
+        .iter()
+        .copied()
+        .filter(|p| (p.x.powi(2) + (p.z - 0.005).powi(2)).sqrt() < 0.01)
+        .fold(Vec3::new(0.0, Real::MIN, 0.0), |a, p| {
+            if p.y > a.y { p } else { a }
+        });
+    (
+        top + Vec3::new(0.0, radius + 0.001, 0.0),
+        top + Vec3::new(0.0, radius - 0.005, 0.0),
+    )
 }
