@@ -139,7 +139,10 @@ function showStatus(frame) {
   } else bar.style.display = 'none';
   state.buildText = b ? $('build-text').textContent : '';
   const cut = frame && frame.cut;
-  $('cut-progress').textContent = cut ? `cutting: ${cut.done} of ${cut.total} path points swept` : '';
+  // A long incision (bem) is computed off the simulation thread after the blade's path.
+  const bg = frame && frame.background;
+  $('cut-progress').textContent = cut ? `cutting: ${cut.done} of ${cut.total} path points swept`
+    : (bg ? `${bg}; the simulation goes on` : '');
 }
 
 // The colour legend: the map, its range in mm and the quantity.

@@ -304,6 +304,10 @@ impl Simulation {
 
     fn advance(&mut self, dt: Real, next: &mut [Instrument]) -> Result<StepReport, SimError> {
         let t1 = self.time + dt;
+        // An incision finished off the thread changes the surface before this step's search.
+        if let Some(info) = self.model.finish_background()? {
+            self.topology_version = self.topology_version.max(info.topology_version);
+        }
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             inst.position = inst.position_at(t1);
             if let Some(cut) = inst.sweep(old.position) {

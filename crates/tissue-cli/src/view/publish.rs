@@ -100,6 +100,8 @@ pub struct Figures<'a> {
     pub building: Option<BuildStatus>,
     /// A cut in progress: path points swept, of how many.
     pub cut: Option<(usize, usize)>,
+    /// What the model computes off the simulation thread (`Deformable::background`).
+    pub background: Option<String>,
 }
 
 /// The equivalent strain (`metrics::node_strain`) at each vertex the page draws: the
@@ -169,6 +171,7 @@ pub fn frame_message(sim: &Simulation, f: &Figures<'_>, names: [&str; 3]) -> Str
             "seconds": b.started.map_or(0.0, |t| t.elapsed().as_secs_f64()),
         })),
         "cut": f.cut.map(|(done, total)| json!({ "done": done, "total": total })),
+        "background": f.background,
         // Parts of a composed model (hybrid: 0 the pre-computed rest, 1 the region's border,
         // 2 the cuttable region), per surface vertex; every frame, as a region can grow.
         "labels": sim.model().vertex_labels(),
@@ -199,6 +202,7 @@ mod tests {
             strain_nodes,
             building: None,
             cut: None,
+            background: None,
         }
     }
 

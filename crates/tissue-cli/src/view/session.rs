@@ -69,6 +69,9 @@ pub struct Session {
     hub: Arc<Hub>,
     grasp: Option<Vec3>,
     cut: Option<CutJob>,
+    /// The blade's path is done and the model computes the incision off the thread (`bem`
+    /// in real time): since when.
+    incision_pending: Option<Instant>,
     building: Option<Receiver<Built>>,
     build_status: Arc<Mutex<BuildStatus>>,
     /// The model's notices already said on the page (`tell_notices`).
@@ -123,6 +126,7 @@ impl Session {
             hub,
             grasp: None,
             cut: None,
+            incision_pending: None,
             building: None,
             build_status: Arc::new(Mutex::new(BuildStatus::default())),
             substeps: 0,
@@ -246,6 +250,16 @@ impl Session {
                 &format!(
                     "the cut in progress was stopped ({why}) with {} of its path points left",
                     job.remaining.len()
+                ),
+            );
+        }
+        // A switch drops the old model with what it was computing; a Reset keeps it.
+        if why.starts_with("switching") && self.incision_pending.take().is_some() {
+            self.hub.notify(
+                "error",
+                &format!(
+                    "the incision {} was computing is dropped ({why}: the new model starts uncut)",
+                    self.kind
                 ),
             );
         }
@@ -413,7 +427,15 @@ impl Session {
                 self.steps_in_window += 1;
                 self.substeps = report.info.substeps;
                 if self.cut.as_ref().is_some_and(|j| j.remaining.is_empty()) {
-                    self.finish_cut("the cut is done");
+                    if self.sim.model().background().is_some() {
+                        self.incision_pending = Some(Instant::now());
+                        self.finish_cut(
+                            "the blade's path is done; the incision is computed in the \
+                             background while the simulation goes on",
+                        );
+                    } else {
+                        self.finish_cut("the cut is done");
+                    }
                 }
                 let after = (
                     self.sim.model().surface().triangles.len(),
@@ -422,6 +444,29 @@ impl Session {
                 if after != before {
                     self.publish_init();
                 }
+                if let Some(since) = self.incision_pending
+                    && self.sim.model().background().is_none()
+                {
+                    self.incision_pending = None;
+                    let opened = if after != before {
+                        "the incision is open"
+                    } else {
+                        "the blade opened no groove"
+                    };
+                    self.hub.notify(
+                        "info",
+                        &format!(
+                            "the cut is done: {opened}, {:.1} s after the blade's path ended",
+                            since.elapsed().as_secs_f64()
+                        ),
+                    );
+                }
+            }
+            Err(e)
+                if self.incision_pending.is_some() && self.sim.model().background().is_none() =>
+            {
+                self.incision_pending = None;
+                self.hub.notify("error", &format!("cutting failed: {e}"));
             }
             Err(e) => self.step_failed(e),
         }
@@ -560,6 +605,7 @@ impl Session {
                 .cut
                 .as_ref()
                 .map(|c| (c.total - c.remaining.len(), c.total)),
+            background: self.sim.model().background(),
         };
         self.hub.set_frame(publish::frame_message(
             &self.sim,

@@ -228,6 +228,20 @@ pub trait Deformable: Send {
         })
     }
 
+    /// Swaps in work the model finished off the calling thread that changes its surface (in
+    /// real time, `bem` computes an incision's system update on a worker while it goes on
+    /// answering steps on the uncut surface). `Simulation` calls it at the start of every
+    /// step, before its contact search; `Some` when the surface changed. An error is the
+    /// background work's: the model keeps its last good state.
+    fn finish_background(&mut self) -> Result<Option<CutInfo>, SimError> {
+        Ok(None)
+    }
+
+    /// What the model is computing off the calling thread, for a status line (`None`: nothing).
+    fn background(&self) -> Option<String> {
+        None
+    }
+
     /// Returns to the rest state, keeping constraints and loads.
     fn reset(&mut self);
 

@@ -286,23 +286,90 @@ pub(super) fn keep_far_diagonals(old: &Influence, new: &mut Influence, in_k: &[b
     }
 }
 
+/// What a bordering reads from the system it extends, shared rather than copied, so that a
+/// worker can compute the extension while the system goes on answering steps.
+pub(super) struct BorderBase {
+    inf: Arc<Influence>,
+    w: Arc<Mat<Real>>,
+    inverse: BaseInverse,
+    fixed: Vec<bool>,
+    rim: RimColumns,
+    generation: u64,
+}
+
+/// A bordering computed from a `BorderBase`, to be applied to the system it was taken from
+/// (`BemSystem::apply_border`).
+pub(super) struct Bordered {
+    layer: Layer,
+    w: Mat<Real>,
+    inf: Influence,
+    fixed: Vec<bool>,
+    rim: RimColumns,
+    support_area: Vec<Real>,
+    geometry: Option<Geometry>,
+    generation: u64,
+}
+
 impl BemSystem {
+    /// What `BorderBase::border` needs: a few reference counts and the fixed set.
+    pub(super) fn border_base(&self) -> Result<BorderBase, SimError> {
+        let inverse = self.inverse.clone().ok_or_else(not_factored)?;
+        if !self.is_factored() {
+            return Err(not_factored());
+        }
+        Ok(BorderBase {
+            inf: Arc::clone(&self.inf),
+            w: Arc::clone(&self.w),
+            inverse,
+            fixed: self.fixed.clone(),
+            rim: self.rim.clone(),
+            generation: self.generation,
+        })
+    }
+
+    /// Swaps in a bordering; refused (nothing changes) when the system changed since its
+    /// base was taken.
+    pub(super) fn apply_border(&mut self, b: Bordered) -> Result<(), SimError> {
+        if b.generation != self.generation {
+            return Err(SimError::BadParameter {
+                name: "cut",
+                value: "an incision computed in the background".into(),
+                reason: "the system was re-factorised while it was computed".into(),
+            });
+        }
+        if let Some(inv) = self.inverse.as_mut() {
+            inv.layers.push(Arc::new(b.layer));
+        }
+        self.w = Arc::new(b.w);
+        self.inf = Arc::new(b.inf);
+        self.fixed = b.fixed;
+        self.rim = b.rim;
+        self.support_area = b.support_area;
+        self.geometry = b.geometry.map(Arc::new);
+        self.generation += 1;
+        // A₀⁻¹ of the contact-rim option is not bordered: the caller re-factorises.
+        self.drop_explicit_base_inverse();
+        self.contacts.clear();
+        self.capacitance = None;
+        Ok(())
+    }
+}
+
+impl BorderBase {
     /// Replaces H and G by those of the cut surface (`inf`: old vertices first, new ones
-    /// appended, none fixed) and extends A₀⁻¹ and W by bordering. `k`: the vertices whose
-    /// columns changed (old changed ones and all new ones); `far_rows`: old rows outside K
-    /// whose diagonal changed (from `influence_after_cut`). O(n² (|K| + |R|)); the contact
-    /// set is dropped. Nothing changes on error.
+    /// appended, none fixed) and extends A₀⁻¹ and W by bordering, into a `Bordered` that
+    /// `BemSystem::apply_border` swaps in (the system is not touched here). `k`: the
+    /// vertices whose columns changed (old changed ones and all new ones); `far_rows`: old
+    /// rows outside K whose diagonal changed (from `influence_after_cut`). O(n² (|K| + |R|));
+    /// applying it drops the contact set.
     pub(super) fn border(
-        &mut self,
+        &self,
         inf: Influence,
         geometry: Option<Geometry>,
         k: &[usize],
         far_rows: &[usize],
-    ) -> Result<(), SimError> {
-        let inverse = self.inverse.as_ref().ok_or_else(not_factored)?;
-        if !self.is_factored() {
-            return Err(not_factored());
-        }
+    ) -> Result<Bordered, SimError> {
+        let inverse = &self.inverse;
         let (n0, n) = (self.inf.dofs(), inf.dofs());
         let mut fixed = self.fixed.clone();
         fixed.resize(inf.vertices, false);
@@ -313,7 +380,7 @@ impl BemSystem {
             None => (RimColumns::default(), Vec::new()),
         };
         let old_fixed = &self.fixed;
-        let (old, old_rim) = (&self.inf, &self.rim);
+        let (old, old_rim) = (self.inf.as_ref(), &self.rim);
         let a_old = |r: usize, c: usize| -> Real {
             match (r < n0, c < n0) {
                 (true, true) => base_entry(old, old_fixed, r, c) + old_rim.at(r, c),
@@ -423,22 +490,20 @@ impl BemSystem {
         if z.col_iter().any(|c| c.iter().any(|v| !v.is_finite())) {
             return Err(bad_border(0));
         }
-        if let Some(inv) = self.inverse.as_mut() {
-            inv.layers.push(Arc::new(layer));
-        }
-        self.w = z;
-        self.inf = inf;
-        self.fixed = fixed;
-        self.rim = rim;
-        self.support_area = support_area;
-        self.geometry = geometry.map(Arc::new);
-        // A₀⁻¹ of the contact-rim option is not bordered: the caller re-factorises.
-        self.drop_explicit_base_inverse();
-        self.contacts.clear();
-        self.capacitance = None;
-        Ok(())
+        Ok(Bordered {
+            layer,
+            w: z,
+            inf,
+            fixed,
+            rim,
+            support_area,
+            geometry,
+            generation: self.generation,
+        })
     }
+}
 
+impl BemSystem {
     /// Incisions absorbed by bordering since the last factorisation.
     pub fn borderings(&self) -> usize {
         self.inverse.as_ref().map_or(0, BaseInverse::layers)

@@ -25,7 +25,7 @@ use crate::mesh::SurfaceMesh;
 use crate::model::{CutInfo, CutPath, Deformable};
 
 use super::assembly::{Geometry, Influence};
-use super::border::{influence_after_cut, keep_far_diagonals};
+use super::border::{BorderBase, Bordered, influence_after_cut, keep_far_diagonals};
 use super::model::{Bem, checked_surface};
 use super::system::BemSystem;
 
@@ -367,79 +367,195 @@ pub enum CutUpdate {
     Reassembly,
 }
 
+/// An incision's new surface, before the system follows it.
+pub(super) struct PlannedIncision {
+    cut: Incision,
+    /// `cut.surface`, checked (closed, manifold, oriented).
+    surface: SurfaceMesh,
+    /// Vertices before the cut.
+    n0: usize,
+}
+
+/// The system's part of an incision by bordering: O(n² k), the expensive part, computed
+/// without touching the model (on a worker in real time, `super::incision_worker`).
+pub(super) enum SystemUpdate {
+    Bordered(Bordered),
+    /// The system was not factorised yet: the cut surface's H and G, factorised later.
+    Unfactored {
+        inf: Influence,
+        geometry: Geometry,
+    },
+}
+
+/// What `SystemUpdate::compute` reads from the model: shared, not copied.
+pub(super) struct UpdateBase {
+    border: Option<BorderBase>,
+    old: std::sync::Arc<Influence>,
+    material: crate::material::Material,
+}
+
+impl PlannedIncision {
+    /// The vertices whose H and G columns change: the old ones whose triangles changed and
+    /// every new one.
+    fn changed(&self) -> Vec<usize> {
+        let mut k = self.cut.changed.clone();
+        k.extend(self.n0..self.surface.vertices.len());
+        k
+    }
+}
+
+impl SystemUpdate {
+    /// H and G where the surface changed, then the bordering (or nothing more when the
+    /// system is not factorised yet).
+    pub(super) fn compute(plan: &PlannedIncision, base: &UpdateBase) -> Result<Self, SimError> {
+        let geometry = Geometry::new(&plan.surface, &base.material)?;
+        let k = plan.changed();
+        let (inf, far_rows) = influence_after_cut(
+            &base.old,
+            &plan.surface.vertices,
+            &geometry.elements,
+            &geometry.kelvin,
+            &k,
+        );
+        match &base.border {
+            Some(b) => Ok(Self::Bordered(b.border(
+                inf,
+                Some(geometry),
+                &k,
+                &far_rows,
+            )?)),
+            None => Ok(Self::Unfactored { inf, geometry }),
+        }
+    }
+}
+
 impl Bem {
     /// Cuts along `blade` and updates the system as `update` says; the constraints and point
     /// loads are kept (they refer to old vertices, whose numbers do not change).
     pub fn incise(&mut self, blade: &CutPath, update: CutUpdate) -> Result<CutInfo, SimError> {
+        let Some(plan) = self.plan_incision(blade)? else {
+            return Ok(self.no_cut());
+        };
+        let start = Instant::now();
+        let system = match update {
+            CutUpdate::Bordering => {
+                let computed = SystemUpdate::compute(&plan, &self.update_base()?)?;
+                self.updated_system(computed)?
+            }
+            CutUpdate::Reassembly => self.reassembled_system(&plan)?,
+        };
+        self.land_incision(plan, system, start.elapsed().as_secs_f64())
+    }
+
+    /// The `CutInfo` of a sweep that opened nothing.
+    pub(super) fn no_cut(&self) -> CutInfo {
+        CutInfo {
+            topology_version: self.cuts,
+            ..CutInfo::default()
+        }
+    }
+
+    /// The cut surface along `blade`, or `None` when the blade opens nothing.
+    pub(super) fn plan_incision(
+        &mut self,
+        blade: &CutPath,
+    ) -> Result<Option<PlannedIncision>, SimError> {
         // A scene-built model assembles at its first constraints; a cut may come first.
         self.assemble_pending();
         let Some(cut) = incise(&self.surface, blade, OPENING)? else {
-            return Ok(CutInfo {
-                topology_version: self.cuts,
-                ..CutInfo::default()
-            });
+            return Ok(None);
         };
         let surface = checked_surface(&cut.surface)?;
         if surface.vertices.len() != cut.surface.vertices.len() {
             return Err(bad("the incision left unused vertices".into()));
         }
-        let n0 = self.surface.vertices.len();
-        let start = Instant::now();
-        let mut system = match update {
-            CutUpdate::Bordering => {
-                let geometry = Geometry::new(&surface, &self.material)?;
-                let mut k = cut.changed.clone();
-                k.extend(n0..surface.vertices.len());
-                let (inf, far_rows) = influence_after_cut(
-                    &self.system.inf,
-                    &surface.vertices,
-                    &geometry.elements,
-                    &geometry.kelvin,
-                    &k,
-                );
-                let mut system = std::mem::replace(&mut self.system, BemSystem::new(empty()));
-                let result = if system.is_factored() {
-                    system.border(inf, Some(geometry), &k, &far_rows)
-                } else {
-                    let rims = system.contact_rims;
-                    system = BemSystem::new(inf);
-                    system.set_geometry(Some(geometry));
-                    system.set_contact_rims(rims);
-                    Ok(())
-                };
-                if let Err(e) = result {
+        Ok(Some(PlannedIncision {
+            n0: self.surface.vertices.len(),
+            cut,
+            surface,
+        }))
+    }
+
+    /// What `SystemUpdate::compute` reads, shared with the model.
+    pub(super) fn update_base(&self) -> Result<UpdateBase, SimError> {
+        Ok(UpdateBase {
+            border: if self.system.is_factored() {
+                Some(self.system.border_base()?)
+            } else {
+                None
+            },
+            old: std::sync::Arc::clone(&self.system.inf),
+            material: self.material,
+        })
+    }
+
+    /// Whether an update computed from `base` still applies to this model's system.
+    pub(super) fn update_applies(&self, base_generation: u64) -> bool {
+        self.system.generation == base_generation
+    }
+
+    /// The system with `computed` applied (the model's system is taken out; on error it is
+    /// put back unchanged).
+    pub(super) fn updated_system(&mut self, computed: SystemUpdate) -> Result<BemSystem, SimError> {
+        let mut system = std::mem::replace(&mut self.system, BemSystem::new(empty()));
+        match computed {
+            SystemUpdate::Bordered(b) => {
+                if let Err(e) = system.apply_border(b) {
                     self.system = system;
                     return Err(e);
                 }
-                system
+                Ok(system)
             }
-            CutUpdate::Reassembly => {
-                let fresh = Bem::new(&surface, self.material, self.params)
-                    .map_err(|e| bad(format!("re-assembly failed: {e}")))?;
-                let mut system = fresh.system;
-                let mut in_k = vec![false; surface.vertices.len()];
-                for &v in cut
-                    .changed
-                    .iter()
-                    .chain(&(n0..surface.vertices.len()).collect::<Vec<_>>())
-                {
-                    in_k[v] = true;
-                }
-                keep_far_diagonals(&self.system.inf, &mut system.inf, &in_k);
-                if self.system.is_factored() {
-                    let mut fixed = self.system.fixed().to_vec();
-                    fixed.resize(surface.vertices.len(), false);
-                    system.factor(&fixed)?;
-                }
-                system
+            SystemUpdate::Unfactored { inf, geometry } => {
+                let rims = system.contact_rims;
+                let mut fresh = BemSystem::new(inf);
+                fresh.set_geometry(Some(geometry));
+                fresh.set_contact_rims(rims);
+                Ok(fresh)
             }
-        };
-        system.last_cut_seconds = start.elapsed().as_secs_f64();
+        }
+    }
+
+    /// The reference update: the cut surface assembled and factorised afresh.
+    fn reassembled_system(&self, plan: &PlannedIncision) -> Result<BemSystem, SimError> {
+        let surface = &plan.surface;
+        let fresh = Bem::new(surface, self.material, self.params)
+            .map_err(|e| bad(format!("re-assembly failed: {e}")))?;
+        let mut system = fresh.system;
+        let mut in_k = vec![false; surface.vertices.len()];
+        for v in plan.changed() {
+            in_k[v] = true;
+        }
+        keep_far_diagonals(
+            &self.system.inf,
+            std::sync::Arc::make_mut(&mut system.inf),
+            &in_k,
+        );
+        if self.system.is_factored() {
+            let mut fixed = self.system.fixed().to_vec();
+            fixed.resize(surface.vertices.len(), false);
+            system.factor(&fixed)?;
+        }
+        Ok(system)
+    }
+
+    /// Replaces the model by the cut one with `system`, carrying positions, constraints and
+    /// loads over.
+    pub(super) fn land_incision(
+        &mut self,
+        plan: PlannedIncision,
+        mut system: BemSystem,
+        seconds: Real,
+    ) -> Result<CutInfo, SimError> {
+        let PlannedIncision { cut, surface, n0 } = plan;
+        system.last_cut_seconds = seconds;
         let mut next = Bem::from_parts(surface, self.material, self.params, empty(), 0.0);
         next.system = system;
         next.assembly_seconds = self.assembly_seconds;
         next.cuts = self.cuts + 1;
         next.progress = self.progress.clone();
+        next.real_time = self.real_time;
+        next.incisions = std::mem::take(&mut self.incisions);
         next.positions[..n0].copy_from_slice(&self.positions);
         let loads = Loads {
             gravity: self.gravity,
@@ -448,8 +564,8 @@ impl Bem {
                 .map(|v| (v as u32, self.point_forces[v]))
                 .collect(),
         };
-        // The system is already bordered in place, so the uncut model cannot come back: if
-        // the constraints or loads no longer fit the cut body, the cut model (consistent, with
+        // The system is already bordered, so the uncut model cannot come back: if the
+        // constraints or loads no longer fit the cut body, the cut model (consistent, with
         // what it accepted) is kept and the error says why.
         let applied = next
             .set_constraints(self.reactions.constraints())

@@ -284,13 +284,23 @@ impl Deformable for Bem {
         self.cut_stroke(blade)
     }
 
+    /// An incision computed in the background (real time) lands here.
+    fn finish_background(&mut self) -> Result<Option<CutInfo>, SimError> {
+        self.finish_incision()
+    }
+
+    fn background(&self) -> Option<String> {
+        self.incisions.describe(self.system.last_cut_seconds)
+    }
+
     fn set_progress(&mut self, progress: Progress) {
         self.progress = progress;
     }
 
-    /// Rim solves go to the background in real time, unless the scene chose
-    /// (`background_rim_solves`).
+    /// Incisions (always) and rim solves (unless the scene chose, `background_rim_solves`)
+    /// go to the background in real time.
     fn set_real_time(&mut self, on: bool) {
+        self.real_time = on;
         if self.params.background_rim_solves.is_none() {
             self.system.set_rim_background(on);
         }

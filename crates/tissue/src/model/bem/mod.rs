@@ -15,6 +15,7 @@ mod border;
 mod contact_rims;
 mod cut;
 mod deformable;
+mod incision_worker;
 mod kelvin;
 mod model;
 mod quadrature;

@@ -20,6 +20,7 @@ use crate::model::{BuildInput, Progress};
 use super::assembly::{Geometry, Influence, assemble};
 use super::body_force::GravityResponse;
 use super::contact_rims::DEFAULT_RIM_CACHE_BYTES;
+use super::incision_worker::IncisionWorker;
 use super::system::BemSystem;
 use super::viscous::SurfaceGraph;
 
@@ -120,6 +121,10 @@ pub struct Bem {
     pub(super) pending_cut: Option<([Vec3; 2], [Vec3; 2])>,
     /// Masks `set_constraints` reuses, so that moving targets allocate nothing.
     pub(super) scratch: ConstraintScratch,
+    /// Stepped against a wall clock (`Deformable::set_real_time`): incisions are computed
+    /// in the background (`incisions`).
+    pub(super) real_time: bool,
+    pub(super) incisions: IncisionWorker,
 }
 
 /// The constraints of the last `set_constraints` call, per vertex (see
@@ -292,6 +297,8 @@ impl Bem {
             homogeneous_targets: Vec::new(),
             pending_cut: None,
             scratch: ConstraintScratch::default(),
+            real_time: false,
+            incisions: IncisionWorker::default(),
             surface,
         }
     }

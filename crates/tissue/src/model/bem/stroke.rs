@@ -30,10 +30,7 @@ impl Bem {
         let start = match self.pending_cut.take() {
             Some((start, end)) if end == blade.start => start,
             Some((start, end)) => {
-                info = merge(
-                    info,
-                    self.incise(&CutPath { start, end }, CutUpdate::Bordering)?,
-                );
+                info = merge(info, self.incise_when_ready(&CutPath { start, end })?);
                 blade.start
             }
             None => blade.start,
@@ -44,7 +41,7 @@ impl Bem {
         };
         let opens_alone = incise(&self.surface, blade, OPENING)?.is_some();
         if opens_alone || !self.blade_meets_surface(blade.end) {
-            let done = self.incise(&stroke, CutUpdate::Bordering)?;
+            let done = self.incise_when_ready(&stroke)?;
             return Ok(merge(info, done));
         }
         self.pending_cut = Some((stroke.start, stroke.end));

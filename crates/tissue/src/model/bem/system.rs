@@ -52,11 +52,14 @@ pub(super) struct Capacitance {
 
 /// H, G, the pre-inverted base system and the current contact set.
 pub struct BemSystem {
-    pub(crate) inf: Influence,
+    /// H and G; shared so that an incision computed off the stepping thread reads them
+    /// while the system goes on answering steps (`Bem`'s background incisions).
+    pub(crate) inf: Arc<Influence>,
     /// The fixed set A₀ was factorised for.
     pub(super) fixed: Vec<bool>,
-    /// W = A₀⁻¹ G (column-major, 3n × 3n); empty before the first factorisation.
-    pub(super) w: Mat<Real>,
+    /// W = A₀⁻¹ G (column-major, 3n × 3n); empty before the first factorisation. Shared
+    /// like `inf`.
+    pub(super) w: Arc<Mat<Real>>,
     pub(super) contacts: Vec<usize>,
     /// The capacitance matrix W_CC (W̃_CC with contact rims).
     pub(super) capacitance: Option<Capacitance>,
@@ -86,14 +89,17 @@ pub struct BemSystem {
     pub(super) rim_worker: RimWorker,
     /// Wall time of the last incision's update (bordering or re-assembly), in s.
     pub last_cut_seconds: Real,
+    /// Bumped whenever H, G, W or A₀⁻¹ change (a factorisation, an assembly, a bordering):
+    /// a bordering computed from an older generation no longer applies.
+    pub(super) generation: u64,
 }
 
 impl BemSystem {
     pub fn new(inf: Influence) -> Self {
         Self {
             fixed: vec![false; inf.vertices],
-            inf,
-            w: Mat::zeros(0, 0),
+            inf: Arc::new(inf),
+            w: Arc::new(Mat::zeros(0, 0)),
             contacts: Vec::new(),
             capacitance: None,
             inverse: None,
@@ -110,6 +116,7 @@ impl BemSystem {
             rim_background: false,
             rim_worker: RimWorker::default(),
             last_cut_seconds: 0.0,
+            generation: 0,
         }
     }
 
@@ -204,8 +211,9 @@ impl BemSystem {
 
     /// Replaces H and G (a deferred assembly); the factorisation is dropped.
     pub(crate) fn set_influence(&mut self, inf: Influence) {
-        self.inf = inf;
-        self.w = Mat::zeros(0, 0);
+        self.inf = Arc::new(inf);
+        self.w = Arc::new(Mat::zeros(0, 0));
+        self.generation += 1;
         self.contacts.clear();
         self.capacitance = None;
         self.inverse = None;
@@ -330,7 +338,8 @@ impl BemSystem {
         if w.col_iter().any(|c| c.iter().any(|v| !v.is_finite())) {
             return Err(singular());
         }
-        self.w = w;
+        self.w = Arc::new(w);
+        self.generation += 1;
         self.drop_explicit_base_inverse();
         self.inverse = Some(BaseInverse::new(a, perm, perm_inv));
         self.fixed = fixed.to_vec();

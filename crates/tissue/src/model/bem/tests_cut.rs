@@ -8,7 +8,7 @@ use crate::interact::{Constraints, Loads, Prescribed};
 use crate::math::{Real, Vec3};
 use crate::mesh::SurfaceMesh;
 use crate::mesh::check::check_surface;
-use crate::model::{CutPath, Deformable};
+use crate::model::{CutInfo, CutPath, Deformable};
 
 /// A blade 3 cm deep in z swept along x across the top of the 5 cm sphere, at y = `y`.
 fn blade(y: Real, x0: Real, x1: Real) -> CutPath {
@@ -275,4 +275,119 @@ fn cut_speed_liver() {
         bem.system().dofs()
     );
     assert_eq!(bem.system().factorizations, 1);
+}
+
+/// In real time the system's update runs on a worker: the cut returns at once, the model
+/// answers steps on the uncut surface meanwhile, a second stroke waits its turn, and what
+/// lands equals the synchronous incisions to the last bit.
+#[test]
+fn a_real_time_incision_lands_from_the_background_as_the_synchronous_one() {
+    let s = sphere(2);
+    let mut now = build(&s, &s.vertices);
+    let mut later = build(&s, &s.vertices);
+    later.set_real_time(true);
+    let uncut = later.surface().positions.to_vec();
+    let triangles0 = later.surface().triangles.len();
+    let blades = [blade(0.001, -0.03, 0.02), blade(-0.012, -0.025, 0.02)];
+    for b in &blades {
+        assert!(now.cut(b).unwrap().added_vertices > 0);
+        let queued = later.cut(b).unwrap();
+        assert_eq!(
+            queued,
+            CutInfo::default(),
+            "a real-time cut returns before it lands"
+        );
+    }
+    // Until it lands the model steps on the uncut surface, and says what it computes.
+    assert!(later.background().is_some_and(|s| s.contains("incision")));
+    later.step(0.01).unwrap();
+    assert_eq!(later.surface().triangles.len(), triangles0);
+    assert_eq!(later.surface().positions, &uncut[..]);
+    let info = later.wait_for_incisions().unwrap();
+    assert_eq!(info.topology_version, 2);
+    assert!(later.background().is_none());
+    now.step(0.01).unwrap();
+    later.step(0.01).unwrap();
+    assert_eq!(later.surface().triangles, now.surface().triangles);
+    assert_eq!(later.surface().positions, now.surface().positions);
+    assert_eq!(gaps(&later, &now), (0.0, 0.0));
+    assert_eq!(later.system().borderings(), 2);
+    assert_eq!(later.system().factorizations, 1);
+}
+
+/// Through `Simulation`: a scalpel crosses the top in real time, the steps go on while the
+/// incision is computed, and once it lands (at the start of a step) the surface, the
+/// contact search and the probe's force are those of the same scene stepped synchronously.
+#[test]
+fn a_simulation_in_real_time_steps_on_while_the_incision_is_computed() {
+    use crate::interact::{Instrument, InstrumentKind, Keyframe, Trajectory};
+    use crate::sim::Simulation;
+    let s = sphere(2);
+    let fixed: Vec<u32> = (0..s.vertices.len() as u32)
+        .filter(|&v| s.vertices[v as usize].z < -0.04)
+        .collect();
+    let run = |real_time: bool| {
+        let mut model = Bem::new(&s, material(), BemParams::default()).unwrap();
+        model.set_real_time(real_time);
+        let mut sim = Simulation::new(Box::new(model), fixed.clone(), Loads::default()).unwrap();
+        let key = |t: Real, x: Real| Keyframe {
+            t,
+            position: [x, 0.001, 0.02],
+        };
+        let path = Trajectory::new(vec![key(0.0, -0.03), key(0.01, 0.02)]).unwrap();
+        let scalpel = InstrumentKind::Scalpel {
+            direction: Vec3::Z,
+            length: 0.06,
+        };
+        sim.add_instrument(Instrument::new("scalpel", scalpel, 0.001, path).unwrap());
+        let probe = Trajectory::new(vec![
+            Keyframe {
+                t: 0.0,
+                position: [0.03, 0.0, 0.06],
+            },
+            Keyframe {
+                t: 0.05,
+                position: [0.03, 0.0, 0.0445],
+            },
+        ])
+        .unwrap();
+        sim.add_instrument(Instrument::new("probe", InstrumentKind::Probe, 0.01, probe).unwrap());
+        sim
+    };
+    let mut sync = run(false);
+    let mut rt = run(true);
+    let (mut sync_steps, mut rt_steps) = (0, 0);
+    // The scalpel crosses the top in the first step: the synchronous run cuts there.
+    sync.step(0.01).unwrap();
+    sync_steps += 1;
+    assert_eq!(sync.topology_version(), 1);
+    // The real-time run steps on until the worker's incision lands (a wall-clock bound
+    // only guards against a hang).
+    let start = std::time::Instant::now();
+    while rt.topology_version() == 0 && start.elapsed().as_secs() < 120 {
+        rt.step(0.01).unwrap();
+        rt_steps += 1;
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    assert_eq!(rt.topology_version(), 1, "the incision landed");
+    assert!(
+        rt_steps >= 2,
+        "the first step answered on the uncut surface"
+    );
+    // Past the probe's path end (t = 0.05 s), both at the same place.
+    while sync_steps < 8 || sync_steps < rt_steps + 2 {
+        sync.step(0.01).unwrap();
+        sync_steps += 1;
+    }
+    while rt_steps < sync_steps {
+        rt.step(0.01).unwrap();
+        rt_steps += 1;
+    }
+    assert_eq!(
+        rt.model().surface().triangles,
+        sync.model().surface().triangles
+    );
+    let (fs, fr) = (sync.instruments()[1].force(), rt.instruments()[1].force());
+    assert!(fs.length() > 0.0, "the probe touches");
+    assert!((fs - fr).length() <= 1e-9 * fs.length(), "{fs:?} {fr:?}");
 }
