@@ -60,6 +60,8 @@ pub struct Simulation {
     /// The model's `CutInfo::topology_version` after the last cut: the triangles may be
     /// re-connected at an unchanged count, so the BVH is rebuilt, not refitted.
     topology_version: u32,
+    /// A scalpel was removed since the last step (`Deformable::end_cut` at the next).
+    scalpel_removed: bool,
     bvh_topology: u32,
     is_static: bool,
     max_contact_iterations: usize,
@@ -106,6 +108,7 @@ impl Simulation {
             steps: 0,
             bvh,
             topology_version: 0,
+            scalpel_removed: false,
             bvh_topology: 0,
             is_static,
             max_contact_iterations: DEFAULT_CONTACT_ITERATIONS,
@@ -171,7 +174,14 @@ impl Simulation {
         // The model keeps its constraints until the next step; their split among the
         // instruments no longer holds.
         self.held.clear();
-        (index < self.instruments.len()).then(|| self.instruments.remove(index))
+        let removed = (index < self.instruments.len()).then(|| self.instruments.remove(index));
+        if removed
+            .as_ref()
+            .is_some_and(|i| matches!(i.kind(), InstrumentKind::Scalpel { .. }))
+        {
+            self.scalpel_removed = true;
+        }
+        removed
     }
 
     /// Caps the solves per step of the static contact loop (at least 1).
@@ -304,7 +314,12 @@ impl Simulation {
 
     fn advance(&mut self, dt: Real, next: &mut [Instrument]) -> Result<StepReport, SimError> {
         let t1 = self.time + dt;
-        // An incision finished off the thread changes the surface before this step's search.
+        // A stroke the model still holds opens when its scalpel is gone; an incision
+        // finished off the thread changes the surface before this step's search.
+        if std::mem::take(&mut self.scalpel_removed) {
+            let info = self.model.end_cut()?;
+            self.topology_version = self.topology_version.max(info.topology_version);
+        }
         if let Some(info) = self.model.finish_background()? {
             self.topology_version = self.topology_version.max(info.topology_version);
         }

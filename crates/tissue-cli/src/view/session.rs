@@ -72,6 +72,8 @@ pub struct Session {
     /// The blade's path is done and the model computes the incision off the thread (`bem`
     /// in real time): since when.
     incision_pending: Option<Instant>,
+    /// The scalpel was removed at the end of its path; the next step reports the cut.
+    cut_ending: bool,
     building: Option<Receiver<Built>>,
     build_status: Arc<Mutex<BuildStatus>>,
     /// The model's notices already said on the page (`tell_notices`).
@@ -127,6 +129,7 @@ impl Session {
             grasp: None,
             cut: None,
             incision_pending: None,
+            cut_ending: false,
             building: None,
             build_status: Arc::new(Mutex::new(BuildStatus::default())),
             substeps: 0,
@@ -426,16 +429,24 @@ impl Session {
             Ok(report) => {
                 self.steps_in_window += 1;
                 self.substeps = report.info.substeps;
-                if self.cut.as_ref().is_some_and(|j| j.remaining.is_empty()) {
+                // The step after the scalpel left: a model that opens a stroke when the
+                // blade goes (bem) has opened it, or started computing it off the thread.
+                if std::mem::take(&mut self.cut_ending) {
                     if self.sim.model().background().is_some() {
                         self.incision_pending = Some(Instant::now());
-                        self.finish_cut(
+                        self.hub.notify(
+                            "info",
                             "the blade's path is done; the incision is computed in the \
                              background while the simulation goes on",
                         );
                     } else {
-                        self.finish_cut("the cut is done");
+                        self.hub.notify("info", "the cut is done");
                     }
+                    // A cut can change what the model is (`hybrid`: its region grows).
+                    self.tell_notices();
+                }
+                if self.cut.as_ref().is_some_and(|j| j.remaining.is_empty()) {
+                    self.finish_cut();
                 }
                 let after = (
                     self.sim.model().surface().triangles.len(),
@@ -462,24 +473,30 @@ impl Session {
                     );
                 }
             }
-            Err(e)
-                if self.incision_pending.is_some() && self.sim.model().background().is_none() =>
-            {
-                self.incision_pending = None;
-                self.hub.notify("error", &format!("cutting failed: {e}"));
+            Err(e) => {
+                // The step that opened a held stroke, or swapped in an incision computed
+                // off the thread, failed because of it.
+                let incising = std::mem::take(&mut self.cut_ending)
+                    || (self.incision_pending.is_some() && self.sim.model().background().is_none());
+                if incising
+                    && !matches!(e, SimError::Diverged { .. } | SimError::Implausible { .. })
+                {
+                    self.incision_pending = None;
+                    self.hub.notify("error", &format!("cutting failed: {e}"));
+                } else {
+                    self.step_failed(e);
+                }
             }
-            Err(e) => self.step_failed(e),
         }
     }
 
-    fn finish_cut(&mut self, message: &str) {
+    /// The blade's path is swept: the scalpel goes; the next step says what came of it.
+    fn finish_cut(&mut self) {
         self.cut = None;
         if let Some(i) = self.index_of(SCALPEL) {
             self.sim.remove_instrument(i);
         }
-        self.hub.notify("info", message);
-        // A cut can change what the model is (`hybrid`: its region grows).
-        self.tell_notices();
+        self.cut_ending = true;
     }
 
     /// Says each of the model's notices (`ModelInfo::notices`) once: after a build and after

@@ -228,6 +228,14 @@ pub trait Deformable: Send {
         })
     }
 
+    /// The scalpel was taken away: a model that joins a stroke's sweeps and opens them when
+    /// the blade leaves the tissue (`bem`) opens what it holds now, so a cut that ends with
+    /// the blade inside is not lost. `Simulation` calls it at the start of the step after
+    /// a scalpel was removed.
+    fn end_cut(&mut self) -> Result<CutInfo, SimError> {
+        Ok(CutInfo::default())
+    }
+
     /// Swaps in work the model finished off the calling thread that changes its surface (in
     /// real time, `bem` computes an incision's system update on a worker while it goes on
     /// answering steps on the uncut surface). `Simulation` calls it at the start of every

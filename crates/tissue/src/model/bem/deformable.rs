@@ -284,6 +284,14 @@ impl Deformable for Bem {
         self.cut_stroke(blade)
     }
 
+    /// A stroke still held (the blade was inside when the scalpel went away) opens now.
+    fn end_cut(&mut self) -> Result<CutInfo, SimError> {
+        match self.pending_cut.take() {
+            Some((start, end)) => self.incise_when_ready(&CutPath { start, end }),
+            None => Ok(self.no_cut()),
+        }
+    }
+
     /// An incision computed in the background (real time) lands here.
     fn finish_background(&mut self) -> Result<Option<CutInfo>, SimError> {
         self.finish_incision()

@@ -391,3 +391,56 @@ fn a_simulation_in_real_time_steps_on_while_the_incision_is_computed() {
     assert!(fs.length() > 0.0, "the probe touches");
     assert!((fs - fr).length() <= 1e-9 * fs.length(), "{fs:?} {fr:?}");
 }
+
+/// A stroke whose blade is still inside when the scalpel is taken away (a viewer cut that
+/// ends on the organ) opens at the next step, as the same stroke leaving the tissue does.
+#[test]
+fn a_stroke_held_when_the_scalpel_goes_opens_at_the_next_step() {
+    use crate::interact::{Instrument, InstrumentKind, Keyframe, Trajectory};
+    use crate::sim::Simulation;
+    let s = sphere(2);
+    let fixed: Vec<u32> = (0..s.vertices.len() as u32)
+        .filter(|&v| s.vertices[v as usize].z < -0.04)
+        .collect();
+    let model = Bem::new(&s, material(), BemParams::default()).unwrap();
+    let mut sim = Simulation::new(Box::new(model), fixed, Loads::default()).unwrap();
+    // Ten short sweeps across the top, the blade inside the whole time.
+    let key = |t: Real, x: Real| Keyframe {
+        t,
+        position: [x, 0.001, 0.02],
+    };
+    let path = Trajectory::new(vec![key(0.0, -0.03), key(0.1, 0.02)]).unwrap();
+    let scalpel = InstrumentKind::Scalpel {
+        direction: Vec3::Z,
+        length: 0.06,
+    };
+    sim.add_instrument(Instrument::new("scalpel", scalpel, 0.001, path).unwrap());
+    for _ in 0..10 {
+        sim.step(0.01).unwrap();
+    }
+    assert_eq!(
+        sim.topology_version(),
+        0,
+        "the stroke is held while the blade is in"
+    );
+    let triangles = sim.model().surface().triangles.len();
+    sim.remove_instrument(0);
+    sim.step(0.01).unwrap();
+    assert_eq!(sim.topology_version(), 1);
+    // The same groove as the whole stroke cut at once.
+    let whole = incise(
+        &s,
+        &CutPath {
+            start: [Vec3::new(-0.03, 0.001, 0.02), Vec3::new(-0.03, 0.001, 0.08)],
+            end: [Vec3::new(0.02, 0.001, 0.02), Vec3::new(0.02, 0.001, 0.08)],
+        },
+        OPENING,
+    )
+    .unwrap()
+    .unwrap();
+    assert!(sim.model().surface().triangles.len() > triangles);
+    assert_eq!(
+        sim.model().surface().triangles,
+        &whole.surface.triangles[..]
+    );
+}
