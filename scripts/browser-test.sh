@@ -106,9 +106,9 @@ fi
 kill "$SERVER" 2>/dev/null || true
 
 # The other scenes, one server at a time: every cutting kind's cut scene (incision,
-# Reset), the voxel pelvis (frame rate).
+# Reset; bem through its background incision), the voxel pelvis (frame rate).
 : >"$OUT/scenes.log"
-for scene in ${BROWSER_TEST_SCENES:-liver-spring-mass-cut liver-tensor-mass-cut liver-linked-volumes-cut pelvis-chainmail}; do
+for scene in ${BROWSER_TEST_SCENES:-liver-spring-mass-cut liver-tensor-mass-cut liver-linked-volumes-cut liver-bem-cut pelvis-chainmail}; do
     serve "$scene.toml" "$scene"
     s2=0
     SHOTS="$OUT" timeout 120 node viewer/tests/scenes.test.mjs "$URL" >"$OUT/scene.log" || s2=$?
