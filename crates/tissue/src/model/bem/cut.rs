@@ -379,12 +379,10 @@ pub(super) struct PlannedIncision {
 /// The system's part of an incision by bordering: O(n² k), the expensive part, computed
 /// without touching the model (on a worker in real time, `super::incision_worker`).
 pub(super) enum SystemUpdate {
-    Bordered(Bordered),
+    /// Boxed: a bordering carries its layer's factors inline, far larger than the other.
+    Bordered(Box<Bordered>),
     /// The system was not factorised yet: the cut surface's H and G, factorised later.
-    Unfactored {
-        inf: Influence,
-        geometry: Geometry,
-    },
+    Unfactored { inf: Influence, geometry: Geometry },
 }
 
 /// What `SystemUpdate::compute` reads from the model: shared, not copied.
@@ -418,12 +416,10 @@ impl SystemUpdate {
             &k,
         );
         match &base.border {
-            Some(b) => Ok(Self::Bordered(b.border(
-                inf,
-                Some(geometry),
-                &k,
-                &far_rows,
-            )?)),
+            Some(b) => {
+                let bordered = b.border(inf, Some(geometry), &k, &far_rows)?;
+                Ok(Self::Bordered(Box::new(bordered)))
+            }
             None => Ok(Self::Unfactored { inf, geometry }),
         }
     }
@@ -500,7 +496,7 @@ impl Bem {
         let mut system = std::mem::replace(&mut self.system, BemSystem::new(empty()));
         match computed {
             SystemUpdate::Bordered(b) => {
-                if let Err(e) = system.apply_border(b) {
+                if let Err(e) = system.apply_border(*b) {
                     self.system = system;
                     return Err(e);
                 }
