@@ -250,10 +250,7 @@ impl Hybrid {
         self.surf_pos.get_or_init(|| {
             // From the current state of both parts (never from a copy that a growth could
             // have left behind): the gather and the contact forces are small.
-            let u = self
-                .rest
-                .coupling(&self.region_iface, &self.split.region.mesh.vertices)
-                .interface_displacements(self.tm.positions());
+            let u = self.interface_u();
             let z = self.rest.contact_forces(&u);
             let uo = self.rest.outer_displacements(&u, &z);
             let x = self.tm.positions();
@@ -333,10 +330,7 @@ impl Hybrid {
         if reference.positions.len() != n {
             return None;
         }
-        let u = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices)
-            .interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         if reference.u.nrows() != u.nrows() {
             return None;
         }
@@ -508,6 +502,17 @@ impl Hybrid {
         self.search = maps;
     }
 
+    /// The interface displacements u_I (3 per interface node) from the region's state:
+    /// a gather, without the coupling's scratch vectors.
+    fn interface_u(&self) -> Mat<Real> {
+        let x = self.tm.positions();
+        let rest = &self.split.region.mesh.vertices;
+        Mat::from_fn(3 * self.region_iface.len(), 1, |i, _| {
+            let n = self.region_iface[i / 3] as usize;
+            x[n][i % 3] - rest[n][i % 3]
+        })
+    }
+
     /// Rebuilds the maps that follow the split and the region model's surface.
     fn adopt_split(&mut self) {
         self.region_iface = self
@@ -639,10 +644,7 @@ impl Hybrid {
     pub(super) fn volume_view(&self) -> VolumeView<'_> {
         let positions = self.volume_positions.get_or_init(|| {
             let mut x = self.mesh.vertices.clone();
-            let coupling = self
-                .rest
-                .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-            let u = coupling.interface_displacements(self.tm.positions());
+            let u = self.interface_u();
             if let Ok(rest_u) = self.rest.node_displacements(&u) {
                 for (l, &g) in self.split.rest.global.iter().enumerate() {
                     x[g as usize] += rest_u[l];
@@ -707,10 +709,7 @@ impl Hybrid {
     pub fn interface_balance(&self) -> (Vec<(u32, Vec3)>, Vec<Vec3>) {
         // F_I from the current state (one product with S): `update_state` does not keep it,
         // a step needs only the contact forces.
-        let u = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices)
-            .interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         let mut f = Mat::zeros(u.nrows(), 1);
         self.rest.interface_forces(&u, &mut f);
         let iface = self
@@ -880,10 +879,7 @@ impl Hybrid {
     /// Surface positions and reactions from the region's state.
     pub(super) fn update_state(&mut self) -> Result<(), SimError> {
         self.volume_positions.take();
-        let coupling = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        let u = coupling.interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         // The reactions need the contact forces only (G_c u_I, small), not F_I (S u_I:
         // `interface_balance` computes it when asked).
         let z = self.rest.contact_forces(&u);
@@ -1107,10 +1103,7 @@ impl Hybrid {
     /// and velocities (nodes new to it from the rest's displacement field), the cuts made so
     /// far are removed again, constraints and loads are re-split.
     fn install(&mut self, built: Built, steps_waited: u64) -> Result<(), SimError> {
-        let coupling = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        let u = coupling.interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         let rest_u = self.rest.node_displacements(&u)?;
         let n = self.mesh.vertices.len();
         let mut x: Vec<Vec3> = self.mesh.vertices.clone();

@@ -948,13 +948,6 @@ impl Coupling<'_> {
             }
         }
     }
-
-    /// Interface displacements of region positions `x`.
-    pub fn interface_displacements(&self, x: &[Vec3]) -> Mat<Real> {
-        let mut u = Mat::zeros(3 * self.region_node.len(), 1);
-        self.gather(x, &mut u);
-        u
-    }
 }
 
 impl NodeCoupling for Coupling<'_> {
