@@ -562,6 +562,71 @@ impl Integrator {
         self.margin = 1.0;
     }
 
+    /// Forgets the forces kept from the last step and re-measures the stiffness rate at
+    /// `state` with `iterations` power iterations warm-started from the last dominant
+    /// vector, never below the last full measurement (`measure`): for a change of external
+    /// stiffness that is local and leaves the damping as it was (the `hybrid` model's
+    /// contact set on its rest). A few iterations instead of a cold `measure`'s
+    /// `stable_step::ITERATIONS`; nothing when the limit was never measured (the next
+    /// step measures it in full) or the scheme has none.
+    pub fn recheck_stiffness<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        state: &ParticleState,
+        holds: &[Hold],
+        iterations: usize,
+    ) {
+        self.forget_forces();
+        if !self.measured
+            || self.scheme == Scheme::ImplicitEuler
+            || state.x.len() != system.masses().len()
+        {
+            return;
+        }
+        self.fill_inv_mass(system, holds);
+        self.rates.measure_stiffness(
+            system,
+            &state.x,
+            &state.v,
+            &self.scratch_inv_mass,
+            iterations,
+        );
+    }
+
+    /// The stable step (as `stable_dt`, margin 1) that a cold measurement gives at `state`:
+    /// `iterations` power iterations from the fixed start vector, nothing kept, this
+    /// integrator unchanged. A reference for the warm-started re-measures' tests.
+    pub fn cold_stable_dt<S: ParticleSystem + ?Sized>(
+        &self,
+        system: &mut S,
+        state: &ParticleState,
+        holds: &[Hold],
+        iterations: usize,
+    ) -> Real {
+        if self.scheme == Scheme::ImplicitEuler {
+            return Real::INFINITY;
+        }
+        let mut probe = Self::with_settings(self.scheme, self.settings);
+        probe.fill_inv_mass(system, holds);
+        let mut rates = RateEstimate::default();
+        rates.measure(
+            system,
+            &state.x,
+            &state.v,
+            &probe.scratch_inv_mass,
+            iterations,
+            true,
+        );
+        stable_step::SAFETY
+            * stable_step::stable_step(self.scheme, rates.omega_sq, rates.damping_rate)
+    }
+
+    /// The factor on the measured stiffness that refused steps left (1 until the divergence
+    /// guard refuses a step; doubled at each refusal, back to 1 at the next full measure).
+    pub fn stiffness_margin(&self) -> Real {
+        self.margin.max(1.0)
+    }
+
     fn fill_inv_mass<S: ParticleSystem + ?Sized>(&mut self, system: &S, holds: &[Hold]) {
         let inv = &mut self.scratch_inv_mass;
         inv.clear();

@@ -165,18 +165,7 @@ impl RateEstimate {
         if self.stiff_vec.len() != n || dead(&self.stiff_vec) {
             self.stiff_vec = start_vector(n);
         }
-        // Difference steps: a millionth of the body's size (forces are smooth, so the
-        // central difference is accurate to ε² while far above rounding).
-        let (lo, hi) = x.iter().fold(
-            (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        );
-        let size = (hi - lo).length();
-        let eps_x = if size.is_finite() && size > 0.0 {
-            1e-6 * size
-        } else {
-            1e-6
-        };
+        let eps_x = difference_step(x);
         let mut vec = std::mem::take(&mut self.stiff_vec);
         let omega_sq = self.power(system, x, v, inv_mass, &mut vec, iterations, eps_x, false);
         if self.damp_vec.len() != n || dead(&self.damp_vec) {
@@ -201,6 +190,33 @@ impl RateEstimate {
         }
         self.omega_sq = omega_sq.max(self.rest_omega_sq);
         self.damping_rate = damping.max(self.rest_damping_rate);
+    }
+
+    /// `measure` of the stiffness rate alone (the damping rate kept), warm-started from
+    /// the kept vector and never below the rest estimate: for a change of external
+    /// stiffness that leaves the damping as it was (the `hybrid` model's contact set on its
+    /// rest, which adds or removes a low-rank stiffness at the interface nodes).
+    pub fn measure_stiffness<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        x: &[Vec3],
+        v: &[Vec3],
+        inv_mass: &[Real],
+        iterations: usize,
+    ) {
+        let n = x.len();
+        for buf in [&mut self.xp, &mut self.xm, &mut self.fp, &mut self.fm] {
+            buf.resize(n, Vec3::ZERO);
+        }
+        let dead = |u: &[Vec3]| !u.iter().any(|u| u.is_finite() && *u != Vec3::ZERO);
+        if self.stiff_vec.len() != n || dead(&self.stiff_vec) {
+            self.stiff_vec = start_vector(n);
+        }
+        let eps_x = difference_step(x);
+        let mut vec = std::mem::take(&mut self.stiff_vec);
+        let omega_sq = self.power(system, x, v, inv_mass, &mut vec, iterations, eps_x, false);
+        self.stiff_vec = vec;
+        self.omega_sq = omega_sq.max(self.rest_omega_sq);
     }
 
     /// Power iteration on M⁻¹A (A = K, or C with `velocity`); returns the last Rayleigh
@@ -260,6 +276,21 @@ impl RateEstimate {
             quotient = num / den;
         }
         quotient.max(0.0)
+    }
+}
+
+/// The difference step of the stiffness products: a millionth of the body's size (forces
+/// are smooth, so the central difference is accurate to ε² while far above rounding).
+fn difference_step(x: &[Vec3]) -> Real {
+    let (lo, hi) = x.iter().fold(
+        (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let size = (hi - lo).length();
+    if size.is_finite() && size > 0.0 {
+        1e-6 * size
+    } else {
+        1e-6
     }
 }
 

@@ -83,6 +83,10 @@ pub struct Hybrid {
     /// it came from: `contact_positions` bounds how far each vertex has moved since.
     /// Dropped when the surface's vertices, the split or the loads change.
     surf_ref: RefCell<Option<SurfaceRef>>,
+    /// What `near_positions` looks up per vertex, resolved once per surface (rebuilt with
+    /// the triangles: after a cut, a growth, a reset): the search is then a few flops per
+    /// outer vertex instead of three node maps and a bound each.
+    search: SearchMaps,
 
     pub(super) triangles: Vec<[u32; 3]>,
     pub(super) constraints: Constraints,
@@ -115,11 +119,28 @@ pub struct Hybrid {
     whole_noticed: bool,
 }
 
+/// Per surface vertex, what part it is on, for the partial contact search.
+#[derive(Default)]
+struct SearchMaps {
+    /// (surface vertex, region node) of the vertices on the region.
+    region: Vec<(u32, u32)>,
+    /// Surface vertex of each outer slot of the rest (`NONE` for a slot with no vertex).
+    vertex_of_slot: Vec<u32>,
+    /// Outer slot of each surface vertex, or `NONE`.
+    slot_of_vertex: Vec<u32>,
+    /// The triangles at each surface vertex (compressed rows: `tri_start[v]..tri_start[v
+    /// + 1]` in `tris`).
+    tri_start: Vec<u32>,
+    tris: Vec<u32>,
+}
+
 /// A whole surface as computed, and the state of the rest it came from.
 struct SurfaceRef {
     u: Mat<Real>,
     z: Vec<(u32, Vec3)>,
     positions: Vec<Vec3>,
+    /// The largest |position|: the rounding of a position is within 4 ε of it.
+    largest: Real,
     /// Rows of the rest's outer surface the partial surfaces computed since (in vertices).
     rows_since: std::cell::Cell<usize>,
 }
@@ -128,6 +149,10 @@ struct SurfaceRef {
 /// the whole surface (which becomes the new reference): the rows cost what the whole
 /// product does, and a fresh reference shrinks the next searches' slack.
 const NEAR_FRACTION: Real = 0.3;
+
+/// Power iterations of the stability re-measure when the rest's contact set changes
+/// (warm-started from the last dominant vector; see `apply_constraints`).
+pub(super) const CONTACT_RECHECK_ITERATIONS: usize = 4;
 
 /// What `ModelInfo::details` (`whole_organ`) and the one notice say when the region covers
 /// every tetrahedron.
@@ -185,6 +210,7 @@ impl Hybrid {
             reach: None,
             near: OnceCell::new(),
             surf_ref: RefCell::new(None),
+            search: SearchMaps::default(),
 
             surf_rest,
             surf_nodes,
@@ -224,10 +250,7 @@ impl Hybrid {
         self.surf_pos.get_or_init(|| {
             // From the current state of both parts (never from a copy that a growth could
             // have left behind): the gather and the contact forces are small.
-            let u = self
-                .rest
-                .coupling(&self.region_iface, &self.split.region.mesh.vertices)
-                .interface_displacements(self.tm.positions());
+            let u = self.interface_u();
             let z = self.rest.contact_forces(&u);
             let uo = self.rest.outer_displacements(&u, &z);
             let x = self.tm.positions();
@@ -252,6 +275,7 @@ impl Hybrid {
             *self.surf_ref.borrow_mut() = Some(SurfaceRef {
                 z: self.rest.forces_by_slot(&z),
                 u,
+                largest: positions.iter().fold(0.0, |a: Real, p| a.max(p.length())),
                 positions: positions.clone(),
                 rows_since: std::cell::Cell::new(0),
             });
@@ -306,10 +330,7 @@ impl Hybrid {
         if reference.positions.len() != n {
             return None;
         }
-        let u = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices)
-            .interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         if reference.u.nrows() != u.nrows() {
             return None;
         }
@@ -348,55 +369,82 @@ impl Hybrid {
         // One bound per vertex: the change with a margin (1e-6) plus both surfaces'
         // rounding (1e-9 of the products' sizes), as one set of terms; the contacts'
         // compliance norms looked up once, not per vertex.
-        let terms: Vec<(u32, Real)> = dz
+        let mut terms: Vec<(u32, Real)> = dz
             .iter()
             .map(|&(s, d)| (s, d * (1.0 + 1e-6)))
             .chain(sizes.iter().map(|&(s, z)| (s, 1e-9 * z)))
             .collect();
+        // One term per contact (one pass over the slots each): the sums of a slot's terms.
+        terms.sort_unstable_by_key(|&(s, _)| s);
+        terms.dedup_by(|b, a| {
+            let same = a.0 == b.0;
+            if same {
+                a.1 += b.1;
+            }
+            same
+        });
         let terms = self.rest.bound_terms(&terms);
         let du = du * (1.0 + 1e-6) + 1e-9 * u_size;
+        let maps = &self.search;
+        if maps.slot_of_vertex.len() != n || maps.vertex_of_slot.len() != self.rest.outer_slots() {
+            return None;
+        }
         let x = self.tm.positions();
-        let mut positions = Vec::with_capacity(n);
+        let mut positions = reference.positions.clone();
+        for &(v, r) in &maps.region {
+            positions[v as usize] = x[r as usize];
+        }
+        // Every outer slot's bound at once, then one test per outer vertex: its last
+        // position farther than bound + radius from every ball is outside all of them.
+        let mut bound = Vec::new();
+        self.rest.displacement_bounds(du, &terms, &mut bound);
+        let rounding = 4.0 * Real::EPSILON * reference.largest;
         let mut slack = vec![0.0; n];
-        // Per vertex: its outer slot when it is on the rest's outer surface.
-        let mut slots = vec![NONE; n];
-        let mut exact = vec![false; n];
+        let mut seeds = Vec::new();
         let mut outer = 0;
-        for (v, &g) in self.surf_nodes.iter().enumerate() {
-            let r = self.split.region.local[g as usize];
-            if r != NONE {
-                positions.push(x[r as usize]);
+        for (&v, &b) in maps.vertex_of_slot.iter().zip(&bound) {
+            if v == NONE {
                 continue;
             }
-            let b = reference.positions[v];
-            let Some(slot) = self.rest.outer_slot(self.split.rest.local[g as usize]) else {
-                positions.push(b);
-                continue;
-            };
             outer += 1;
-            let s =
-                self.rest.displacement_bound(slot, du, &terms) + 4.0 * Real::EPSILON * b.length();
-            slots[v] = slot;
-            slack[v] = s;
-            exact[v] = reach.iter().any(|&(c, r)| b.distance(c) <= r + s);
-            positions.push(b);
+            let s = b + rounding;
+            slack[v as usize] = s;
+            let p = positions[v as usize];
+            if reach.iter().any(|&(c, r)| {
+                let reach = r + s;
+                (p - c).length_squared() <= reach * reach * (1.0 + 1e-12)
+            }) {
+                seeds.push(v);
+            }
         }
         // The vertices of a triangle with one that can be inside: a contact's normal is
         // taken from its triangles. The held vertices are exact too, but their triangles
         // only when they are within the reach (an instrument's contact): a support far
         // from every instrument needs no normal.
-        let seeds = exact.clone();
+        let mut exact = vec![false; n];
+        let mut rows: Vec<u32> = Vec::new();
+        let mut take = |v: u32| {
+            if !exact[v as usize] && maps.slot_of_vertex[v as usize] != NONE {
+                exact[v as usize] = true;
+                rows.push(v);
+            }
+        };
         for &v in &self.rest_contact {
-            exact[v as usize] = true;
+            take(v);
         }
-        for t in &self.triangles {
-            if t.iter().any(|&v| seeds[v as usize]) {
-                for &v in t {
-                    exact[v as usize] = true;
+        for &v in &seeds {
+            take(v);
+            let (a, b) = (
+                maps.tri_start[v as usize] as usize,
+                maps.tri_start[v as usize + 1] as usize,
+            );
+            for &t in &maps.tris[a..b] {
+                for &w in &self.triangles[t as usize] {
+                    take(w);
                 }
             }
         }
-        let count = (0..n).filter(|&v| exact[v] && slots[v] != NONE).count();
+        let count = rows.len();
         // The slack grows with the state's distance from the reference, and with it the
         // rows each search computes (79 per step on the 7k liver under a held probe, from
         // a reference taken during the press): once the searches since the reference
@@ -407,13 +455,62 @@ impl Hybrid {
             return None;
         }
         reference.rows_since.set(since);
-        for v in 0..n {
-            if exact[v] && slots[v] != NONE {
-                positions[v] = self.surf_rest[v] + self.rest.outer_displacement(slots[v], &u, &z);
-                slack[v] = 0.0;
-            }
+        for &v in &rows {
+            let slot = maps.slot_of_vertex[v as usize];
+            positions[v as usize] =
+                self.surf_rest[v as usize] + self.rest.outer_displacement(slot, &u, &z);
+            slack[v as usize] = 0.0;
         }
         Some((positions, slack))
+    }
+
+    /// Resolves, per surface vertex, what the partial contact search looks up (the part it
+    /// is on, its outer slot, its triangles).
+    fn rebuild_search_maps(&mut self) {
+        let n = self.surf_nodes.len();
+        let mut maps = SearchMaps {
+            region: Vec::new(),
+            vertex_of_slot: vec![NONE; self.rest.outer_slots()],
+            slot_of_vertex: vec![NONE; n],
+            tri_start: vec![0; n + 1],
+            tris: vec![0; 3 * self.triangles.len()],
+        };
+        for (v, &g) in self.surf_nodes.iter().enumerate() {
+            let r = self.split.region.local[g as usize];
+            if r != NONE {
+                maps.region.push((v as u32, r));
+            } else if let Some(slot) = self.rest.outer_slot(self.split.rest.local[g as usize]) {
+                maps.slot_of_vertex[v] = slot;
+                maps.vertex_of_slot[slot as usize] = v as u32;
+            }
+        }
+        for t in &self.triangles {
+            for &v in t {
+                maps.tri_start[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            maps.tri_start[v + 1] += maps.tri_start[v];
+        }
+        let mut fill = maps.tri_start.clone();
+        for (k, t) in self.triangles.iter().enumerate() {
+            for &v in t {
+                maps.tris[fill[v as usize] as usize] = k as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        self.search = maps;
+    }
+
+    /// The interface displacements u_I (3 per interface node) from the region's state:
+    /// a gather, without the coupling's scratch vectors.
+    fn interface_u(&self) -> Mat<Real> {
+        let x = self.tm.positions();
+        let rest = &self.split.region.mesh.vertices;
+        Mat::from_fn(3 * self.region_iface.len(), 1, |i, _| {
+            let n = self.region_iface[i / 3] as usize;
+            x[n][i % 3] - rest[n][i % 3]
+        })
     }
 
     /// Rebuilds the maps that follow the split and the region model's surface.
@@ -477,6 +574,7 @@ impl Hybrid {
                 self.triangles.push(tri);
             }
         }
+        self.rebuild_search_maps();
     }
 
     /// Region tetrahedra count.
@@ -546,10 +644,7 @@ impl Hybrid {
     pub(super) fn volume_view(&self) -> VolumeView<'_> {
         let positions = self.volume_positions.get_or_init(|| {
             let mut x = self.mesh.vertices.clone();
-            let coupling = self
-                .rest
-                .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-            let u = coupling.interface_displacements(self.tm.positions());
+            let u = self.interface_u();
             if let Ok(rest_u) = self.rest.node_displacements(&u) {
                 for (l, &g) in self.split.rest.global.iter().enumerate() {
                     x[g as usize] += rest_u[l];
@@ -614,10 +709,7 @@ impl Hybrid {
     pub fn interface_balance(&self) -> (Vec<(u32, Vec3)>, Vec<Vec3>) {
         // F_I from the current state (one product with S): `update_state` does not keep it,
         // a step needs only the contact forces.
-        let u = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices)
-            .interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         let mut f = Mat::zeros(u.nrows(), 1);
         self.rest.interface_forces(&u, &mut f);
         let iface = self
@@ -685,18 +777,26 @@ impl Hybrid {
                 rest_contact.push(v as u32);
             }
         }
+        let mut new_set = false;
         if !self.rest.same_contacts(&slots, &targets) {
-            let same_set = self.rest.contact_slots() == slots.as_slice();
+            new_set = self.rest.contact_slots() != slots.as_slice();
             self.rest.set_contacts(&slots, &targets)?;
             // The coupling's forces and energy changed under the integrator's feet; its
             // stiffness (S + G_cᵀ W_cc⁻¹ G_c) only when the contact set did.
-            if same_set {
-                self.tm.forget_forces();
-            } else {
-                self.tm.invalidate_forces();
-            }
+            self.tm.forget_forces();
         }
         self.tm.set_constraints(&tm_c)?;
+        if new_set {
+            // A new contact set changes the interface stiffness by a low-rank term (the
+            // contacts' G_cᵀ W_cc⁻¹ G_c): the stability limit is re-measured from the last
+            // dominant vector in a few iterations, never below the last full measure (which
+            // the build and every growth or cut take), instead of 30 cold ones.
+            let coupling = self
+                .rest
+                .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+            self.tm
+                .recheck_stability(&coupling, CONTACT_RECHECK_ITERATIONS);
+        }
         self.tm_entry = tm_entry;
         self.rest_contact = rest_contact;
         self.near.take();
@@ -779,10 +879,7 @@ impl Hybrid {
     /// Surface positions and reactions from the region's state.
     pub(super) fn update_state(&mut self) -> Result<(), SimError> {
         self.volume_positions.take();
-        let coupling = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        let u = coupling.interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         // The reactions need the contact forces only (G_c u_I, small), not F_I (S u_I:
         // `interface_balance` computes it when asked).
         let z = self.rest.contact_forces(&u);
@@ -1006,10 +1103,7 @@ impl Hybrid {
     /// and velocities (nodes new to it from the rest's displacement field), the cuts made so
     /// far are removed again, constraints and loads are re-split.
     fn install(&mut self, built: Built, steps_waited: u64) -> Result<(), SimError> {
-        let coupling = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        let u = coupling.interface_displacements(self.tm.positions());
+        let u = self.interface_u();
         let rest_u = self.rest.node_displacements(&u)?;
         let n = self.mesh.vertices.len();
         let mut x: Vec<Vec3> = self.mesh.vertices.clone();
@@ -1102,6 +1196,17 @@ impl Hybrid {
     #[cfg(test)]
     pub(super) fn rest_moment_of_loads_and_contacts(&self) -> Vec3 {
         self.rest.moment(&self.contact_forces)
+    }
+
+    /// The coupled stable step a cold measure (`iterations` power iterations from the
+    /// fixed start vector) gives now; the model is unchanged.
+    #[cfg(test)]
+    pub(super) fn cold_stable_dt(&mut self, iterations: usize) -> Real {
+        let coupling = self
+            .rest
+            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+        let coupled = self.rest.exists().then_some(&coupling as &dyn NodeCoupling);
+        self.tm.cold_stable_dt(coupled, iterations)
     }
 
     #[cfg(test)]

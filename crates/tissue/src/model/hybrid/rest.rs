@@ -746,7 +746,7 @@ impl RestPart {
     }
 
     /// The compliance columns' norms of the contacts in `dz` (outer slot, norm of its
-    /// force change), for `displacement_bound`: looked up once per search, not per vertex.
+    /// force change), for `displacement_bounds`: looked up once per search, not per vertex.
     /// A slot with no column (never touched) moves nothing and is left out.
     pub fn bound_terms<'a>(&'a self, dz: &[(u32, Real)]) -> Vec<(&'a [Real], Real)> {
         dz.iter()
@@ -754,15 +754,25 @@ impl RestPart {
             .collect()
     }
 
-    /// How far outer slot `slot` can move when the interface displacements change by a
+    /// How far each outer slot can move when the interface displacements change by a
     /// vector of norm `du` and the contact forces by vectors of norms `dz` (per contact:
     /// its column norms from `bound_terms`, the norm of its change): |G_o Δu| +
-    /// Σ_c |W_oc Δz_c| ≤ ‖G_o‖_F |Δu| + Σ_c ‖W_oc‖_F |Δz_c|. In exact arithmetic; the
-    /// caller adds the rounding.
-    pub fn displacement_bound(&self, slot: u32, du: Real, dz: &[(&[Real], Real)]) -> Real {
-        let o = slot as usize;
-        dz.iter()
-            .fold(self.g_norms[o] * du, |b, (norms, zn)| b + norms[o] * zn)
+    /// Σ_c |W_oc Δz_c| ≤ ‖G_o‖_F |Δu| + Σ_c ‖W_oc‖_F |Δz_c|, into `out` (one entry per
+    /// slot). In exact arithmetic; the caller adds the rounding. All slots at once: a
+    /// scaled copy of G's norms and one axpy per contact, which vectorise.
+    pub fn displacement_bounds(&self, du: Real, dz: &[(&[Real], Real)], out: &mut Vec<Real>) {
+        out.clear();
+        out.extend(self.g_norms.iter().map(|g| g * du));
+        for &(norms, zn) in dz {
+            for (o, n) in out.iter_mut().zip(norms) {
+                *o += n * zn;
+            }
+        }
+    }
+
+    /// Outer slots count.
+    pub fn outer_slots(&self) -> usize {
+        self.outer.len()
     }
 
     /// The contact forces `z` (as `contact_forces` gives them) by outer slot.
@@ -937,13 +947,6 @@ impl Coupling<'_> {
                 u[(3 * a + k, 0)] = d[k];
             }
         }
-    }
-
-    /// Interface displacements of region positions `x`.
-    pub fn interface_displacements(&self, x: &[Vec3]) -> Mat<Real> {
-        let mut u = Mat::zeros(3 * self.region_node.len(), 1);
-        self.gather(x, &mut u);
-        u
     }
 }
 

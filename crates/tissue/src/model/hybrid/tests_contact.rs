@@ -173,3 +173,120 @@ fn the_contact_search_on_part_of_the_surface_finds_what_the_whole_surface_gives(
     assert!(partial > 50, "the search read the whole surface");
     assert!(on_rest > 0 && on_region > 0 && fronts > 0);
 }
+
+/// A change of the rest's contact set re-measures the stability limit from the last
+/// dominant vector in a few iterations (not 30 cold ones): on a region one cell thick
+/// (every region node on the interface, where the contacts' stiffness acts), with contact
+/// sets on the rest beside the interface coming and going every 15 steps, the automatic
+/// substep after every change is within the coupled operator's limit as a cold measure of
+/// 200 iterations finds it, and 600 steps never trip the energy guard.
+#[test]
+fn a_contact_change_keeps_the_automatic_substep_within_the_coupled_limit() {
+    let mesh = box_tets(
+        Vec3::ZERO,
+        Vec3::new(0.12, 0.03, 0.03),
+        [12, 3, 3],
+        BoxSplit::Six,
+    );
+    let mut m = Material::new(5000.0, 0.4).unwrap();
+    m.damping = 20.0;
+    let params: toml::Table = toml::from_str(
+        "cut_region = { box = { min = [0.04, -1.0, -1.0], max = [0.05, 1.0, 1.0] } }\n\
+         integrator = \"symplectic-euler\"",
+    )
+    .unwrap();
+    let mut h = Hybrid::from_input(&BuildInput {
+        mesh: &MeshData::from_tets(&mesh),
+        source: "test",
+        material: m,
+        params: &params,
+    })
+    .unwrap();
+    let rest = h.rest_surface().to_vec();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].x < 1e-9)
+        .collect();
+    // Top vertices of the rest beside the interface (x = 30 and 60 mm) and a little
+    // farther (20, 70 mm), pressed in groups.
+    let top = |x: Real| -> Vec<u32> {
+        (0..rest.len() as u32)
+            .filter(|&v| {
+                let p = rest[v as usize];
+                (p.x - x).abs() < 1e-9 && (p.z - 0.03).abs() < 1e-9
+            })
+            .collect()
+    };
+    let groups = [
+        top(0.03),
+        [top(0.03), top(0.06)].concat(),
+        top(0.06),
+        Vec::new(),
+        [top(0.02), top(0.06), top(0.07)].concat(),
+        [top(0.03), top(0.07)].concat(),
+    ];
+    h.set_loads(&Loads {
+        gravity: Vec3::new(0.0, 0.0, -1.0),
+        point_loads: Vec::new(),
+    })
+    .unwrap();
+    let dt = 5e-3;
+    let (mut changes, mut worst, mut max_substeps) = (0, 0.0 as Real, 0);
+    let mut last_slots = Vec::new();
+    for step in 0..600 {
+        let phase = step / 15;
+        let group = &groups[phase % groups.len()];
+        // Each press ramps in over its 15 steps (a moving target: no re-measure).
+        let depth = 0.002 * ((step % 15) as Real + 1.0) / 15.0;
+        let c = Constraints {
+            fixed: fixed.clone(),
+            prescribed: group
+                .iter()
+                .map(|&v| crate::interact::Prescribed {
+                    vertex: v,
+                    position: rest[v as usize] - Vec3::new(0.0, 0.0, depth),
+                })
+                .collect(),
+        };
+        h.set_constraints(&c).unwrap();
+        let slots = h.rest.contact_slots().to_vec();
+        // (Before the first step the loads left the limit unmeasured: a full measure.)
+        if let (true, Some(warm)) = (slots != last_slots, h.tm.integrator().stable_dt()) {
+            changes += 1;
+            let cold = h.cold_stable_dt(200);
+            if std::env::var("HYBRID_RECHECK_TRACE").is_ok() {
+                eprintln!(
+                    "step {step}: {} contacts, warm {warm:.4e}, cold200 {cold:.4e}, cold30 {:.4e}",
+                    slots.len(),
+                    h.cold_stable_dt(30)
+                );
+            }
+            // The substep taken is at most `warm`; the coupled operator is stable below
+            // cold / SAFETY (the bound itself).
+            let limit = cold / crate::integrate::stable_step::SAFETY;
+            let substep =
+                dt / crate::integrate::stable_step::substeps_for(dt, warm).unwrap() as Real;
+            assert!(
+                substep <= limit,
+                "step {step}: substep {substep:e} above the coupled limit {limit:e}"
+            );
+            worst = worst.max(warm / cold);
+            last_slots = slots;
+        }
+        let info = h.step(dt).unwrap();
+        max_substeps = max_substeps.max(info.substeps);
+    }
+    let margin = h.tm.integrator().stiffness_margin();
+    let speed = h
+        .region_model()
+        .velocities()
+        .iter()
+        .map(|v| v.length())
+        .fold(0.0, Real::max);
+    eprintln!(
+        "{changes} contact-set changes; largest warm / cold stable step {worst:.4}; \
+         {max_substeps} substeps at most; stiffness margin {margin}; region speed {speed:.2e} m/s"
+    );
+    assert!(changes >= 35, "{changes} changes");
+    assert_eq!(margin, 1.0, "a step was refused by the energy guard");
+    assert!(speed.is_finite() && speed < 1.0, "{speed}");
+}

@@ -179,6 +179,47 @@ impl TensorMass {
             }
         }
     }
+    /// `invalidate_forces` with the stiffness rate re-measured now by `iterations`
+    /// warm-started power iterations, with `coupling`'s forces added (never below the last
+    /// full measurement): the `hybrid` model's contact set on its rest changed, a low-rank
+    /// change of the interface stiffness that a cold measure (30 iterations) overpays.
+    pub fn recheck_stability(&mut self, coupling: &dyn NodeCoupling, iterations: usize) {
+        let mut coupled = Coupled {
+            system: &mut self.system,
+            coupling,
+        };
+        self.integrator
+            .recheck_stiffness(&mut coupled, &self.state, &self.step_holds, iterations);
+    }
+    /// The stable step a cold measurement (`iterations` power iterations, nothing kept)
+    /// gives now, with `coupling`'s forces added; the model is unchanged. For tests of
+    /// the warm-started re-measures.
+    pub fn cold_stable_dt(
+        &mut self,
+        coupling: Option<&dyn NodeCoupling>,
+        iterations: usize,
+    ) -> Real {
+        match coupling {
+            None => self.integrator.cold_stable_dt(
+                &mut self.system,
+                &self.state,
+                &self.step_holds,
+                iterations,
+            ),
+            Some(coupling) => {
+                let mut coupled = Coupled {
+                    system: &mut self.system,
+                    coupling,
+                };
+                self.integrator.cold_stable_dt(
+                    &mut coupled,
+                    &self.state,
+                    &self.step_holds,
+                    iterations,
+                )
+            }
+        }
+    }
     /// `invalidate_forces` without measuring the stability limit again: the caller changed
     /// forces whose stiffness stays the same (the `hybrid` model's contact targets).
     pub fn forget_forces(&mut self) {
