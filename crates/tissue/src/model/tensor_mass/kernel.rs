@@ -296,9 +296,9 @@ impl ElementKernel {
             let parallel = self.chooser.pick();
             let start = std::time::Instant::now();
             if parallel {
-                self.parts.par_iter_mut().for_each(&run);
+                self.parts.par_iter_mut().for_each(run);
             } else {
-                self.parts.iter_mut().for_each(&run);
+                self.parts.iter_mut().for_each(run);
             }
             self.chooser.record(parallel, start.elapsed());
             return sum_parts(&self.parts, f);
