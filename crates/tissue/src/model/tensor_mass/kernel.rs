@@ -423,32 +423,50 @@ fn part_wide<L: Wide, const STVK: bool, const PENALTY: bool>(
 ) {
     part.f.fill(Padded::default());
     let mut w = 0.0;
-    let lo = part.lo;
-    for b in part.blocks.clone() {
-        let block = &blocks[b];
+    // Full blocks first, with the lane count a constant (their lane loops unrolled), then
+    // the last block of the mesh when it is partial and in this run.
+    let full_end = (len / LANES).clamp(part.blocks.start, part.blocks.end);
+    for b in part.blocks.start..full_end {
+        block_pass::<L, STVK, PENALTY>(&blocks[b], LANES, u, &mut part.f, part.lo, &mut w);
+    }
+    for b in full_end..part.blocks.end {
         let lanes = lanes_used(b, len);
-        let uc = L::gather(block, u);
-        let mut d = [[L::splat(0.0); 3]; 3];
-        let mut g = [[L::splat(0.0); 3]; 3];
-        for a in 0..3 {
-            for i in 0..3 {
-                d[a][i] = uc[a + 1][i] - uc[0][i];
-                g[a][i] = L::load(&block.g[3 * a + i]);
-            }
-        }
-        let c = [
-            L::load(&block.lambda_v),
-            L::load(&block.mu2_v),
-            L::load(&block.kappa_v),
-        ];
-        let (f, e) = stvk::<L, STVK, PENALTY>(&d, &g, c);
-        L::scatter(block, lanes, &f, &mut part.f, lo);
-        let e = e.lanes();
-        for k in 0..lanes {
-            w += e[k];
-        }
+        block_pass::<L, STVK, PENALTY>(&blocks[b], lanes, u, &mut part.f, part.lo, &mut w);
     }
     part.energy = w;
+}
+
+/// One block: its corner forces into the run's buffer, the energy of its `lanes` used
+/// lanes added to `w` lane by lane.
+#[inline(always)]
+fn block_pass<L: Wide, const STVK: bool, const PENALTY: bool>(
+    block: &Block,
+    lanes: usize,
+    u: &[Padded],
+    fp: &mut [Padded],
+    lo: usize,
+    w: &mut Real,
+) {
+    let uc = L::gather(block, u);
+    let mut d = [[L::splat(0.0); 3]; 3];
+    let mut g = [[L::splat(0.0); 3]; 3];
+    for a in 0..3 {
+        for i in 0..3 {
+            d[a][i] = uc[a + 1][i] - uc[0][i];
+            g[a][i] = L::load(&block.g[3 * a + i]);
+        }
+    }
+    let c = [
+        L::load(&block.lambda_v),
+        L::load(&block.mu2_v),
+        L::load(&block.kappa_v),
+    ];
+    let (f, e) = stvk::<L, STVK, PENALTY>(&d, &g, c);
+    L::scatter(block, lanes, &f, fp, lo);
+    let e = e.lanes();
+    for k in 0..lanes {
+        *w += e[k];
+    }
 }
 
 /// What the kernel needs of a lane type: f64 or four of them.
