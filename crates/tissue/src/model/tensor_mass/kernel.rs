@@ -11,16 +11,19 @@
 //! (the blow-up guard asks for it every step), adds the volume penalty when it is on, and
 //! writes P' = F S' straight into the corner forces −P' g_a.
 //!
-//! One generic kernel, over lanes of `W4` (four f64, one block at a time) or of `f64` (one
-//! tetrahedron at a time, the tests' cross-check). The block path is compiled twice: inside
-//! an `avx2,fma`-enabled function chosen at run time (one AVX instruction per `W4`
-//! operation, its multiply-adds fused), and for the baseline target (SSE2 or NEON pairs) as
-//! the fallback. The fallback and the scalar path do the same operations in the same order
-//! without fusing, so they give the same bits; the fused path rounds once per multiply-add
-//! instead of twice, so it agrees with them to rounding (1e-15 relative on the tests'
-//! meshes). Fusing cut the AVX2 kernel's instructions by a quarter: fewer operations and
-//! fewer temporaries spilled to the stack (a quarter of the unfused kernel's time went to
-//! spills).
+//! One generic kernel, over lanes of four f64 (one block at a time) or of `f64` (one
+//! tetrahedron at a time, the tests' cross-check). The block path has two lane types: on
+//! x86-64 with AVX2 and FMA (checked at run time) `avx::V4`, one `__m256d` per value, every
+//! operation one intrinsic, multiply-adds fused, corners gathered and scattered as 256-bit
+//! rows of a padded copy of the nodes (`Padded`) turned into lanes by 4×4 transposes in
+//! registers; elsewhere `W4`, arrays that LLVM vectorises for the baseline target (SSE2 or
+//! NEON pairs), unfused: the same operations in the same order as the scalar path, so the
+//! same bits. The fused path agrees with them to rounding (1e-15 relative on the tests'
+//! meshes).
+//!
+//! Large meshes are cut into a few runs of blocks (`PART_BLOCKS`), each summed into its own
+//! force buffer and then added in run order: the runs go to rayon's threads when that
+//! measures faster (`Chooser`), with the same bits either way.
 
 // Matrix algebra on small fixed arrays reads clearest with explicit indices.
 #![allow(clippy::needless_range_loop)]
@@ -47,6 +50,25 @@ struct Block {
     kappa_v: [Real; LANES],
 }
 
+/// A node's 3-vector padded to four f64 (the fourth zero), aligned: the gather and the
+/// scatter move a corner with one 256-bit load (and store) instead of three scalars, and
+/// turn four corners into lanes with a 4×4 transpose in registers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(32))]
+struct Padded([Real; 4]);
+
+/// A run of consecutive blocks whose forces go into their own buffer, over the nodes
+/// `lo..lo + f.len()` its tetrahedra touch, and whose energy is summed on its own. The runs
+/// are fixed by the mesh (see `PART_BLOCKS`), not by the thread count, and their buffers are
+/// added into the node forces in run order: one thread and several give the same bits.
+#[derive(Clone, Debug, Default)]
+struct Part {
+    blocks: std::ops::Range<usize>,
+    lo: usize,
+    f: Vec<Padded>,
+    energy: Real,
+}
+
 /// The packed isotropic tetrahedra of the element form's non-linear set.
 #[derive(Clone, Debug, Default)]
 pub struct ElementKernel {
@@ -58,46 +80,66 @@ pub struct ElementKernel {
     stvk: bool,
     /// The volume penalty is on (κ > 0): its force and energy are fused into the pass.
     penalty: bool,
-    /// Per block: its corner forces and energy, computed on rayon's threads and then summed
-    /// in block order (large meshes, see `PARALLEL_MIN_BLOCKS`).
-    scratch: Vec<BlockOut>,
+    parts: Vec<Part>,
+    /// The displacements of the pass, padded.
+    u: Vec<Padded>,
+    /// Whether the parts run on rayon's threads: measured, not guessed (see `Chooser`).
+    #[cfg(feature = "parallel")]
+    chooser: Chooser,
 }
 
-/// Blocks (of four tetrahedra) from which the force pass computes the blocks on rayon's
-/// threads; their sum into the node forces stays on the calling thread, in block order, so
-/// the result has the same bits as one thread's.
-pub const PARALLEL_MIN_BLOCKS: usize = 1024;
+/// Blocks (of four tetrahedra) per run: a mesh of `n` blocks is cut into
+/// `n / PART_BLOCKS` runs (at least 1, at most `MAX_PARTS`), each computed as one task.
+/// Below 2 × `PART_BLOCKS` blocks (8,192 tetrahedra) the pass is one run, whose sums are
+/// those of a plain loop over the blocks.
+pub const PART_BLOCKS: usize = 1024;
 
-/// One block's corner forces (corner, component) and energy, per lane.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(32))]
-struct BlockOut {
-    f: [[[Real; LANES]; 3]; 4],
-    e: [Real; LANES],
+/// At most this many runs: each has its own force buffer to clear and add up, so more runs
+/// than the cores that can share them cost a little and gain nothing on two cores.
+pub const MAX_PARTS: usize = 4;
+
+/// Decides, by measuring, whether a pass with several runs is faster on rayon's threads or
+/// on the calling one. Waking the workers costs tens of microseconds per pass (one pass per
+/// explicit substep, 54 per millisecond on the issue-24 beam at 20k), and a loaded machine
+/// may have no free core: a fixed size threshold was slower than one thread on both counts.
+/// Every `RECALIBRATE` passes the next `CALIBRATION` alternate between the two (the first
+/// two, cold, not counted) and the faster by 10% is kept until the next calibration. Both
+/// ways give the same bits, so the choice changes only the time.
+#[cfg(feature = "parallel")]
+#[derive(Clone, Debug, Default)]
+struct Chooser {
+    pass: u32,
+    /// Wall time of the calibration's serial [0] and parallel [1] passes.
+    spent: [std::time::Duration; 2],
+    parallel: bool,
+    /// Tests: always (`Some(true)`) or never in parallel.
+    forced: Option<bool>,
 }
 
-impl Default for BlockOut {
-    fn default() -> Self {
-        Self {
-            f: [[[0.0; LANES]; 3]; 4],
-            e: [0.0; LANES],
+#[cfg(feature = "parallel")]
+impl Chooser {
+    const CALIBRATION: u32 = 18;
+    const RECALIBRATE: u32 = 2048;
+
+    fn pick(&self) -> bool {
+        match self.forced {
+            Some(on) => on,
+            None if self.pass < Self::CALIBRATION => self.pass % 2 == 1,
+            None => self.parallel,
         }
     }
-}
 
-impl<const FMA: bool> From<([[W4<FMA>; 3]; 4], W4<FMA>)> for BlockOut {
-    #[inline(always)]
-    fn from((f, e): ([[W4<FMA>; 3]; 4], W4<FMA>)) -> Self {
-        let mut out = BlockOut {
-            f: [[[0.0; LANES]; 3]; 4],
-            e: e.0,
-        };
-        for c in 0..4 {
-            for i in 0..3 {
-                out.f[c][i] = f[c][i].0;
-            }
+    fn record(&mut self, parallel: bool, took: std::time::Duration) {
+        if (2..Self::CALIBRATION).contains(&self.pass) {
+            self.spent[usize::from(parallel)] += took;
         }
-        out
+        self.pass += 1;
+        if self.pass == Self::CALIBRATION {
+            self.parallel = self.spent[1] < self.spent[0].mul_f64(0.9);
+            self.spent = Default::default();
+        } else if self.pass >= Self::RECALIBRATE {
+            self.pass = 0;
+        }
     }
 }
 
@@ -157,13 +199,39 @@ impl ElementKernel {
             }
             blocks.push(b);
         }
+        let runs = (blocks.len() / PART_BLOCKS).clamp(1, MAX_PARTS);
+        let per = blocks.len().div_ceil(runs);
+        let parts = (0..runs)
+            .map(|p| {
+                let range = (p * per).min(blocks.len())..((p + 1) * per).min(blocks.len());
+                let (mut lo, mut hi) = (usize::MAX, 0);
+                for b in range.clone() {
+                    for c in 0..4 {
+                        for &v in &blocks[b].nodes[c][..lanes_used(b, list.len())] {
+                            lo = lo.min(v as usize);
+                            hi = hi.max(v as usize + 1);
+                        }
+                    }
+                }
+                let lo = lo.min(hi);
+                Part {
+                    blocks: range,
+                    lo,
+                    f: vec![Padded::default(); hi - lo],
+                    energy: 0.0,
+                }
+            })
+            .collect();
         Self {
             blocks,
             len: list.len(),
             nodes_needed,
             stvk: el.is_some(),
             penalty: kappa > 0.0,
-            scratch: Vec::new(),
+            parts,
+            u: Vec::new(),
+            #[cfg(feature = "parallel")]
+            chooser: Chooser::default(),
         }
     }
 
@@ -173,88 +241,90 @@ impl ElementKernel {
         self.len
     }
 
+    /// Runs the pass is cut into (see `PART_BLOCKS`).
+    #[cfg(test)]
+    pub fn parts(&self) -> usize {
+        self.parts.len()
+    }
+
     /// Bytes of packed data the force pass reads.
     pub fn bytes(&self) -> usize {
         self.blocks.len() * std::mem::size_of::<Block>()
+    }
+
+    /// Tests: run the parts on rayon's threads always (`Some(true)`), never, or as measured
+    /// (`None`).
+    #[cfg(all(test, feature = "parallel"))]
+    pub fn force_parallel(&mut self, on: Option<bool>) {
+        self.chooser.forced = on;
     }
 
     /// f += the St Venant–Kirchhoff forces at displacements `u`; returns their energy.
     /// Four lanes in AVX2 registers when the CPU has AVX2 and FMA, else in pairs of the
     /// baseline's (SSE2 on x86-64, NEON on aarch64): ≈ 1.5× slower, still ≈ 1.4× faster
     /// than one tetrahedron at a time.
-    /// On meshes of `PARALLEL_MIN_BLOCKS` blocks or more (and more than one rayon thread)
-    /// the blocks are computed in parallel and summed in order: the same bits.
+    /// Large meshes are cut into runs computed on rayon's threads when that measures faster
+    /// (`Chooser`); the same bits either way.
     pub fn add_forces(&mut self, u: &[Vec3], f: &mut [Vec3]) -> Real {
         if u.len() < self.nodes_needed || f.len() < self.nodes_needed {
             return 0.0;
         }
-        #[cfg(feature = "parallel")]
-        if self.blocks.len() >= PARALLEL_MIN_BLOCKS && rayon::current_num_threads() > 1 {
-            return match (self.stvk, self.penalty) {
-                (true, true) => self.run_parallel::<true, true>(u, f),
-                (true, false) => self.run_parallel::<true, false>(u, f),
-                (false, true) => self.run_parallel::<false, true>(u, f),
-                (false, false) => 0.0,
-            };
+        if !self.stvk && !self.penalty {
+            return 0.0;
         }
-        match (self.stvk, self.penalty) {
-            (true, true) => self.run::<true, true>(u, f),
-            (true, false) => self.run::<true, false>(u, f),
-            (false, true) => self.run::<false, true>(u, f),
-            (false, false) => 0.0,
-        }
-    }
-
-    /// The blocks on rayon's threads, in chunks, each block's output into `scratch`; then
-    /// the sum in block order, as `add_forces_wide` does it.
-    #[cfg(feature = "parallel")]
-    fn run_parallel<const STVK: bool, const PENALTY: bool>(
-        &mut self,
-        u: &[Vec3],
-        f: &mut [Vec3],
-    ) -> Real {
-        use rayon::prelude::*;
-        const CHUNK: usize = 64;
-        self.scratch.resize(self.blocks.len(), BlockOut::default());
+        self.u.clear();
+        self.u.extend(
+            u[..self.nodes_needed]
+                .iter()
+                .map(|p| Padded([p.x, p.y, p.z, 0.0])),
+        );
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
-        self.blocks
-            .par_chunks(CHUNK)
-            .zip(self.scratch.par_chunks_mut(CHUNK))
-            .for_each(|(blocks, out)| {
-                #[cfg(target_arch = "x86_64")]
-                if avx2 {
-                    // SAFETY: the CPU supports the features this function is compiled for.
-                    unsafe { blocks_out_avx2::<STVK, PENALTY>(blocks, u, out) };
-                    return;
-                }
-                blocks_out::<STVK, PENALTY, false>(blocks, u, out);
-            });
-        let mut w = 0.0;
-        for (b, (block, out)) in self.blocks.iter().zip(&self.scratch).enumerate() {
-            scatter(block, lanes_used(b, self.len), out, f, &mut w);
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        let (blocks, len, u, stvk, penalty) =
+            (&self.blocks, self.len, &self.u, self.stvk, self.penalty);
+        let run = |part: &mut Part| match (stvk, penalty) {
+            (true, true) => run_part::<true, true>(blocks, len, u, avx2, part),
+            (true, false) => run_part::<true, false>(blocks, len, u, avx2, part),
+            (false, true) => run_part::<false, true>(blocks, len, u, avx2, part),
+            (false, false) => {}
+        };
+        #[cfg(feature = "parallel")]
+        if self.parts.len() > 1 && rayon::current_num_threads() > 1 {
+            use rayon::prelude::*;
+            let parallel = self.chooser.pick();
+            let start = std::time::Instant::now();
+            if parallel {
+                self.parts.par_iter_mut().for_each(run);
+            } else {
+                self.parts.iter_mut().for_each(run);
+            }
+            self.chooser.record(parallel, start.elapsed());
+            return sum_parts(&self.parts, f);
         }
-        w
+        self.parts.iter_mut().for_each(run);
+        sum_parts(&self.parts, f)
     }
 
-    fn run<const STVK: bool, const PENALTY: bool>(&self, u: &[Vec3], f: &mut [Vec3]) -> Real {
-        #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU supports the features this function is compiled for.
-            return unsafe { add_forces_avx2::<STVK, PENALTY>(&self.blocks, self.len, u, f) };
-        }
-        add_forces_wide::<STVK, PENALTY, false>(&self.blocks, self.len, u, f)
-    }
-
-    /// The block path compiled for the baseline target only (the fallback of `add_forces`).
+    /// The block path compiled for the baseline target only (the fallback of `add_forces`),
+    /// as one run.
     #[cfg(test)]
     pub fn add_forces_baseline(&self, u: &[Vec3], f: &mut [Vec3]) -> Real {
+        let up: Vec<Padded> = u.iter().map(|p| Padded([p.x, p.y, p.z, 0.0])).collect();
+        let mut part = Part {
+            blocks: 0..self.blocks.len(),
+            lo: 0,
+            f: vec![Padded::default(); u.len()],
+            energy: 0.0,
+        };
         match (self.stvk, self.penalty) {
-            (true, true) => add_forces_wide::<true, true, false>(&self.blocks, self.len, u, f),
-            (true, false) => add_forces_wide::<true, false, false>(&self.blocks, self.len, u, f),
-            (false, true) => add_forces_wide::<false, true, false>(&self.blocks, self.len, u, f),
-            (false, false) => 0.0,
+            (true, true) => run_part::<true, true>(&self.blocks, self.len, &up, false, &mut part),
+            (true, false) => run_part::<true, false>(&self.blocks, self.len, &up, false, &mut part),
+            (false, true) => run_part::<false, true>(&self.blocks, self.len, &up, false, &mut part),
+            (false, false) => {}
         }
+        sum_parts(std::slice::from_ref(&part), f)
     }
 
     /// One tetrahedron at a time in plain f64 (the same arithmetic as the block path).
@@ -294,101 +364,108 @@ fn lanes_used(block: usize, len: usize) -> usize {
     (len - block * LANES).min(LANES)
 }
 
-/// The AVX2 instance of `add_forces_wide`.
+/// Adds the runs' buffers into the node forces, run by run, and returns their energy.
+fn sum_parts(parts: &[Part], f: &mut [Vec3]) -> Real {
+    let mut w = 0.0;
+    for part in parts {
+        for (fi, p) in f[part.lo..].iter_mut().zip(&part.f) {
+            *fi += Vec3::new(p.0[0], p.0[1], p.0[2]);
+        }
+        w += part.energy;
+    }
+    w
+}
+
+/// One run on the AVX2 and FMA path when `avx2`, else on the baseline's.
+#[inline(always)]
+fn run_part<const STVK: bool, const PENALTY: bool>(
+    blocks: &[Block],
+    len: usize,
+    u: &[Padded],
+    avx2: bool,
+    part: &mut Part,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: `avx2` says the CPU supports the features this function is compiled for.
+        unsafe { part_avx2::<STVK, PENALTY>(blocks, len, u, part) };
+        return;
+    }
+    let _ = avx2;
+    part_wide::<W4, STVK, PENALTY>(blocks, len, u, part);
+}
+
+/// The AVX2 instance of `part_wide`, on `avx::V4` lanes.
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn add_forces_avx2<const STVK: bool, const PENALTY: bool>(
+unsafe fn part_avx2<const STVK: bool, const PENALTY: bool>(
     blocks: &[Block],
     len: usize,
-    u: &[Vec3],
-    f: &mut [Vec3],
-) -> Real {
-    add_forces_wide::<STVK, PENALTY, true>(blocks, len, u, f)
-}
-
-/// The AVX2 instance of `blocks_out`.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(all(target_arch = "x86_64", feature = "parallel"))]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn blocks_out_avx2<const STVK: bool, const PENALTY: bool>(
-    blocks: &[Block],
-    u: &[Vec3],
-    out: &mut [BlockOut],
+    u: &[Padded],
+    part: &mut Part,
 ) {
-    blocks_out::<STVK, PENALTY, true>(blocks, u, out)
+    part_wide::<avx::V4, STVK, PENALTY>(blocks, len, u, part)
 }
 
-/// Each block's corner forces and energy into `out` (the parallel pass's work).
-#[cfg(feature = "parallel")]
+/// The vector path over one run: one block per iteration, four tetrahedra in the lanes,
+/// the corner forces summed into the run's buffer in block, lane, corner order (the order
+/// of the one-tetrahedron path). Inlined into its callers, so it is compiled for their
+/// target features.
 #[inline(always)]
-fn blocks_out<const STVK: bool, const PENALTY: bool, const FMA: bool>(
-    blocks: &[Block],
-    u: &[Vec3],
-    out: &mut [BlockOut],
-) {
-    for (block, o) in blocks.iter().zip(out) {
-        *o = block_forces::<STVK, PENALTY, FMA>(block, u).into();
-    }
-}
-
-/// The vector path: one block per iteration, four tetrahedra in the lanes of each `W4`.
-/// Inlined into its callers, so it is compiled for their target features.
-#[inline(always)]
-fn add_forces_wide<const STVK: bool, const PENALTY: bool, const FMA: bool>(
+fn part_wide<L: Wide, const STVK: bool, const PENALTY: bool>(
     blocks: &[Block],
     len: usize,
-    u: &[Vec3],
-    f: &mut [Vec3],
-) -> Real {
+    u: &[Padded],
+    part: &mut Part,
+) {
+    part.f.fill(Padded::default());
     let mut w = 0.0;
-    for (b, block) in blocks.iter().enumerate() {
-        let out = block_forces::<STVK, PENALTY, FMA>(block, u).into();
-        scatter(block, lanes_used(b, len), &out, f, &mut w);
+    // Full blocks first, with the lane count a constant (their lane loops unrolled), then
+    // the last block of the mesh when it is partial and in this run.
+    let full_end = (len / LANES).clamp(part.blocks.start, part.blocks.end);
+    for b in part.blocks.start..full_end {
+        block_pass::<L, STVK, PENALTY>(&blocks[b], LANES, u, &mut part.f, part.lo, &mut w);
     }
-    w
+    for b in full_end..part.blocks.end {
+        let lanes = lanes_used(b, len);
+        block_pass::<L, STVK, PENALTY>(&blocks[b], lanes, u, &mut part.f, part.lo, &mut w);
+    }
+    part.energy = w;
 }
 
-/// Gathers a block's corner displacements and computes its corner forces and energy.
+/// One block: its corner forces into the run's buffer, the energy of its `lanes` used
+/// lanes added to `w` lane by lane.
 #[inline(always)]
-fn block_forces<const STVK: bool, const PENALTY: bool, const FMA: bool>(
+fn block_pass<L: Wide, const STVK: bool, const PENALTY: bool>(
     block: &Block,
-    u: &[Vec3],
-) -> ([[W4<FMA>; 3]; 4], W4<FMA>) {
-    let mut uc = [[W4::ZERO; 3]; 4];
-    for c in 0..4 {
-        for k in 0..LANES {
-            let p = u[block.nodes[c][k] as usize];
-            uc[c][0].0[k] = p.x;
-            uc[c][1].0[k] = p.y;
-            uc[c][2].0[k] = p.z;
-        }
-    }
-    let mut d = [[W4::ZERO; 3]; 3];
-    let mut g = [[W4::ZERO; 3]; 3];
+    lanes: usize,
+    u: &[Padded],
+    fp: &mut [Padded],
+    lo: usize,
+    w: &mut Real,
+) {
+    let uc = L::gather(block, u);
+    let mut d = [[L::splat(0.0); 3]; 3];
+    let mut g = [[L::splat(0.0); 3]; 3];
     for a in 0..3 {
         for i in 0..3 {
             d[a][i] = uc[a + 1][i] - uc[0][i];
-            g[a][i] = W4(block.g[3 * a + i]);
+            g[a][i] = L::load(&block.g[3 * a + i]);
         }
     }
-    let c = [W4(block.lambda_v), W4(block.mu2_v), W4(block.kappa_v)];
-    stvk::<W4<FMA>, STVK, PENALTY>(&d, &g, c)
-}
-
-/// Adds a block's used lanes into the node forces and its energy into `w`, lane by lane.
-#[inline(always)]
-fn scatter(block: &Block, lanes: usize, out: &BlockOut, f: &mut [Vec3], w: &mut Real) {
+    let c = [
+        L::load(&block.lambda_v),
+        L::load(&block.mu2_v),
+        L::load(&block.kappa_v),
+    ];
+    let (f, e) = stvk::<L, STVK, PENALTY>(&d, &g, c);
+    L::scatter(block, lanes, &f, fp, lo);
+    let e = e.lanes();
     for k in 0..lanes {
-        for c in 0..4 {
-            f[block.nodes[c][k] as usize] +=
-                Vec3::new(out.f[c][0][k], out.f[c][1][k], out.f[c][2][k]);
-        }
-        *w += out.e[k];
+        *w += e[k];
     }
 }
 
@@ -397,8 +474,19 @@ trait Lane:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self>
 {
     fn splat(x: Real) -> Self;
-    /// self·b + c: fused (one rounding) on the `fma` path, else a product and a sum.
+    /// self·b + c: fused (one rounding) on the AVX2 path, else a product and a sum.
     fn mul_add(self, b: Self, c: Self) -> Self;
+}
+
+/// Four lanes, one tetrahedron of a block each, with the block's gather and scatter.
+trait Wide: Lane {
+    fn load(x: &[Real; LANES]) -> Self;
+    fn lanes(self) -> [Real; LANES];
+    /// uc[c][i], lane k: component i of the displacement at corner c of tetrahedron k.
+    fn gather(block: &Block, u: &[Padded]) -> [[Self; 3]; 4];
+    /// Adds the `lanes` used lanes' corner forces into the run's buffer `fp` (node `lo`
+    /// first), lane by lane, corner by corner.
+    fn scatter(block: &Block, lanes: usize, f: &[[Self; 3]; 4], fp: &mut [Padded], lo: usize);
 }
 
 impl Lane for Real {
@@ -412,20 +500,16 @@ impl Lane for Real {
     }
 }
 
-/// Four f64 lanes; element-wise operations that LLVM turns into one AVX instruction each.
-/// `FMA`: `mul_add` is fused (only inside functions compiled with the `fma` feature, where
-/// `f64::mul_add` is one instruction; elsewhere it would call the C library).
+/// Four f64 lanes in an array, element-wise operations that LLVM vectorises for the
+/// baseline target (SSE2 or NEON pairs); never fused, so the same bits as `f64` one
+/// tetrahedron at a time.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(32))]
-struct W4<const FMA: bool>([Real; LANES]);
-
-impl<const FMA: bool> W4<FMA> {
-    const ZERO: Self = W4([0.0; LANES]);
-}
+struct W4([Real; LANES]);
 
 macro_rules! lanewise {
     ($tr:ident, $f:ident, $op:tt) => {
-        impl<const FMA: bool> $tr for W4<FMA> {
+        impl $tr for W4 {
             type Output = Self;
             #[inline(always)]
             fn $f(self, o: Self) -> Self {
@@ -443,7 +527,7 @@ lanewise!(Add, add, +);
 lanewise!(Sub, sub, -);
 lanewise!(Mul, mul, *);
 
-impl<const FMA: bool> Neg for W4<FMA> {
+impl Neg for W4 {
     type Output = Self;
     #[inline(always)]
     fn neg(self) -> Self {
@@ -451,22 +535,186 @@ impl<const FMA: bool> Neg for W4<FMA> {
     }
 }
 
-impl<const FMA: bool> Lane for W4<FMA> {
+impl Lane for W4 {
     #[inline(always)]
     fn splat(x: Real) -> Self {
         W4([x; LANES])
     }
     #[inline(always)]
     fn mul_add(self, b: Self, c: Self) -> Self {
-        if FMA {
-            W4([
-                self.0[0].mul_add(b.0[0], c.0[0]),
-                self.0[1].mul_add(b.0[1], c.0[1]),
-                self.0[2].mul_add(b.0[2], c.0[2]),
-                self.0[3].mul_add(b.0[3], c.0[3]),
-            ])
-        } else {
-            self * b + c
+        self * b + c
+    }
+}
+
+impl Wide for W4 {
+    #[inline(always)]
+    fn load(x: &[Real; LANES]) -> Self {
+        W4(*x)
+    }
+    #[inline(always)]
+    fn lanes(self) -> [Real; LANES] {
+        self.0
+    }
+    #[inline(always)]
+    fn gather(block: &Block, u: &[Padded]) -> [[Self; 3]; 4] {
+        let mut uc = [[W4([0.0; LANES]); 3]; 4];
+        for c in 0..4 {
+            for k in 0..LANES {
+                let p = u[block.nodes[c][k] as usize].0;
+                for i in 0..3 {
+                    uc[c][i].0[k] = p[i];
+                }
+            }
+        }
+        uc
+    }
+    #[inline(always)]
+    fn scatter(block: &Block, lanes: usize, f: &[[Self; 3]; 4], fp: &mut [Padded], lo: usize) {
+        for k in 0..lanes {
+            for c in 0..4 {
+                let p = &mut fp[block.nodes[c][k] as usize - lo].0;
+                for i in 0..3 {
+                    p[i] += f[c][i].0[k];
+                }
+            }
+        }
+    }
+}
+
+/// The AVX2 lanes: one `__m256d` per value, every operation one intrinsic (multiply-adds
+/// fused), the gather and scatter as 256-bit loads, stores and 4×4 transposes in registers.
+/// Written with intrinsics rather than left to LLVM's vectoriser, which turned the
+/// transposes' mix of arrays and vectors into scalar code and stack traffic.
+///
+/// `V4` values exist only inside `part_avx2` (compiled for AVX2 and FMA, called after the
+/// CPU was checked): every function here is inlined into it, which is what makes the
+/// intrinsics' `unsafe` sound.
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use std::arch::x86_64::*;
+    use std::ops::{Add, Mul, Neg, Sub};
+
+    use super::{Block, LANES, Lane, Padded, Real, Wide};
+
+    #[derive(Clone, Copy)]
+    pub(super) struct V4(__m256d);
+
+    macro_rules! op {
+        ($tr:ident, $f:ident, $intr:ident) => {
+            impl $tr for V4 {
+                type Output = Self;
+                #[inline(always)]
+                fn $f(self, o: Self) -> Self {
+                    // SAFETY: see the module's note.
+                    V4(unsafe { $intr(self.0, o.0) })
+                }
+            }
+        };
+    }
+    op!(Add, add, _mm256_add_pd);
+    op!(Sub, sub, _mm256_sub_pd);
+    op!(Mul, mul, _mm256_mul_pd);
+
+    impl Neg for V4 {
+        type Output = Self;
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // Flips the sign bits, as f64's negation does.
+            // SAFETY: see the module's note.
+            V4(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
+        }
+    }
+
+    impl Lane for V4 {
+        #[inline(always)]
+        fn splat(x: Real) -> Self {
+            // SAFETY: see the module's note.
+            V4(unsafe { _mm256_set1_pd(x) })
+        }
+        #[inline(always)]
+        fn mul_add(self, b: Self, c: Self) -> Self {
+            // SAFETY: see the module's note.
+            V4(unsafe { _mm256_fmadd_pd(self.0, b.0, c.0) })
+        }
+    }
+
+    /// A padded node vector as a register.
+    #[inline(always)]
+    fn row(p: &Padded) -> __m256d {
+        // SAFETY: `Padded` is four f64, aligned to 32 bytes; see the module's note.
+        unsafe { _mm256_load_pd(p.0.as_ptr()) }
+    }
+
+    impl Wide for V4 {
+        #[inline(always)]
+        fn load(x: &[Real; LANES]) -> Self {
+            // SAFETY: four f64 (the block's arrays are unaligned-safe with loadu).
+            V4(unsafe { _mm256_loadu_pd(x.as_ptr()) })
+        }
+        #[inline(always)]
+        fn lanes(self) -> [Real; LANES] {
+            let mut out = [0.0; LANES];
+            // SAFETY: four f64; see the module's note.
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), self.0) };
+            out
+        }
+        #[inline(always)]
+        fn gather(block: &Block, u: &[Padded]) -> [[Self; 3]; 4] {
+            // Every corner id is below `nodes_needed`, and `add_forces` made `u` that long.
+            let at = |v: u32| {
+                debug_assert!((v as usize) < u.len());
+                // SAFETY: in bounds (above).
+                row(unsafe { u.get_unchecked(v as usize) })
+            };
+            // SAFETY: see the module's note.
+            unsafe {
+                let zero = V4(_mm256_setzero_pd());
+                let mut uc = [[zero; 3]; 4];
+                for c in 0..4 {
+                    let n = block.nodes[c];
+                    // Rows (x, y, z, 0) of the four lanes.
+                    let (r0, r1, r2, r3) = (at(n[0]), at(n[1]), at(n[2]), at(n[3]));
+                    let t0 = _mm256_unpacklo_pd(r0, r1); // x0 x1 z0 z1
+                    let t1 = _mm256_unpackhi_pd(r0, r1); // y0 y1 0 0
+                    let t2 = _mm256_unpacklo_pd(r2, r3); // x2 x3 z2 z3
+                    let t3 = _mm256_unpackhi_pd(r2, r3); // y2 y3 0 0
+                    uc[c][0] = V4(_mm256_permute2f128_pd(t0, t2, 0x20));
+                    uc[c][1] = V4(_mm256_permute2f128_pd(t1, t3, 0x20));
+                    uc[c][2] = V4(_mm256_permute2f128_pd(t0, t2, 0x31));
+                }
+                uc
+            }
+        }
+        /// Corner by corner, then lane by lane (not the baseline's lane-major order: the
+        /// sixteen transposed rows would not fit in registers); the sums differ from the
+        /// baseline's by rounding only, as the fused multiply-adds already make them.
+        #[inline(always)]
+        fn scatter(block: &Block, lanes: usize, f: &[[Self; 3]; 4], fp: &mut [Padded], lo: usize) {
+            // SAFETY: see the module's note.
+            unsafe {
+                let zero = _mm256_setzero_pd();
+                for c in 0..4 {
+                    let (x, y, z) = (f[c][0].0, f[c][1].0, f[c][2].0);
+                    let t0 = _mm256_unpacklo_pd(x, y); // x0 y0 x2 y2
+                    let t1 = _mm256_unpackhi_pd(x, y); // x1 y1 x3 y3
+                    let t2 = _mm256_unpacklo_pd(z, zero); // z0 0 z2 0
+                    let t3 = _mm256_unpackhi_pd(z, zero); // z1 0 z3 0
+                    let rows = [
+                        _mm256_permute2f128_pd(t0, t2, 0x20),
+                        _mm256_permute2f128_pd(t1, t3, 0x20),
+                        _mm256_permute2f128_pd(t0, t2, 0x31),
+                        _mm256_permute2f128_pd(t1, t3, 0x31),
+                    ];
+                    for k in 0..lanes {
+                        // The run's nodes are `lo..lo + fp.len()` (`ElementKernel::packed`).
+                        let i = block.nodes[c][k] as usize - lo;
+                        debug_assert!(i < fp.len());
+                        let p = fp.get_unchecked_mut(i);
+                        let sum = _mm256_add_pd(row(p), rows[k]);
+                        _mm256_store_pd(p.0.as_mut_ptr(), sum);
+                    }
+                }
+            }
         }
     }
 }
