@@ -217,6 +217,59 @@ fn hertz_refined() {
     }
 }
 
+/// Node coordinates 0..=n from 0 to `length`: `uniform` cells of size `fine` first, then
+/// cells growing by a constant ratio (found by bisection) to reach `length` exactly.
+fn fine_then_geometric(n: usize, uniform: usize, fine: Real, length: Real) -> Vec<Real> {
+    let rest = n - uniform;
+    let span = length - fine * uniform as Real;
+    let reach = |r: Real| (1..=rest).map(|k| fine * r.powi(k as i32)).sum::<Real>();
+    let (mut lo, mut hi) = (1.0, 10.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if reach(mid) < span {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let r = 0.5 * (lo + hi);
+    let mut x = vec![0.0];
+    for k in 0..n {
+        let size = if k < uniform {
+            fine
+        } else {
+            fine * r.powi((k + 1 - uniform) as i32)
+        };
+        x.push(x[k] + size);
+    }
+    x[n] = length;
+    x
+}
+
+/// A block [−l, l]² × [0, h] whose cells are `fine` wide over the top centre (`uniform`
+/// cells each side of it, and as many layers down), growing geometrically beyond: the
+/// contact zone stays uniformly fine however large the block.
+fn contact_block(l: Real, h: Real, cells: usize, uniform: usize, fine: Real) -> MeshData {
+    let mut mesh = box_tets(
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 1.0),
+        [cells, cells, cells / 2],
+        BoxSplit::Six,
+    );
+    let half = cells / 2;
+    let across = fine_then_geometric(half, uniform, fine, l);
+    let down = fine_then_geometric(half, uniform, fine, h);
+    let side = |s: Real| {
+        let i = (s.abs() * half as Real).round() as usize;
+        s.signum() * across[i.min(half)]
+    };
+    for p in &mut mesh.vertices {
+        let k = ((1.0 - p.z) * half as Real).round() as usize;
+        *p = Vec3::new(side(p.x), side(p.y), h - down[k.min(half)]);
+    }
+    MeshData::from_tets(&mesh)
+}
+
 #[test]
 #[ignore = "a deep block, minutes: cargo test --release --workspace --test sliding_contact hertz_deep_block -- --ignored --nocapture"]
 fn hertz_deep_block() {
@@ -238,8 +291,9 @@ fn hertz_deep_block() {
         })
         .unwrap_or_else(|| vec![(16, 0.6e-3), (20, 0.6e-3)]);
     for (cells, fine) in runs {
-        let alpha = fine * cells as Real / (2.0 * 0.08);
-        let mesh = graded_block(0.08, 0.08, cells, alpha, &|_| 0.0);
+        // 2.4 mm of uniform cells around the contact (its radius is at most 2.2 mm).
+        let uniform = (2.4e-3 / fine - 1e-9).ceil() as usize;
+        let mesh = contact_block(0.08, 0.08, cells, uniform, fine);
         let forces = hertz_curve_on(
             &mesh,
             "fem-static",
