@@ -155,23 +155,10 @@ impl RateEstimate {
         iterations: usize,
         as_rest: bool,
     ) {
-        let n = x.len();
-        for buf in [&mut self.xp, &mut self.xm, &mut self.fp, &mut self.fm] {
-            buf.resize(n, Vec3::ZERO);
+        let omega_sq = self.stiffness_rate(system, x, v, inv_mass, iterations);
+        if self.damp_vec.len() != x.len() || is_dead(&self.damp_vec) {
+            self.damp_vec.clone_from(&self.stiff_vec);
         }
-        // A kept vector that died (all zero: the system had no such rate when it was last
-        // measured, e.g. no damping) cannot find a rate that appeared since: start afresh.
-        let dead = |u: &[Vec3]| !u.iter().any(|u| u.is_finite() && *u != Vec3::ZERO);
-        if self.stiff_vec.len() != n || dead(&self.stiff_vec) {
-            self.stiff_vec = start_vector(n);
-        }
-        let eps_x = difference_step(x);
-        let mut vec = std::mem::take(&mut self.stiff_vec);
-        let omega_sq = self.power(system, x, v, inv_mass, &mut vec, iterations, eps_x, false);
-        if self.damp_vec.len() != n || dead(&self.damp_vec) {
-            self.damp_vec.clone_from(&vec);
-        }
-        self.stiff_vec = vec;
         let mut vec = std::mem::take(&mut self.damp_vec);
         let damping = self.power(
             system,
@@ -204,19 +191,33 @@ impl RateEstimate {
         inv_mass: &[Real],
         iterations: usize,
     ) {
+        let omega_sq = self.stiffness_rate(system, x, v, inv_mass, iterations);
+        self.omega_sq = omega_sq.max(self.rest_omega_sq);
+    }
+
+    /// ω² by `iterations` power iterations from the kept stiffness vector (afresh when there
+    /// is none of this size, or it died: all zero because the system had no such rate when
+    /// it was last measured, e.g. no damping, and so cannot find one that appeared since).
+    fn stiffness_rate<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        x: &[Vec3],
+        v: &[Vec3],
+        inv_mass: &[Real],
+        iterations: usize,
+    ) -> Real {
         let n = x.len();
         for buf in [&mut self.xp, &mut self.xm, &mut self.fp, &mut self.fm] {
             buf.resize(n, Vec3::ZERO);
         }
-        let dead = |u: &[Vec3]| !u.iter().any(|u| u.is_finite() && *u != Vec3::ZERO);
-        if self.stiff_vec.len() != n || dead(&self.stiff_vec) {
+        if self.stiff_vec.len() != n || is_dead(&self.stiff_vec) {
             self.stiff_vec = start_vector(n);
         }
         let eps_x = difference_step(x);
         let mut vec = std::mem::take(&mut self.stiff_vec);
         let omega_sq = self.power(system, x, v, inv_mass, &mut vec, iterations, eps_x, false);
         self.stiff_vec = vec;
-        self.omega_sq = omega_sq.max(self.rest_omega_sq);
+        omega_sq
     }
 
     /// Power iteration on M⁻¹A (A = K, or C with `velocity`); returns the last Rayleigh
@@ -281,6 +282,11 @@ impl RateEstimate {
 
 /// The difference step of the stiffness products: a millionth of the body's size (forces
 /// are smooth, so the central difference is accurate to ε² while far above rounding).
+/// A kept vector with no finite non-zero entry.
+fn is_dead(u: &[Vec3]) -> bool {
+    !u.iter().any(|u| u.is_finite() && *u != Vec3::ZERO)
+}
+
 fn difference_step(x: &[Vec3]) -> Real {
     let (lo, hi) = x.iter().fold(
         (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),

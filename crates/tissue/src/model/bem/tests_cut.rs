@@ -315,31 +315,38 @@ fn a_real_time_incision_lands_from_the_background_as_the_synchronous_one() {
     assert_eq!(later.system().factorizations, 1);
 }
 
+/// The 2-subdivision sphere as a `Simulation` (bottom fixed, real time or not) with a
+/// scalpel 6 cm long crossing the top along x from −3 to +2 cm over `sweep` seconds.
+fn sphere_with_scalpel(real_time: bool, sweep: Real) -> crate::sim::Simulation {
+    use crate::interact::{Instrument, InstrumentKind, Keyframe, Trajectory};
+    let s = sphere(2);
+    let fixed: Vec<u32> = (0..s.vertices.len() as u32)
+        .filter(|&v| s.vertices[v as usize].z < -0.04)
+        .collect();
+    let mut model = Bem::new(&s, material(), BemParams::default()).unwrap();
+    model.set_real_time(real_time);
+    let mut sim = crate::sim::Simulation::new(Box::new(model), fixed, Loads::default()).unwrap();
+    let key = |t: Real, x: Real| Keyframe {
+        t,
+        position: [x, 0.001, 0.02],
+    };
+    let path = Trajectory::new(vec![key(0.0, -0.03), key(sweep, 0.02)]).unwrap();
+    let scalpel = InstrumentKind::Scalpel {
+        direction: Vec3::Z,
+        length: 0.06,
+    };
+    sim.add_instrument(Instrument::new("scalpel", scalpel, 0.001, path).unwrap());
+    sim
+}
+
 /// Through `Simulation`: a scalpel crosses the top in real time, the steps go on while the
 /// incision is computed, and once it lands (at the start of a step) the surface, the
 /// contact search and the probe's force are those of the same scene stepped synchronously.
 #[test]
 fn a_simulation_in_real_time_steps_on_while_the_incision_is_computed() {
     use crate::interact::{Instrument, InstrumentKind, Keyframe, Trajectory};
-    use crate::sim::Simulation;
-    let s = sphere(2);
-    let fixed: Vec<u32> = (0..s.vertices.len() as u32)
-        .filter(|&v| s.vertices[v as usize].z < -0.04)
-        .collect();
     let run = |real_time: bool| {
-        let mut model = Bem::new(&s, material(), BemParams::default()).unwrap();
-        model.set_real_time(real_time);
-        let mut sim = Simulation::new(Box::new(model), fixed.clone(), Loads::default()).unwrap();
-        let key = |t: Real, x: Real| Keyframe {
-            t,
-            position: [x, 0.001, 0.02],
-        };
-        let path = Trajectory::new(vec![key(0.0, -0.03), key(0.01, 0.02)]).unwrap();
-        let scalpel = InstrumentKind::Scalpel {
-            direction: Vec3::Z,
-            length: 0.06,
-        };
-        sim.add_instrument(Instrument::new("scalpel", scalpel, 0.001, path).unwrap());
+        let mut sim = sphere_with_scalpel(real_time, 0.01);
         let probe = Trajectory::new(vec![
             Keyframe {
                 t: 0.0,
@@ -396,25 +403,8 @@ fn a_simulation_in_real_time_steps_on_while_the_incision_is_computed() {
 /// ends on the organ) opens at the next step, as the same stroke leaving the tissue does.
 #[test]
 fn a_stroke_held_when_the_scalpel_goes_opens_at_the_next_step() {
-    use crate::interact::{Instrument, InstrumentKind, Keyframe, Trajectory};
-    use crate::sim::Simulation;
-    let s = sphere(2);
-    let fixed: Vec<u32> = (0..s.vertices.len() as u32)
-        .filter(|&v| s.vertices[v as usize].z < -0.04)
-        .collect();
-    let model = Bem::new(&s, material(), BemParams::default()).unwrap();
-    let mut sim = Simulation::new(Box::new(model), fixed, Loads::default()).unwrap();
     // Ten short sweeps across the top, the blade inside the whole time.
-    let key = |t: Real, x: Real| Keyframe {
-        t,
-        position: [x, 0.001, 0.02],
-    };
-    let path = Trajectory::new(vec![key(0.0, -0.03), key(0.1, 0.02)]).unwrap();
-    let scalpel = InstrumentKind::Scalpel {
-        direction: Vec3::Z,
-        length: 0.06,
-    };
-    sim.add_instrument(Instrument::new("scalpel", scalpel, 0.001, path).unwrap());
+    let mut sim = sphere_with_scalpel(false, 0.1);
     for _ in 0..10 {
         sim.step(0.01).unwrap();
     }
@@ -429,7 +419,7 @@ fn a_stroke_held_when_the_scalpel_goes_opens_at_the_next_step() {
     assert_eq!(sim.topology_version(), 1);
     // The same groove as the whole stroke cut at once.
     let whole = incise(
-        &s,
+        &sphere(2),
         &CutPath {
             start: [Vec3::new(-0.03, 0.001, 0.02), Vec3::new(-0.03, 0.001, 0.08)],
             end: [Vec3::new(0.02, 0.001, 0.02), Vec3::new(0.02, 0.001, 0.08)],

@@ -62,6 +62,15 @@ impl Deformable for WholeSurface {
 }
 
 fn hybrid() -> Hybrid {
+    beam_hybrid(
+        10.0,
+        "cut_region = { box = { min = [0.04, -1.0, -1.0], max = [0.08, 1.0, 1.0] } }",
+    )
+}
+
+/// The 12 cm beam of 12 × 3 × 3 cells (E = 5 kPa, ν = 0.4) with damping `damping` as a
+/// hybrid built with the `[model]` settings `params`.
+fn beam_hybrid(damping: Real, params: &str) -> Hybrid {
     let mesh = box_tets(
         Vec3::ZERO,
         Vec3::new(0.12, 0.03, 0.03),
@@ -69,11 +78,8 @@ fn hybrid() -> Hybrid {
         BoxSplit::Six,
     );
     let mut m = Material::new(5000.0, 0.4).unwrap();
-    m.damping = 10.0;
-    let params: toml::Table = toml::from_str(
-        "cut_region = { box = { min = [0.04, -1.0, -1.0], max = [0.08, 1.0, 1.0] } }",
-    )
-    .unwrap();
+    m.damping = damping;
+    let params: toml::Table = toml::from_str(params).unwrap();
     Hybrid::from_input(&BuildInput {
         mesh: &MeshData::from_tets(&mesh),
         source: "test",
@@ -182,26 +188,11 @@ fn the_contact_search_on_part_of_the_surface_finds_what_the_whole_surface_gives(
 /// 200 iterations finds it, and 600 steps never trip the energy guard.
 #[test]
 fn a_contact_change_keeps_the_automatic_substep_within_the_coupled_limit() {
-    let mesh = box_tets(
-        Vec3::ZERO,
-        Vec3::new(0.12, 0.03, 0.03),
-        [12, 3, 3],
-        BoxSplit::Six,
-    );
-    let mut m = Material::new(5000.0, 0.4).unwrap();
-    m.damping = 20.0;
-    let params: toml::Table = toml::from_str(
+    let mut h = beam_hybrid(
+        20.0,
         "cut_region = { box = { min = [0.04, -1.0, -1.0], max = [0.05, 1.0, 1.0] } }\n\
          integrator = \"symplectic-euler\"",
-    )
-    .unwrap();
-    let mut h = Hybrid::from_input(&BuildInput {
-        mesh: &MeshData::from_tets(&mesh),
-        source: "test",
-        material: m,
-        params: &params,
-    })
-    .unwrap();
+    );
     let rest = h.rest_surface().to_vec();
     let fixed: Vec<u32> = (0..rest.len() as u32)
         .filter(|&v| rest[v as usize].x < 1e-9)
