@@ -271,12 +271,14 @@ fn contact_block(l: Real, h: Real, cells: usize, uniform: usize, fine: Real) -> 
 }
 
 #[test]
-#[ignore = "a deep block, minutes: cargo test --release --workspace --test sliding_contact hertz_deep_block -- --ignored --nocapture"]
+#[ignore = "a deep block, about 8 minutes: cargo test --release --workspace --test sliding_contact hertz_deep_block -- --ignored --nocapture"]
 fn hertz_deep_block() {
     // The 2 cm block is a layer about nine contact radii deep on a fixed floor, stiffer
     // than Hertz's half-space (Dimitriadis et al. 2002 put a bonded layer at about
-    // +0.88 a/h at ν = 0.3: +9% here). An 8 cm block, graded to the same 0.6 mm cells at
-    // the contact, is 37 contact radii deep.
+    // +0.88 a/h at ν = 0.3: +9% here). An 8 cm block is 37 contact radii deep. Its cells
+    // must be uniform over the whole contact (a cubic grading fine at the centre left
+    // 2 mm cells at the rim, and the force jumped by ±10 % as nodes came into contact):
+    // 0.4 mm over 2.4 mm, growing geometrically beyond (`contact_block`).
     let nu = 0.3;
     let depths = [0.5e-3, 0.75e-3, 1.0e-3];
     let runs: Vec<(usize, Real)> = std::env::var("HERTZ_RUNS")
@@ -289,7 +291,7 @@ fn hertz_deep_block() {
                 })
                 .collect()
         })
-        .unwrap_or_else(|| vec![(16, 0.6e-3), (20, 0.6e-3)]);
+        .unwrap_or_else(|| vec![(24, 0.4e-3)]);
     for (cells, fine) in runs {
         // 2.4 mm of uniform cells around the contact (its radius is at most 2.2 mm).
         let uniform = (2.4e-3 / fine - 1e-9).ceil() as usize;
@@ -302,12 +304,14 @@ fn hertz_deep_block() {
             &depths,
             1.0,
         );
-        print_hertz(
+        let worst = print_hertz(
             &format!("fem-static P2, 8 cm block, {cells} cells"),
             &depths,
             &forces,
             nu,
         );
+        // Measured at 24 cells, 0.4 mm: +3.0 %, +3.8 %, +4.0 % (the issue asks 5 %).
+        assert!(worst < 0.05, "{cells} cells, {fine} m: Hertz gap {worst}");
     }
 }
 
