@@ -20,24 +20,13 @@ const E: Real = 3000.0;
 /// toward the top in z. `lift(x)` raises the top surface (a curved block), fading to the
 /// floor.
 fn block(l: Real, h: Real, cells: usize, lift: &dyn Fn(Real) -> Real) -> MeshData {
-    graded_block(l, h, cells, 0.25, lift)
-}
-
-/// `block` with the grading's linear share `alpha` (the cells at the top centre are
-/// `alpha` times as wide as uniform ones would be).
-fn graded_block(
-    l: Real,
-    h: Real,
-    cells: usize,
-    alpha: Real,
-    lift: &dyn Fn(Real) -> Real,
-) -> MeshData {
     let mut mesh = box_tets(
         Vec3::new(-1.0, -1.0, 0.0),
         Vec3::new(1.0, 1.0, 1.0),
         [cells, cells, cells / 2],
         BoxSplit::Six,
     );
+    let alpha = 0.25;
     let grade = |s: Real| alpha * s + (1.0 - alpha) * s * s * s;
     for p in &mut mesh.vertices {
         let (x, y) = (l * grade(p.x), l * grade(p.y));

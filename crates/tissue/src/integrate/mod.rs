@@ -596,6 +596,7 @@ impl Integrator {
     /// The stable step (as `stable_dt`, margin 1) that a cold measurement gives at `state`:
     /// `iterations` power iterations from the fixed start vector, nothing kept, this
     /// integrator unchanged. A reference for the warm-started re-measures' tests.
+    #[cfg(test)]
     pub fn cold_stable_dt<S: ParticleSystem + ?Sized>(
         &self,
         system: &mut S,
@@ -623,6 +624,7 @@ impl Integrator {
 
     /// The factor on the measured stiffness that refused steps left (1 until the divergence
     /// guard refuses a step; doubled at each refusal, back to 1 at the next full measure).
+    #[cfg(test)]
     pub fn stiffness_margin(&self) -> Real {
         self.margin.max(1.0)
     }

@@ -280,13 +280,13 @@ impl RateEstimate {
     }
 }
 
-/// The difference step of the stiffness products: a millionth of the body's size (forces
-/// are smooth, so the central difference is accurate to ε² while far above rounding).
 /// A kept vector with no finite non-zero entry.
 fn is_dead(u: &[Vec3]) -> bool {
     !u.iter().any(|u| u.is_finite() && *u != Vec3::ZERO)
 }
 
+/// The difference step of the stiffness products: a millionth of the body's size (forces
+/// are smooth, so the central difference is accurate to ε² while far above rounding).
 fn difference_step(x: &[Vec3]) -> Real {
     let (lo, hi) = x.iter().fold(
         (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),

@@ -157,11 +157,6 @@ impl TensorMass {
         let _ = self.apply_loads(&loads);
     }
 
-    /// Forgets the integrator's end-of-step forces and energy: for a caller that changed
-    /// forces the system does not know of (the `hybrid` model's coupling).
-    pub fn invalidate_forces(&mut self) {
-        self.integrator.invalidate();
-    }
     /// Measures the stability limit now, with `coupling`'s forces added to the system's
     /// (the `hybrid` model's interface stiffness raises the interface nodes' frequency).
     pub fn measure_stability(&mut self, coupling: Option<&dyn NodeCoupling>) {
@@ -179,10 +174,12 @@ impl TensorMass {
             }
         }
     }
-    /// `invalidate_forces` with the stiffness rate re-measured now by `iterations`
-    /// warm-started power iterations, with `coupling`'s forces added (never below the last
-    /// full measurement): the `hybrid` model's contact set on its rest changed, a low-rank
-    /// change of the interface stiffness that a cold measure (30 iterations) overpays.
+
+    /// Re-measures the stiffness rate now by `iterations` power iterations warm-started
+    /// from the last dominant vector, with `coupling`'s forces added (never below the last
+    /// full measurement), after forgetting the kept forces: the `hybrid` model's contact set
+    /// on its rest changed, a low-rank change of the interface stiffness that a cold measure
+    /// (30 iterations) overpays.
     pub fn recheck_stability(&mut self, coupling: &dyn NodeCoupling, iterations: usize) {
         let mut coupled = Coupled {
             system: &mut self.system,
@@ -191,9 +188,11 @@ impl TensorMass {
         self.integrator
             .recheck_stiffness(&mut coupled, &self.state, &self.step_holds, iterations);
     }
+
     /// The stable step a cold measurement (`iterations` power iterations, nothing kept)
     /// gives now, with `coupling`'s forces added; the model is unchanged. For tests of
     /// the warm-started re-measures.
+    #[cfg(test)]
     pub fn cold_stable_dt(
         &mut self,
         coupling: Option<&dyn NodeCoupling>,
@@ -220,8 +219,10 @@ impl TensorMass {
             }
         }
     }
-    /// `invalidate_forces` without measuring the stability limit again: the caller changed
-    /// forces whose stiffness stays the same (the `hybrid` model's contact targets).
+
+    /// Forgets the integrator's end-of-step forces and energy without measuring the
+    /// stability limit again: the caller changed forces whose stiffness stays the same (the
+    /// `hybrid` model's contact targets).
     pub fn forget_forces(&mut self) {
         self.integrator.forget_forces();
     }
