@@ -247,9 +247,9 @@ impl Hold {
 
 /// Puts the held particles where their holds say at the end of a (sub)step of length `h`
 /// from x0: a full hold at its target, one along n projected (position along n at the
-/// target's, velocity along n that of the straight path from x0). The kinetic energy the
-/// projection gave the particles held along a direction is work of their holds
-/// (`Workspace::along_work`).
+/// target's, velocity along n that of the straight path from x0). The change of the kinetic
+/// energy along n of the particles held along a direction, from the (sub)step's start, is
+/// work of their holds (`Workspace::along_work`).
 fn place_holds(w: &mut Workspace, holds: &[Hold], h: Real) {
     w.along_work = 0.0;
     for hold in holds {
@@ -267,7 +267,14 @@ fn place_holds(w: &mut Workspace, holds: &[Hold], h: Real) {
                 } else {
                     0.0
                 };
-                w.along_work += 0.5 * m * (w.v1[i].length_squared() - v.length_squared());
+                // The hold decides the motion along n, so the whole change of the kinetic
+                // energy along n over the (sub)step is its work, not only what the projection
+                // took off the scheme's velocity: the scheme's kick along n (½h²f_n²/m and
+                // more per substep) is undone by the projection and no potential pays for it,
+                // and counting the projection alone let the ledger creep up under a sliding
+                // contact until the growth watch refused a stable step.
+                let v0n = n.dot(w.v0[i]);
+                w.along_work += 0.5 * m * (vn * vn - v0n * v0n);
             }
         }
     }
@@ -304,7 +311,8 @@ pub(crate) struct Workspace {
     /// The fractions of the step at which the scheme's current (sub)step starts and ends
     /// (`ParticleSystem::set_step_time`).
     pub span: (Real, Real),
-    /// Kinetic energy the last `place_holds` gave the particles held along a direction, J.
+    /// The change of kinetic energy along their direction of the particles held along one over
+    /// the last (sub)step (`place_holds`), J: work of their holds.
     pub along_work: Real,
 }
 
