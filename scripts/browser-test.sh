@@ -64,12 +64,14 @@ serve() {
 }
 
 # `--matrix`: the switch matrix (every kind, a 2 s probe) on every shipped scene instead of
-# the CI checks. Long (the bem builds alone take minutes): not part of CI.
+# the CI checks. Long (the bem builds alone take minutes): not part of CI. `MATRIX_SCENES`
+# ("a.toml b.toml") runs only those scenes; `MATRIX_SWITCH_MS` is the wait for one switch.
 if [ "${1:-}" = "--matrix" ]; then
     failed=0
     : >"$OUT/matrix.log"
     for path in "$ROOT"/scenes/*.toml; do
         scene=$(basename "$path")
+        if [ -n "${MATRIX_SCENES:-}" ] && [[ " $MATRIX_SCENES " != *" $scene "* ]]; then continue; fi
         serve "$scene" "matrix-${scene%.toml}"
         timeout 1800 node viewer/tests/matrix.test.mjs "$URL" | tee -a "$OUT/matrix.log" || failed=$((failed + 1))
         kill "$SERVER" 2>/dev/null || true

@@ -35,6 +35,8 @@ view.appendChild(banner);
 const state = {
   ready: false, frames: 0, inits: 0, init: null, last: null,
   tool: 'probe', depth: 1.0, forceMagnitude: 0, notices: [],
+  // Frames the organ could not show (a surface of another size: a new init on its way).
+  skippedFrames: 0,
 };
 window.__tissue = state;
 
@@ -170,7 +172,9 @@ function updateLegend() {
 function onFrame(msg) {
   state.last = msg;
   state.frames += 1;
-  const n = organ.frame(msg) || 0;
+  const shown = organ.frame(msg);
+  if (shown === undefined) state.skippedFrames += 1;
+  const n = shown || 0;
   state.forceMagnitude = n;
   state.maxDisplacement = organ.maxDisplacement;
   state.openEdges = organ.openEdges ? organ.openEdges.length / 2 : 0;

@@ -70,11 +70,16 @@ export async function holdProbe(page, ms = 2000) {
   const q = await page.evaluate(() => window.__tissue.organScreenPoint());
   if (!q) return null;
   const n0 = await noticeCount(page);
+  const skipped0 = await page.evaluate(() => window.__tissue.skippedFrames);
+  const frames0 = await page.evaluate(() => window.__tissue.frames);
   await page.mouse.move(q[0], q[1]);
   await page.mouse.down();
   let max = 0;
   const t0 = Date.now();
-  while (Date.now() - t0 < ms) {
+  // At least `ms`, and at least 8 frames after the press (software WebGL on a loaded
+  // machine draws a large organ at 1 frame/s), at most 20 s.
+  const seen = async () => (await page.evaluate(() => window.__tissue.frames)) - frames0;
+  while (Date.now() - t0 < ms || (Date.now() - t0 < Math.max(ms, 20000) && (await seen()) < 8)) {
     await page.waitForTimeout(100);
     const f = await page.evaluate(() => window.__tissue.forceMagnitude);
     if (Number.isFinite(f)) max = Math.max(max, f); else max = Infinity;
@@ -82,7 +87,10 @@ export async function holdProbe(page, ms = 2000) {
   const last = await page.evaluate(() => ({
     sim: window.__tissue.last.sim_rate, haptic: window.__tissue.last.haptic_rate,
     substeps: window.__tissue.last.substeps, dt: window.__tissue.last.dt, status: window.__tissue.status,
+    skipped: window.__tissue.skippedFrames, frames: window.__tissue.frames,
   }));
+  last.skipped -= skipped0;
+  last.frames -= frames0;
   await page.mouse.up();
   await page.waitForTimeout(150);
   const said = (await notices(page, n0)).map((x) => x.message);
