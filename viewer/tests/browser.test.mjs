@@ -129,7 +129,7 @@ try {
     const buf = page.warnings.filter((w) => w.includes('Buffer size too small'));
     check('no "Buffer size too small" warning', buf.length === 0, `${buf.length} warnings`);
     const kind = await page.evaluate(() => window.__tissue.init.kind);
-    await page.waitForFunction((n) => window.__tissue.notices.length > n, n0, { timeout: 10000 }).catch(() => {});
+    await page.waitForFunction((n) => window.__tissue.notices.slice(n).some((x) => x.message.includes('cut')), n0, { timeout: 10000 }).catch(() => {});
     const said = (await notices(page, n0)).map((x) => x.message);
     check('scalpel answered', said.some((m) => m.includes('cannot cut') || m.includes('cut')), `${kind}: ${said.join(' | ')}`);
   }

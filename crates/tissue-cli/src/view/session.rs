@@ -30,6 +30,8 @@ pub const SCALPEL: &str = "viewer-scalpel";
 /// Wall time spent stepping before a frame is published regardless.
 const STEP_BUDGET: Duration = Duration::from_millis(25);
 const FRAME_EVERY: Duration = Duration::from_millis(33);
+/// Rate windows (0.5 s each) of steps slower than real time before slow motion is said.
+const SLOW_WINDOWS: u32 = 4;
 /// After a blow-up is reported, further failures within this window are counted, not
 /// reported one by one (a cascade of messages says nothing the first one did not).
 const QUIET_AFTER_FAILURE: Duration = Duration::from_secs(3);
@@ -84,8 +86,11 @@ pub struct Session {
     strain_nodes: Option<Vec<Option<u32>>>,
     failure: Option<Failure>,
     steps_in_window: u64,
+    /// Computation time of the successful steps in the rate window, s.
+    step_seconds_in_window: Real,
     window_start: Instant,
     sim_rate: Real,
+    slow: SlowMotion,
     last_error: Option<(String, Instant)>,
 }
 
@@ -136,7 +141,9 @@ impl Session {
             strain_nodes: None,
             failure: None,
             steps_in_window: 0,
+            step_seconds_in_window: 0.0,
             window_start: Instant::now(),
+            slow: SlowMotion::default(),
             sim_rate: 0.0,
             last_error: None,
             told: Vec::new(),
@@ -386,6 +393,7 @@ impl Session {
                 self.substeps = 0;
                 self.failure = None;
                 self.told.clear();
+                self.slow = SlowMotion::default();
                 self.publish_init();
                 let took = lock(&self.build_status)
                     .started
@@ -425,9 +433,11 @@ impl Session {
             self.sim.model().surface().triangles.len(),
             self.sim.topology_version(),
         );
+        let stepping = Instant::now();
         match step_coupled(&mut self.sim, 0, &self.handle, self.dt) {
             Ok(report) => {
                 self.steps_in_window += 1;
+                self.step_seconds_in_window += stepping.elapsed().as_secs_f64();
                 self.substeps = report.info.substeps;
                 // The step after the scalpel left: a model that opens a stroke when the
                 // blade goes (bem) has opened it, or started computing it off the thread.
@@ -592,6 +602,29 @@ impl Session {
         );
     }
 
+    /// Says once per model when its steps take longer than the time they cover
+    /// (`SlowMotion`): the page then shows the organ in slow motion (the session drops the
+    /// backlog rather than chase it), and the user should know why and what to change.
+    fn watch_slow_motion(&mut self) {
+        let seconds = self.step_seconds_in_window;
+        let steps = self.steps_in_window;
+        let building = self.building.is_some();
+        if let Some(cost) = self.slow.observe(steps, seconds, self.dt, building) {
+            self.hub.notify(
+                "info",
+                &format!(
+                    "{} needs {:.1} ms per {:.1} ms step on this machine: the organ moves at \
+                     about {:.0} % of real time. A larger dt, a coarser mesh or a faster kind \
+                     keeps up (`tissue compare` lists every kind's cost)",
+                    self.kind,
+                    cost * 1e3,
+                    self.dt * 1e3,
+                    100.0 * self.dt / cost
+                ),
+            );
+        }
+    }
+
     fn publish_init(&mut self) {
         self.strain_nodes = tissue::metrics::surface_nodes(self.sim.model());
         let msg = publish::init_message(&self.sim, &self.setup, &self.kind, self.material, self.dt);
@@ -602,7 +635,9 @@ impl Session {
         let secs = self.window_start.elapsed().as_secs_f64();
         if secs >= 0.5 {
             self.sim_rate = self.steps_in_window as Real / secs;
+            self.watch_slow_motion();
             self.steps_in_window = 0;
+            self.step_seconds_in_window = 0.0;
             self.window_start = Instant::now();
         }
         let figures = publish::Figures {
@@ -632,6 +667,59 @@ impl Session {
     }
 }
 
+/// Whether a model keeps up with real time, watched over the rate windows (0.5 s each).
+#[derive(Clone, Debug, Default)]
+struct SlowMotion {
+    /// Consecutive windows whose steps took longer than their dt.
+    windows: u32,
+    /// Already said for this model.
+    told: bool,
+}
+
+impl SlowMotion {
+    /// One window: `steps` successful steps took `seconds`. Returns the mean step time, in
+    /// s, the first time it has exceeded `dt` for `SLOW_WINDOWS` windows in a row. Failed
+    /// steps (they have their own notices), windows without steps and a model being built
+    /// alongside (it takes a core) do not count.
+    fn observe(&mut self, steps: u64, seconds: Real, dt: Real, building: bool) -> Option<Real> {
+        if steps == 0 {
+            return None;
+        }
+        let cost = seconds / steps as Real;
+        if cost <= dt || building {
+            self.windows = 0;
+            return None;
+        }
+        self.windows += 1;
+        (self.windows >= SLOW_WINDOWS && !std::mem::replace(&mut self.told, true)).then_some(cost)
+    }
+}
+
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+#[cfg(test)]
+mod slow_motion_tests {
+    use super::*;
+
+    #[test]
+    fn slow_motion_is_said_once_after_a_run_of_slow_windows() {
+        let mut s = SlowMotion::default();
+        // 10 ms steps taking 25 ms: said at the fourth window, then never again.
+        let said: Vec<_> = (0..8).map(|_| s.observe(20, 0.5, 0.01, false)).collect();
+        assert_eq!(said.iter().filter(|c| c.is_some()).count(), 1);
+        assert_eq!(said[SLOW_WINDOWS as usize - 1], Some(0.025));
+        // A fast window, or a slow one with a build alongside, breaks the run; a window
+        // without steps (a failing model) neither counts nor breaks it.
+        let mut s = SlowMotion::default();
+        for (steps, seconds, building) in [(200, 0.05, false), (20, 0.5, true)] {
+            for _ in 0..SLOW_WINDOWS - 1 {
+                assert_eq!(s.observe(20, 0.5, 0.01, false), None);
+            }
+            assert_eq!(s.observe(steps, seconds, 0.01, building), None);
+        }
+        assert_eq!(s.observe(0, 0.5, 0.01, false), None);
+        assert_eq!(s.windows, 0);
+    }
 }

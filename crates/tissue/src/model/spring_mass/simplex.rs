@@ -72,8 +72,12 @@ impl SimplexMesh {
         for &[a, b, c] in &s.triangles {
             let mut n = [0u32; 3];
             for (k, (p, q)) in [(a, b), (b, c), (c, a)].into_iter().enumerate() {
-                n[k] = *directed.get(&(q, p)).ok_or(MeshError::NotClosed {
-                    border_edges: 1,
+                n[k] = *directed.get(&(q, p)).ok_or_else(|| MeshError::NotClosed {
+                    // Every edge without its reverse, so the message counts them all.
+                    border_edges: directed
+                        .keys()
+                        .filter(|&&(p, q)| !directed.contains_key(&(q, p)))
+                        .count(),
                     a: p as usize,
                     b: q as usize,
                 })?;

@@ -528,3 +528,21 @@ fn simplex_links_match_dilation_and_are_capped_on_slivers() {
         assert_eq!(most > 12.0, capped, "{name}: largest (l_e/l_link)² {most}");
     }
 }
+
+/// An open surface is refused with every border edge counted: an icosphere without one
+/// triangle has a hole of 3 border edges, without two apart two holes of 6.
+#[test]
+fn a_simplex_mesh_of_an_open_surface_counts_its_border_edges() {
+    let mut s = icosphere(Vec3::ZERO, 0.05, 1);
+    let gone = s.triangles.remove(0);
+    let one = simplex::SimplexMesh::from_triangles(&s).unwrap_err();
+    assert!(one.to_string().contains("3 border edges"), "{one}");
+    let apart = s
+        .triangles
+        .iter()
+        .position(|t| !t.iter().any(|v| gone.contains(v)))
+        .unwrap();
+    s.triangles.remove(apart);
+    let two = simplex::SimplexMesh::from_triangles(&s).unwrap_err();
+    assert!(two.to_string().contains("6 border edges"), "{two}");
+}
