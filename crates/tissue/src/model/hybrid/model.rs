@@ -17,7 +17,7 @@ use crate::mesh::TetMesh;
 use crate::mesh::topology::tet_neighbours;
 use crate::model::tensor_mass::{TensorMass, TensorMassParams};
 use crate::model::{
-    ConstraintReactions, CutInfo, CutPath, Deformable, Progress, StepInfo, VolumeView,
+    ConstraintReactions, CutInfo, CutPath, Deformable, MovedSince, Progress, StepInfo, VolumeView,
 };
 
 use super::CutRegion;
@@ -78,7 +78,10 @@ pub struct Hybrid {
     reach: Option<Vec<(Vec3, Real)>>,
     /// The surface a contact search within `reach` needs (`contact_positions`): positions
     /// and slack, emptied with `surf_pos` and whenever the reach or the held set changes.
-    near: OnceCell<(Vec<Vec3>, Vec<Real>)>,
+    near: OnceCell<NearSurface>,
+    /// The last partial surface dropped, kept for its memory: the next one starts from it
+    /// and puts back only the vertices it had moved, instead of copying the reference.
+    spare: RefCell<Option<NearSurface>>,
     /// The last whole surface computed, with the interface displacements and contact forces
     /// it came from: `contact_positions` bounds how far each vertex has moved since.
     /// Dropped when the surface's vertices, the split or the loads change.
@@ -134,8 +137,21 @@ struct SearchMaps {
     tris: Vec<u32>,
 }
 
+/// A partial contact surface (`contact_positions`).
+struct NearSurface {
+    positions: Vec<Vec3>,
+    slack: Vec<Real>,
+    /// The vertices whose positions differ from the reference's: the region's and the
+    /// rows computed (a BVH refits only their triangles).
+    moved: Vec<u32>,
+    /// The reference's number (`SurfaceRef::number`).
+    base: u64,
+}
+
 /// A whole surface as computed, and the state of the rest it came from.
 struct SurfaceRef {
+    /// Its number as a contact surface (`MovedSince::fresh_base`).
+    number: u64,
     u: Mat<Real>,
     z: Vec<(u32, Vec3)>,
     positions: Vec<Vec3>,
@@ -209,6 +225,7 @@ impl Hybrid {
             surf_pos: OnceCell::new(),
             reach: None,
             near: OnceCell::new(),
+            spare: RefCell::new(None),
             surf_ref: RefCell::new(None),
             search: SearchMaps::default(),
 
@@ -273,6 +290,7 @@ impl Hybrid {
                 })
                 .collect();
             *self.surf_ref.borrow_mut() = Some(SurfaceRef {
+                number: MovedSince::fresh_base(),
                 z: self.rest.forces_by_slot(&z),
                 u,
                 largest: positions.iter().fold(0.0, |a: Real, p| a.max(p.length())),
@@ -283,11 +301,18 @@ impl Hybrid {
         })
     }
 
+    /// Empties the partial contact surface, keeping its buffers for the next one.
+    fn drop_near(&mut self) {
+        if let Some(near) = self.near.take() {
+            *self.spare.get_mut() = Some(near);
+        }
+    }
+
     /// Sets where contact searches look (see `contact_positions`).
     pub(super) fn set_reach(&mut self, reach: Option<&[(Vec3, Real)]>) {
         if self.reach.as_deref() != reach {
             self.reach = reach.map(<[_]>::to_vec);
-            self.near.take();
+            self.drop_near();
         }
     }
 
@@ -301,29 +326,47 @@ impl Hybrid {
     /// ‖G_o‖_F |Δu_I| + Σ_c ‖W_oc‖_F |Δλ_c| (rounding included), a bound on how far it has
     /// moved since: when that position is farther than this from every ball, the vertex is
     /// outside all of them wherever it is exactly.
-    pub(super) fn contact_positions(&self) -> (&[Vec3], &[Real]) {
+    pub(super) fn contact_positions(&self) -> (&[Vec3], &[Real], Option<MovedSince<'_>>) {
         if let Some(full) = self.surf_pos.get() {
-            return (full, &[]);
+            return self.whole_contact(full);
         }
         let Some(reach) = self.reach.as_deref() else {
-            return (self.surface_positions(), &[]);
+            return self.whole_contact(self.surface_positions());
         };
         if !self.rest.exists() {
-            return (self.surface_positions(), &[]);
+            return self.whole_contact(self.surface_positions());
         }
-        if let Some((positions, slack)) = self.near.get() {
-            return (positions, slack);
-        }
-        let Some(near) = self.near_positions(reach) else {
-            return (self.surface_positions(), &[]);
+        let near = match self.near.get() {
+            Some(near) => near,
+            None => match self.near_positions(reach) {
+                Some(near) => self.near.get_or_init(|| near),
+                None => return self.whole_contact(self.surface_positions()),
+            },
         };
-        let (positions, slack) = self.near.get_or_init(|| near);
-        (positions, slack)
+        let moved = MovedSince {
+            base: near.base,
+            vertices: &near.moved,
+        };
+        (&near.positions, &near.slack, Some(moved))
+    }
+
+    /// The whole surface as a contact surface, numbered as the reference it made (the two
+    /// are made together, and the reference is never replaced while the surface stands).
+    fn whole_contact<'a>(
+        &'a self,
+        positions: &'a [Vec3],
+    ) -> (&'a [Vec3], &'a [Real], Option<MovedSince<'a>>) {
+        let number = self.surf_ref.borrow().as_ref().map(|r| r.number);
+        let moved = number.map(|base| MovedSince {
+            base,
+            vertices: &[],
+        });
+        (positions, &[], moved)
     }
 
     /// `contact_positions`' partial surface, or `None` when the whole one is due (no
     /// reference, a state that is not finite, or too many vertices near the reach).
-    fn near_positions(&self, reach: &[(Vec3, Real)]) -> Option<(Vec<Vec3>, Vec<Real>)> {
+    fn near_positions(&self, reach: &[(Vec3, Real)]) -> Option<NearSurface> {
         let reference = self.surf_ref.borrow();
         let reference = reference.as_ref()?;
         let n = self.surf_nodes.len();
@@ -390,7 +433,23 @@ impl Hybrid {
             return None;
         }
         let x = self.tm.positions();
-        let mut positions = reference.positions.clone();
+        // The reference's positions: the last partial surface's buffers with the vertices
+        // it moved put back when it came from the same reference, else a copy.
+        let spare = self
+            .spare
+            .borrow_mut()
+            .take()
+            .filter(|sp| sp.base == reference.number && sp.positions.len() == n);
+        let (mut positions, mut slack, mut moved) = match spare {
+            Some(sp) => {
+                let mut positions = sp.positions;
+                for &v in &sp.moved {
+                    positions[v as usize] = reference.positions[v as usize];
+                }
+                (positions, sp.slack, sp.moved)
+            }
+            None => (reference.positions.clone(), vec![0.0; n], Vec::new()),
+        };
         for &(v, r) in &maps.region {
             positions[v as usize] = x[r as usize];
         }
@@ -399,7 +458,9 @@ impl Hybrid {
         let mut bound = Vec::new();
         self.rest.displacement_bounds(du, &terms, &mut bound);
         let rounding = 4.0 * Real::EPSILON * reference.largest;
-        let mut slack = vec![0.0; n];
+        // Every outer vertex's slack is written below; the others' stay 0 (the region's,
+        // and those of no part), as do the rows a partial surface computed, now outer ones.
+        slack.resize(n, 0.0);
         let mut seeds = Vec::new();
         let mut outer = 0;
         for (&v, &b) in maps.vertex_of_slot.iter().zip(&bound) {
@@ -461,7 +522,15 @@ impl Hybrid {
                 self.surf_rest[v as usize] + self.rest.outer_displacement(slot, &u, &z);
             slack[v as usize] = 0.0;
         }
-        Some((positions, slack))
+        moved.clear();
+        moved.extend_from_slice(&rows);
+        moved.extend(maps.region.iter().map(|&(v, _)| v));
+        Some(NearSurface {
+            positions,
+            slack,
+            moved,
+            base: reference.number,
+        })
     }
 
     /// Resolves, per surface vertex, what the partial contact search looks up (the part it
@@ -536,7 +605,7 @@ impl Hybrid {
     /// (nodes a cut exposes get new vertex numbers at the end).
     fn rebuild_triangles(&mut self) {
         self.surf_pos.take();
-        self.near.take();
+        self.drop_near();
         self.surf_ref.take();
         self.alive_tets = self
             .mesh
@@ -799,7 +868,7 @@ impl Hybrid {
         }
         self.tm_entry = tm_entry;
         self.rest_contact = rest_contact;
-        self.near.take();
+        self.drop_near();
         self.constraints = c.clone();
         self.reactions.set(c);
         Ok(())
@@ -846,7 +915,7 @@ impl Hybrid {
         }
         self.rest.set_loads(loads.gravity, &rest_points)?;
         self.tm.set_loads(&tm_loads)?;
-        self.near.take();
+        self.drop_near();
         self.surf_ref.take();
         self.loads = loads.clone();
         Ok(())
@@ -885,7 +954,7 @@ impl Hybrid {
         let z = self.rest.contact_forces(&u);
         // The surface follows on its first read (`surface_positions`).
         self.surf_pos.take();
-        self.near.take();
+        self.drop_near();
         let mut force = vec![Vec3::ZERO; self.surf_nodes.len()];
         let tm_prescribed = self.tm.reactions().prescribed;
         for (v, &e) in self.tm_entry.iter().enumerate() {
