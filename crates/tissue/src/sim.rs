@@ -63,9 +63,6 @@ pub struct Simulation {
     /// A scalpel was removed since the last step (`Deformable::end_cut` at the next).
     scalpel_removed: bool,
     bvh_topology: u32,
-    /// The contact surface the BVH was last fitted to, when the model numbers them
-    /// (`ContactSurface::moved`): its base and the vertices where it differed from it.
-    bvh_base: Option<(u64, Vec<u32>)>,
     is_static: bool,
     max_contact_iterations: usize,
     /// The constraints the model holds now (restored when a step fails), with the direction
@@ -113,7 +110,6 @@ impl Simulation {
             topology_version: 0,
             scalpel_removed: false,
             bvh_topology: 0,
-            bvh_base: None,
             is_static,
             max_contact_iterations: DEFAULT_CONTACT_ITERATIONS,
             constraints,
@@ -426,31 +422,14 @@ impl Simulation {
 
     fn refresh_bvh(&mut self) {
         let s = self.model.contact_surface();
-        let last = self.bvh_base.take();
         if s.triangles.len() == self.bvh.triangle_count()
             && self.bvh_topology == self.topology_version
         {
-            match (&last, s.moved) {
-                // Both surfaces differ from the same one only at their moved vertices: the
-                // boxes change only there (`hybrid`: the region and the rest near an
-                // instrument; the other kinds give no numbers and refit everything).
-                (Some((base, before)), Some(now)) if *base == now.base => self.bvh.refit_moved(
-                    s.positions,
-                    s.triangles,
-                    before.iter().chain(now.vertices).copied(),
-                ),
-                _ => self.bvh.refit(s.positions, s.triangles),
-            }
+            self.bvh.refit(s.positions, s.triangles);
         } else {
             self.bvh = Bvh::build(s.positions, s.triangles);
             self.bvh_topology = self.topology_version;
         }
-        self.bvh_base = s.moved.map(|m| {
-            let mut vertices = last.map(|(_, v)| v).unwrap_or_default();
-            vertices.clear();
-            vertices.extend_from_slice(m.vertices);
-            (m.base, vertices)
-        });
     }
 
     /// The contact sets at the start of a step, from the surface as the last step left it.

@@ -3,10 +3,6 @@
 //! Built once from the topology (median split on triangle centroids) and refitted every step:
 //! the surface moves but keeps its triangles, so only the boxes change. A refit is one pass
 //! over the nodes in reverse order, because children are always stored after their parent.
-//! A model that moves only part of its surface between two refits (`hybrid`: the region
-//! and the rest's vertices near an instrument) names the vertices that moved, and
-//! `refit_moved` recomputes only their triangles' boxes, their leaves and those leaves'
-//! ancestors: the same boxes, bit for bit, as a whole refit.
 
 use crate::math::Vec3;
 
@@ -54,23 +50,7 @@ pub struct Bvh {
     /// The box of each triangle, by triangle id.
     tri_boxes: Vec<Aabb>,
     triangle_count: usize,
-    /// Parent of each node (`NO_NODE` for the root).
-    parent: Vec<u32>,
-    /// Leaf holding each triangle (`NO_NODE` for a triangle left out).
-    leaf_of: Vec<u32>,
-    /// The triangles at each vertex (compressed rows: `vertex_start[v]..vertex_start[v + 1]`
-    /// in `vertex_tris`), for `refit_moved`.
-    vertex_start: Vec<u32>,
-    vertex_tris: Vec<u32>,
-    /// `refit_moved`'s marks: a triangle or node whose mark equals `stamp` is done.
-    tri_mark: Vec<u32>,
-    node_mark: Vec<u32>,
-    stamp: u32,
-    /// `refit_moved`'s nodes to recompute (reused).
-    dirty: Vec<u32>,
 }
-
-const NO_NODE: u32 = u32::MAX;
 
 impl Bvh {
     /// Builds the tree over `triangles` at `positions`. Triangles naming a missing vertex
@@ -90,56 +70,14 @@ impl Bvh {
             order: Vec::new(),
             tri_boxes: Vec::new(),
             triangle_count: triangles.len(),
-            ..Default::default()
         };
         if !order.is_empty() {
             let len = order.len();
             bvh.split(&mut order, 0, len, &centroid);
         }
         bvh.order = order;
-        bvh.link(n, triangles);
         bvh.refit(positions, triangles);
         bvh
-    }
-
-    /// The parents, each triangle's leaf and each vertex's triangles, for `refit_moved`.
-    fn link(&mut self, vertices: usize, triangles: &[[u32; 3]]) {
-        self.parent = vec![NO_NODE; self.nodes.len()];
-        self.leaf_of = vec![NO_NODE; triangles.len()];
-        for (id, node) in self.nodes.iter().enumerate() {
-            match *node {
-                Node::Inner { left, right } => {
-                    self.parent[left as usize] = id as u32;
-                    self.parent[right as usize] = id as u32;
-                }
-                Node::Leaf { start, end } => {
-                    for &t in &self.order[start as usize..end as usize] {
-                        self.leaf_of[t as usize] = id as u32;
-                    }
-                }
-            }
-        }
-        // Only the triangles in the tree (every vertex of theirs exists).
-        self.vertex_start = vec![0; vertices + 1];
-        for &t in &self.order {
-            for &v in &triangles[t as usize] {
-                self.vertex_start[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..vertices {
-            self.vertex_start[v + 1] += self.vertex_start[v];
-        }
-        let mut fill = self.vertex_start.clone();
-        self.vertex_tris = vec![0; self.vertex_start[vertices] as usize];
-        for &t in &self.order {
-            for &v in &triangles[t as usize] {
-                self.vertex_tris[fill[v as usize] as usize] = t;
-                fill[v as usize] += 1;
-            }
-        }
-        self.tri_mark = vec![0; triangles.len()];
-        self.node_mark = vec![0; self.nodes.len()];
-        self.stamp = 0;
     }
 
     fn split(&mut self, order: &mut [u32], start: usize, end: usize, c: &dyn Fn(u32) -> Vec3) {
@@ -185,95 +123,27 @@ impl Bvh {
     /// Recomputes every box from the current positions; the topology must be the one built.
     pub fn refit(&mut self, positions: &[Vec3], triangles: &[[u32; 3]]) {
         self.tri_boxes.clear();
-        self.tri_boxes
-            .extend(triangles.iter().map(|tri| triangle_box(positions, tri)));
+        self.tri_boxes.extend(triangles.iter().map(|tri| {
+            tri.iter()
+                .filter_map(|&v| positions.get(v as usize))
+                .fold(Aabb::EMPTY, |b, &p| b.union(Aabb { min: p, max: p }))
+        }));
+        let tri_box = |t: u32| {
+            self.tri_boxes
+                .get(t as usize)
+                .copied()
+                .unwrap_or(Aabb::EMPTY)
+        };
         for id in (0..self.nodes.len()).rev() {
-            self.boxes[id] = self.node_box(id);
-        }
-    }
-
-    /// Recomputes the boxes of the triangles at the `moved` vertices, of their leaves and
-    /// of those leaves' ancestors: when every other vertex is where the last refit (or
-    /// build) had it, the boxes equal a whole `refit`'s bit for bit (the same folds in
-    /// the same order). The topology must be the one built; vertices out of range and
-    /// repeats are ignored. Worth it when few vertices moved; it falls back to `refit`
-    /// when as many are named (repeats counted) as there are vertices.
-    pub fn refit_moved(
-        &mut self,
-        positions: &[Vec3],
-        triangles: &[[u32; 3]],
-        moved: impl IntoIterator<Item = u32> + Clone,
-    ) {
-        let vertices = self.vertex_start.len().saturating_sub(1);
-        let named = moved.clone().into_iter().count();
-        if named >= vertices
-            || self.tri_boxes.len() != triangles.len()
-            || self.leaf_of.len() != triangles.len()
-        {
-            self.refit(positions, triangles);
-            return;
-        }
-        self.stamp = self.stamp.wrapping_add(1);
-        if self.stamp == 0 {
-            // The marks wrapped: clear them, so that no old mark equals a new stamp.
-            self.tri_mark.iter_mut().for_each(|m| *m = 0);
-            self.node_mark.iter_mut().for_each(|m| *m = 0);
-            self.stamp = 1;
-        }
-        let stamp = self.stamp;
-        let mut dirty = std::mem::take(&mut self.dirty);
-        dirty.clear();
-        for v in moved {
-            let v = v as usize;
-            if v >= vertices {
-                continue;
-            }
-            let (a, b) = (
-                self.vertex_start[v] as usize,
-                self.vertex_start[v + 1] as usize,
-            );
-            for &t in &self.vertex_tris[a..b] {
-                let t = t as usize;
-                if self.tri_mark[t] == stamp {
-                    continue;
-                }
-                self.tri_mark[t] = stamp;
-                self.tri_boxes[t] = triangle_box(positions, &triangles[t]);
-                // The leaf and its ancestors, up to the first one already marked.
-                let mut id = self.leaf_of[t];
-                while id != NO_NODE && self.node_mark[id as usize] != stamp {
-                    self.node_mark[id as usize] = stamp;
-                    dirty.push(id);
-                    id = self.parent[id as usize];
-                }
-            }
-        }
-        // Children are stored after their parent: descending ids recompute them first.
-        dirty.sort_unstable_by(|a, b| b.cmp(a));
-        for &id in &dirty {
-            self.boxes[id as usize] = self.node_box(id as usize);
-        }
-        self.dirty = dirty;
-    }
-
-    /// A node's box from its triangles' (a leaf) or its children's boxes.
-    fn node_box(&self, id: usize) -> Aabb {
-        match self.nodes[id] {
-            Node::Leaf { start, end } => {
-                self.order[start as usize..end as usize]
+            let b = match self.nodes[id] {
+                Node::Leaf { start, end } => self.order[start as usize..end as usize]
                     .iter()
-                    .fold(Aabb::EMPTY, |b, &t| {
-                        b.union(
-                            self.tri_boxes
-                                .get(t as usize)
-                                .copied()
-                                .unwrap_or(Aabb::EMPTY),
-                        )
-                    })
-            }
-            Node::Inner { left, right } => {
-                self.boxes[left as usize].union(self.boxes[right as usize])
-            }
+                    .fold(Aabb::EMPTY, |b, &t| b.union(tri_box(t))),
+                Node::Inner { left, right } => {
+                    self.boxes[left as usize].union(self.boxes[right as usize])
+                }
+            };
+            self.boxes[id] = b;
         }
     }
 
@@ -313,13 +183,6 @@ impl Bvh {
         out.sort_unstable();
         out
     }
-}
-
-/// The box of a triangle's existing vertices.
-fn triangle_box(positions: &[Vec3], tri: &[u32; 3]) -> Aabb {
-    tri.iter()
-        .filter_map(|&v| positions.get(v as usize))
-        .fold(Aabb::EMPTY, |b, &p| b.union(Aabb { min: p, max: p }))
 }
 
 #[cfg(test)]
@@ -377,53 +240,11 @@ mod tests {
         assert!(hits > 100, "the spheres should hit something: {hits}");
     }
 
-    /// A refit of the moved vertices only gives the boxes of a whole refit, bit for bit,
-    /// whichever part moved (a few vertices, many, with repeats and bad numbers), and the
-    /// queries follow.
-    #[test]
-    fn refit_of_the_moved_vertices_equals_a_whole_refit() {
-        let mut rng = Rng(0x2545_F491_4F6C_DD1D);
-        let n = 400;
-        let mut p: Vec<Vec3> = (0..n).map(|_| rng.vec()).collect();
-        let tris: Vec<[u32; 3]> = (0..600)
-            .map(|_| [0, 0, 0].map(|_: u32| (rng.next() * n as f64) as u32 % n as u32))
-            .collect();
-        let mut partial = Bvh::build(&p, &tris);
-        // The same tree, refitted whole every round.
-        let mut whole = partial.clone();
-        for round in 0..40 {
-            // From one vertex to most of them (the last rounds fall back to a whole refit).
-            let count = 1 + (round * round) % (n / 2 + 60);
-            let mut moved: Vec<u32> = (0..count)
-                .map(|_| (rng.next() * n as f64) as u32 % n as u32)
-                .collect();
-            for &v in &moved {
-                p[v as usize] += 0.2 * (rng.vec() - 0.5);
-            }
-            moved.extend_from_slice(&moved.clone()[..count / 3]);
-            moved.push(u32::MAX);
-            partial.refit_moved(&p, &tris, moved.iter().copied());
-            whole.refit(&p, &tris);
-            assert_eq!(partial.tri_boxes, whole.tri_boxes, "round {round}");
-            assert_eq!(partial.boxes, whole.boxes, "round {round}");
-            for _ in 0..20 {
-                let (c, r) = (rng.vec() * 1.2 - 0.1, 0.2 * rng.next());
-                assert_eq!(partial.query_sphere(c, r), brute(&p, &tris, c, r));
-            }
-        }
-        // Nothing named: nothing changes.
-        let before = partial.boxes.clone();
-        partial.refit_moved(&p, &tris, std::iter::empty());
-        assert_eq!(partial.boxes, before);
-    }
-
     #[test]
     fn empty_and_bad_input_do_not_panic() {
         let bvh = Bvh::build(&[], &[]);
         assert!(bvh.query_sphere(Vec3::ZERO, 1.0).is_empty());
-        let mut bvh = Bvh::build(&[Vec3::ZERO], &[[0, 1, 2]]);
-        assert!(bvh.query_sphere(Vec3::ZERO, 1.0).is_empty());
-        bvh.refit_moved(&[Vec3::ZERO], &[[0, 1, 2]], [0, 1, 7]);
+        let bvh = Bvh::build(&[Vec3::ZERO], &[[0, 1, 2]]);
         assert!(bvh.query_sphere(Vec3::ZERO, 1.0).is_empty());
     }
 }

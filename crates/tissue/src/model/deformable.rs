@@ -24,29 +24,6 @@ pub struct ContactSurface<'a> {
     pub triangles: &'a [[u32; 3]],
     /// Per vertex, how far it may be from `positions` (m); empty: every vertex exact.
     pub slack: &'a [Real],
-    /// Where `positions` may differ from an earlier contact surface of the model (`None`:
-    /// anywhere). A caller that keeps something per vertex (`Simulation`'s BVH) updates
-    /// only those vertices when it last saw the surface numbered `base`.
-    pub moved: Option<MovedSince<'a>>,
-}
-
-/// `positions` of a `ContactSurface` equal, bit for bit, those of the contact surface the
-/// model numbered `base`, except at `vertices` (which may repeat); its triangles are that
-/// surface's (a model numbers its surfaces anew when they change). Numbers come from
-/// `MovedSince::fresh_base`: unique in the process, never reused by another surface.
-#[derive(Clone, Copy, Debug)]
-pub struct MovedSince<'a> {
-    pub base: u64,
-    pub vertices: &'a [u32],
-}
-
-impl MovedSince<'_> {
-    /// A number no other surface of any model has had.
-    pub fn fresh_base() -> u64 {
-        use std::sync::atomic::{AtomicU64, Ordering};
-        static NEXT: AtomicU64 = AtomicU64::new(1);
-        NEXT.fetch_add(1, Ordering::Relaxed)
-    }
 }
 
 /// The mechanical volume mesh as it is now, for models that have one (written to VTU).
@@ -315,7 +292,6 @@ pub trait Deformable: Send {
             positions: s.positions,
             triangles: s.triangles,
             slack: &[],
-            moved: None,
         }
     }
 

@@ -22,8 +22,8 @@ pub mod tensor_mass;
 pub(crate) mod testing;
 
 pub use deformable::{
-    ContactSurface, CutInfo, CutPath, Deformable, ModelInfo, MovedSince, Reactions, StepInfo,
-    SurfaceView, VolumeView,
+    ContactSurface, CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView,
+    VolumeView,
 };
 pub use progress::Progress;
 pub use reactions::ConstraintReactions;

@@ -31,12 +31,11 @@ impl Deformable for Hybrid {
     /// The region's vertices and, of the pre-computed rest, only those a search within the
     /// reach can touch (see `Hybrid::contact_positions`).
     fn contact_surface(&self) -> ContactSurface<'_> {
-        let (positions, slack, moved) = self.contact_positions();
+        let (positions, slack) = self.contact_positions();
         ContactSurface {
             positions,
             triangles: &self.triangles,
             slack,
-            moved,
         }
     }
 

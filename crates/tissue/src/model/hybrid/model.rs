@@ -17,7 +17,7 @@ use crate::mesh::TetMesh;
 use crate::mesh::topology::tet_neighbours;
 use crate::model::tensor_mass::{TensorMass, TensorMassParams};
 use crate::model::{
-    ConstraintReactions, CutInfo, CutPath, Deformable, MovedSince, Progress, StepInfo, VolumeView,
+    ConstraintReactions, CutInfo, CutPath, Deformable, Progress, StepInfo, VolumeView,
 };
 
 use super::CutRegion;
@@ -142,7 +142,7 @@ struct NearSurface {
     positions: Vec<Vec3>,
     slack: Vec<Real>,
     /// The vertices whose positions differ from the reference's: the region's and the
-    /// rows computed (a BVH refits only their triangles).
+    /// rows computed (the next partial surface puts them back, see `spare`).
     moved: Vec<u32>,
     /// The reference's number (`SurfaceRef::number`).
     base: u64,
@@ -150,7 +150,8 @@ struct NearSurface {
 
 /// A whole surface as computed, and the state of the rest it came from.
 struct SurfaceRef {
-    /// Its number as a contact surface (`MovedSince::fresh_base`).
+    /// A number no other reference of this process has had (a partial surface's buffers
+    /// are reused only on the reference they came from).
     number: u64,
     u: Mat<Real>,
     z: Vec<(u32, Vec3)>,
@@ -159,6 +160,13 @@ struct SurfaceRef {
     largest: Real,
     /// Rows of the rest's outer surface the partial surfaces computed since (in vertices).
     rows_since: std::cell::Cell<usize>,
+}
+
+/// A number for a new whole-surface reference, unique in the process.
+fn fresh_reference_number() -> u64 {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
 /// A contact search that needs more than this fraction of the rest's outer vertices gets
@@ -290,7 +298,7 @@ impl Hybrid {
                 })
                 .collect();
             *self.surf_ref.borrow_mut() = Some(SurfaceRef {
-                number: MovedSince::fresh_base(),
+                number: fresh_reference_number(),
                 z: self.rest.forces_by_slot(&z),
                 u,
                 largest: positions.iter().fold(0.0, |a: Real, p| a.max(p.length())),
@@ -326,42 +334,24 @@ impl Hybrid {
     /// ‖G_o‖_F |Δu_I| + Σ_c ‖W_oc‖_F |Δλ_c| (rounding included), a bound on how far it has
     /// moved since: when that position is farther than this from every ball, the vertex is
     /// outside all of them wherever it is exactly.
-    pub(super) fn contact_positions(&self) -> (&[Vec3], &[Real], Option<MovedSince<'_>>) {
+    pub(super) fn contact_positions(&self) -> (&[Vec3], &[Real]) {
         if let Some(full) = self.surf_pos.get() {
-            return self.whole_contact(full);
+            return (full, &[]);
         }
         let Some(reach) = self.reach.as_deref() else {
-            return self.whole_contact(self.surface_positions());
+            return (self.surface_positions(), &[]);
         };
         if !self.rest.exists() {
-            return self.whole_contact(self.surface_positions());
+            return (self.surface_positions(), &[]);
         }
         let near = match self.near.get() {
             Some(near) => near,
             None => match self.near_positions(reach) {
                 Some(near) => self.near.get_or_init(|| near),
-                None => return self.whole_contact(self.surface_positions()),
+                None => return (self.surface_positions(), &[]),
             },
         };
-        let moved = MovedSince {
-            base: near.base,
-            vertices: &near.moved,
-        };
-        (&near.positions, &near.slack, Some(moved))
-    }
-
-    /// The whole surface as a contact surface, numbered as the reference it made (the two
-    /// are made together, and the reference is never replaced while the surface stands).
-    fn whole_contact<'a>(
-        &'a self,
-        positions: &'a [Vec3],
-    ) -> (&'a [Vec3], &'a [Real], Option<MovedSince<'a>>) {
-        let number = self.surf_ref.borrow().as_ref().map(|r| r.number);
-        let moved = number.map(|base| MovedSince {
-            base,
-            vertices: &[],
-        });
-        (positions, &[], moved)
+        (&near.positions, &near.slack)
     }
 
     /// `contact_positions`' partial surface, or `None` when the whole one is due (no

@@ -82,8 +82,8 @@ fn sym_mul_add(s: &Mat<Real>, x: &[Real], y: &mut [Real], alpha: Real) {
 /// AVX2 one's last n mod 8 columns).
 fn sym_columns(s: &Mat<Real>, from: usize, x: &[Real], y: &mut [Real], alpha: Real) {
     let n = s.nrows();
-    for i in from..n {
-        y[i] += alpha * dot(s.col_as_slice(i), &x[..n]);
+    for (i, yi) in y.iter_mut().enumerate().take(n).skip(from) {
+        *yi += alpha * dot(s.col_as_slice(i), &x[..n]);
     }
 }
 
