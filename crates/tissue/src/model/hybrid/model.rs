@@ -78,7 +78,10 @@ pub struct Hybrid {
     reach: Option<Vec<(Vec3, Real)>>,
     /// The surface a contact search within `reach` needs (`contact_positions`): positions
     /// and slack, emptied with `surf_pos` and whenever the reach or the held set changes.
-    near: OnceCell<(Vec<Vec3>, Vec<Real>)>,
+    near: OnceCell<NearSurface>,
+    /// The last partial surface dropped, kept for its memory: the next one starts from it
+    /// and puts back only the vertices it had moved, instead of copying the reference.
+    spare: RefCell<Option<NearSurface>>,
     /// The last whole surface computed, with the interface displacements and contact forces
     /// it came from: `contact_positions` bounds how far each vertex has moved since.
     /// Dropped when the surface's vertices, the split or the loads change.
@@ -134,8 +137,22 @@ struct SearchMaps {
     tris: Vec<u32>,
 }
 
+/// A partial contact surface (`contact_positions`).
+struct NearSurface {
+    positions: Vec<Vec3>,
+    slack: Vec<Real>,
+    /// The vertices whose positions differ from the reference's: the region's and the
+    /// rows computed (the next partial surface puts them back, see `spare`).
+    moved: Vec<u32>,
+    /// The reference's number (`SurfaceRef::number`).
+    base: u64,
+}
+
 /// A whole surface as computed, and the state of the rest it came from.
 struct SurfaceRef {
+    /// A number no other reference of this process has had (a partial surface's buffers
+    /// are reused only on the reference they came from).
+    number: u64,
     u: Mat<Real>,
     z: Vec<(u32, Vec3)>,
     positions: Vec<Vec3>,
@@ -143,6 +160,13 @@ struct SurfaceRef {
     largest: Real,
     /// Rows of the rest's outer surface the partial surfaces computed since (in vertices).
     rows_since: std::cell::Cell<usize>,
+}
+
+/// A number for a new whole-surface reference, unique in the process.
+fn fresh_reference_number() -> u64 {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
 /// A contact search that needs more than this fraction of the rest's outer vertices gets
@@ -209,6 +233,7 @@ impl Hybrid {
             surf_pos: OnceCell::new(),
             reach: None,
             near: OnceCell::new(),
+            spare: RefCell::new(None),
             surf_ref: RefCell::new(None),
             search: SearchMaps::default(),
 
@@ -273,6 +298,7 @@ impl Hybrid {
                 })
                 .collect();
             *self.surf_ref.borrow_mut() = Some(SurfaceRef {
+                number: fresh_reference_number(),
                 z: self.rest.forces_by_slot(&z),
                 u,
                 largest: positions.iter().fold(0.0, |a: Real, p| a.max(p.length())),
@@ -283,11 +309,18 @@ impl Hybrid {
         })
     }
 
+    /// Empties the partial contact surface, keeping its buffers for the next one.
+    fn drop_near(&mut self) {
+        if let Some(near) = self.near.take() {
+            *self.spare.get_mut() = Some(near);
+        }
+    }
+
     /// Sets where contact searches look (see `contact_positions`).
     pub(super) fn set_reach(&mut self, reach: Option<&[(Vec3, Real)]>) {
         if self.reach.as_deref() != reach {
             self.reach = reach.map(<[_]>::to_vec);
-            self.near.take();
+            self.drop_near();
         }
     }
 
@@ -311,19 +344,19 @@ impl Hybrid {
         if !self.rest.exists() {
             return (self.surface_positions(), &[]);
         }
-        if let Some((positions, slack)) = self.near.get() {
-            return (positions, slack);
-        }
-        let Some(near) = self.near_positions(reach) else {
-            return (self.surface_positions(), &[]);
+        let near = match self.near.get() {
+            Some(near) => near,
+            None => match self.near_positions(reach) {
+                Some(near) => self.near.get_or_init(|| near),
+                None => return (self.surface_positions(), &[]),
+            },
         };
-        let (positions, slack) = self.near.get_or_init(|| near);
-        (positions, slack)
+        (&near.positions, &near.slack)
     }
 
     /// `contact_positions`' partial surface, or `None` when the whole one is due (no
     /// reference, a state that is not finite, or too many vertices near the reach).
-    fn near_positions(&self, reach: &[(Vec3, Real)]) -> Option<(Vec<Vec3>, Vec<Real>)> {
+    fn near_positions(&self, reach: &[(Vec3, Real)]) -> Option<NearSurface> {
         let reference = self.surf_ref.borrow();
         let reference = reference.as_ref()?;
         let n = self.surf_nodes.len();
@@ -390,7 +423,23 @@ impl Hybrid {
             return None;
         }
         let x = self.tm.positions();
-        let mut positions = reference.positions.clone();
+        // The reference's positions: the last partial surface's buffers with the vertices
+        // it moved put back when it came from the same reference, else a copy.
+        let spare = self
+            .spare
+            .borrow_mut()
+            .take()
+            .filter(|sp| sp.base == reference.number && sp.positions.len() == n);
+        let (mut positions, mut slack, mut moved) = match spare {
+            Some(sp) => {
+                let mut positions = sp.positions;
+                for &v in &sp.moved {
+                    positions[v as usize] = reference.positions[v as usize];
+                }
+                (positions, sp.slack, sp.moved)
+            }
+            None => (reference.positions.clone(), vec![0.0; n], Vec::new()),
+        };
         for &(v, r) in &maps.region {
             positions[v as usize] = x[r as usize];
         }
@@ -399,7 +448,9 @@ impl Hybrid {
         let mut bound = Vec::new();
         self.rest.displacement_bounds(du, &terms, &mut bound);
         let rounding = 4.0 * Real::EPSILON * reference.largest;
-        let mut slack = vec![0.0; n];
+        // Every outer vertex's slack is written below; the others' stay 0 (the region's,
+        // and those of no part), as do the rows a partial surface computed, now outer ones.
+        slack.resize(n, 0.0);
         let mut seeds = Vec::new();
         let mut outer = 0;
         for (&v, &b) in maps.vertex_of_slot.iter().zip(&bound) {
@@ -461,7 +512,15 @@ impl Hybrid {
                 self.surf_rest[v as usize] + self.rest.outer_displacement(slot, &u, &z);
             slack[v as usize] = 0.0;
         }
-        Some((positions, slack))
+        moved.clear();
+        moved.extend_from_slice(&rows);
+        moved.extend(maps.region.iter().map(|&(v, _)| v));
+        Some(NearSurface {
+            positions,
+            slack,
+            moved,
+            base: reference.number,
+        })
     }
 
     /// Resolves, per surface vertex, what the partial contact search looks up (the part it
@@ -536,7 +595,7 @@ impl Hybrid {
     /// (nodes a cut exposes get new vertex numbers at the end).
     fn rebuild_triangles(&mut self) {
         self.surf_pos.take();
-        self.near.take();
+        self.drop_near();
         self.surf_ref.take();
         self.alive_tets = self
             .mesh
@@ -799,7 +858,7 @@ impl Hybrid {
         }
         self.tm_entry = tm_entry;
         self.rest_contact = rest_contact;
-        self.near.take();
+        self.drop_near();
         self.constraints = c.clone();
         self.reactions.set(c);
         Ok(())
@@ -846,7 +905,7 @@ impl Hybrid {
         }
         self.rest.set_loads(loads.gravity, &rest_points)?;
         self.tm.set_loads(&tm_loads)?;
-        self.near.take();
+        self.drop_near();
         self.surf_ref.take();
         self.loads = loads.clone();
         Ok(())
@@ -885,7 +944,7 @@ impl Hybrid {
         let z = self.rest.contact_forces(&u);
         // The surface follows on its first read (`surface_positions`).
         self.surf_pos.take();
-        self.near.take();
+        self.drop_near();
         let mut force = vec![Vec3::ZERO; self.surf_nodes.len()];
         let tm_prescribed = self.tm.reactions().prescribed;
         for (v, &e) in self.tm_entry.iter().enumerate() {
