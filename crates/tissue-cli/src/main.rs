@@ -127,6 +127,16 @@ pub enum MeshCommand {
         /// smaller than the tetrahedra do not count; default: size/2 (0 for none).
         #[arg(long)]
         smooth: Option<f64>,
+        /// Radius in voxels of the morphological opening then closing that cleans an
+        /// image's selected voxels before meshing (0 for none).
+        #[arg(long, default_value_t = 1)]
+        open_close: usize,
+        /// Mesh every connected part of an image's selection, not only the largest.
+        #[arg(long)]
+        all_parts: bool,
+        /// Leave holes enclosed by an image's selection unselected.
+        #[arg(long)]
+        keep_holes: bool,
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,

@@ -83,6 +83,9 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             threshold,
             scale,
             smooth,
+            open_close,
+            all_parts,
+            keep_holes,
             json,
             force,
         } => crate::tetrahedralize::tetrahedralize(&crate::tetrahedralize::Request {
@@ -93,6 +96,11 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             threshold: threshold.as_deref(),
             scale: *scale,
             smooth: *smooth,
+            cleaning: tissue::image::Cleaning {
+                open_close: *open_close,
+                largest_component: !*all_parts,
+                fill_holes: !*keep_holes,
+            },
             json: *json,
             force: *force,
         }),

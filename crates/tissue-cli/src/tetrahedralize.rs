@@ -23,6 +23,8 @@ pub struct Request<'a> {
     pub threshold: Option<&'a [f32]>,
     pub scale: f64,
     pub smooth: Option<f64>,
+    /// Cleaning of an image's selected voxels before meshing.
+    pub cleaning: tissue::image::Cleaning,
     pub json: bool,
     pub force: bool,
 }
@@ -50,13 +52,15 @@ pub fn tetrahedralize(r: &Request) -> anyhow::Result<()> {
                         .label_values(l)
                         .map_err(|e| anyhow::anyhow!("{}: --labels: {e}", r.input.display()))?,
                 )
-                .with_context(|| format!("{}: values span {range}", r.input.display()))?,
+                .with_context(|| format!("{}: values span {range}", r.input.display()))?
+                .cleaned(r.cleaning)?,
                 r.smooth,
                 size_given,
             )),
             (None, Some(&[lo, hi])) => Box::new(smooth_image(
                 ImageDomain::from_threshold(&image, lo, hi)
-                    .with_context(|| format!("{}: values span {range}", r.input.display()))?,
+                    .with_context(|| format!("{}: values span {range}", r.input.display()))?
+                    .cleaned(r.cleaning)?,
                 r.smooth,
                 size_given,
             )),

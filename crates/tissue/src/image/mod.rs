@@ -11,6 +11,7 @@
 //! All keep the grid axis-aligned: spacing and origin are read; NRRD also applies flipped or
 //! permuted axes; no reader applies an oblique orientation.
 
+pub mod clean;
 pub mod grid;
 pub mod metaimage;
 pub mod nifti;
@@ -20,6 +21,7 @@ use std::path::Path;
 
 use crate::error::{IoError, Location};
 
+pub use clean::{CleanReport, Cleaning, clean_mask};
 pub use grid::{ByteOrder, ImageStats, LabelRef, Segment, SourceType, VoxelImage};
 
 /// An image file format.

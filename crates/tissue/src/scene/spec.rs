@@ -58,6 +58,25 @@ pub struct ImageSpec {
     /// Gaussian σ (m) blurring the selected voxels before meshing, so that features much
     /// smaller than the tetrahedra do not count; default tet_size / 2, 0 for none.
     pub tet_smooth: Option<Real>,
+    /// Cleaning of the selected voxels before meshing, as a segmentation editor would: the
+    /// radius in voxels of a morphological opening then closing (default 1, 0 for none).
+    pub tet_open_close: Option<usize>,
+    /// Keep only the largest face-connected part of the voxels before meshing (default true).
+    pub tet_largest_part: Option<bool>,
+    /// Select the voxels enclosed by the selection (holes) before meshing (default true).
+    pub tet_fill_holes: Option<bool>,
+}
+
+impl ImageSpec {
+    /// The voxel cleaning before meshing that the `tet_*` keys ask for.
+    pub fn tet_cleaning(&self) -> crate::image::Cleaning {
+        let d = crate::image::Cleaning::default();
+        crate::image::Cleaning {
+            open_close: self.tet_open_close.unwrap_or(d.open_close),
+            largest_component: self.tet_largest_part.unwrap_or(d.largest_component),
+            fill_holes: self.tet_fill_holes.unwrap_or(d.fill_holes),
+        }
+    }
 }
 
 fn one_step() -> usize {

@@ -19,7 +19,7 @@ use crate::model::Progress;
 use crate::voxel::VoxelGrid;
 
 /// Bumped when the mesher's output changes, so stale entries are never reused.
-const MESHER_VERSION: u64 = 1;
+const MESHER_VERSION: u64 = 2;
 /// Meshes kept in the cache (oldest dropped first).
 const CACHE_ENTRIES: usize = 8;
 
@@ -161,6 +161,7 @@ pub(super) fn image_tets(
         .tet_smooth
         .unwrap_or(crate::mesh::stuffing::DEFAULT_IMAGE_SMOOTHING * size);
     let domain = ImageDomain::from_grid(grid)
+        .and_then(|d| d.cleaned(spec.tet_cleaning()))
         .map_err(|e| TetFailure::Mesh(e.to_string()))?
         .smoothed(sigma);
     let (mesh, report) = mesh_domain(&domain, size)?;

@@ -47,6 +47,11 @@ pub trait Domain: Sync {
         None
     }
 
+    /// What cleaning an image's selected voxels changed, and their volume (m³) before it.
+    fn cleaning(&self) -> Option<(crate::image::CleanReport, Real)> {
+        None
+    }
+
     /// The physical tag of the region holding `p` (several labels of one image); 1 by
     /// default.
     fn tag_at(&self, _p: Vec3) -> i32 {

@@ -20,7 +20,10 @@ pub mod domain;
 pub mod image_domain;
 mod lattice;
 pub mod report;
+mod split_rule;
 mod stencil;
+#[cfg(test)]
+mod stencil_bounds;
 pub mod surface_domain;
 pub mod triangle_index;
 
@@ -37,6 +40,7 @@ pub use domain::{Domain, Implicit};
 pub use image_domain::ImageDomain;
 use lattice::Lattice;
 pub use report::{MeshingReport, dihedral_angles, measure, radius_ratio};
+use split_rule::Site;
 use stencil::{Fill, Key};
 pub use surface_domain::SurfaceDomain;
 pub use triangle_index::TriangleIndex;
@@ -213,17 +217,18 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
             cuts[(k - cut_base) as usize].at
         }
     };
-    // Quadrilaterals are split along their shorter diagonal (ties: the smallest key):
-    // both BCC tetrahedra sharing one see the same four points.
-    let split = |q: [Key; 4]| -> bool {
-        let d02 = (actual(q[0]) - actual(q[2])).length_squared();
-        let d13 = (actual(q[1]) - actual(q[3])).length_squared();
-        if d02 != d13 {
-            d02 < d13
+    // Quadrilaterals in lattice faces are split by the lattice rule (`split_rule`): both
+    // BCC tetrahedra sharing one see the same face.
+    let site = |k: Key| -> Site {
+        if k < cut_base {
+            Site::Vertex(lattice.coords(k as u32))
         } else {
-            (0..4).min_by_key(|&i| q[i]).unwrap_or(0) % 2 == 0
+            let c = &cuts[(k - cut_base) as usize];
+            Site::Cut(lattice.coords(c.a), lattice.coords(c.b))
         }
     };
+    let split = |q: [Key; 4]| split_rule::lattice_split(q, site, split_rule::PARITY);
+    let quality = |t: &[[Key; 4]]| stencil_quality(t, &actual, &reference);
     let mut all_zero = Vec::new();
     let mut steiner: Vec<[Key; 6]> = Vec::new();
     let mut steiner_points = 0;
@@ -238,6 +243,7 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
             |v| sign[v as usize],
             cut_key,
             &split,
+            &quality,
             &mut pieces,
             &mut steiner,
         );
@@ -279,11 +285,12 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
             tags.push(domain.tag_at(centroid));
         }
     });
-    // A tetrahedron with all four corners on the boundary is inside when its centre is.
+    // A tetrahedron with all four corners on the boundary is inside when its centre is; it
+    // is kept only when it keeps the angle bound (`stencil::keep_all_zero`).
     for t in all_zero {
         let keys = t.map(|v| v as Key);
         let centroid = keys.iter().map(|&k| actual(k)).sum::<Vec3>() / 4.0;
-        if domain.value(centroid) < 0.0 {
+        if domain.value(centroid) < 0.0 && stencil::keep_all_zero(keys.map(actual)) {
             emit(
                 keys,
                 &reference,
@@ -343,6 +350,26 @@ fn signs(domain: &dyn Domain, points: &[Vec3], progress: &Progress) -> Vec<i8> {
         progress.report("signs", (k + 1) as Real * 65536.0 / points.len() as Real);
     }
     out
+}
+
+/// The smallest dihedral angle of `tets` (radians), -1 when one is turned inside out
+/// relative to the reference geometry: how a stencil picks between free splits.
+fn stencil_quality(
+    tets: &[[Key; 4]],
+    at: &dyn Fn(Key) -> Vec3,
+    reference: &dyn Fn(Key) -> Vec3,
+) -> Real {
+    let mut worst = Real::INFINITY;
+    for t in tets {
+        let (p, r) = (t.map(at), t.map(reference));
+        if tet_signed_volume(p[0], p[1], p[2], p[3]) * tet_signed_volume(r[0], r[1], r[2], r[3])
+            <= 0.0
+        {
+            return -1.0;
+        }
+        worst = dihedral_angles(p).iter().copied().fold(worst, Real::min);
+    }
+    worst
 }
 
 /// Adds one output tetrahedron: maps its keys to output vertices (made on first use) and

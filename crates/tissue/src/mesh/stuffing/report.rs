@@ -45,6 +45,12 @@ pub struct MeshingReport {
     pub volume: Real,
     pub reference_volume: Option<Real>,
     pub volume_error: Option<Real>,
+    /// An image cleaned before meshing: what changed, the selected voxels' volume before the
+    /// cleaning (m³) and the mesh's relative error against it (for information; the
+    /// guarantee is against the cleaned voxels).
+    pub cleaning: Option<crate::image::CleanReport>,
+    pub uncleaned_volume: Option<Real>,
+    pub uncleaned_volume_error: Option<Real>,
     /// Largest distance from a mesh boundary point (vertex, face centroid, edge midpoint) to
     /// the input boundary (m).
     pub mesh_to_input: Real,
@@ -132,6 +138,23 @@ impl fmt::Display for MeshingReport {
                 100.0 * e
             )?,
             _ => writeln!(f, "volume:          {:.6e} m³", self.volume)?,
+        }
+        if let (Some(c), Some(r), Some(e)) = (
+            &self.cleaning,
+            self.uncleaned_volume,
+            self.uncleaned_volume_error,
+        ) {
+            writeln!(
+                f,
+                "cleaned image:   {} → {} voxels ({} parts dropped, {} hole voxels filled); \
+                 volume against the voxels before cleaning {:.6e} m³: {:+.3} %",
+                c.voxels_before,
+                c.voxels_after,
+                c.parts_dropped,
+                c.hole_voxels_filled,
+                r,
+                100.0 * e
+            )?;
         }
         writeln!(
             f,
@@ -279,6 +302,7 @@ pub fn measure(
         })
         .fold(0.0, Real::max);
     let reference_volume = domain.reference_volume();
+    let cleaning = domain.cleaning();
     MeshingReport {
         size,
         vertices: mesh.vertices.len(),
@@ -307,6 +331,12 @@ pub fn measure(
         volume_error: reference_volume
             .filter(|&r| r > 0.0)
             .map(|r| (volume - r) / r),
+        uncleaned_volume: cleaning.as_ref().map(|c| c.1),
+        uncleaned_volume_error: cleaning
+            .as_ref()
+            .filter(|c| c.1 > 0.0)
+            .map(|c| (volume - c.1) / c.1),
+        cleaning: cleaning.map(|c| c.0),
         mesh_to_input,
         input_to_mesh,
         hausdorff: mesh_to_input.max(input_to_mesh),

@@ -16,6 +16,11 @@
 /// A polyhedron vertex: a lattice vertex id, or `CUT_BASE + cut index` for a cut point.
 pub(crate) type Key = u64;
 
+/// How a quadrilateral (four keys in cyclic order) is split: `Some(true)` along the diagonal
+/// (q0, q2), `Some(false)` along (q1, q3), `None` when it lies inside one BCC tetrahedron
+/// and the stencil may choose.
+pub(crate) type Split<'a> = dyn Fn([Key; 4]) -> Option<bool> + 'a;
+
 /// What a tetrahedron's signs asked for.
 #[derive(Debug, PartialEq, Eq)]
 pub(crate) enum Fill {
@@ -34,7 +39,8 @@ pub(crate) fn fill(
     t: [u32; 4],
     sign: impl Fn(u32) -> i8,
     cut: impl Fn(u32, u32) -> Key,
-    split: &dyn Fn([Key; 4]) -> bool,
+    split: &Split<'_>,
+    quality: &dyn Fn(&[[Key; 4]]) -> f64,
     out: &mut Vec<[Key; 4]>,
     steiner: &mut Vec<[Key; 6]>,
 ) -> Fill {
@@ -85,6 +91,7 @@ pub(crate) fn fill(
             prism(
                 [k(a), cut(a, c), cut(a, d), k(b), cut(b, c), cut(b, d)],
                 split,
+                quality,
                 out,
                 steiner,
             );
@@ -96,6 +103,7 @@ pub(crate) fn fill(
             prism(
                 [k(a), k(b), k(c), cut(a, d), cut(b, d), cut(c, d)],
                 split,
+                quality,
                 out,
                 steiner,
             );
@@ -104,83 +112,138 @@ pub(crate) fn fill(
     }
 }
 
+/// Whether a tetrahedron whose four (warped) corners are all on the boundary is kept
+/// (when its centre is inside). Warping may squash it into a sliver: the sampling in
+/// `stencil_bounds` found 4.7° with the paper's α. Such a tetrahedron has all its faces on the
+/// boundary side, so leaving it out keeps the mesh conforming (its faces become boundary
+/// faces, their corners on the surface) and loses only its small volume.
+pub(crate) fn keep_all_zero(p: [crate::math::Vec3; 4]) -> bool {
+    super::report::dihedral_angles(p)
+        .iter()
+        .all(|a| a.to_degrees() >= super::PROVEN_DIHEDRAL_DEG.0)
+}
+
 /// Where Steiner points' keys start: above every lattice vertex and cut point key.
 pub(crate) const STEINER_BASE: Key = 1 << 48;
 
 /// A pyramid on the quadrilateral `q` (cyclic order) with apex `t`: two tetrahedra, split
-/// along the diagonal `split` picks.
-fn pyramid(q: [Key; 4], t: Key, split: &dyn Fn([Key; 4]) -> bool, out: &mut Vec<[Key; 4]>) {
-    let m = if split(q) { 0 } else { 1 };
+/// along the diagonal `split` picks (a pyramid's quadrilateral is always in a lattice face).
+fn pyramid(q: [Key; 4], t: Key, split: &Split<'_>, out: &mut Vec<[Key; 4]>) {
+    let m = if split(q).unwrap_or(true) { 0 } else { 1 };
     let r = |j: usize| q[(m + j) % 4];
     out.push([r(0), r(1), r(2), t]);
     out.push([r(0), r(2), r(3), t]);
 }
 
-/// A triangular prism: bottom `p[0..3]`, top `p[3..6]`, vertical edges (i, i+3). Its three
-/// quadrilaterals are split as `split` says. Unless the three diagonals turn the same way
-/// round the prism, some vertex ends two of them: renamed vertex 0, the prism is three
-/// tetrahedra around it (Dompierre et al. 1999). Otherwise no three tetrahedra fit and a
-/// Steiner point at the prism's centre makes eight.
+/// A triangular prism: bottom `p[0..3]`, top `p[3..6]`, vertical edges (i, i+3). Its
+/// quadrilaterals in lattice faces are split as `split` says; one inside the BCC
+/// tetrahedron (`split` gives `None`) is split whichever way `quality` prefers among those
+/// that leave a three-tetrahedron split. Unless the three diagonals turn the same way round
+/// the prism, some vertex ends two of them: renamed vertex 0, the prism is three tetrahedra
+/// around it (Dompierre et al. 1999). Otherwise no three tetrahedra fit and a Steiner point
+/// at the prism's centre makes eight.
 fn prism(
     p: [Key; 6],
-    split: &dyn Fn([Key; 4]) -> bool,
+    split: &Split<'_>,
+    quality: &dyn Fn(&[[Key; 4]]) -> f64,
     out: &mut Vec<[Key; 4]>,
     steiner: &mut Vec<[Key; 6]>,
 ) {
     // Quadrilateral i is (i, i+1, i+4, i+3) (bottom indices mod 3); its diagonal is
     // "rising" (i, i+4) or "falling" (i+1, i+3).
     let quad = |i: usize| [p[i], p[(i + 1) % 3], p[(i + 1) % 3 + 3], p[i + 3]];
-    let rising = [0, 1, 2].map(|i| split(quad(i)));
-    // Diagonal ends per prism vertex.
-    let ends = |v: usize| -> usize {
+    let fixed = [0, 1, 2].map(|i| split(quad(i)));
+    let mut best: Option<(f64, [[Key; 4]; 3])> = None;
+    for choice in 0..8usize {
+        let free = |i: usize| choice >> i & 1 == 1;
+        if (0..3).any(|i| fixed[i].is_some() && free(i)) {
+            continue;
+        }
+        let rising = [0, 1, 2].map(|i| fixed[i].unwrap_or(free(i)));
+        if let Some(tets) = three_tets(p, rising) {
+            let q = if fixed.iter().all(Option::is_some) {
+                0.0
+            } else {
+                quality(&tets)
+            };
+            if best.as_ref().is_none_or(|(b, _)| q > *b) {
+                best = Some((q, tets));
+            }
+        }
+    }
+    if let Some((_, tets)) = best {
+        out.extend_from_slice(&tets);
+        return;
+    }
+    let s = STEINER_BASE + steiner.len() as Key;
+    steiner.push(p);
+    for (i, r) in fixed.iter().enumerate() {
+        let q = quad(i);
+        let d = if r.unwrap_or(true) { 0 } else { 1 };
+        let r = |j: usize| q[(d + j) % 4];
+        out.push([r(0), r(1), r(2), s]);
+        out.push([r(0), r(2), r(3), s]);
+    }
+    out.push([p[0], p[1], p[2], s]);
+    out.push([p[3], p[4], p[5], s]);
+}
+
+/// The three tetrahedra of prism `p` whose quadrilaterals are split as `rising` says, or
+/// `None` when the three diagonals turn the same way round it.
+fn three_tets(p: [Key; 6], rising: [bool; 3]) -> Option<[[Key; 4]; 3]> {
+    let diagonal = |i: usize| {
+        if rising[i] {
+            (i, (i + 1) % 3 + 3)
+        } else {
+            ((i + 1) % 3, i + 3)
+        }
+    };
+    let ends = |v: usize| {
         (0..3)
             .filter(|&i| {
-                let (a, b) = if rising[i] {
-                    (i, (i + 1) % 3 + 3)
-                } else {
-                    ((i + 1) % 3, i + 3)
-                };
+                let (a, b) = diagonal(i);
                 a == v || b == v
             })
             .count()
     };
-    let Some(m) = (0..6).find(|&v| ends(v) == 2) else {
-        let s = STEINER_BASE + steiner.len() as Key;
-        steiner.push(p);
-        for (i, &up) in rising.iter().enumerate() {
-            let q = quad(i);
-            let d = if up { 0 } else { 1 };
-            let r = |j: usize| q[(d + j) % 4];
-            out.push([r(0), r(1), r(2), s]);
-            out.push([r(0), r(2), r(3), s]);
-        }
-        out.push([p[0], p[1], p[2], s]);
-        out.push([p[3], p[4], p[5], s]);
-        return;
-    };
+    let m = (0..6).find(|&v| ends(v) == 2)?;
     let (rot, flip) = (m % 3, m >= 3);
-    let v = |j: usize| {
+    let index = |j: usize| {
         let level = usize::from((j >= 3) != flip);
-        p[(rot + j % 3) % 3 + 3 * level]
+        (rot + j % 3) % 3 + 3 * level
     };
-    // The quadrilateral opposite vertex 0 is (1, 2, 5, 4).
-    if split([v(1), v(2), v(5), v(4)]) {
-        out.push([v(0), v(1), v(2), v(5)]);
-        out.push([v(0), v(1), v(5), v(4)]);
-        out.push([v(0), v(4), v(5), v(3)]);
-    } else {
-        out.push([v(0), v(1), v(2), v(4)]);
-        out.push([v(0), v(4), v(2), v(5)]);
-        out.push([v(0), v(4), v(5), v(3)]);
-    }
+    let v = |j: usize| p[index(j)];
+    // The quadrilateral opposite vertex 0 is (1, 2, 5, 4): is its diagonal (1, 5)?
+    let opposite = (0..3)
+        .find(|&i| {
+            let (a, b) = diagonal(i);
+            a != m && b != m && i != m % 3 && (i + 1) % 3 != m % 3
+        })
+        .map(diagonal)?;
+    let one_five = [index(1), index(5)];
+    Some(
+        if one_five.contains(&opposite.0) && one_five.contains(&opposite.1) {
+            [
+                [v(0), v(1), v(2), v(5)],
+                [v(0), v(1), v(5), v(4)],
+                [v(0), v(4), v(5), v(3)],
+            ]
+        } else {
+            [
+                [v(0), v(1), v(2), v(4)],
+                [v(0), v(4), v(2), v(5)],
+                [v(0), v(4), v(5), v(3)],
+            ]
+        },
+    )
 }
 
 /// The smallest-key rule (Dompierre et al.): split along the diagonal through the
 /// quadrilateral's smallest key; `true` for the diagonal (q0, q2).
 #[cfg(test)]
-pub(crate) fn smallest_key(q: [Key; 4]) -> bool {
+pub(crate) fn smallest_key(q: [Key; 4]) -> Option<bool> {
     let m = (0..4).min_by_key(|&i| q[i]).unwrap_or(0);
-    m % 2 == 0
+    Some(m % 2 == 0)
 }
 
 #[cfg(test)]
@@ -199,7 +262,7 @@ mod tests {
         ];
         for p in perms {
             let mut out = Vec::new();
-            prism(p, &smallest_key, &mut out, &mut Vec::new());
+            prism(p, &smallest_key, &|_| 0.0, &mut out, &mut Vec::new());
             assert_eq!(out.len(), 3);
             // Each quadrilateral (i, i+1, i+4, i+3) is split by the diagonal through its
             // smallest key: that diagonal must appear as an edge of some tetrahedron.
@@ -234,12 +297,9 @@ mod tests {
                 pts[k as usize]
             }
         };
-        for rule in [
-            &(|_q: [Key; 4]| true) as &dyn Fn([Key; 4]) -> bool,
-            &smallest_key,
-        ] {
+        for rule in [&(|_q: [Key; 4]| Some(true)) as &Split<'_>, &smallest_key] {
             let (mut out, mut st) = (Vec::new(), Vec::new());
-            prism([0, 1, 2, 3, 4, 5], rule, &mut out, &mut st);
+            prism([0, 1, 2, 3, 4, 5], rule, &|_| 0.0, &mut out, &mut st);
             let v: f64 = out
                 .iter()
                 .map(|t| tet_signed_volume(at(t[0]), at(t[1]), at(t[2]), at(t[3])).abs())

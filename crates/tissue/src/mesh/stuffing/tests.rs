@@ -205,3 +205,117 @@ mod blobs {
         }
     }
 }
+
+/// Both BCC tetrahedra sharing a lattice face split its quadrilateral the same way: the
+/// mesh is conforming. Every triangle is a face of one tetrahedron (then all three corners
+/// are on the boundary) or of two with opposite orientations, and the boundary is closed.
+#[test]
+fn neighbouring_stencils_agree_so_the_mesh_is_conforming() {
+    let bumps = [
+        (Vec3::new(0.1, 0.0, 0.05), 0.3),
+        (Vec3::new(-0.25, 0.15, -0.1), 0.22),
+        (Vec3::new(0.2, -0.3, 0.2), 0.18),
+    ];
+    let f = move |p: Vec3| {
+        0.5 - bumps
+            .iter()
+            .map(|&(c, r)| (-(p - c).length_squared() / (r * r)).exp())
+            .sum::<Real>()
+    };
+    let d = Implicit {
+        f,
+        lo: Vec3::splat(-1.0),
+        hi: Vec3::splat(1.0),
+        volume: None,
+    };
+    for h in [0.05, 0.037] {
+        let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+        let mut faces: FxHashMap<[u32; 3], Vec<bool>> = FxHashMap::default();
+        for t in &s.mesh.tets {
+            for (a, b, c) in [(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)] {
+                let tri = [t[a], t[b], t[c]];
+                let mut key = tri;
+                key.sort_unstable();
+                // Orientation parity of the permutation that sorts the triangle.
+                let rot = (0..3).any(|i| [tri[i], tri[(i + 1) % 3], tri[(i + 2) % 3]] == key);
+                faces.entry(key).or_default().push(rot);
+            }
+        }
+        let mut boundary_edges: FxHashMap<[u32; 2], usize> = FxHashMap::default();
+        for (key, sides) in &faces {
+            match sides.as_slice() {
+                [_] => {
+                    for &v in key {
+                        let fv = (d.f)(s.mesh.vertices[v as usize]);
+                        assert!(
+                            fv.abs() < 1e-9,
+                            "boundary face {key:?} off the surface: {fv}"
+                        );
+                    }
+                    for (a, b) in [(0, 1), (1, 2), (0, 2)] {
+                        *boundary_edges.entry([key[a], key[b]]).or_default() += 1;
+                    }
+                }
+                [x, y] => assert_ne!(x, y, "face {key:?} has the same side twice"),
+                more => panic!("face {key:?} shared by {} tetrahedra", more.len()),
+            }
+        }
+        assert!(boundary_edges.values().all(|&n| n == 2));
+    }
+}
+
+/// The quality table of docs/meshing.md: the shipped livers in file units at several sizes
+/// (`cargo test --release --workspace --lib quality_table -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn quality_table() {
+    for (file, sizes) in [
+        ("liver-smooth.obj", &[0.5, 0.3, 0.2, 0.15, 0.07][..]),
+        ("liver.obj", &[1.0, 0.5, 0.3][..]),
+    ] {
+        let path = format!("{}/../../assets/meshes/{file}", env!("CARGO_MANIFEST_DIR"));
+        let data = crate::io::read(&path).unwrap_or_else(|e| panic!("{e}"));
+        let surface = data.surface_mesh().unwrap_or_else(|e| panic!("{e}"));
+        let d = SurfaceDomain::new(&surface).unwrap_or_else(|e| panic!("{e}"));
+        for &h in sizes {
+            let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+            println!("{file} h = {h}:\n{}", s.report);
+        }
+    }
+}
+
+/// Image → tetrahedra settings for the brain scene, printed
+/// (`cargo test --release --workspace --lib brain_image_study -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn brain_image_study() {
+    use crate::image::{Cleaning, read_image};
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/images/anatomical.nii"
+    );
+    let image = read_image(std::path::Path::new(path), 0.001).unwrap_or_else(|e| panic!("{e}"));
+    for cleaning in [Cleaning::NONE, Cleaning::default()] {
+        for h in [0.004, 0.005, 0.006] {
+            for smooth in [0.0, 0.5, 1.0] {
+                let d = ImageDomain::from_threshold(&image, 6000.0, 40000.0)
+                    .and_then(|d| d.cleaned(cleaning))
+                    .unwrap_or_else(|e| panic!("{e}"))
+                    .smoothed(smooth * h);
+                let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+                let r = &s.report;
+                println!(
+                    "clean {} h {h} smooth {smooth}h: {} tets, dihedral {:.2}..{:.2}, volume {:+.2} % (uncleaned {:+.2} %), Hausdorff {:.3} h; {:?}",
+                    cleaning != Cleaning::NONE,
+                    r.tets,
+                    r.min_dihedral_deg,
+                    r.max_dihedral_deg,
+                    100.0 * r.volume_error.unwrap_or(0.0),
+                    100.0 * r.uncleaned_volume_error.unwrap_or(0.0),
+                    r.hausdorff / h,
+                    r.violations()
+                );
+            }
+        }
+    }
+}
