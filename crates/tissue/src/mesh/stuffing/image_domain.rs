@@ -249,9 +249,9 @@ impl Domain for ImageDomain {
 
     fn cleaning(&self) -> Option<(CleanReport, Real)> {
         let voxel = self.spacing.x * self.spacing.y * self.spacing.z;
-        self.cleaning
-            .clone()
-            .map(|c| (c.clone(), c.voxels_before as Real * voxel))
+        let c = self.cleaning.clone()?;
+        let before = c.voxels_before as Real * voxel;
+        Some((c, before))
     }
 
     fn tag_at(&self, p: Vec3) -> i32 {
