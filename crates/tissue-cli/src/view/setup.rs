@@ -4,7 +4,7 @@
 //! for another kind or material starts from here.
 
 use tissue::interact::{Instrument, InstrumentKind, Trajectory};
-use tissue::model::{KINDS, Progress};
+use tissue::model::{BodyNeed, BodyShape, KINDS, Progress};
 use tissue::scene::{Body, IMAGE_KINDS, Scene};
 use tissue::sim::Simulation;
 use tissue::{Error, Material, Real, Vec3};
@@ -70,13 +70,18 @@ impl Setup {
         ))
     }
 
-    /// The kinds this body can be built as: the voxel kinds on an image, every kind on a
-    /// mesh (those that refuse a closed organ say why when asked).
+    /// The kinds this body can be built as: the voxel kinds on an image; on a mesh, the kinds
+    /// whose need (`BodyNeed`: tetrahedra, a closed or an open surface) the mesh meets. A
+    /// surface liver lists the 5 surface and voxel kinds, not the 11 that would only refuse.
     pub fn buildable_kinds(&self) -> Vec<&'static str> {
+        let shape = BodyShape::of(&self.body.mesh);
         KINDS
             .iter()
             .map(|k| k.name)
-            .filter(|k| self.body.grid.is_none() || IMAGE_KINDS.contains(k))
+            .filter(|k| match self.body.grid {
+                Some(_) => IMAGE_KINDS.contains(k),
+                None => BodyNeed::of(k).is_some_and(|need| shape.allows(need)),
+            })
             .collect()
     }
 
@@ -146,5 +151,30 @@ mod tests {
                 .is_some_and(|e| e.contains("cannot be built from an [image]")),
             "{e:?}"
         );
+    }
+
+    /// A mesh scene lists the kinds its mesh can be built as, and only those.
+    #[test]
+    fn a_mesh_scene_lists_only_the_kinds_its_mesh_can_be_built_as() {
+        let listed = |name: &str| {
+            let path = format!("{}/../../scenes/{name}", env!("CARGO_MANIFEST_DIR"));
+            let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let (setup, _) = Setup::load(&scene).unwrap_or_else(|e| panic!("{e}"));
+            setup.buildable_kinds()
+        };
+        assert_eq!(
+            listed("liver-bem.toml"),
+            [
+                "spring-mass",
+                "simplex-spring-mass",
+                "bem",
+                "chainmail",
+                "linked-volumes"
+            ]
+        );
+        assert_eq!(listed("tube-spline.toml"), ["spring-mass", "spline"]);
+        let tetrahedral = listed("liver-probe.toml");
+        assert_eq!(tetrahedral.len(), KINDS.len() - 1);
+        assert!(!tetrahedral.contains(&"spline"));
     }
 }

@@ -27,4 +27,4 @@ pub use deformable::{
 };
 pub use progress::Progress;
 pub use reactions::ConstraintReactions;
-pub use registry::{BuildInput, KINDS, KindInfo, build};
+pub use registry::{BodyNeed, BodyShape, BuildInput, KINDS, KindInfo, build};

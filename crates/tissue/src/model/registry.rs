@@ -98,6 +98,74 @@ pub struct BuildInput<'a> {
     pub params: &'a toml::Table,
 }
 
+/// What a kind needs of the body it is built on: the refusal its build would give, judged
+/// in one pass over the mesh before any work, so that a viewer lists only the kinds a body
+/// can be built as. A build may still refuse for other reasons, and says why.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BodyNeed {
+    /// Tetrahedra: the FEM kinds, both tensor-mass kinds, volumetric springs, hybrid.
+    Volume,
+    /// A closed surface (a volume's boundary is one): bem, the simplex mesh, the voxel
+    /// kinds, whose inside is undefined for an open one.
+    ClosedSurface,
+    /// An open patch or a tube: spline.
+    OpenSurface,
+    /// Any surface, or a volume's boundary: spring-mass.
+    AnySurface,
+}
+
+impl BodyNeed {
+    /// The need of a kind; `None` for an unknown name.
+    pub fn of(kind: &str) -> Option<Self> {
+        Some(match kind {
+            "fem-static"
+            | "fem-condensed"
+            | "fem-precomputed-tensors"
+            | "fem-explicit"
+            | "fem-semi-implicit"
+            | "fem-corotational"
+            | "volumetric-spring-mass"
+            | "tensor-mass"
+            | "tensor-mass-nonlinear"
+            | "hybrid" => Self::Volume,
+            "bem" | "simplex-spring-mass" | "chainmail" | "linked-volumes" => Self::ClosedSurface,
+            "spline" => Self::OpenSurface,
+            "spring-mass" => Self::AnySurface,
+            _ => return None,
+        })
+    }
+}
+
+/// The facts of a body that `BodyNeed` is judged on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BodyShape {
+    pub volume: bool,
+    /// No border edge on the surface (always so for a volume's boundary).
+    pub closed: bool,
+}
+
+impl BodyShape {
+    pub fn of(mesh: &MeshData) -> Self {
+        let volume = mesh.has_volume();
+        let closed = volume
+            || (!mesh.triangles.is_empty()
+                && crate::mesh::topology::edge_faces(&mesh.triangles)
+                    .border_edges()
+                    .next()
+                    .is_none());
+        Self { volume, closed }
+    }
+
+    pub fn allows(&self, need: BodyNeed) -> bool {
+        match need {
+            BodyNeed::Volume => self.volume,
+            BodyNeed::ClosedSurface => self.closed,
+            BodyNeed::OpenSurface => !self.closed,
+            BodyNeed::AnySurface => true,
+        }
+    }
+}
+
 /// Builds a model by kind name.
 pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, Error> {
     match kind {
@@ -144,4 +212,59 @@ pub fn parse_params<T: serde::de::DeserializeOwned>(
         value: kind.to_string(),
         reason: e.to_string().trim().to_string(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+    use crate::mesh::generate::{icosphere, tube};
+
+    /// The need a kind declares is exactly what its build accepts: on a closed surface, an
+    /// open tube and a tetrahedral block, every kind builds where `BodyShape::allows` says
+    /// so and is refused where it does not (a viewer lists only the first).
+    #[test]
+    fn every_kind_builds_exactly_on_the_bodies_its_need_allows() {
+        let material = Material::new(3000.0, 0.3).unwrap();
+        let params = toml::Table::new();
+        let bodies = [
+            (
+                "closed sphere",
+                MeshData::from_surface(&icosphere(Vec3::ZERO, 0.05, 2)),
+            ),
+            (
+                "open tube",
+                MeshData::from_surface(&tube(0.01, 0.08, 16, 12)),
+            ),
+            ("tetrahedral liver", {
+                let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/meshes/liver.msh");
+                let m = crate::io::read(path)
+                    .unwrap()
+                    .tet_mesh("liver.msh")
+                    .unwrap();
+                let scaled = m.vertices.iter().map(|v| *v * 0.01).collect();
+                MeshData::from_tets(&crate::mesh::TetMesh::new(scaled, m.tets))
+            }),
+        ];
+        for (name, mesh) in &bodies {
+            let shape = BodyShape::of(mesh);
+            for kind in KINDS {
+                let need = BodyNeed::of(kind.name).unwrap();
+                let input = BuildInput {
+                    mesh,
+                    source: name,
+                    material,
+                    params: &params,
+                };
+                let built = build(kind.name, &input);
+                assert_eq!(
+                    built.is_ok(),
+                    shape.allows(need),
+                    "{} on the {name} ({shape:?}, needs {need:?}): {:?}",
+                    kind.name,
+                    built.err().map(|e| e.to_string())
+                );
+            }
+        }
+    }
 }

@@ -11,6 +11,7 @@
 use crate::error::MeshError;
 use crate::math::{Real, Vec3};
 use crate::mesh::SurfaceMesh;
+use crate::mesh::topology::edge_faces;
 
 use super::VoxelGrid;
 
@@ -42,6 +43,17 @@ pub fn voxelize_surface(
     })?;
     if mesh.triangles.is_empty() {
         return Err(MeshError::Empty { what: "triangles" });
+    }
+    // The winding number only separates inside from outside for a closed surface: an open
+    // tube would be filled as a solid rod and an open sheet as nothing, both silently. A
+    // voxel body needs a volume, so an open surface is refused with its holes counted.
+    let faces = edge_faces(&mesh.triangles);
+    if let Some([a, b]) = faces.border_edges().next() {
+        return Err(MeshError::NotClosed {
+            border_edges: faces.border_edges().count(),
+            a: a as usize,
+            b: b as usize,
+        });
     }
     let extent = hi - lo;
     let cells = (extent / spacing).ceil() + Vec3::ONE;
@@ -268,6 +280,18 @@ mod tests {
                     .any(|(&c, n)| c == 0 || c + 1 == n);
                 assert!(!(border && g.is_occupied(idx)));
             }
+        }
+    }
+
+    #[test]
+    fn an_open_surface_is_refused_with_its_holes_counted() {
+        // A box without its lid: filling by winding number would be meaningless, so the
+        // refusal names the four border edges of the missing face.
+        let mut open = cube(1.0);
+        open.triangles.truncate(10);
+        match voxelize_surface(&open, 0.25, 1) {
+            Err(MeshError::NotClosed { border_edges, .. }) => assert_eq!(border_edges, 4),
+            other => panic!("expected NotClosed, got {other:?}"),
         }
     }
 

@@ -1,7 +1,7 @@
 //! Per-element quantities computed directly from the deformation gradient: the plain St
 //! Venant–Kirchhoff force (the cross-check of the tensor form, and the energy of the
 //! blow-up guard), its tangent product (for implicit schemes), the linear energy, the
-//! Green strain measure of the hybrid switch, and the volume-conservation penalty.
+//! displacement-gradient measure of the hybrid switch, and the volume-conservation penalty.
 //!
 //! StVK: F = I + H, E = ½(FᵀF − I), S = ℂ:E, first Piola–Kirchhoff stress P = F S, and the
 //! force on corner a is −V P g_a. Its derivative along a displacement δ is
@@ -71,11 +71,18 @@ pub fn stvk_tangent_product(
     rest.gradients.map(|g| dp * g)
 }
 
-/// The Frobenius norm of the Green strain: the measure of the hybrid switch.
+/// The Frobenius norm of the displacement gradient H = ∂u/∂X: the measure of the hybrid
+/// switch. Not the Green strain: the linear force is right only while both the strain and
+/// the rotation are small, and a rotated element has no Green strain at all. Measured by
+/// the Green strain, a tetrahedron turned 0.3 rad stayed linear, pushed back with the ghost
+/// force of a large stretch (a rigid motion must give none), and every switch in and out of
+/// the non-linear set changed the element's energy by that ghost's energy, a pump the
+/// energy guard has to catch. With |H| below the threshold ε the linear force differs from
+/// St Venant–Kirchhoff's by O(ε²) relative, so a switch does too.
 #[inline]
-pub fn strain_norm(rest: &TetRest, u: &[Vec3; 4]) -> Real {
-    let e = green(&rest.displacement_gradient(u));
-    ddot(&e, &e).sqrt()
+pub fn gradient_norm(rest: &TetRest, u: &[Vec3; 4]) -> Real {
+    let h = rest.displacement_gradient(u);
+    ddot(&h, &h).sqrt()
 }
 
 /// ∂V/∂x_a of a tetrahedron's signed volume.

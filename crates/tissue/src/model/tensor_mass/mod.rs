@@ -68,8 +68,9 @@ pub enum Fragments {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TensorMassParams {
-    /// Hybrid switch (non-linear kind only): tetrahedra with a Green strain norm above this
-    /// use St Venant–Kirchhoff, the others the linear force. 0 (default): all non-linear.
+    /// Hybrid switch (non-linear kind only): tetrahedra whose displacement gradient |∂u/∂X|
+    /// (Frobenius; strain and rotation together) exceeds this use St Venant–Kirchhoff, the
+    /// others the linear force; they return below half of it. 0 (default): all non-linear.
     #[serde(default)]
     pub strain_threshold: Real,
     /// Steps between two hybrid checks (default 10): the check costs about one linear

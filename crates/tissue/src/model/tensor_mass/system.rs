@@ -453,7 +453,8 @@ impl TensorSystem {
         w
     }
 
-    /// The hybrid switch: tetrahedra whose Green strain norm exceeds `threshold` join the
+    /// The hybrid switch: tetrahedra whose displacement gradient norm (`gradient_norm`:
+    /// strain and rotation) exceeds `threshold` join the
     /// non-linear set, those below half of it leave (the gap stops flickering). Returns how
     /// many switched.
     pub fn switch_hybrid(&mut self, x: &[Vec3], threshold: Real) -> usize {
@@ -466,7 +467,7 @@ impl TensorSystem {
                 continue;
             }
             let u = self.tets[t].map(|v| x[v as usize] - self.rest[v as usize]);
-            let s = element::strain_norm(&self.rest_tets[t], &u);
+            let s = element::gradient_norm(&self.rest_tets[t], &u);
             let inside = self.in_nonlinear_set(t);
             let want = if inside {
                 s >= 0.5 * threshold
