@@ -144,6 +144,7 @@ pub(super) fn oscillator(damping: Real) -> (Springs, ParticleState, [Hold; 1]) {
             particle: 0,
             target: Vec3::ZERO,
             along: None,
+            unilateral: false,
         }],
     )
 }
@@ -311,6 +312,7 @@ fn a_hanging_chain_comes_to_rest_with_its_weight_on_the_support() {
             particle: 0,
             target: Vec3::ZERO,
             along: None,
+            unilateral: false,
         }];
         let mut integrator = Integrator::new(scheme);
         integrator.settings.cg_tolerance = 1e-12;
@@ -404,6 +406,7 @@ fn non_finite_forces_and_bad_input_leave_the_state_alone() {
         particle: 7,
         target: Vec3::ZERO,
         along: None,
+        unilateral: false,
     }];
     let err = integrator
         .step(&mut system, &mut state, &far, 0.01)
@@ -532,6 +535,7 @@ fn a_hold_along_a_direction_slides_across_it_and_takes_the_normal_force() {
                     particle: 1,
                     target: Vec3::new(-0.3, 0.7, -d),
                     along: Some(Vec3::Z),
+                    unilateral: false,
                 },
             ];
             let mut integ = Integrator::with_settings(
@@ -583,6 +587,7 @@ fn a_hold_along_a_direction_against_a_large_force_books_no_phantom_work() {
                 particle: 1,
                 target: Vec3::ZERO,
                 along: Some(Vec3::Z),
+                unilateral: false,
             },
         ];
         let mut integ = Integrator::new(scheme);

@@ -146,7 +146,10 @@ fn window(h: &[(Real, Vec3, usize)], from: Real, to: Real) -> Window {
         contacts: (usize::MAX, 0),
     };
     let mut last: Option<Vec3> = None;
-    for &(t, f, n) in h.iter().filter(|(t, _, _)| *t > from + 1e-9 && *t <= to + 1e-9) {
+    for &(t, f, n) in h
+        .iter()
+        .filter(|(t, _, _)| *t > from + 1e-9 && *t <= to + 1e-9)
+    {
         let _ = t;
         w.low = w.low.min(f.z);
         w.high = w.high.max(f.z);
@@ -203,12 +206,15 @@ fn report(kind: &str, dt: Real, cells: usize, h: &[(Real, Vec3, usize)], referen
 #[ignore = "study, a minute or more: cargo test --release -p tissue --lib dynamic_sliding_study -- --ignored --nocapture"]
 fn dynamic_sliding_study() {
     let kinds = std::env::var("DYNAMIC_SLIDE_KINDS").unwrap_or_else(|_| {
-        "tensor-mass,tensor-mass-nonlinear,volumetric-spring-mass,fem-semi-implicit,fem-explicit"
+        "fem-static,tensor-mass,tensor-mass-nonlinear,volumetric-spring-mass,fem-semi-implicit,fem-explicit"
             .into()
     });
     let cells = std::env::var("DYNAMIC_SLIDE_CELLS").unwrap_or_else(|_| "8,16".into());
     let dts = std::env::var("DYNAMIC_SLIDE_DT").unwrap_or_else(|_| "0.001".into());
-    for c in cells.split(',').filter_map(|c| c.trim().parse::<usize>().ok()) {
+    for c in cells
+        .split(',')
+        .filter_map(|c| c.trim().parse::<usize>().ok())
+    {
         let mesh = graded_block(c);
         let reference = [
             settled(&mesh, pressed()).z,

@@ -26,6 +26,7 @@ impl TensorMass {
                     particle: n,
                     target: self.state.x[n],
                     along: None,
+                    unilateral: false,
                 });
             }
         }
