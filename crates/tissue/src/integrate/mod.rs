@@ -222,7 +222,8 @@ impl ParticleState {
 /// With `unilateral` as well (an instrument's surface, `Hold::contact`) the hold only
 /// pushes: after each (sub)step a particle that went past the target's plane along −n is
 /// put back on it and its velocity's inward part along n removed (an inelastic contact
-/// with the still plane), one that stays out is left free. The active set is so settled
+/// with the still plane; a particle short of the plane keeps at most the inward velocity
+/// that reaches it in one more substep), one that stays out is left free. The active set is so settled
 /// at every substep, inside the step, and the held force is the momentum the projections
 /// gave over the step divided by its length: never a pull.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -289,9 +290,20 @@ fn place_holds(w: &mut Workspace, holds: &[Hold], h: Real) {
         match hold.along {
             None => w.x1[i] = hold.target,
             Some(n) if hold.unilateral => {
+                // Past the plane: put back on it. Then the velocity along n keeps at most
+                // what takes the particle to the plane in one more (sub)step: explicit Euler
+                // moves by the old velocity, and a particle resting on the plane would
+                // otherwise be let go and caught every other step.
                 let gap = n.dot(w.x1[i] - hold.target);
-                if gap >= 0.0 {
-                    // Out of the instrument or on it: free, pushes nothing.
+                let inside = gap < 0.0;
+                if inside {
+                    w.x1[i] -= n * gap;
+                }
+                let v = w.v1[i];
+                let vn = n.dot(v);
+                let kept = vn.max(-gap.max(0.0) / h);
+                if !inside && kept == vn {
+                    // Out of the instrument and not reaching it: free, pushes nothing.
                     w.contact_active[k] = false;
                     continue;
                 }
@@ -300,10 +312,6 @@ fn place_holds(w: &mut Workspace, holds: &[Hold], h: Real) {
                 } else {
                     0.0
                 };
-                let v = w.v1[i];
-                let vn = n.dot(v);
-                let kept = vn.max(0.0);
-                w.x1[i] -= n * gap;
                 w.v1[i] = v + n * (kept - vn);
                 // The push's momentum (never negative) and, as for a two-sided hold, the
                 // change of the kinetic energy along n over the substep as its work.
