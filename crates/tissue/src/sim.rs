@@ -395,7 +395,7 @@ impl Simulation {
         Ok(StepReport {
             time: t1,
             step: self.steps + 1,
-            contacts: next.iter().map(|i| i.contacts.len()).collect(),
+            contacts: next.iter().map(|i| self.held_count(i)).collect(),
             forces: next.iter().map(|i| i.force).collect(),
             contact_iterations: iterations,
             contact_converged: converged,
@@ -504,6 +504,16 @@ impl Simulation {
             && self.model.contacts_push_only()
             && inst.friction() == Some(0.0)
             && self.fine.is_none()
+    }
+
+    /// The vertices an instrument holds: its contacts, less those a push-only hold left
+    /// free through the step (near the instrument, not touching it).
+    fn held_count(&self, inst: &Instrument) -> usize {
+        if self.pushes_only(inst) {
+            inst.reactions.iter().filter(|f| **f != Vec3::ZERO).count()
+        } else {
+            inst.contacts.len()
+        }
     }
 
     /// Fixed vertices plus every instrument's contacts, in instrument order.

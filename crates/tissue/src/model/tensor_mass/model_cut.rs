@@ -22,12 +22,7 @@ impl TensorMass {
                 && !*h
             {
                 *h = true;
-                self.step_holds.push(Hold {
-                    particle: n,
-                    target: self.state.x[n],
-                    along: None,
-                    unilateral: false,
-                });
+                self.step_holds.push(Hold::new(n, self.state.x[n]));
             }
         }
     }
