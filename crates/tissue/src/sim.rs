@@ -11,7 +11,7 @@ use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
     Contact, PENETRATION_TOLERANCE, hold_points, is_adhesive, project_to_sphere, pulls,
-    vertices_in_ball, vertices_in_shape,
+    vertices_in_ball, vertices_in_shape, vertices_near_shape,
 };
 use crate::interact::fine_surface::MappedSurface;
 use crate::interact::instrument::{Instrument, InstrumentKind};
@@ -24,6 +24,12 @@ use crate::model::{Deformable, StepInfo};
 
 /// Default cap of the static contact loop (solves per step).
 pub const DEFAULT_CONTACT_ITERATIONS: usize = 8;
+
+/// A dynamic model holding frictionless contacts as pushes only (`integrate::Hold::contact`)
+/// is also given the vertices within this fraction of the instrument's size outside it
+/// (plus twice the instrument's move in the step): they are free until they touch, and
+/// touching within the step they are stopped on the instrument at that substep.
+pub const CONTACT_MARGIN: Real = 0.05;
 
 /// What one simulation step did.
 #[derive(Clone, Debug, PartialEq)]
@@ -389,7 +395,7 @@ impl Simulation {
         Ok(StepReport {
             time: t1,
             step: self.steps + 1,
-            contacts: next.iter().map(|i| i.contacts.len()).collect(),
+            contacts: next.iter().map(|i| self.held_count(i)).collect(),
             forces: next.iter().map(|i| i.force).collect(),
             contact_iterations: iterations,
             contact_converged: converged,
@@ -452,7 +458,10 @@ impl Simulation {
                         rest: self.model.rest_surface(),
                         fine: self.fine.as_ref().map(|(m, _)| m),
                     };
-                    inst.contacts = keep_and_find(&surface, inst, old, &shape, taken);
+                    let margin = self.pushes_only(inst).then(|| {
+                        CONTACT_MARGIN * shape.size() + 2.0 * inst.position.distance(old.position)
+                    });
+                    inst.contacts = keep_and_find(&surface, inst, old, &shape, taken, margin);
                 }
                 InstrumentKind::Grasper {
                     grasp_at,
@@ -483,6 +492,27 @@ impl Simulation {
                 InstrumentKind::Scalpel { .. } => inst.contacts.clear(),
             }
             inst.reactions = vec![Vec3::ZERO; inst.contacts.len()];
+        }
+    }
+
+    /// Whether the model holds this instrument's contacts as pushes only, settled within its
+    /// step (`Deformable::contacts_push_only`, the dynamic kinds on the shared integrator):
+    /// it held the last constraints' directions, the instrument is frictionless, and there
+    /// is no fine surface (its face contacts are held in full).
+    fn pushes_only(&self, inst: &Instrument) -> bool {
+        self.along
+            && self.model.contacts_push_only()
+            && inst.friction() == Some(0.0)
+            && self.fine.is_none()
+    }
+
+    /// The vertices an instrument holds: its contacts, less those a push-only hold left
+    /// free through the step (near the instrument, not touching it).
+    fn held_count(&self, inst: &Instrument) -> usize {
+        if self.pushes_only(inst) {
+            inst.reactions.iter().filter(|f| **f != Vec3::ZERO).count()
+        } else {
+            inst.contacts.len()
         }
     }
 
@@ -653,12 +683,17 @@ impl Simulation {
 /// A pushing instrument's contacts at the start of a step: the previous ones that still touch
 /// and did not pull, moved with the instrument (sticking, μ > 0) or projected onto it
 /// (frictionless), then the vertices newly inside it.
+///
+/// With a `margin` (contacts held as pushes only) the previous contacts and the vertices
+/// outside the instrument by less than it are kept or added too, targets at the instrument's
+/// nearest point.
 fn keep_and_find(
     surface: &Surface,
     inst: &Instrument,
     old: &Instrument,
     shape: &Shape,
     taken: &mut [bool],
+    margin: Option<Real>,
 ) -> Vec<Contact> {
     let positions = surface.positions;
     let c = inst.position;
@@ -709,7 +744,7 @@ fn keep_and_find(
             // its force (when it pulls), not by where its vertex is: the instrument's motion
             // just moved its trailing side away from the vertices it drags.
             let frictional = inst.friction().is_some_and(|mu| mu > 0.0);
-            let touching = shape.closest(c, p, fallback).depth <= slack;
+            let touching = shape.closest(c, p, fallback).depth <= margin.unwrap_or(slack);
             (touching || frictional).then(|| {
                 let base = match inst.friction() {
                     // Sticking contact (the default): the vertex, where it is, onto the
@@ -737,6 +772,20 @@ fn keep_and_find(
     resting.sort_unstable();
     mark(taken, &contacts);
     surface.find(shape, c, &mut contacts, taken, &resting);
+    if let Some(margin) = margin {
+        let near = vertices_near_shape(
+            surface.bvh,
+            positions,
+            surface.triangles,
+            shape,
+            c,
+            margin,
+            &|v| is_taken(taken, v),
+        );
+        mark(taken, &near);
+        contacts.extend(near);
+        contacts.sort_unstable_by_key(|k| k.vertex);
+    }
     contacts
 }
 

@@ -218,11 +218,21 @@ impl ParticleState {
 /// along n is set to the target's and its velocity's to that of the straight path there
 /// (a projection), so it slides freely across n; its held force is the component along n
 /// of the force on it.
+///
+/// With `unilateral` as well (an instrument's surface, `Hold::contact`) the hold only
+/// pushes: after each (sub)step a particle that went past the target's plane along −n is
+/// put back on it and its velocity's inward part along n removed (an inelastic contact
+/// with the still plane; a particle short of the plane keeps at most the inward velocity
+/// that reaches it in one more substep), one that stays out is left free. The active set is so settled
+/// at every substep, inside the step, and the held force is the momentum the projections
+/// gave over the step divided by its length: never a pull.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hold {
     pub particle: usize,
     pub target: Vec3,
     pub along: Option<Vec3>,
+    /// Only with `along`: a contact that pushes and never pulls (see above).
+    pub unilateral: bool,
 }
 
 impl Hold {
@@ -232,7 +242,27 @@ impl Hold {
             particle,
             target,
             along: None,
+            unilateral: false,
         }
+    }
+
+    /// A frictionless contact with the plane through `target` of outward unit normal `n`
+    /// (toward the particle's side): it keeps the particle from going past the plane and
+    /// lets it leave.
+    pub fn contact(particle: usize, target: Vec3, n: Vec3) -> Self {
+        Self {
+            particle,
+            target,
+            along: Some(n),
+            unilateral: true,
+        }
+    }
+
+    /// A contact's plane stays at its end-of-step target for the whole step: a straight
+    /// path from where the particle starts would sweep the plane from the particle (which
+    /// may start off the instrument) and push it early.
+    fn ramped(&self) -> bool {
+        !(self.unilateral && self.along.is_some())
     }
 
     /// The part of a force on the particle its hold takes: all of it, or its component
@@ -252,10 +282,43 @@ impl Hold {
 /// work of their holds (`Workspace::along_work`).
 fn place_holds(w: &mut Workspace, holds: &[Hold], h: Real) {
     w.along_work = 0.0;
-    for hold in holds {
+    w.contact_active.clear();
+    w.contact_active.resize(holds.len(), true);
+    w.contact_impulse.resize(holds.len(), 0.0);
+    for (k, hold) in holds.iter().enumerate() {
         let i = hold.particle;
         match hold.along {
             None => w.x1[i] = hold.target,
+            Some(n) if hold.unilateral => {
+                // Past the plane: put back on it. Then the velocity along n keeps at most
+                // what takes the particle to the plane in one more (sub)step: explicit Euler
+                // moves by the old velocity, and a particle resting on the plane would
+                // otherwise be let go and caught every other step.
+                let gap = n.dot(w.x1[i] - hold.target);
+                let inside = gap < 0.0;
+                if inside {
+                    w.x1[i] -= n * gap;
+                }
+                let v = w.v1[i];
+                let vn = n.dot(v);
+                let kept = vn.max(-gap.max(0.0) / h);
+                if !inside && kept == vn {
+                    // Out of the instrument and not reaching it: free, pushes nothing.
+                    w.contact_active[k] = false;
+                    continue;
+                }
+                let m = if w.inv_mass[i] > 0.0 {
+                    1.0 / w.inv_mass[i]
+                } else {
+                    0.0
+                };
+                w.v1[i] = v + n * (kept - vn);
+                // The push's momentum (never negative) and, as for a two-sided hold, the
+                // change of the kinetic energy along n over the substep as its work.
+                w.contact_impulse[k] += m * (kept - vn);
+                let v0n = n.dot(w.v0[i]);
+                w.along_work += 0.5 * m * (kept * kept - v0n * v0n);
+            }
             Some(n) => {
                 let x = w.x1[i] + n * n.dot(hold.target - w.x1[i]);
                 let vn = n.dot(x - w.x0[i]) / h;
@@ -314,6 +377,12 @@ pub(crate) struct Workspace {
     /// The change of kinetic energy along their direction of the particles held along one over
     /// the last (sub)step (`place_holds`), J: work of their holds.
     pub along_work: Real,
+    /// Per hold: false for a contact (`Hold::contact`) that left its particle free in the
+    /// last (sub)step.
+    pub contact_active: Vec<bool>,
+    /// Per hold: the momentum a contact's projections gave its particle along n since the
+    /// step began, N·s.
+    pub contact_impulse: Vec<Real>,
 }
 
 impl Workspace {
@@ -744,11 +813,27 @@ impl Integrator {
                 _ => break,
             }
         }
+        if result.is_ok() {
+            self.contact_forces(holds, dt);
+        }
         if split && result.is_ok() {
             self.apply_split(system, state, holds, dt);
         }
         system.set_step_time(1.0);
         result
+    }
+
+    /// A contact's held force is the push its projections gave over the step, per second:
+    /// the mean contact force, which the particles' momentum balance sees. (The force on
+    /// the particle at the step's end is what a two-sided hold reads; a contact's particle
+    /// touches and leaves within the step, and that snapshot jumps with it.)
+    fn contact_forces(&mut self, holds: &[Hold], dt: Real) {
+        let impulses = &self.work.contact_impulse;
+        for (k, (f, h)) in self.held_forces.iter_mut().zip(holds).enumerate() {
+            if let (true, Some(n)) = (h.unilateral, h.along) {
+                *f = -n * (impulses.get(k).copied().unwrap_or(0.0) / dt);
+            }
+        }
     }
 
     /// Explicit schemes: asks the system to prepare its velocity split for this step.
@@ -840,8 +925,12 @@ impl Integrator {
             return;
         }
         let after = kinetic(&state.v, system.masses(), &self.split_held);
+        // A contact's force is its pushes' momentum (`contact_forces`): the damping on its
+        // particle is the tissue's, and it shows in the next step's pushes.
         for (f, h) in self.held_forces.iter_mut().zip(holds) {
-            *f += h.held_part(self.split_force[h.particle]);
+            if !h.unilateral {
+                *f += h.held_part(self.split_force[h.particle]);
+            }
         }
         if let Some(last) = self.watch.last.as_mut() {
             *last -= (before - after).max(0.0);
@@ -857,6 +946,8 @@ impl Integrator {
         dt: Real,
         n: u32,
     ) -> Result<StepInfo, SimError> {
+        self.work.contact_impulse.clear();
+        self.work.contact_impulse.resize(holds.len(), 0.0);
         if n <= 1 {
             self.work.span = (0.0, 1.0);
             let mut info = self.single(system, state, holds, dt)?;
@@ -892,10 +983,12 @@ impl Integrator {
                     .get(hold.particle)
                     .copied()
                     .unwrap_or(hold.target);
-                sub.push(Hold {
-                    target: from + (hold.target - from) * f,
-                    ..*hold
-                });
+                let target = if hold.ramped() {
+                    from + (hold.target - from) * f
+                } else {
+                    hold.target
+                };
+                sub.push(Hold { target, ..*hold });
             }
             self.work.span = ((Real::from(k) - 1.0) / Real::from(n), f);
             match self.single(system, state, &sub, h) {
@@ -948,7 +1041,7 @@ impl Integrator {
         // bad index or target).
         let target_at = |hold: &Hold, k: u32| {
             let from = state.x.get(hold.particle).copied().unwrap_or(hold.target);
-            if k == n {
+            if k == n || !hold.ramped() {
                 hold.target
             } else {
                 from + (hold.target - from) * (Real::from(k) / Real::from(n))
@@ -1343,7 +1436,11 @@ fn free_kinetic(v: &[Vec3], inv_mass: &[Real]) -> Real {
 /// the kinetic energy such holds' projection gave.
 fn held_work(w: &Workspace, holds: &[Hold]) -> (Real, Real) {
     let snap = (w.along_work, w.along_work.abs());
-    holds.iter().fold(snap, |(s, a), h| {
+    let active = |k: usize| w.contact_active.get(k).copied().unwrap_or(true);
+    holds.iter().enumerate().fold(snap, |(s, a), (k, h)| {
+        if !active(k) {
+            return (s, a);
+        }
         let i = h.particle;
         let dw = -0.5 * h.held_part(w.f0[i] + w.f1[i]).dot(w.x1[i] - w.x0[i]);
         (s + dw, a + dw.abs())

@@ -68,6 +68,7 @@ fn auto_substeps_equal_the_same_steps_taken_by_hand() {
             particle: 0,
             target: target * (k as Real / 7.0),
             along: None,
+            unilateral: false,
         }];
         single
             .step(&mut system2, &mut by_hand, &h, 5.0 / 7.0)
@@ -127,6 +128,7 @@ fn slow_growth_is_refused_long_before_blow_up_and_keeps_the_last_good_state() {
             particle: 0,
             target: Vec3::ZERO,
             along: None,
+            unilateral: false,
         }];
         (system, state, holds)
     };
@@ -215,6 +217,7 @@ fn a_hardening_spring_is_measured_again_as_it_stiffens() {
             particle: 0,
             target: Vec3::new(SPEED * dt * step as Real, 0.0, 0.0),
             along: None,
+            unilateral: false,
         }];
         i.step(&mut system, &mut state, &holds, dt)
             .unwrap_or_else(|e| panic!("step {step}: {e}"));

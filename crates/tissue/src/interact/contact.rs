@@ -281,6 +281,35 @@ pub fn vertices_in_shape(
     .collect()
 }
 
+/// Surface vertices outside `shape` placed at `at` by less than `margin` (or inside it),
+/// ascending, with their targets at its nearest point: the contacts a dynamic model holds
+/// as pushes only (`integrate::Hold::contact`), free until they touch within a substep, so
+/// that a vertex reaching the instrument mid-step is stopped there instead of found inside
+/// at the next step and thrown out. `skip(v)` leaves out vertices that are taken.
+pub fn vertices_near_shape(
+    bvh: &Bvh,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    shape: &Shape,
+    at: Vec3,
+    margin: Real,
+    skip: &dyn Fn(u32) -> bool,
+) -> Vec<Contact> {
+    let candidates: Vec<u32> = match shape.bounds(at) {
+        Some((c, r)) => bvh.query_sphere(c, r + margin),
+        None => (0..triangles.len() as u32).collect(),
+    };
+    vertices_of(&candidates, positions, triangles, skip, |p| {
+        shape.closest(at, p, Vec3::ZERO).depth < margin
+    })
+    .into_iter()
+    .map(|v| {
+        let normal = vertex_normal(v, &candidates, positions, triangles);
+        Contact::on_surface(v, shape.closest(at, positions[v as usize], normal).point)
+    })
+    .collect()
+}
+
 /// True when the force the tissue exerts on the instrument at a contact on its surface (with
 /// outward `normal` there) pulls the instrument toward the tissue: adhesion. Forces below
 /// `1e-9 · scale` (the instrument's largest contact force) in that direction are rounding.

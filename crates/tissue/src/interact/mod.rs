@@ -20,3 +20,6 @@ pub use instrument::{Instrument, InstrumentKind};
 pub use region::Region;
 pub use shape::Shape;
 pub use trajectory::{Keyframe, Trajectory, TrajectoryError};
+
+#[cfg(test)]
+mod tests_dynamic_sliding;

@@ -209,6 +209,17 @@ pub trait Deformable: Send {
         self.set_constraints(constraints).map(|()| false)
     }
 
+    /// Whether the entries `set_constraints_along` holds along a direction are contacts that
+    /// only push (`integrate::Hold::contact`: the dynamic kinds on the shared integrator):
+    /// each (sub)step puts a vertex that went past its target's tangent plane back on it and
+    /// leaves one that moves away free, so the active set is settled inside the step and
+    /// the reaction never pulls. The caller then hands over the vertices near an instrument
+    /// too (`sim::CONTACT_MARGIN`), free until they touch. False (the default): held both
+    /// ways, and the caller releases pulling contacts itself.
+    fn contacts_push_only(&self) -> bool {
+        false
+    }
+
     /// Replaces the external loads (gravity, point loads).
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError>;
 

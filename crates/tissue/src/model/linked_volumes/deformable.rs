@@ -209,6 +209,7 @@ impl Deformable for LinkedVolumes {
                     particle: t.0 as usize,
                     target: *x0 + (t.1 - *x0) * f,
                     along: None,
+                    unilateral: false,
                 })
                 .collect();
             match self

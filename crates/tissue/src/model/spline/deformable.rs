@@ -157,6 +157,7 @@ impl SplineModel {
                         particle: p,
                         target: rest.control[p],
                         along: None,
+                        unilateral: false,
                     });
                 }
             }

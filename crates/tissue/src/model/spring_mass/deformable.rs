@@ -132,19 +132,11 @@ impl Deformable for SpringModel {
         let mut claims = Vec::new();
         for p in 0..n {
             if !fixed[p].is_empty() {
-                holds.push(Hold {
-                    particle: p,
-                    target: self.rest[p],
-                    along: None,
-                });
+                holds.push(Hold::new(p, self.rest[p]));
                 claims.push(fixed[p].iter().map(|&k| (true, k)).collect());
             } else if !prescribed[p].0.is_empty() {
                 let (ks, sum) = &prescribed[p];
-                holds.push(Hold {
-                    particle: p,
-                    target: *sum / ks.len() as Real,
-                    along: None,
-                });
+                holds.push(Hold::new(p, *sum / ks.len() as Real));
                 claims.push(ks.iter().map(|&k| (false, k)).collect());
             }
         }
@@ -171,8 +163,14 @@ impl Deformable for SpringModel {
             let first = dirs.next().flatten().flatten().map(Vec3::normalize_or_zero);
             let same = dirs.all(|d| matches!((d.flatten(), first), (Some(d), Some(f)) if d.normalize_or_zero() == f));
             hold.along = first.filter(|n| same && *n != Vec3::ZERO);
+            // The directions are frictionless contacts: pushes only, settled per substep.
+            hold.unilateral = hold.along.is_some();
         }
         Ok(true)
+    }
+
+    fn contacts_push_only(&self) -> bool {
+        true
     }
 
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {

@@ -40,7 +40,21 @@ impl Deformable for TensorMass {
     }
 
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        self.apply_constraints(c)
+        self.apply_constraints(c, &[])
+    }
+
+    /// Entries with a direction are frictionless contacts held by the integrator's
+    /// projection (`integrate::Hold::contact`).
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.apply_constraints(c, normals).map(|()| true)
+    }
+
+    fn contacts_push_only(&self) -> bool {
+        true
     }
 
     /// Gravity acts as the lumped share m_i g; point loads on their vertex's node.

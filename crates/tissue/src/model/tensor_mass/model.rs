@@ -268,18 +268,27 @@ impl TensorMass {
     }
 
     /// Holds from surface constraints: fixed vertices at rest, prescribed ones at their
-    /// target (fixed wins; the last of two prescriptions wins).
-    pub(super) fn apply_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = c.surface_displacements(&self.surface.rest_positions)?;
-        self.holds = disp
+    /// target (fixed wins; the last of two prescriptions wins). A prescribed entry with a
+    /// direction in `normals` is a frictionless contact (`Hold::contact`): it keeps its node
+    /// on the instrument's side of the target's tangent plane, within every substep, and
+    /// never pulls.
+    pub(super) fn apply_constraints(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<(), SimError> {
+        let holds = c.surface_holds(&self.surface.rest_positions, normals)?;
+        self.holds = holds
             .iter()
             .enumerate()
-            .filter_map(|(s, d)| {
+            .filter_map(|(s, h)| {
                 let n = self.surface.nodes[s] as usize;
-                d.map(|d| Hold {
-                    particle: n,
-                    target: self.mesh.vertices[n] + d,
-                    along: None,
+                h.map(|h| {
+                    let target = self.mesh.vertices[n] + h.displacement;
+                    match h.along {
+                        Some(dir) => Hold::contact(n, target, dir),
+                        None => Hold::new(n, target),
+                    }
                 })
             })
             .collect();
@@ -304,11 +313,7 @@ impl TensorMass {
         for (n, x) in self.state.x.iter().enumerate() {
             if !held[n] && !self.system.is_attached(n) {
                 held[n] = true;
-                self.step_holds.push(Hold {
-                    particle: n,
-                    target: *x,
-                    along: None,
-                });
+                self.step_holds.push(Hold::new(n, *x));
             }
         }
     }

@@ -22,11 +22,7 @@ impl TensorMass {
                 && !*h
             {
                 *h = true;
-                self.step_holds.push(Hold {
-                    particle: n,
-                    target: self.state.x[n],
-                    along: None,
-                });
+                self.step_holds.push(Hold::new(n, self.state.x[n]));
             }
         }
     }

@@ -1,0 +1,286 @@
+//! Frictionless sliding contact on the dynamic kinds (issue 20): a probe pressed into a block
+//! on a fixed floor, held still, slid sideways, held again. The force on it must be smooth
+//! while it is held (no chatter from contacts let go and taken back), never pull, settle to
+//! `fem-static`'s answer on the same mesh, and stay along the normal while it slides.
+
+use crate::interact::{Instrument, InstrumentKind, Keyframe, Loads, Trajectory};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+use crate::mesh::MeshData;
+use crate::mesh::generate::{BoxSplit, box_tets};
+use crate::model::Deformable;
+use crate::model::registry::{BuildInput, build};
+use crate::sim::Simulation;
+
+const E: Real = 3000.0;
+const L: Real = 0.02;
+const H: Real = 0.02;
+const R: Real = 0.02;
+const DEPTH: Real = 3e-4;
+/// Probe path: pressed over [0, PRESS], held to SLIDE, slid 3 mm along +x to HOLD, held to END.
+const PRESS: Real = 0.5;
+const SLIDE: Real = 1.5;
+const HOLD: Real = 2.5;
+const END: Real = 3.0;
+const SLIDE_X: Real = 3e-3;
+
+/// A block [−l, l]² × [0, h], `cells` across (half as many deep), graded toward the top
+/// centre as `tests/sliding_contact.rs`'s block.
+pub(crate) fn graded_block(cells: usize) -> MeshData {
+    let mut mesh = box_tets(
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 1.0),
+        [cells, cells, cells / 2],
+        BoxSplit::Six,
+    );
+    let alpha = 0.25;
+    let grade = |s: Real| alpha * s + (1.0 - alpha) * s * s * s;
+    for p in &mut mesh.vertices {
+        let t = 1.0 - grade(1.0 - p.z);
+        *p = Vec3::new(L * grade(p.x), L * grade(p.y), H * t);
+    }
+    MeshData::from_tets(&mesh)
+}
+
+fn model(kind: &str, mesh: &MeshData) -> Box<dyn Deformable> {
+    let mut material = Material::new(E, 0.3).unwrap();
+    material.damping = 20.0;
+    let params = toml::Table::new();
+    let input = BuildInput {
+        mesh,
+        source: "graded block",
+        material,
+        params: &params,
+    };
+    build(kind, &input).unwrap()
+}
+
+fn sim(kind: &str, mesh: &MeshData, path: &[(Real, Vec3)]) -> Simulation {
+    let model = model(kind, mesh);
+    let fixed: Vec<u32> = (0..model.rest_surface().len() as u32)
+        .filter(|&v| model.rest_surface()[v as usize].z < 1e-9)
+        .collect();
+    let mut sim = Simulation::new(model, fixed, Loads::default()).unwrap();
+    sim.set_max_contact_iterations(60);
+    let path = Trajectory::new(
+        path.iter()
+            .map(|&(t, p)| Keyframe {
+                t,
+                position: p.to_array(),
+            })
+            .collect(),
+    )
+    .unwrap();
+    let probe = Instrument::new("probe", InstrumentKind::Probe, R, path)
+        .unwrap()
+        .with_friction(0.0)
+        .unwrap();
+    sim.add_instrument(probe);
+    sim
+}
+
+fn start() -> Vec3 {
+    Vec3::new(-0.0015, 0.0, H + R)
+}
+
+fn pressed() -> Vec3 {
+    start() - Vec3::Z * DEPTH
+}
+
+/// The press, hold, slide, hold path.
+fn path() -> Vec<(Real, Vec3)> {
+    let slid = pressed() + Vec3::X * SLIDE_X;
+    vec![
+        (0.0, start()),
+        (PRESS, pressed()),
+        (SLIDE, pressed()),
+        (HOLD, slid),
+        (END, slid),
+    ]
+}
+
+/// (time, force, contacts) at every step.
+fn run(kind: &str, mesh: &MeshData, dt: Real) -> Vec<(Real, Vec3, usize)> {
+    let mut sim = sim(kind, mesh, &path());
+    let mut out = Vec::new();
+    while sim.time() < END - 1e-9 {
+        let r = sim.step(dt).unwrap();
+        out.push((r.time, r.forces[0], r.contacts[0]));
+    }
+    out
+}
+
+/// `fem-static`'s force with the probe at `at` (pressed there in a few static steps).
+fn settled(mesh: &MeshData, at: Vec3) -> Vec3 {
+    let mut sim = sim("fem-static", mesh, &[(0.0, start()), (1.0, at)]);
+    let mut f = Vec3::ZERO;
+    for _ in 0..10 {
+        f = sim.step(0.1).unwrap().forces[0];
+    }
+    f
+}
+
+/// What a window of the history shows.
+#[derive(Debug)]
+struct Window {
+    /// Range of the push (force along +z), N.
+    low: Real,
+    high: Real,
+    /// Largest change of the force between steps, N.
+    jump: Real,
+    /// Largest |F_t| / F_z.
+    tangential: Real,
+    /// Steps where the probe is pulled (F_z < 0).
+    pulls: usize,
+    /// Range of the contact count.
+    contacts: (usize, usize),
+}
+
+fn window(h: &[(Real, Vec3, usize)], from: Real, to: Real) -> Window {
+    let mut w = Window {
+        low: Real::INFINITY,
+        high: Real::NEG_INFINITY,
+        jump: 0.0,
+        tangential: 0.0,
+        pulls: 0,
+        contacts: (usize::MAX, 0),
+    };
+    let mut last: Option<Vec3> = None;
+    for &(t, f, n) in h
+        .iter()
+        .filter(|(t, _, _)| *t > from + 1e-9 && *t <= to + 1e-9)
+    {
+        let _ = t;
+        w.low = w.low.min(f.z);
+        w.high = w.high.max(f.z);
+        if let Some(l) = last {
+            w.jump = w.jump.max((f - l).length());
+        }
+        last = Some(f);
+        let ft = Vec3::new(f.x, f.y, 0.0).length();
+        if f.z > 0.0 {
+            w.tangential = w.tangential.max(ft / f.z);
+        }
+        w.pulls += usize::from(f.z < 0.0);
+        w.contacts = (w.contacts.0.min(n), w.contacts.1.max(n));
+    }
+    w
+}
+
+fn report(kind: &str, dt: Real, cells: usize, h: &[(Real, Vec3, usize)], reference: [Real; 2]) {
+    // The second halves of the two holds (settled) and the slide.
+    let held = window(h, 1.0, SLIDE);
+    let slid = window(h, SLIDE + 0.1, HOLD);
+    let after = window(h, HOLD + 0.25, END);
+    let last_held = h
+        .iter()
+        .rfind(|(t, _, _)| *t <= SLIDE + 1e-9)
+        .map_or(0.0, |x| x.1.z);
+    eprintln!(
+        "{kind:>22} dt {:.1} ms {cells:>2} cells | held Fz {:.5}-{:.5} (static {:.5}, end {:+.1}%) jump {:.1e} ({:.1}%) pulls {} contacts {:?} | slide Fz {:.5}-{:.5} jump {:.1e} Ft/Fn {:.3} pulls {} | held again Fz {:.5}-{:.5} (static {:.5}) jump {:.1e} pulls {}",
+        dt * 1e3,
+        held.low,
+        held.high,
+        reference[0],
+        100.0 * (last_held / reference[0] - 1.0),
+        held.jump,
+        100.0 * held.jump / reference[0],
+        held.pulls,
+        held.contacts,
+        slid.low,
+        slid.high,
+        slid.jump,
+        slid.tangential,
+        slid.pulls,
+        after.low,
+        after.high,
+        reference[1],
+        after.jump,
+        after.pulls,
+    );
+}
+
+/// The study: every dynamic kind at 1 ms (tensor-mass also at 0.2 ms) on 8- and 16-cell
+/// blocks. `DYNAMIC_SLIDE_KINDS=kind,kind` and `DYNAMIC_SLIDE_CELLS=8,16` narrow it.
+#[test]
+#[ignore = "study, a minute or more: cargo test --release -p tissue --lib dynamic_sliding_study -- --ignored --nocapture"]
+fn dynamic_sliding_study() {
+    let kinds = std::env::var("DYNAMIC_SLIDE_KINDS").unwrap_or_else(|_| {
+        "fem-static,tensor-mass,tensor-mass-nonlinear,volumetric-spring-mass,fem-semi-implicit,fem-explicit"
+            .into()
+    });
+    let cells = std::env::var("DYNAMIC_SLIDE_CELLS").unwrap_or_else(|_| "8,16".into());
+    let dts = std::env::var("DYNAMIC_SLIDE_DT").unwrap_or_else(|_| "0.001".into());
+    for c in cells
+        .split(',')
+        .filter_map(|c| c.trim().parse::<usize>().ok())
+    {
+        let mesh = graded_block(c);
+        let reference = [
+            settled(&mesh, pressed()).z,
+            settled(&mesh, pressed() + Vec3::X * SLIDE_X).z,
+        ];
+        for kind in kinds.split(',').map(str::trim) {
+            for dt in dts.split(',').filter_map(|d| d.trim().parse::<Real>().ok()) {
+                let h = run(kind, &mesh, dt);
+                report(kind, dt, c, &h, reference);
+                if std::env::var("DYNAMIC_SLIDE_TRACE").is_ok() {
+                    for (t, f, n) in h.iter().filter(|(t, _, _)| *t > 1.0 && *t < 1.1) {
+                        eprintln!("  t {t:.4} F {f:.6} contacts {n}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The property issue 20 asked for, on the 8-cell block at 1 ms: pressed 0.3 mm and held,
+/// the dynamic kinds on the shared integrator give a force that no longer changes between
+/// steps (below 0.1 % of it, against jumps of 17 times it before on `tensor-mass`), that
+/// never pulls at any
+/// contact, and that (`tensor-mass`, the same linear elasticity as `fem-static`) is
+/// `fem-static`'s to 0.5 %; slid 1 mm, the sideways force stays at `fem-static`'s on this
+/// mesh (2.1 % of the push; 0.4 % at 16 cells in the study).
+#[test]
+fn held_probe_force_on_dynamic_kinds_is_smooth_pushes_and_matches_fem_static() {
+    let mesh = graded_block(8);
+    let reference = settled(&mesh, pressed()).z;
+    let slid = pressed() + Vec3::X * 1e-3;
+    let path = [
+        (0.0, start()),
+        (0.3, pressed()),
+        (0.6, pressed()),
+        (0.9, slid),
+    ];
+    for kind in ["tensor-mass", "volumetric-spring-mass"] {
+        let mut sim = sim(kind, &mesh, &path);
+        let mut last: Option<Vec3> = None;
+        while sim.time() < 0.9 - 1e-9 {
+            let r = sim.step(1e-3).unwrap();
+            let f = r.forces[0];
+            let probe = &sim.instruments()[0];
+            for (k, g) in probe.contacts.iter().zip(probe.contact_reactions()) {
+                let shape = probe.shape().unwrap();
+                let push = -g.dot(k.normal(&shape, probe.position));
+                assert!(push >= 0.0, "{kind} at {:.3} s: contact pulls {g}", r.time);
+            }
+            assert!(f.z >= 0.0, "{kind} at {:.3} s: {f}", r.time);
+            // Held from 0.3 s: after a few decay times of the damping (α = 20/s).
+            if r.time > 0.45 && r.time <= 0.6 + 1e-9 {
+                if let Some(l) = last {
+                    let jump = (f - l).length();
+                    assert!(jump < 1e-3 * f.z, "{kind} at {:.3} s: {l} -> {f}", r.time);
+                }
+                last = Some(f);
+                if kind == "tensor-mass" && r.time > 0.5 {
+                    let gap = (f.z / reference - 1.0).abs();
+                    assert!(gap < 5e-3, "{kind}: {} against {reference}", f.z);
+                }
+            }
+            if r.time > 0.65 {
+                let ft = Vec3::new(f.x, f.y, 0.0).length();
+                assert!(ft < 0.03 * f.z, "{kind} at {:.3} s: {f}", r.time);
+            }
+        }
+    }
+}
