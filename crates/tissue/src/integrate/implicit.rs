@@ -175,12 +175,18 @@ impl ImplicitSolver {
         self.damping_blocks.resize(n, Mat3::ZERO);
         self.inv_blocks.resize(n, Mat3::ZERO);
         system.jacobian_blocks(&mut self.stiffness_blocks, &mut self.damping_blocks);
-        for i in 0..n {
-            let jacobi = Mat3::from_diagonal(Vec3::from_slice(&self.inv_diag[3 * i..3 * i + 3]));
-            self.inv_blocks[i] = if inv_mass[i] > 0.0 {
-                let b = Mat3::from_diagonal(Vec3::splat(1.0 / inv_mass[i]))
-                    + h * self.damping_blocks[i]
-                    + (h * h) * self.stiffness_blocks[i];
+        let blocks = self.stiffness_blocks.iter().zip(&self.damping_blocks);
+        let jacobi = self.inv_diag.chunks_exact(3).map(Vec3::from_slice);
+        for (((inv, &w), (k, c)), jacobi) in self
+            .inv_blocks
+            .iter_mut()
+            .zip(inv_mass)
+            .zip(blocks)
+            .zip(jacobi)
+        {
+            let jacobi = Mat3::from_diagonal(jacobi);
+            *inv = if w > 0.0 {
+                let b = Mat3::from_diagonal(Vec3::splat(1.0 / w)) + h * *c + (h * h) * *k;
                 if positive_definite(&b) {
                     b.inverse()
                 } else {

@@ -257,7 +257,7 @@ impl ParticleSystem for SpringLattice {
             };
             let d = *pb - *pa;
             let l = d.length();
-            if !(l > 0.0) {
+            if l.is_nan() || l <= 0.0 {
                 continue;
             }
             let n = d / l;
