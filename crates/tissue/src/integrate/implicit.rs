@@ -3,16 +3,19 @@
 //! (M + h·C + h²·K) Δv = h·(f0 − h·K·v0),   v1 = v0 + Δv,   x1 = x0 + h·v1,
 //!
 //! with K = −∂f/∂x and C = −∂f/∂v at the start of the step, solved matrix-free by the shared
-//! Jacobi-preconditioned CG. Held particles already move at their step velocity in v0, so
+//! CG, preconditioned by the factorised rest matrix M + h·C₀ + h²·K₀ where the system gives
+//! its rest Jacobians (`rest_factor`), else by Jacobi. The operator's Jacobian part is one
+//! `ParticleSystem::system_product` per iteration. Held particles already move at their step velocity in v0, so
 //! their Δv is zero: they are masked out of the solve, and their motion enters the right-hand
 //! side through K·v0. The last Δv warm-starts the next solve.
 
 use crate::error::SimError;
-use crate::math::{Real, Vec3, flatten, flatten_mut, unflatten};
+use crate::math::{Mat3, Real, Vec3, flatten, flatten_mut, unflatten, unflatten_mut};
 use crate::model::StepInfo;
 use crate::solve::CgWorkspace;
 
-use super::{IntegratorSettings, ParticleSystem, Workspace};
+use super::rest_factor::RestPreconditioner;
+use super::{IntegratorSettings, ParticleSystem, Preconditioner, Workspace};
 
 #[derive(Clone, Debug, Default)]
 pub(super) struct ImplicitSolver {
@@ -25,9 +28,17 @@ pub(super) struct ImplicitSolver {
     damping_diag: Vec<Vec3>,
     k_times: Vec<Vec3>,
     c_times: Vec<Vec3>,
+    rest: RestPreconditioner,
+    stiffness_blocks: Vec<Mat3>,
+    damping_blocks: Vec<Mat3>,
+    inv_blocks: Vec<Mat3>,
 }
 
 impl ImplicitSolver {
+    pub fn factorizations(&self) -> usize {
+        self.rest.factorizations
+    }
+
     pub fn forget_warm_start(&mut self) {
         self.dv.fill(Vec3::ZERO);
     }
@@ -66,6 +77,17 @@ impl ImplicitSolver {
                 self.dv[i] = Vec3::ZERO;
             }
         }
+        let blocks = settings.preconditioner == Preconditioner::BlockJacobi;
+        if blocks {
+            self.invert_blocks(system, &w.inv_mass, h);
+        }
+        let factored = settings.preconditioner == Preconditioner::RestFactor
+            && system.rest_jacobians_version().is_some_and(|version| {
+                self.rest
+                    .ensure(h, version, system.masses(), &w.held, &w.x0, |out| {
+                        system.rest_jacobians(out)
+                    })
+            });
         let Self {
             cg,
             dv,
@@ -74,25 +96,53 @@ impl ImplicitSolver {
             mass,
             k_times,
             c_times,
+            rest,
+            inv_blocks,
             ..
         } = self;
         let apply = |p: &[Real], y: &mut [Real]| {
-            let p3 = unflatten(p);
-            system.stiffness_product(p3, k_times);
-            system.damping_product(p3, c_times);
-            let (k, c) = (flatten(k_times), flatten(c_times));
+            system.system_product(h, h * h, unflatten(p), k_times, c_times);
+            let jp = flatten(k_times);
             for j in 0..y.len() {
-                y[j] = mass[j] * p[j] + h * c[j] + h * h * k[j];
+                y[j] = mass[j] * p[j] + jp[j];
             }
         };
-        let result = cg.solve(
-            apply,
-            inv_diag,
-            rhs,
-            flatten_mut(dv),
-            settings.cg_max_iterations,
-            settings.cg_tolerance,
-        );
+        let (max_it, tol) = (settings.cg_max_iterations, settings.cg_tolerance);
+        let result = if blocks {
+            let precondition = |r: &[Real], z: &mut [Real]| {
+                for ((zi, ri), b) in unflatten_mut(z)
+                    .iter_mut()
+                    .zip(unflatten(r))
+                    .zip(&*inv_blocks)
+                {
+                    *zi = *b * *ri;
+                }
+            };
+            cg.solve_preconditioned(
+                apply,
+                precondition,
+                inv_diag,
+                rhs,
+                flatten_mut(dv),
+                max_it,
+                tol,
+            )
+        } else if factored {
+            let precondition = |r: &[Real], z: &mut [Real]| rest.apply(r, z);
+            let result = cg.solve_preconditioned(
+                apply,
+                precondition,
+                inv_diag,
+                rhs,
+                flatten_mut(dv),
+                max_it,
+                tol,
+            );
+            rest.record(result.iterations);
+            result
+        } else {
+            cg.solve(apply, inv_diag, rhs, flatten_mut(dv), max_it, tol)
+        };
         if !result.relative_residual.is_finite() {
             return Err(SimError::Diverged {
                 step,
@@ -109,6 +159,43 @@ impl ImplicitSolver {
             residual: result.relative_residual,
             ..StepInfo::default()
         })
+    }
+
+    /// The inverses of the system matrix's 3x3 diagonal blocks m I + h C_ii + h² K_ii (zero
+    /// for held particles); a block that is not positive definite (an unstable
+    /// linearisation) falls back to the Jacobi diagonal already in `inv_diag`.
+    fn invert_blocks<S: ParticleSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        inv_mass: &[Real],
+        h: Real,
+    ) {
+        let n = inv_mass.len();
+        self.stiffness_blocks.resize(n, Mat3::ZERO);
+        self.damping_blocks.resize(n, Mat3::ZERO);
+        self.inv_blocks.resize(n, Mat3::ZERO);
+        system.jacobian_blocks(&mut self.stiffness_blocks, &mut self.damping_blocks);
+        let blocks = self.stiffness_blocks.iter().zip(&self.damping_blocks);
+        let jacobi = self.inv_diag.chunks_exact(3).map(Vec3::from_slice);
+        for (((inv, &w), (k, c)), jacobi) in self
+            .inv_blocks
+            .iter_mut()
+            .zip(inv_mass)
+            .zip(blocks)
+            .zip(jacobi)
+        {
+            let jacobi = Mat3::from_diagonal(jacobi);
+            *inv = if w > 0.0 {
+                let b = Mat3::from_diagonal(Vec3::splat(1.0 / w)) + h * *c + (h * h) * *k;
+                if positive_definite(&b) {
+                    b.inverse()
+                } else {
+                    jacobi
+                }
+            } else {
+                Mat3::ZERO
+            };
+        }
     }
 
     fn resize(&mut self, n: usize) {
@@ -128,4 +215,13 @@ impl ImplicitSolver {
             buf.resize(3 * n, 0.0);
         }
     }
+}
+
+/// Sylvester's criterion on the symmetric part, with finite entries.
+fn positive_definite(b: &Mat3) -> bool {
+    let (c0, c1, c2) = (b.x_axis, b.y_axis, b.z_axis);
+    let m1 = c0.x;
+    let m2 = c0.x * c1.y - c0.y * c1.x;
+    let det = b.determinant();
+    m1 > 0.0 && m2 > 0.0 && det > 0.0 && det.is_finite() && c2.is_finite()
 }

@@ -17,6 +17,7 @@
 
 pub mod coupling;
 mod implicit;
+pub mod rest_factor;
 mod schemes;
 pub mod split_damping;
 pub mod stable_step;
@@ -28,9 +29,10 @@ mod tests_substeps;
 use serde::Deserialize;
 
 use crate::error::SimError;
-use crate::math::{Real, Vec3, is_finite_vec};
+use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::model::StepInfo;
 
+pub use rest_factor::RankOneJacobians;
 pub use stable_step::Substeps;
 use stable_step::{RateEstimate, substeps_for};
 
@@ -74,11 +76,58 @@ pub trait ParticleSystem {
         out.fill(Vec3::ZERO);
     }
 
+    /// `out = a_c·C·x + a_k·K·x`: the Jacobians' part of the implicit solve's operator,
+    /// applied at every CG iteration. The default calls the two products (`scratch` holds
+    /// one of them); a model whose K and C share their structure (one pass over the
+    /// springs) overrides it to read that structure once.
+    fn system_product(
+        &self,
+        a_c: Real,
+        a_k: Real,
+        x: &[Vec3],
+        out: &mut [Vec3],
+        scratch: &mut [Vec3],
+    ) {
+        self.stiffness_product(x, out);
+        self.damping_product(x, scratch);
+        for (o, c) in out.iter_mut().zip(scratch.iter()) {
+            *o = a_k * *o + a_c * *c;
+        }
+    }
+
+    /// Implicit Euler's factorised preconditioner (`rest_factor`): a number that changes
+    /// whenever the Jacobians at rest do (a topology edit), or None (the default) when the
+    /// system does not give them; then the solve uses Jacobi.
+    fn rest_jacobians_version(&self) -> Option<u64> {
+        None
+    }
+
+    /// Writes K and C at rest into `out` (cleared for the particles by the caller) as
+    /// rank-one terms. Only called when `rest_jacobians_version` is Some. They must be
+    /// positive semi-definite; they need not be exact (they only precondition).
+    fn rest_jacobians(&self, out: &mut RankOneJacobians) {
+        let _ = out;
+    }
+
     /// The 3x3 diagonal blocks' diagonals of K and C, for the Jacobi preconditioner. Leaving
     /// them zero is correct, only slower to converge.
     fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
         stiffness.fill(Vec3::ZERO);
         damping.fill(Vec3::ZERO);
+    }
+
+    /// The 3x3 diagonal blocks of K and C, for the block-Jacobi preconditioner. The default
+    /// puts `jacobian_diagonal`'s diagonals on the blocks' diagonals (plain Jacobi).
+    fn jacobian_blocks(&self, stiffness: &mut [Mat3], damping: &mut [Mat3]) {
+        let mut k = vec![Vec3::ZERO; stiffness.len()];
+        let mut c = vec![Vec3::ZERO; damping.len()];
+        self.jacobian_diagonal(&mut k, &mut c);
+        for (b, d) in stiffness.iter_mut().zip(&k) {
+            *b = Mat3::from_diagonal(*d);
+        }
+        for (b, d) in damping.iter_mut().zip(&c) {
+            *b = Mat3::from_diagonal(*d);
+        }
     }
 
     /// Explicit schemes: prepares a velocity update applied once per step after the
@@ -155,6 +204,31 @@ impl std::fmt::Display for Scheme {
     }
 }
 
+/// The preconditioner of implicit Euler's CG, named in scenes as `preconditioner = "jacobi"`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preconditioner {
+    /// The diagonal of the system matrix (cheap per iteration, many iterations).
+    #[default]
+    Jacobi,
+    /// Its 3x3 diagonal blocks (`ParticleSystem::jacobian_blocks`), inverted once per step.
+    BlockJacobi,
+    /// M + h·C₀ + h²·K₀ at rest, factorised once (`rest_factor`); Jacobi for systems that
+    /// do not give their rest Jacobians.
+    RestFactor,
+}
+
+impl Preconditioner {
+    /// The name used in scenes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preconditioner::Jacobi => "jacobi",
+            Preconditioner::BlockJacobi => "block-jacobi",
+            Preconditioner::RestFactor => "rest-factor",
+        }
+    }
+}
+
 /// Knobs of the integrators.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IntegratorSettings {
@@ -162,6 +236,8 @@ pub struct IntegratorSettings {
     pub cg_max_iterations: usize,
     /// Implicit Euler: CG stops when ‖r‖ ≤ tolerance·‖b‖.
     pub cg_tolerance: Real,
+    /// Implicit Euler: CG's preconditioner (default Jacobi).
+    pub preconditioner: Preconditioner,
     /// The largest relative energy gain one step may show beyond the work the held particles
     /// did. Default 8: a stable mode's measured energy ½mv² + U swings by up to (1 + hω/2) /
     /// (1 − hω/2) = 9 between two steps at the automatic substeps' hω ≤ 1.6, while a step far
@@ -180,6 +256,7 @@ impl Default for IntegratorSettings {
         Self {
             cg_max_iterations: 100,
             cg_tolerance: 1e-6,
+            preconditioner: Preconditioner::default(),
             energy_growth: 8.0,
             substeps: Substeps::Auto,
             watch_growth: true,
@@ -547,6 +624,11 @@ impl Integrator {
     /// Steps taken successfully (each made of `last_substeps` internal steps).
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Factorisations of implicit Euler's rest-matrix preconditioner so far.
+    pub fn implicit_factorizations(&self) -> usize {
+        self.implicit.factorizations()
     }
 
     /// Internal steps the last step took (0 before the first).

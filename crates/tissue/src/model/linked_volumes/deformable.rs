@@ -276,6 +276,14 @@ impl Deformable for LinkedVolumes {
                 ("neighbours".into(), self.params.neighbours.to_string()),
                 ("voxel_size".into(), format!("{:.4e}", self.spacing.x)),
                 ("integrator".into(), self.params.integrator.to_string()),
+                (
+                    "preconditioner".into(),
+                    self.params.preconditioner.name().to_string(),
+                ),
+                (
+                    "factorizations".into(),
+                    self.integrator.implicit_factorizations().to_string(),
+                ),
                 ("substeps_setting".into(), self.params.substeps.describe()),
                 (
                     "substeps".into(),

@@ -22,6 +22,8 @@ pub mod springs;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
+mod tests_solve;
+#[cfg(test)]
 mod tests_topology;
 mod topology;
 pub mod volume_term;
@@ -31,7 +33,9 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
-use crate::integrate::{Hold, Integrator, ParticleState, Scheme};
+use crate::integrate::{
+    Hold, Integrator, IntegratorSettings, ParticleState, Preconditioner, Scheme,
+};
 use crate::interact::Constraints;
 use crate::material::Material;
 use crate::math::{Real, Vec3};
@@ -64,8 +68,27 @@ pub struct LinkedVolumesParams {
     /// limit needs; 1 for implicit Euler) or a forced count (the key's original meaning).
     #[serde(default)]
     pub substeps: crate::integrate::Substeps,
+    /// Implicit Euler: CG iteration cap and relative tolerance (defaults 100, 1e-6).
+    #[serde(default = "default_cg_iterations")]
+    pub cg_iterations: usize,
+    #[serde(default = "default_cg_tolerance")]
+    pub cg_tolerance: Real,
+    /// Implicit Euler: CG's preconditioner, `"block-jacobi"` (default), `"jacobi"` or
+    /// `"rest-factor"` (the rest system matrix factorised once: few iterations, but on the
+    /// pelvis and brain scenes each costs more than Jacobi's hundred; docs/performance.md).
+    #[serde(default = "default_preconditioner")]
+    pub preconditioner: Preconditioner,
 }
 
+fn default_cg_iterations() -> usize {
+    IntegratorSettings::default().cg_max_iterations
+}
+fn default_cg_tolerance() -> Real {
+    IntegratorSettings::default().cg_tolerance
+}
+fn default_preconditioner() -> Preconditioner {
+    Preconditioner::BlockJacobi
+}
 fn default_resolution() -> usize {
     16
 }
@@ -84,6 +107,9 @@ impl Default for LinkedVolumesParams {
             neighbours: default_neighbours(),
             integrator: default_scheme(),
             substeps: crate::integrate::Substeps::Auto,
+            cg_iterations: default_cg_iterations(),
+            cg_tolerance: default_cg_tolerance(),
+            preconditioner: default_preconditioner(),
         }
     }
 }
@@ -196,7 +222,15 @@ impl LinkedVolumes {
             integrator: {
                 // A forced count is the model's own loop (held targets interpolated there);
                 // under auto the shared integrator splits the step itself.
-                let mut i = Integrator::new(params.integrator);
+                let mut i = Integrator::with_settings(
+                    params.integrator,
+                    IntegratorSettings {
+                        cg_max_iterations: params.cg_iterations,
+                        cg_tolerance: params.cg_tolerance,
+                        preconditioner: params.preconditioner,
+                        ..IntegratorSettings::default()
+                    },
+                );
                 if let crate::integrate::Substeps::Fixed(_) = params.substeps {
                     i.settings.substeps = crate::integrate::Substeps::Fixed(1);
                 }
@@ -292,6 +326,20 @@ fn check_size(p: &LinkedVolumesParams) -> Result<(), SimError> {
     }
     if let Some(h) = p.voxel_size.filter(|h| !(h.is_finite() && *h > 0.0)) {
         return bad("voxel_size", h.to_string(), "must be finite and > 0");
+    }
+    if !(p.cg_tolerance.is_finite() && p.cg_tolerance >= 0.0) {
+        return bad(
+            "cg_tolerance",
+            p.cg_tolerance.to_string(),
+            "must be a finite value >= 0",
+        );
+    }
+    if p.cg_iterations > 1_000_000 {
+        return bad(
+            "cg_iterations",
+            p.cg_iterations.to_string(),
+            "must be at most 1000000",
+        );
     }
     family_coefficients(p.neighbours).map(|_| ())
 }

@@ -21,8 +21,9 @@
 //! geometric term dropped to keep K positive semi-definite) and C = Σ c n nᵀ + α M.
 
 use crate::error::SimError;
-use crate::integrate::ParticleSystem;
-use crate::math::{Real, Vec3};
+use crate::integrate::{ParticleSystem, RankOneJacobians};
+use crate::math::{Mat3, Real, Vec3};
+use crate::model::spring_mass::springs::outer;
 
 use super::volume_term::{LatticeModuli, VolumeTerm};
 
@@ -58,6 +59,11 @@ pub struct SpringLattice {
     /// The moduli and the voxel volume (m³) the volume term was built with.
     volume_moduli: Option<(LatticeModuli, Real)>,
     linear: Vec<Linear>,
+    /// Rest positions (given with the volume term), for implicit Euler's rest-matrix
+    /// preconditioner; empty: none.
+    rest: Vec<Vec3>,
+    /// Counts edits of the springs and the volume term: the rest matrix's version.
+    edits: u64,
 }
 
 /// The (k L²/V) coefficients per family (axis, face diagonal, body diagonal) in units of E.
@@ -86,6 +92,8 @@ impl SpringLattice {
             external: vec![Vec3::ZERO; n],
             volume: VolumeTerm::default(),
             volume_moduli: None,
+            rest: Vec::new(),
+            edits: 0,
         }
     }
 
@@ -97,6 +105,7 @@ impl SpringLattice {
         // Reset in place: a fresh vector per edit costs more in page faults than the edit.
         self.linear.clear();
         self.linear.resize(self.springs.len(), Linear::default());
+        self.edits += 1;
     }
 
     /// Adds the volume term of `moduli` on voxels of `voxel_volume` (m³), its stencils and
@@ -118,6 +127,11 @@ impl SpringLattice {
         if let Some((moduli, volume)) = self.volume_moduli {
             self.volume = VolumeTerm::from_springs(&self.springs, rest, &moduli, volume);
         }
+        if rest.len() == self.masses.len() {
+            self.rest.clear();
+            self.rest.extend_from_slice(rest);
+        }
+        self.edits += 1;
     }
 
     /// Σ ½ k (l − L)² plus the volume energy.
@@ -204,6 +218,72 @@ impl ParticleSystem for SpringLattice {
         for ((o, m), d) in out.iter_mut().zip(&self.masses).zip(dv) {
             *o += self.alpha * m * *d;
         }
+    }
+
+    /// One pass over the springs: each contributes (a_c c + a_k (k_a − k_b)) n nᵀ + a_k k_b I.
+    fn system_product(
+        &self,
+        a_c: Real,
+        a_k: Real,
+        x: &[Vec3],
+        out: &mut [Vec3],
+        _scratch: &mut [Vec3],
+    ) {
+        for ((o, m), d) in out.iter_mut().zip(&self.masses).zip(x) {
+            *o = (a_c * self.alpha * m) * *d;
+        }
+        for (lin, s) in self.linear.iter().zip(&self.springs) {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let r = x[a] - x[b];
+            let along = a_c * s.c + a_k * (lin.ka - lin.kb);
+            let y = (along * lin.n.dot(r)) * lin.n + (a_k * lin.kb) * r;
+            out[a] += y;
+            out[b] -= y;
+        }
+        self.volume.add_scaled_stiffness_product(a_k, x, out);
+    }
+
+    fn rest_jacobians_version(&self) -> Option<u64> {
+        (self.rest.len() == self.masses.len()).then_some(self.edits)
+    }
+
+    /// At rest each spring is k n₀n₀ᵀ (no transverse part: l = L) with damper c n₀n₀ᵀ, and
+    /// each voxel's volume term κV₀w g₀g₀ᵀ.
+    fn rest_jacobians(&self, out: &mut RankOneJacobians) {
+        for s in &self.springs {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let (Some(pa), Some(pb)) = (self.rest.get(a), self.rest.get(b)) else {
+                continue;
+            };
+            let d = *pb - *pa;
+            let l = d.length();
+            if l.is_nan() || l <= 0.0 {
+                continue;
+            }
+            let n = d / l;
+            out.push([(s.a, n), (s.b, -n)], s.k, s.c);
+        }
+        self.volume.rest_jacobians(&self.rest, out);
+        for (d, m) in out.damping_diagonal.iter_mut().zip(&self.masses) {
+            *d += self.alpha * m;
+        }
+    }
+
+    fn jacobian_blocks(&self, stiffness: &mut [Mat3], damping: &mut [Mat3]) {
+        stiffness.fill(Mat3::ZERO);
+        for (d, m) in damping.iter_mut().zip(&self.masses) {
+            *d = Mat3::from_diagonal(Vec3::splat(self.alpha * m));
+        }
+        for (lin, s) in self.linear.iter().zip(&self.springs) {
+            let nn = outer(lin.n, lin.n);
+            let kb = (lin.ka - lin.kb) * nn + Mat3::from_diagonal(Vec3::splat(lin.kb));
+            let cb = s.c * nn;
+            for e in [s.a as usize, s.b as usize] {
+                stiffness[e] += kb;
+                damping[e] += cb;
+            }
+        }
+        self.volume.add_blocks(stiffness);
     }
 
     fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {

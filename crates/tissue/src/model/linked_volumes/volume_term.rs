@@ -25,7 +25,8 @@
 
 use crate::error::SimError;
 use crate::material::Material;
-use crate::math::{Real, Vec3};
+use crate::math::{Mat3, Real, Vec3};
+use crate::model::spring_mass::springs::outer;
 
 use super::springs::Spring;
 
@@ -208,11 +209,17 @@ impl VolumeTerm {
 
     /// Adds K·dx with K = κ V₀ g gᵀ (the Gauss-Newton part, see the module doc).
     pub fn add_stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
+        self.add_scaled_stiffness_product(1.0, dx, out);
+    }
+
+    /// Adds `scale`·K·dx.
+    pub fn add_scaled_stiffness_product(&self, scale: Real, dx: &[Vec3], out: &mut [Vec3]) {
+        let stiffness = scale * self.stiffness;
         for (g, s) in self.grads.iter().zip(&self.stencils) {
             let r: Real = (0..3)
                 .map(|d| g[d].dot(dx[s.plus[d] as usize] - dx[s.minus[d] as usize]))
                 .sum();
-            let t = self.stiffness * s.weight * r;
+            let t = stiffness * s.weight * r;
             for d in 0..3 {
                 out[s.plus[d] as usize] += t * g[d];
                 out[s.minus[d] as usize] -= t * g[d];
@@ -220,8 +227,33 @@ impl VolumeTerm {
         }
     }
 
+    /// K at the `rest` positions (J = 1, so exact there) as rank-one terms κV₀w g₀g₀ᵀ.
+    pub fn rest_jacobians(&self, rest: &[Vec3], out: &mut crate::integrate::RankOneJacobians) {
+        let n = rest.len();
+        for s in &self.stencils {
+            let in_range = (0..3).all(|d| (s.plus[d] as usize) < n && (s.minus[d] as usize) < n);
+            if !in_range {
+                continue;
+            }
+            let g = jacobian(s, rest).1;
+            let parts = (0..3).flat_map(|d| [(s.plus[d], g[d]), (s.minus[d], -g[d])]);
+            out.push(parts, self.stiffness * s.weight, 0.0);
+        }
+    }
+
     /// Adds the diagonals of K's 3x3 diagonal blocks.
     pub fn add_diagonal(&self, diag: &mut [Vec3]) {
+        self.each_block_part(|p, w, v| diag[p] += w * v * v);
+    }
+
+    /// Adds K's 3x3 diagonal blocks.
+    pub fn add_blocks(&self, blocks: &mut [Mat3]) {
+        self.each_block_part(|p, w, v| blocks[p] += w * outer(v, v));
+    }
+
+    /// Calls `f(particle, κV₀w, v)` for each particle of each stencil, v the particle's
+    /// part of ∂J/∂x: its diagonal block of the term is κV₀w v vᵀ.
+    fn each_block_part(&self, mut f: impl FnMut(usize, Real, Vec3)) {
         for (g, s) in self.grads.iter().zip(&self.stencils) {
             // A particle can appear in several columns (the voxel itself at a surface):
             // its block is built from the sum of its gradient entries.
@@ -239,7 +271,7 @@ impl VolumeTerm {
                 }
             }
             for (p, v) in &parts[..used] {
-                diag[*p as usize] += self.stiffness * s.weight * *v * *v;
+                f(*p as usize, self.stiffness * s.weight, *v);
             }
         }
     }

@@ -194,6 +194,23 @@ impl ParticleSystem for SpringBody {
         self.network.add_damping_product(dv, out);
     }
 
+    fn system_product(
+        &self,
+        a_c: Real,
+        a_k: Real,
+        x: &[Vec3],
+        out: &mut [Vec3],
+        _scratch: &mut [Vec3],
+    ) {
+        for ((o, d), m) in out.iter_mut().zip(x).zip(&self.masses) {
+            *o = (a_c * self.friction * *m) * *d;
+        }
+        self.network.add_system_product(a_c, a_k, x, out);
+        if let Some(p) = &self.pressure {
+            p.add_scaled_stiffness_product(a_k, x, out);
+        }
+    }
+
     fn prepare_velocity_split(&mut self, dt: Real, held: &[bool]) -> Result<bool, SimError> {
         if !self.split_damping() {
             return Ok(false);

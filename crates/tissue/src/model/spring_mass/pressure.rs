@@ -67,8 +67,14 @@ impl Pressure {
 
     /// out += (K/V₀) ∇V (∇V·dx).
     pub fn add_stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
+        self.add_scaled_stiffness_product(1.0, dx, out);
+    }
+
+    /// Adds `scale`·K·dx.
+    pub fn add_scaled_stiffness_product(&self, scale: Real, dx: &[Vec3], out: &mut [Vec3]) {
         let g = &self.gradient;
-        let s: Real = g.iter().zip(dx).map(|(a, b)| a.dot(*b)).sum::<Real>() * self.bulk_modulus
+        let s: Real = g.iter().zip(dx).map(|(a, b)| a.dot(*b)).sum::<Real>()
+            * (scale * self.bulk_modulus)
             / self.rest_volume;
         for (o, gi) in out.iter_mut().zip(g) {
             *o += s * *gi;

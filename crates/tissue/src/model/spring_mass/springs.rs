@@ -155,6 +155,20 @@ impl SpringNetwork {
         }
     }
 
+    /// out += (a_c·C + a_k·K) dx in one pass over the springs (the implicit solve's operator).
+    pub fn add_system_product(&self, a_c: Real, a_k: Real, dx: &[Vec3], out: &mut [Vec3]) {
+        for (s, (k, c)) in self.springs.iter().zip(&self.blocks) {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let r = dx[a] - dx[b];
+            let mut y = a_k * (*k * r);
+            if s.damping != 0.0 {
+                y += a_c * (*c * r);
+            }
+            out[a] += y;
+            out[b] -= y;
+        }
+    }
+
     /// Adds the diagonals of −∂f/∂x and −∂f/∂v (for a Jacobi preconditioner).
     pub fn add_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
         for (s, (k, c)) in self.springs.iter().zip(&self.blocks) {
@@ -330,6 +344,37 @@ mod tests {
         for p in 0..4 {
             // The damping force is linear in v: the difference is exact.
             assert!(((f0[p] - f1[p]) - out[p]).length() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn the_fused_product_is_the_two_products() {
+        let (mut n, x0, _) = network();
+        // Stretched and sheared, so K has its transverse part.
+        let x: Vec<Vec3> = x0
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *p * 1.3 + Vec3::new(0.1 * i as Real, 0.0, -0.05))
+            .collect();
+        n.prepare(&x);
+        let dx: Vec<Vec3> = (0..4)
+            .map(|i| Vec3::new((i as Real).sin(), 0.3, (2.0 * i as Real).cos()))
+            .collect();
+        let (a_c, a_k) = (0.01, 1e-4);
+        let (mut k, mut c, mut fused) = (
+            vec![Vec3::ZERO; 4],
+            vec![Vec3::ZERO; 4],
+            vec![Vec3::ZERO; 4],
+        );
+        n.add_stiffness_product(&dx, &mut k);
+        n.add_damping_product(&dx, &mut c);
+        n.add_system_product(a_c, a_k, &dx, &mut fused);
+        for p in 0..4 {
+            let want = a_k * k[p] + a_c * c[p];
+            assert!(
+                (fused[p] - want).length()
+                    <= 1e-15 * (a_k * k[p].length() + a_c * c[p].length()) + 1e-300
+            );
         }
     }
 
