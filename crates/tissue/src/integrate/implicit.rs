@@ -157,6 +157,9 @@ impl ImplicitSolver {
         Ok(StepInfo {
             iterations: result.iterations,
             residual: result.relative_residual,
+            // A solve stopped by the cap before its tolerance is an approximation the caller
+            // must hear of (`tissue run` counts such steps and their worst residual).
+            capped: result.iterations >= max_it && result.relative_residual > tol,
             ..StepInfo::default()
         })
     }

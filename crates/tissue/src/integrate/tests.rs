@@ -726,3 +726,21 @@ fn a_contact_pushes_with_the_normal_force_and_lets_go_without_pulling() {
         }
     }
 }
+
+#[test]
+fn an_implicit_solve_stopped_by_its_cap_says_so() {
+    // The free triangle's 9 unknowns need more than one CG iteration to reach 1e-12: with a
+    // cap of 1 the step is an approximation and must report it; with the default cap it
+    // converges and does not.
+    let (mut system, mut state) = free_triangle();
+    let mut capped = Integrator::new(Scheme::ImplicitEuler);
+    capped.settings.cg_max_iterations = 1;
+    capped.settings.cg_tolerance = 1e-12;
+    let info = capped.step(&mut system, &mut state, &[], 0.01).unwrap();
+    assert!(info.capped && info.residual > 1e-12, "{info:?}");
+    let (mut system, mut state) = free_triangle();
+    let mut converged = Integrator::new(Scheme::ImplicitEuler);
+    converged.settings.cg_tolerance = 1e-12;
+    let info = converged.step(&mut system, &mut state, &[], 0.01).unwrap();
+    assert!(!info.capped && info.residual <= 1e-12, "{info:?}");
+}

@@ -68,7 +68,8 @@ pub struct LinkedVolumesParams {
     /// limit needs; 1 for implicit Euler) or a forced count (the key's original meaning).
     #[serde(default)]
     pub substeps: crate::integrate::Substeps,
-    /// Implicit Euler: CG iteration cap and relative tolerance (defaults 100, 1e-6).
+    /// Implicit Euler: CG iteration cap and relative tolerance (defaults 1000, 1e-6; a step
+    /// stopped by the cap is reported as capped).
     #[serde(default = "default_cg_iterations")]
     pub cg_iterations: usize,
     #[serde(default = "default_cg_tolerance")]

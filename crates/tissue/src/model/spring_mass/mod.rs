@@ -88,7 +88,8 @@ pub struct SpringParams {
     /// Depth of the parent layer as a fraction of the way to the centroid (default 0.5).
     #[serde(default = "default_depth")]
     pub parent_depth: Real,
-    /// Implicit Euler: CG iteration cap and relative tolerance (defaults 100, 1e-6).
+    /// Implicit Euler: CG iteration cap and relative tolerance (defaults 1000, 1e-6; a step
+    /// stopped by the cap is reported as capped).
     #[serde(default = "default_cg_iterations")]
     pub cg_iterations: usize,
     #[serde(default = "default_cg_tolerance")]
