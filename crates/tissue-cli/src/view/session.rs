@@ -69,7 +69,11 @@ pub struct Session {
     handle: HapticHandle,
     _bridge: Option<UdpBridge>,
     hub: Arc<Hub>,
+    /// Where the page wants the grasper; the simulated one goes there at `MAX_TOOL_SPEED`.
     grasp: Option<Vec3>,
+    /// Where the page wants the probe while it presses (`None`: parked, or driven by a
+    /// device through the haptic handle); the simulated probe goes there at `MAX_TOOL_SPEED`.
+    probe_goal: Option<Vec3>,
     cut: Option<CutJob>,
     /// The blade's path is done and the model computes the incision off the thread (`bem`
     /// in real time): since when.
@@ -132,6 +136,7 @@ impl Session {
             _bridge: bridge,
             hub,
             grasp: None,
+            probe_goal: None,
             cut: None,
             incision_pending: None,
             cut_ending: false,
@@ -202,10 +207,18 @@ impl Session {
 
     fn apply(&mut self, c: Command) {
         match c {
-            Command::Probe(p) => self.handle.set_pose(Pose {
-                position: p.unwrap_or(self.setup.park),
-                ..self.handle.pose()
-            }),
+            Command::Probe(p) => {
+                // From the park the probe goes straight to the first point (outside the
+                // organ: the page starts a press touching it); after that it follows.
+                let parked = self.handle.pose().position == self.setup.park;
+                if p.is_none() || parked {
+                    self.handle.set_pose(Pose {
+                        position: p.unwrap_or(self.setup.park),
+                        ..self.handle.pose()
+                    });
+                }
+                self.probe_goal = p;
+            }
             Command::Grasp(p) => self.grasp_at(p),
             Command::Release => {
                 self.grasp = None;
@@ -277,6 +290,7 @@ impl Session {
             position: self.setup.park,
             ..self.handle.pose()
         });
+        self.probe_goal = None;
         self.handle.clear_contact();
     }
 
@@ -426,8 +440,19 @@ impl Session {
         {
             let _ = self.sim.set_instrument_position(i, Some(tip));
         }
+        let reach = MAX_TOOL_SPEED * self.dt;
         if let (Some(p), Some(i)) = (self.grasp, self.index_of(GRASPER)) {
-            let _ = self.sim.set_instrument_position(i, Some(p));
+            let now = self.sim.instruments()[i].position();
+            let _ = self
+                .sim
+                .set_instrument_position(i, Some(approach(now, p, reach)));
+        }
+        if let Some(goal) = self.probe_goal {
+            let pose = self.handle.pose();
+            self.handle.set_pose(Pose {
+                position: approach(pose.position, goal, reach),
+                ..pose
+            });
         }
         let before = (
             self.sim.model().surface().triangles.len(),
@@ -667,6 +692,26 @@ impl Session {
     }
 }
 
+/// The fastest the viewer's instruments move in simulated time, m/s. The page sends the
+/// pointer's position at its frame rate, in wall time. Applied as it came, each message was
+/// a jump within one step (0.375 mm in one 50 µs step on `liver-spring-mass`: 7.5 m/s),
+/// and in a model slower than real time the page's 0.4 s press took a few ms of its time.
+/// Vertices held by a probe slammed that fast flew off it: `simplex-spring-mass` there was
+/// dented 13 mm by a 5 mm press and felt 0 N with no vertex in contact. Hands move
+/// instruments in tissue at centimetres per second, so in real time this is not felt.
+pub const MAX_TOOL_SPEED: Real = 0.1;
+
+/// `from` moved toward `to` by at most `reach`.
+fn approach(from: Vec3, to: Vec3, reach: Real) -> Vec3 {
+    let d = to - from;
+    let len = d.length();
+    if len <= reach || len == 0.0 {
+        to
+    } else {
+        from + d * (reach / len)
+    }
+}
+
 /// Whether a model keeps up with real time, watched over the rate windows (0.5 s each).
 #[derive(Clone, Debug, Default)]
 struct SlowMotion {
@@ -721,5 +766,27 @@ mod slow_motion_tests {
         }
         assert_eq!(s.observe(0, 0.5, 0.01, false), None);
         assert_eq!(s.windows, 0);
+    }
+}
+
+#[cfg(test)]
+mod tool_speed_tests {
+    use super::*;
+
+    #[test]
+    fn an_instrument_approaches_its_goal_at_the_speed_limit_and_lands_on_it() {
+        let (from, to) = (Vec3::ZERO, Vec3::new(0.003, 0.004, 0.0));
+        let reach = MAX_TOOL_SPEED * 5e-5;
+        let mut at = from;
+        let mut steps = 0;
+        while at != to {
+            let next = approach(at, to, reach);
+            assert!(next.distance(at) <= reach * (1.0 + 1e-12));
+            at = next;
+            steps += 1;
+        }
+        // 5 mm at 0.1 m/s is 50 ms: 1000 steps of 50 µs, the last one landing exactly.
+        assert_eq!(steps, 1000);
+        assert_eq!(approach(to, to, reach), to);
     }
 }
