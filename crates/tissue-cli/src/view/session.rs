@@ -705,7 +705,8 @@ pub const MAX_TOOL_SPEED: Real = 0.1;
 fn approach(from: Vec3, to: Vec3, reach: Real) -> Vec3 {
     let d = to - from;
     let len = d.length();
-    if len <= reach || len == 0.0 {
+    // A remainder within rounding of the reach lands (it would be a step of 1e-19 m).
+    if len <= reach * (1.0 + 1e-9) {
         to
     } else {
         from + d * (reach / len)
@@ -781,7 +782,7 @@ mod tool_speed_tests {
         let mut steps = 0;
         while at != to {
             let next = approach(at, to, reach);
-            assert!(next.distance(at) <= reach * (1.0 + 1e-12));
+            assert!(next.distance(at) <= reach * (1.0 + 1e-9));
             at = next;
             steps += 1;
         }
