@@ -108,27 +108,21 @@ impl ImplicitSolver {
             }
         };
         let (max_it, tol) = (settings.cg_max_iterations, settings.cg_tolerance);
-        let result = if blocks {
+        let result = if blocks || factored {
+            // One solve for both: only the preconditioner differs.
             let precondition = |r: &[Real], z: &mut [Real]| {
-                for ((zi, ri), b) in unflatten_mut(z)
-                    .iter_mut()
-                    .zip(unflatten(r))
-                    .zip(&*inv_blocks)
-                {
-                    *zi = *b * *ri;
+                if factored {
+                    rest.apply(r, z);
+                } else {
+                    for ((zi, ri), b) in unflatten_mut(z)
+                        .iter_mut()
+                        .zip(unflatten(r))
+                        .zip(&*inv_blocks)
+                    {
+                        *zi = *b * *ri;
+                    }
                 }
             };
-            cg.solve_preconditioned(
-                apply,
-                precondition,
-                inv_diag,
-                rhs,
-                flatten_mut(dv),
-                max_it,
-                tol,
-            )
-        } else if factored {
-            let precondition = |r: &[Real], z: &mut [Real]| rest.apply(r, z);
             let result = cg.solve_preconditioned(
                 apply,
                 precondition,
@@ -138,7 +132,9 @@ impl ImplicitSolver {
                 max_it,
                 tol,
             );
-            rest.record(result.iterations);
+            if factored {
+                rest.record(result.iterations);
+            }
             result
         } else {
             cg.solve(apply, inv_diag, rhs, flatten_mut(dv), max_it, tol)
