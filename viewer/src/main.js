@@ -66,7 +66,13 @@ function connect() {
     try { msg = JSON.parse(ev.data); } catch { return notice('error', 'unreadable message from the server'); }
     if (msg.type === 'init') onInit(msg);
     else if (msg.type === 'frame') onFrame(msg);
-    else if (msg.type === 'notice') notice(msg.level, msg.message);
+    else if (msg.type === 'notice') {
+      // The server says "reset" after it has reset the organ, and sends every later frame
+      // after this notice: a frame still waiting here shows the organ before the reset, so it
+      // is dropped, and the colour scales start again from the next frame.
+      if (msg.message.startsWith('reset to the rest state')) { pendingFrame = null; organ.rescale(); }
+      notice(msg.level, msg.message);
+    }
   };
 }
 
@@ -313,7 +319,7 @@ $('quantity').addEventListener('change', (e) => {
 // After a choice the selector lets go of the keyboard, so the shortcuts work again (a
 // focused select would take C, R, W... as type-to-search).
 $('kind').addEventListener('change', (e) => { send({ type: 'set_model', kind: e.target.value }); e.target.blur(); });
-$('reset').addEventListener('click', () => { send({ type: 'reset' }); organ.rescale(); });
+$('reset').addEventListener('click', () => send({ type: 'reset' }));
 for (const el of document.querySelectorAll('button, input[type=checkbox]')) {
   el.addEventListener('click', () => el.blur());
 }
@@ -339,7 +345,7 @@ window.addEventListener('keydown', (e) => {
   else if (k === 'w') { $('wire').checked = !$('wire').checked; organ.setWireframe($('wire').checked); }
   else if (k === 'c') { $('cmap').checked = !$('cmap').checked; organ.setColours($('cmap').checked); updateLegend(); }
   else if (k === 'f') organ.setShowFixed(!organ.showFixed);
-  else if (k === 'r') { send({ type: 'reset' }); organ.rescale(); }
+  else if (k === 'r') send({ type: 'reset' });
   else if (k === '[') state.depth = Math.max(0.1, state.depth - 0.1);
   else if (k === ']') state.depth = Math.min(3, state.depth + 0.1);
   else if (k === 'm' && state.init) {

@@ -146,8 +146,9 @@ export class Organ {
     this.incision.geometry.computeBoundingSphere();
   }
 
-  /// Forgets the colour scales' maxima (after a reset).
-  rescale() { this.colourScale = 0; this.strainScale = 0; this.paint(); }
+  /// Forgets the colour scales' maxima (after the server's reset). No repaint: the positions
+  /// shown are still the pre-reset ones, and would set the scale again; the next frame does.
+  rescale() { this.colourScale = 0; this.strainScale = 0; }
 
   setQuantity(q) { this.quantity = q; this.paint(); }
 

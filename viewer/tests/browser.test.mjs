@@ -96,7 +96,10 @@ try {
     const n0 = await noticeCount(page);
     await page.keyboard.press('r');
     await page.waitForFunction((n) => window.__tissue.notices.slice(n).some((x) => x.message.startsWith('reset')), n0, { timeout: 5000 }).catch(() => {});
-    await page.waitForTimeout(600);
+    // Two frames drawn after the server's reset (a loaded machine draws few per second).
+    const f0 = await page.evaluate(() => window.__tissue.frames);
+    await page.waitForFunction((f) => window.__tissue.frames >= f + 2, f0, { timeout: 10000 }).catch(() => {});
+    await page.waitForTimeout(300);
     const r = await page.evaluate(() => ({ legend: window.__tissue.legend, status: window.__tissue.status, dt: window.__tissue.last.dt, dt0: window.__tissue.init.dt }));
     const hiReset = parseFloat(r.legend.split('–')[1]);
     check('Reset rescales the colour map', hiReset < 0.5 * hiDrag, `legend top ${hiDrag} mm after the drag, ${hiReset} mm after Reset`);
@@ -155,7 +158,8 @@ try {
     const said = (await notices(page, n0)).map((x) => x.message);
     check('shortcuts after the selector', s.wire !== w0 && s.cmap && s.tool === 'grasp' && s.kind === target && !s.building
       && !said.some((m) => m.includes('building')),
-    `focus after the choice: ${focus || 'body'}; W -> wireframe ${s.wire}, C -> colours ${s.cmap}, 2 -> ${s.tool}, model ${s.kind}`);
+    `focus after the choice: ${focus || 'body'}; W -> wireframe ${s.wire}, C -> colours ${s.cmap}, 2 -> ${s.tool}, model ${s.kind}`
+      + `${s.building ? ', a build running' : ''}${said.length ? `; notices: ${said.join(' | ')}` : ''}`);
     await page.keyboard.press('w');
     await page.keyboard.press('c');
     await page.keyboard.press('1');

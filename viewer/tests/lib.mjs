@@ -51,9 +51,14 @@ export async function switchTo(page, kind, timeoutMs = 90000) {
   if (current === kind) return { status: 'ok', ms: 0 };
   await page.selectOption('#kind', kind);
   try {
-    await page.waitForFunction(([k, n]) =>
-      (window.__tissue.init.kind === k && !window.__tissue.last.building)
-      || window.__tissue.notices.slice(n).some((x) => x.message.includes(`building ${k} failed`)),
+    // Done when the server said it runs the new kind (it sends that after the new model's
+    // init) and a frame after the build was drawn, or when the build failed.
+    await page.waitForFunction(([k, n]) => {
+      const said = window.__tissue.notices.slice(n).map((x) => x.message);
+      if (said.some((m) => m.includes(`building ${k} failed`))) return true;
+      return said.some((m) => m.startsWith(`now running ${k} `))
+        && window.__tissue.init.kind === k && window.__tissue.last.kind === k && !window.__tissue.last.building;
+    },
     [kind, n0], { timeout: timeoutMs, polling: 200 });
   } catch {
     return { status: 'timeout', ms: Date.now() - t0 };
