@@ -63,6 +63,9 @@ pub(super) struct Core {
     pub energy: Real,
     pub energy_floor: Real,
     pub step_work: Real,
+    /// `step_work` of the last accepted step: the staggered energy (`trial_energy`) shows
+    /// a move of a held node one step late.
+    pub last_work: Real,
     /// ω_max² of M⁻¹K: power iteration (a sharp lower estimate) and Gershgorin (a bound).
     pub lambda_power: Real,
     pub lambda_gershgorin: Real,
@@ -112,6 +115,7 @@ impl Core {
             energy: 0.0,
             energy_floor: Real::MIN_POSITIVE,
             step_work: 0.0,
+            last_work: 0.0,
             lambda_power: 0.0,
             lambda_gershgorin: 0.0,
             precompute_seconds: 0.0,
@@ -241,8 +245,9 @@ impl Core {
     /// Checks the trial level: non-finite values, or energy grown more than 10⁶-fold over
     /// the step, are a divergence naming the node that moved most. The growth is measured
     /// from the largest of the energy before the step, the floor of the loads and targets
-    /// and the work the prescribed motion can put in this step: a first contact on a body
-    /// at rest (energy and floor 0 before it) is work put in, not a blow-up.
+    /// and the work the prescribed motion can put in this step or could in the last (the
+    /// staggered energy shows it a step late): a first contact on a body at rest (energy
+    /// and floor 0 before it) is work put in, not a blow-up.
     pub fn check_trial(&self, energy: Real, what: &str) -> Result<(), SimError> {
         let worst = || {
             let mut best = (0usize, -1.0);
@@ -264,7 +269,12 @@ impl Core {
                 reason: format!("{what}: non-finite displacement or energy"),
             });
         }
-        let reference = self.energy.abs().max(self.energy_floor).max(self.step_work);
+        let reference = self
+            .energy
+            .abs()
+            .max(self.energy_floor)
+            .max(self.step_work)
+            .max(self.last_work);
         if energy.abs() > 1e6 * reference {
             return Err(SimError::Diverged {
                 step: self.steps + 1,
@@ -298,6 +308,7 @@ impl Core {
         std::mem::swap(&mut self.u_prev, &mut self.u);
         std::mem::swap(&mut self.u, &mut self.u_next);
         self.energy = energy;
+        self.last_work = self.step_work;
         self.steps += 1;
         self.update_positions();
         self.write_contact_reactions();
@@ -357,6 +368,7 @@ impl Core {
         }
         self.last_dt = None;
         self.energy = 0.0;
+        self.last_work = 0.0;
         self.contacts.iter_mut().for_each(|k| k.push = 0.0);
         self.update_positions();
         self.update_reactions();
