@@ -15,6 +15,7 @@
 //! next one when the state has not been touched in between, so every explicit scheme costs
 //! its textbook number of force evaluations per step and still reports fresh reactions.
 
+pub mod contact;
 pub mod coupling;
 mod implicit;
 pub mod rest_factor;
@@ -370,33 +371,22 @@ fn place_holds(w: &mut Workspace, holds: &[Hold], h: Real) {
         match hold.along {
             None => w.x1[i] = hold.target,
             Some(n) if hold.unilateral => {
-                // Past the plane: put back on it. Then the velocity along n keeps at most
-                // what takes the particle to the plane in one more (sub)step: explicit Euler
-                // moves by the old velocity, and a particle resting on the plane would
-                // otherwise be let go and caught every other step.
-                let gap = n.dot(w.x1[i] - hold.target);
-                let inside = gap < 0.0;
-                if inside {
-                    w.x1[i] -= n * gap;
-                }
-                let v = w.v1[i];
-                let vn = n.dot(v);
-                let kept = vn.max(-gap.max(0.0) / h);
-                if !inside && kept == vn {
+                let Some(push) = contact::push_only(w.x1[i], w.v1[i], hold.target, n, h) else {
                     // Out of the instrument and not reaching it: free, pushes nothing.
                     w.contact_active[k] = false;
                     continue;
-                }
+                };
                 let m = if w.inv_mass[i] > 0.0 {
                     1.0 / w.inv_mass[i]
                 } else {
                     0.0
                 };
-                w.v1[i] = v + n * (kept - vn);
+                w.x1[i] = push.position;
+                w.v1[i] = push.velocity;
                 // The push's momentum (never negative) and, as for a two-sided hold, the
                 // change of the kinetic energy along n over the substep as its work.
-                w.contact_impulse[k] += m * (kept - vn);
-                let v0n = n.dot(w.v0[i]);
+                w.contact_impulse[k] += m * push.dv;
+                let (kept, v0n) = (n.dot(push.velocity), n.dot(w.v0[i]));
                 w.along_work += 0.5 * m * (kept * kept - v0n * v0n);
             }
             Some(n) => {

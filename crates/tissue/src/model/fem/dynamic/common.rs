@@ -18,6 +18,7 @@ use super::super::assembly::Assembler;
 use super::super::element_linear;
 use super::super::mass::lumped_masses;
 use super::super::system::DofProblem;
+use super::contacts::PushContact;
 pub(super) use super::forward::forward_deformable;
 
 /// Power iterations used for the largest eigenvalue of M⁻¹K at build.
@@ -35,8 +36,12 @@ pub(super) struct Core {
     pub mass: Vec<Real>,
     pub boundary: Boundary,
     pub surface_positions: Vec<Vec3>,
+    /// Slot of each dof's diagonal entry in `k`.
+    pub diag: Vec<usize>,
     /// Held dofs, their targets and the external forces F.
     pub problem: DofProblem,
+    /// Frictionless contacts that only push, on nodes free in `problem` (`contacts`).
+    pub contacts: Vec<PushContact>,
     pub reactions: ConstraintReactions,
     /// U_t, U_{t−Δt} and the trial U_{t+Δt}.
     pub u: Vec<Real>,
@@ -52,10 +57,15 @@ pub(super) struct Core {
     saved_prev: Vec<Real>,
     saved_dt: Option<Real>,
     pub steps: u64,
-    /// Energy after the last good step, and a floor from the loads and targets, for the
-    /// divergence test.
+    /// Energy after the last good step, a floor from the loads and targets, and the work
+    /// the prescribed motion can put in over the step in progress (`prescribed_work`), for
+    /// the divergence test.
     pub energy: Real,
     pub energy_floor: Real,
+    pub step_work: Real,
+    /// `step_work` of the last accepted step: the staggered energy (`trial_energy`) shows
+    /// a move of a held node one step late.
+    pub last_work: Real,
     /// ω_max² of M⁻¹K: power iteration (a sharp lower estimate) and Gershgorin (a bound).
     pub lambda_power: Real,
     pub lambda_gershgorin: Real,
@@ -89,7 +99,9 @@ impl Core {
             mass,
             surface_positions: boundary.surface.vertices.clone(),
             boundary,
+            diag: assembler.pattern.diagonal_slots(),
             problem: DofProblem::new(dofs),
+            contacts: Vec::new(),
             reactions: ConstraintReactions::default(),
             u: vec![0.0; dofs],
             u_prev: vec![0.0; dofs],
@@ -102,6 +114,8 @@ impl Core {
             steps: 0,
             energy: 0.0,
             energy_floor: Real::MIN_POSITIVE,
+            step_work: 0.0,
+            last_work: 0.0,
             lambda_power: 0.0,
             lambda_gershgorin: 0.0,
             precompute_seconds: 0.0,
@@ -202,6 +216,7 @@ impl Core {
             }
         }
         self.last_dt = Some(dt);
+        self.step_work = self.prescribed_work();
         Ok(())
     }
 
@@ -228,7 +243,11 @@ impl Core {
     }
 
     /// Checks the trial level: non-finite values, or energy grown more than 10⁶-fold over
-    /// the step, are a divergence naming the node that moved most.
+    /// the step, are a divergence naming the node that moved most. The growth is measured
+    /// from the largest of the energy before the step, the floor of the loads and targets
+    /// and the work the prescribed motion can put in this step or could in the last (the
+    /// staggered energy shows it a step late): a first contact on a body at rest (energy
+    /// and floor 0 before it) is work put in, not a blow-up.
     pub fn check_trial(&self, energy: Real, what: &str) -> Result<(), SimError> {
         let worst = || {
             let mut best = (0usize, -1.0);
@@ -250,7 +269,12 @@ impl Core {
                 reason: format!("{what}: non-finite displacement or energy"),
             });
         }
-        let reference = self.energy.abs().max(self.energy_floor);
+        let reference = self
+            .energy
+            .abs()
+            .max(self.energy_floor)
+            .max(self.step_work)
+            .max(self.last_work);
         if energy.abs() > 1e6 * reference {
             return Err(SimError::Diverged {
                 step: self.steps + 1,
@@ -284,8 +308,10 @@ impl Core {
         std::mem::swap(&mut self.u_prev, &mut self.u);
         std::mem::swap(&mut self.u, &mut self.u_next);
         self.energy = energy;
+        self.last_work = self.step_work;
         self.steps += 1;
         self.update_positions();
+        self.write_contact_reactions();
         self.update_reactions();
     }
 
@@ -342,6 +368,8 @@ impl Core {
         }
         self.last_dt = None;
         self.energy = 0.0;
+        self.last_work = 0.0;
+        self.contacts.iter_mut().for_each(|k| k.push = 0.0);
         self.update_positions();
         self.update_reactions();
     }

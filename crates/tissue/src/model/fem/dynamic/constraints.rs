@@ -4,12 +4,13 @@
 //! of its vertex (the first mention of a vertex owns it).
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::interact::{Constraints, Loads, SurfaceHold};
 use crate::math::{Real, Vec3};
 
 use super::super::surface_nodes::nodal_forces;
 use super::super::system::{ALONG_CAP, DofProblem, oblique_holds};
 use super::common::Core;
+use super::contacts::PushContact;
 
 impl Core {
     /// Fixed vertices are held at rest, prescribed ones reach their target at the end of
@@ -18,10 +19,11 @@ impl Core {
         self.set_constraints_along(c, &[]).map(|_| ())
     }
 
-    /// `set_constraints` with the prescribed entry k held along `normals[k]` only where
-    /// given (`DofProblem::along`; only a scheme whose solve imposes such rows may pass
-    /// any). Returns whether every entry is held as asked: more than `ALONG_CAP` entries
-    /// with a direction are held in full.
+    /// `set_constraints` with the prescribed entry k given a direction `normals[k]` a
+    /// frictionless contact that only pushes (`contacts`): the plane through its target
+    /// with that normal, pointing out of the instrument. Returns whether every entry is
+    /// held as asked: with more than `ALONG_CAP` oblique directions all are held in full
+    /// (the semi-implicit solve would hold that many contacts along their normals).
     pub fn set_constraints_along(
         &mut self,
         c: &Constraints,
@@ -32,11 +34,30 @@ impl Core {
         if !as_asked {
             holds.iter_mut().flatten().for_each(|h| h.along = None);
         }
+        let mut contacts = Vec::new();
+        for (h, &node) in holds.iter_mut().zip(&self.boundary.nodes) {
+            if let Some(SurfaceHold {
+                displacement,
+                along: Some(n),
+            }) = *h
+            {
+                contacts.push(PushContact {
+                    node: node as usize,
+                    normal: n,
+                    target: displacement,
+                    push: 0.0,
+                    impulse: 0.0,
+                    trial: 0.0,
+                });
+                *h = None;
+            }
+        }
         let mut dp = DofProblem::new(self.dofs());
         dp.hold_surface(&self.boundary.nodes, &[], &holds)?;
         dp.finish();
         dp.forces = std::mem::take(&mut self.problem.forces);
         self.problem = dp;
+        self.contacts = contacts;
         self.reactions.set(c);
         self.update_energy_floor();
         Ok(as_asked)
@@ -54,10 +75,10 @@ impl Core {
     }
 
     /// An energy scale of the current loads and targets (Σ f²/K_ii + Σ K_ii g²)/2 (g along
-    /// its direction for a node held along one), so that
-    /// the growth test has a reference even when starting from rest.
+    /// its direction for a node held along one or a contact), so that the growth test has
+    /// a reference even when starting from rest.
     pub(super) fn update_energy_floor(&mut self) {
-        let diag = self.assembler.pattern.diagonal_slots();
+        let diag = &self.diag;
         let mut e = 0.0;
         for (d, &s) in diag.iter().enumerate() {
             let kd = self.k[s];
@@ -68,11 +89,16 @@ impl Core {
             }
         }
         // A node held along n at g: the stiffest of its diagonal entries times g².
+        let stiffest = |node: usize| {
+            (0..3)
+                .map(|k| self.k[diag[3 * node + k]])
+                .fold(0.0, Real::max)
+        };
         for a in &self.problem.along {
-            let kd = (0..3)
-                .map(|k| self.k[diag[3 * a.node + k]])
-                .fold(0.0, Real::max);
-            e += 0.5 * kd * a.value.powi(2);
+            e += 0.5 * stiffest(a.node) * a.value.powi(2);
+        }
+        for k in &self.contacts {
+            e += 0.5 * stiffest(k.node) * k.normal.dot(k.target).powi(2);
         }
         self.energy_floor = e.max(Real::MIN_POSITIVE);
     }

@@ -69,6 +69,8 @@ pub struct FemExplicit {
     split_force: Vec<Vec3>,
     node_mass: Vec<Real>,
     held: Vec<bool>,
+    /// Contact nodes' U before `push_contacts` moved them in the (sub)step in progress.
+    undo: Vec<(usize, Vec3)>,
 }
 
 impl std::fmt::Debug for FemExplicit {
@@ -128,6 +130,7 @@ impl FemExplicit {
             split_force: vec![Vec3::ZERO; nodes],
             node_mass,
             held: vec![false; nodes],
+            undo: Vec::new(),
         })
     }
 
@@ -242,6 +245,7 @@ impl FemExplicit {
 
     /// The elastic central-difference substeps of `advance`.
     fn advance_elastic(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        self.core.clear_impulses();
         let n = match self.substeps {
             Substeps::Fixed(n) => n.max(1),
             Substeps::Auto => {
@@ -258,6 +262,7 @@ impl FemExplicit {
         };
         if n == 1 {
             self.single(dt)?;
+            self.core.finish_pushes(dt);
             self.last_substeps = 1;
             return Ok(StepInfo {
                 substeps: 1,
@@ -306,6 +311,7 @@ impl FemExplicit {
             });
         }
         c.steps = s.steps + 1;
+        c.finish_pushes(dt);
         self.last_substeps = n;
         Ok(StepInfo {
             substeps: n,
@@ -313,7 +319,8 @@ impl FemExplicit {
         })
     }
 
-    /// One central-difference step of length `dt` (the doc of `advance`).
+    /// One central-difference step of length `dt` (the doc of `advance`); contact nodes
+    /// are free in it and put back out of their instruments after it (`push_contacts`).
     fn single(&mut self, dt: Real) -> Result<(), SimError> {
         let c = &mut self.core;
         c.begin_step(dt)?;
@@ -329,10 +336,16 @@ impl FemExplicit {
                 inv * (a * c.u[d] + b * c.u_prev[d] - dt / c.mass[d] * (c.ku[d] - p.forces[d]))
             };
         }
+        self.undo.clear();
+        c.push_contacts(dt, &mut self.undo);
         let energy = c.trial_energy(dt);
         if let Err(e) = c.check_trial(energy, "explicit step") {
+            c.undo_pushes(&self.undo);
             c.abort_step();
             return Err(e);
+        }
+        for k in &mut c.contacts {
+            k.impulse += k.trial;
         }
         c.accept(dt, energy);
         Ok(())
@@ -355,4 +368,4 @@ impl FemExplicit {
     }
 }
 
-forward_deformable!(FemExplicit, "fem-explicit", false);
+forward_deformable!(FemExplicit, "fem-explicit");

@@ -1,10 +1,9 @@
 //! The `Deformable` methods that only forward to `Core`, shared by both schemes.
 
 /// The `Deformable` methods that only forward to `Core`; the type provides `advance(dt)`
-/// and `details()`. `$along`: whether its solve holds entries along a direction
-/// (`DofProblem::along`); when false, `set_constraints_along` is the default (in full).
+/// and `details()`. Entries given a direction are contacts that only push (`contacts`).
 macro_rules! forward_deformable {
-    ($ty:ty, $kind:literal, $along:literal) => {
+    ($ty:ty, $kind:literal) => {
         impl crate::model::Deformable for $ty {
             fn kind(&self) -> &'static str {
                 $kind
@@ -36,11 +35,10 @@ macro_rules! forward_deformable {
                 c: &crate::interact::Constraints,
                 normals: &[Option<crate::math::Vec3>],
             ) -> Result<bool, crate::error::SimError> {
-                if $along {
-                    self.core.set_constraints_along(c, normals)
-                } else {
-                    self.core.set_constraints(c).map(|()| false)
-                }
+                self.core.set_constraints_along(c, normals)
+            }
+            fn contacts_push_only(&self) -> bool {
+                true
             }
             fn set_loads(
                 &mut self,

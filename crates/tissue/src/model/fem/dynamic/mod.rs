@@ -42,6 +42,9 @@
 //! the end of the step (U⁺ = target). Reactions, the forces the tissue exerts on the
 //! constraints, are F − (K U⁺ + M Ü + αM U̇) on held dofs, so at rest they equal the
 //! static model's F − K U. Changing Δt between steps keeps the velocity (U − U⁻)/Δt.
+//! A prescribed vertex given with a direction (`set_constraints_along`: an instrument's
+//! frictionless contact) is a contact that only pushes (`contacts`): free in the scheme,
+//! kept out of the instrument within the step, its reaction never a pull.
 //!
 //! What they cannot do: the strain is linear, so large rotations are not rigid (a rotated
 //! part gains volume and spurious elastic forces; use the corotational model); linear tets
@@ -51,11 +54,13 @@
 //! - `common`: shared state (mesh, K, M, boundary, constraints, time levels, reactions,
 //!   the last good state, ω_max estimates) and the forwarding `Deformable` impl
 //! - `constraints`: surface constraints and loads to dofs, reactions per constraint
+//! - `contacts`: frictionless contacts that only push (issue 20)
 //! - `forward`: the `Deformable` methods both schemes forward to `Core`
 //! - `explicit`: `FemExplicit`; `semi_implicit`: `FemSemiImplicit`
 
 mod common;
 mod constraints;
+mod contacts;
 mod explicit;
 mod forward;
 mod semi_implicit;

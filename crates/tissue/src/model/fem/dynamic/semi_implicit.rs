@@ -10,13 +10,14 @@ use serde::Deserialize;
 
 use crate::error::{Error, SimError};
 use crate::material::Material;
-use crate::math::Real;
+use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
 use crate::model::{BuildInput, StepInfo};
 
 use super::super::system::{DofProblem, System};
 use super::common::{Core, forward_deformable};
+use super::contacts;
 
 #[derive(Clone, Copy, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -33,6 +34,15 @@ pub struct FemSemiImplicit {
     khat: Vec<Real>,
     diag: Vec<usize>,
     reactions_scratch: Vec<Real>,
+    /// Per contact of the step in progress: held along its normal; let go for pulling.
+    active: Vec<bool>,
+    released: Vec<bool>,
+    /// Per node: a contact on it pushed in the last step.
+    pushed: Vec<bool>,
+    /// Solves the last step's active set took.
+    rounds: usize,
+    /// The mesh's size (bounding-box diagonal), m: the scale of roundoff in positions.
+    length: Real,
 }
 
 impl std::fmt::Debug for FemSemiImplicit {
@@ -58,6 +68,11 @@ impl FemSemiImplicit {
         let mut system = System::new(core.assembler.clone(), core.k.clone(), core.rest.clone())?;
         system.allow_free_body = true;
         let dofs = core.dofs();
+        let (lo, hi) = core.rest.iter().fold(
+            (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let length = (hi - lo).length();
         core.precompute_seconds += start.elapsed().as_secs_f64();
         Ok(Self {
             diag: core.assembler.pattern.diagonal_slots(),
@@ -67,6 +82,11 @@ impl FemSemiImplicit {
             factored_dt: None,
             hat: DofProblem::new(dofs),
             reactions_scratch: vec![0.0; dofs],
+            active: Vec::new(),
+            released: Vec::new(),
+            pushed: vec![false; dofs / 3],
+            rounds: 0,
+            length,
         })
     }
 
@@ -121,10 +141,6 @@ impl FemSemiImplicit {
         let c = &mut self.core;
         c.begin_step(dt)?;
         let p = &c.problem;
-        self.hat.constrained.clone_from(&p.constrained);
-        self.hat.list.clone_from(&p.list);
-        self.hat.targets.clone_from(&p.targets);
-        self.hat.along.clone_from(&p.along);
         for d in 0..c.u.len() {
             self.hat.forces[d] =
                 p.forces[d] + c.mass[d] * (2.0 * inv2 * c.u[d] - (inv2 - damp) * c.u_prev[d]);
@@ -136,13 +152,11 @@ impl FemSemiImplicit {
                 *f += stiff_damp * ku;
             }
         }
-        let solved = self
-            .system
-            .solve(&self.hat, &mut c.u_next, &mut self.reactions_scratch);
-        if let Err(e) = solved {
-            c.abort_step();
+        if let Err(e) = self.solve_with_contacts() {
+            self.core.abort_step();
             return Err(e);
         }
+        let c = &mut self.core;
         c.assembler.pattern.mul_vec(&c.k, &c.u_next, &mut c.ku);
         let mut energy = 0.0;
         for d in 0..c.u.len() {
@@ -158,11 +172,81 @@ impl FemSemiImplicit {
             return Err(e);
         }
         c.accept(dt, energy);
-        // One linear solve covers the whole step: a single step, no substeps.
+        // The linear solves of the active set cover the whole step: no substeps.
         Ok(StepInfo {
             substeps: 1,
             ..StepInfo::default()
         })
+    }
+
+    /// Solves K̂ U⁺ = F̂ (`hat.forces` set) into `core.u_next` with the contacts that only
+    /// push: the active ones held along their normals (`DofProblem::along`), the others
+    /// free. It starts from the contacts that pushed in the last step or start past their
+    /// planes; a held contact whose reaction pulls is let go (for the rest of the step, so
+    /// the loop ends), a free one that ends past its plane is taken, and it solves again
+    /// until nothing changes. The pushes are the held contacts' reactions along −n.
+    fn solve_with_contacts(&mut self) -> Result<(), SimError> {
+        let c = &mut self.core;
+        self.active.clear();
+        self.active.extend(
+            c.contacts
+                .iter()
+                .map(|k| self.pushed[k.node] || k.gap(&c.u) < 0.0),
+        );
+        self.released.clear();
+        self.released.resize(c.contacts.len(), false);
+        self.rounds = 0;
+        loop {
+            self.rounds += 1;
+            let p = &c.problem;
+            self.hat.constrained.clone_from(&p.constrained);
+            self.hat.list.clone_from(&p.list);
+            self.hat.targets.clone_from(&p.targets);
+            self.hat.along.clone_from(&p.along);
+            for (k, _) in c.contacts.iter().zip(&self.active).filter(|(_, a)| **a) {
+                self.hat
+                    .hold_along(k.node, k.normal, k.normal.dot(k.target))?;
+            }
+            self.hat.finish();
+            self.system
+                .solve(&self.hat, &mut c.u_next, &mut self.reactions_scratch)?;
+            // Pulls and penetrations below roundoff of the pushes and of the motion are none.
+            let push = |k: &contacts::PushContact| {
+                -k.normal
+                    .dot(contacts::node_vec(&self.reactions_scratch, k.node))
+            };
+            let scale: Real = c.contacts.iter().map(|k| push(k).abs()).sum();
+            let depth = 1e-12 * self.length;
+            let mut changed = false;
+            for (i, k) in c.contacts.iter().enumerate() {
+                if self.active[i] && push(k) < -1e-9 * scale {
+                    self.active[i] = false;
+                    self.released[i] = true;
+                    changed = true;
+                } else if !self.active[i] && !self.released[i] && k.gap(&c.u_next) < -depth {
+                    self.active[i] = true;
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        for (i, k) in c.contacts.iter_mut().enumerate() {
+            let pushed = if self.active[i] {
+                (-k.normal
+                    .dot(contacts::node_vec(&self.reactions_scratch, k.node)))
+                .max(0.0)
+            } else {
+                0.0
+            };
+            k.push = pushed;
+        }
+        self.pushed.iter_mut().for_each(|p| *p = false);
+        for k in &c.contacts {
+            self.pushed[k.node] = k.push > 0.0;
+        }
+        Ok(())
     }
 
     fn details(&self) -> (usize, Vec<(String, String)>) {
@@ -179,9 +263,10 @@ impl FemSemiImplicit {
                     "schur_columns".into(),
                     self.system.schur_columns.to_string(),
                 ),
+                ("contact_solves".into(), self.rounds.to_string()),
             ],
         )
     }
 }
 
-forward_deformable!(FemSemiImplicit, "fem-semi-implicit", true);
+forward_deformable!(FemSemiImplicit, "fem-semi-implicit");

@@ -663,21 +663,23 @@ fn explicit_stiffness_damping_decays_the_first_mode_at_beta_omega_squared_over_t
     assert!(sigma0.abs() < 0.01 * expected, "β = 0 decays at {sigma0}");
 }
 
-/// Contacts held along a direction only (`set_constraints_along`): `fem-semi-implicit`,
-/// critically damped, settles to `fem-static`'s exact equilibrium with the same holds
-/// (two independent solves of the same rows: one with inertia, one without), reactions
-/// included, and every contact's reaction is along its direction at every step.
+/// Contacts given a direction (`set_constraints_along`): `fem-semi-implicit` holds them as
+/// pushes only (an active set of normal holds), and critically damped it settles to
+/// `fem-static`'s exact equilibrium with the same rows held both ways (two independent
+/// solves: one with inertia, one without), reactions included; every contact's reaction
+/// is along its direction and a push at every step.
 #[test]
 fn semi_implicit_settles_to_fem_static_with_contacts_held_along_normals() {
     let (mesh, fixed, mut m) = liver();
     let mut st = FemStatic::new(&mesh, m, Order::Linear).unwrap();
     let rest = st.rest_surface().to_vec();
-    // Three vertices far from the supports, pushed 2 mm along tilted directions.
+    // Three vertices far from the supports, pushed 2 mm along tilted directions (each
+    // normal points out of its instrument, along the push).
     let picks = [10usize, 50, 90];
     let normals: Vec<Option<Vec3>> = vec![
-        Some(Vec3::new(0.2, 1.0, 0.1).normalize()),
-        Some(Vec3::new(-0.3, 0.2, 1.0).normalize()),
-        Some(Vec3::new(1.0, -0.1, 0.3).normalize()),
+        Some(-Vec3::new(0.2, 1.0, 0.1).normalize()),
+        Some(-Vec3::new(-0.3, 0.2, 1.0).normalize()),
+        Some(-Vec3::new(1.0, -0.1, 0.3).normalize()),
     ];
     let c = Constraints {
         fixed: fixed.fixed.clone(),
@@ -686,7 +688,7 @@ fn semi_implicit_settles_to_fem_static_with_contacts_held_along_normals() {
             .zip(&normals)
             .map(|(&v, n)| Prescribed {
                 vertex: v as u32,
-                position: rest[v] - n.unwrap() * 2e-3,
+                position: rest[v] + n.unwrap() * 2e-3,
             })
             .collect(),
     };
@@ -710,6 +712,7 @@ fn semi_implicit_settles_to_fem_static_with_contacts_held_along_normals() {
         steps += 1;
         for (r, n) in model.reactions().prescribed.iter().zip(&normals) {
             assert!(r.cross(n.unwrap()).length() < 1e-9 * scale, "{r}");
+            assert!(r.dot(n.unwrap()) <= 0.0, "pulls: {r}");
         }
         let u = model.displacements().to_vec();
         if rel(&u, &u_ref) < 5e-7 || steps > 20_000 {
@@ -733,4 +736,50 @@ fn semi_implicit_settles_to_fem_static_with_contacts_held_along_normals() {
         slid = slid.max(off.length());
     }
     assert!(slid > 1e-5, "{slid}");
+}
+
+/// The growth test's reference on a first contact from rest (issue 20, seen in the
+/// viewer): the energy before the step and the floor of the loads and targets were both 0
+/// there, and a probe's first 1 mm was refused as a 10⁶-fold growth. The work the
+/// prescribed motion puts in (½K_dd Δg² over the held dofs that moved) is now part of the
+/// reference: the same jump is accepted with the floor forced to 0 as the viewer had it,
+/// while a step above the stability limit is still refused (the beam test above).
+#[test]
+fn explicit_first_contact_from_rest_is_work_put_in_not_a_blow_up() {
+    let (mesh, fixed, mut m) = liver();
+    m.damping = 20.0;
+    for push_only in [false, true] {
+        let mut ex = FemExplicit::new(&mesh, m).unwrap();
+        ex.set_constraints(&fixed).unwrap();
+        for _ in 0..50 {
+            ex.step(1e-3).unwrap();
+        }
+        assert_eq!(ex.energy(), 0.0);
+        // A vertex far from the supports, its target 1 mm into the organ.
+        let rest = ex.rest_surface().to_vec();
+        let v = 50usize;
+        let n = Vec3::new(-0.3, 0.2, 1.0).normalize();
+        let c = Constraints {
+            fixed: fixed.fixed.clone(),
+            prescribed: vec![Prescribed {
+                vertex: v as u32,
+                position: rest[v] - n * 1e-3,
+            }],
+        };
+        let normals = [push_only.then_some(-n)];
+        ex.set_constraints_along(&c, &normals).unwrap();
+        ex.core.energy_floor = Real::MIN_POSITIVE;
+        for step in 0..200 {
+            let r = ex.step(1e-3);
+            assert!(r.is_ok(), "push only {push_only}, step {step}: {r:?}");
+            ex.core.energy_floor = Real::MIN_POSITIVE;
+        }
+        let pushed = ex.surface().positions[v] - rest[v];
+        assert!(
+            (pushed.dot(-n) - 1e-3).abs() < 1e-9,
+            "push only {push_only}: {pushed}"
+        );
+        let f = ex.reactions().prescribed[0];
+        assert!(f.dot(-n) < 0.0, "push only {push_only}: {f}");
+    }
 }
