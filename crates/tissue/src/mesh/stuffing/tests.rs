@@ -158,6 +158,69 @@ fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
     assert!(r.volume_error.is_some_and(|e| e.abs() < 0.02), "{r}");
 }
 
+/// A ball of voxels cut by the image's border and split by a crack 1 voxel wide from its
+/// surface to its centre: the lattice (h = 3 voxels) cannot follow the crack, and the report
+/// says so (input→mesh over h/2 on the whole input, a share of the input boundary beyond
+/// h/2, the farthest sample in the crack) while the guarantee, checked against the input at
+/// resolution h (the crack closed), holds; where the ball meets the border the mesh closes
+/// it half a voxel beyond, within h/2.
+#[test]
+fn a_crack_thinner_than_h_is_reported_and_the_border_closes_the_mesh() {
+    use crate::image::{ByteOrder, SourceType, VoxelImage};
+    let (n, sp, h) = ([36, 36, 24], 0.001, 0.003);
+    // Centre on the last z slice: the top half of the ball is beyond the image.
+    let c = Vec3::new(17.5, 17.5, 23.0);
+    let mut values = vec![0f32; n[0] * n[1] * n[2]];
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                let p = Vec3::new(i as Real, j as Real, k as Real);
+                let in_ball = (p - c).length() < 15.0;
+                let in_crack = j == 17 && p.x > c.x;
+                values[i + n[0] * (j + n[1] * k)] = if in_ball && !in_crack { 1.0 } else { 0.0 };
+            }
+        }
+    }
+    let image = VoxelImage {
+        dims: n,
+        spacing: Vec3::splat(sp),
+        origin: Vec3::ZERO,
+        values,
+        source_type: SourceType::U8,
+        byte_order: ByteOrder::Little,
+        segments: Vec::new(),
+    };
+    let d = ImageDomain::from_threshold(&image, 0.5, 1.5).unwrap_or_else(|e| panic!("{e}"));
+    let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+    let r = &s.report;
+    assert_eq!((r.inverted, r.degenerate), (0, 0), "{r}");
+    assert!(r.min_dihedral_deg >= 10.0, "{r}");
+    // The crack's walls are up to its depth (measured 2.0 h) from the mesh's boundary.
+    assert!(r.input_to_mesh > 1.5 * h, "{r}");
+    assert!(r.input_beyond_half_size > 0.01, "{r}");
+    let far = Vec3::from_array(r.farthest_input_sample) / sp;
+    assert!(
+        (16.0..19.0).contains(&far.y) && far.x > c.x,
+        "farthest at {far} voxels: {r}"
+    );
+    let resolved = r.resolved_input_to_mesh.unwrap_or(Real::INFINITY);
+    assert!(resolved <= 0.5 * h, "{r}");
+    assert!(
+        r.hausdorff <= 0.5 * h && r.violations().iter().all(|v| !v.contains("boundary")),
+        "{r}"
+    );
+    // The cut face: boundary vertices reach z = 23.5 voxels (half a voxel past the last
+    // slice) and none goes farther.
+    let top = s
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| v.z / sp)
+        .fold(0.0, Real::max);
+    assert!((23.0..=23.5 + 1e-9).contains(&top), "top at {top} voxels");
+    assert!(r.to_string().contains("thinner than h"), "{r}");
+}
+
 /// Speed and accuracy at about 100k and 1M tetrahedra, printed (run on one core with
 /// `RAYON_NUM_THREADS=1 cargo test --release -p tissue --lib stuffing_speed -- --ignored
 /// --nocapture`).
