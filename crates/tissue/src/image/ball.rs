@@ -144,18 +144,18 @@ mod tests {
         let dims = [7, 5, 4];
         let spacing = Vec3::new(1.0, 0.7, 2.3);
         let mask: Vec<bool> = (0..140)
-            .map(|n: usize| (n * 37 + n / 3) % 11 == 0)
+            .map(|n: usize| (n * 37 + n / 3).is_multiple_of(11))
             .collect();
         let d = squared_distance_to(&mask, dims, spacing, true);
         let at = |n: usize| {
             Vec3::new((n % 7) as Real, ((n / 7) % 5) as Real, (n / 35) as Real) * spacing
         };
-        for n in 0..140 {
+        for (n, got) in d.iter().enumerate() {
             let want = (0..140)
                 .filter(|&m| mask[m])
                 .map(|m| (at(n) - at(m)).length_squared())
                 .fold(FAR, Real::min);
-            assert!((d[n] - want).abs() < 1e-9, "voxel {n}: {} vs {want}", d[n]);
+            assert!((got - want).abs() < 1e-9, "voxel {n}: {got} vs {want}");
         }
     }
 

@@ -465,6 +465,17 @@ fn image_far_samples_study() {
         if std::env::var("STUDY_VERBOSE").is_err() {
             continue;
         }
+        for &(dist, p) in far_r.iter().take(6) {
+            let u = ((p - image.origin) / image.spacing).round();
+            println!(
+                "  at resolution h: {:.2} h at {:.4?} voxel {:?}; raw value {:.3}, resolved {:.3}",
+                dist / h,
+                p.to_array(),
+                u.to_array(),
+                raw.value(p),
+                resolved.value(p)
+            );
+        }
         let [nx, ny, nz] = image.dims;
         let inside = |i: i64, j: i64, k: i64| {
             i >= 0
