@@ -45,6 +45,21 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 100.0 * r.volume_error.unwrap_or(0.0),
                 r.hausdorff / r.size
             );
+            let broken = r.violations();
+            if !broken.is_empty() {
+                eprintln!(
+                    "the tetrahedral mesh breaks a guarantee (built because tet_force = true): {}",
+                    broken.join("; ")
+                );
+            }
+            if r.input_beyond_half_size > 0.0 {
+                eprintln!(
+                    "{:.2} % of the input boundary lies farther than h/2 from the mesh (up to {:.2} h): \
+                     features thinner than tet_size",
+                    100.0 * r.input_beyond_half_size,
+                    r.input_to_mesh / r.size
+                );
+            }
         }
     }
     let outcome = execute(&scene, sim, Some(&args.out), args.quiet)?;

@@ -11,6 +11,7 @@
 //! All keep the grid axis-aligned: spacing and origin are read; NRRD also applies flipped or
 //! permuted axes; no reader applies an oblique orientation.
 
+pub mod ball;
 pub mod clean;
 pub mod grid;
 pub mod metaimage;
@@ -21,6 +22,7 @@ use std::path::Path;
 
 use crate::error::{IoError, Location};
 
+pub use ball::open_close_ball;
 pub use clean::{CleanReport, Cleaning, clean_mask};
 pub use grid::{ByteOrder, ImageStats, LabelRef, Segment, SourceType, VoxelImage};
 

@@ -65,6 +65,10 @@ pub struct ImageSpec {
     pub tet_largest_part: Option<bool>,
     /// Select the voxels enclosed by the selection (holes) before meshing (default true).
     pub tet_fill_holes: Option<bool>,
+    /// Build the body even when its tetrahedral mesh breaks a guarantee (as `tissue mesh
+    /// tetrahedralize --force`); `tissue run` prints which, and `summary.json` carries the
+    /// report. Default false: such a mesh is refused.
+    pub tet_force: Option<bool>,
 }
 
 impl ImageSpec {

@@ -92,15 +92,20 @@ fn remember(key: u64, mesh: &MeshData, report: &MeshingReport) {
     }
 }
 
-/// Stuffs a domain and refuses a mesh that breaks a guarantee, saying what to change.
-fn mesh_domain(domain: &dyn Domain, size: Real) -> Result<(MeshData, MeshingReport), TetFailure> {
+/// Stuffs a domain and refuses a mesh that breaks a guarantee, saying what to change,
+/// unless `force` (the report then carries the violations to whoever prints it).
+fn mesh_domain(
+    domain: &dyn Domain,
+    size: Real,
+    force: bool,
+) -> Result<(MeshData, MeshingReport), TetFailure> {
     let Stuffed { mesh, tags, report } =
         stuff(domain, size, &Progress::silent()).map_err(|e| TetFailure::Mesh(e.to_string()))?;
     let v = report.violations();
-    if !v.is_empty() {
+    if !v.is_empty() && !force {
         return Err(TetFailure::Mesh(format!(
             "the tetrahedral mesh ({} tetrahedra) breaks a guarantee: {}; a smaller tet_size \
-             follows the shape more closely",
+             follows the shape more closely (tet_force = true builds it anyway)",
             report.tets,
             v.join("; ")
         )));
@@ -139,7 +144,7 @@ pub(super) fn surface_tets(path: &Path, scale: Real, size: Real) -> Result<MeshD
             path.display()
         ))
     })?;
-    let (mesh, report) = mesh_domain(&domain, size)?;
+    let (mesh, report) = mesh_domain(&domain, size, false)?;
     if let Some(k) = key {
         remember(k, &mesh, &report);
     }
@@ -164,7 +169,7 @@ pub(super) fn image_tets(
         .and_then(|d| d.cleaned(spec.tet_cleaning()))
         .map_err(|e| TetFailure::Mesh(e.to_string()))?
         .smoothed(sigma);
-    let (mesh, report) = mesh_domain(&domain, size)?;
+    let (mesh, report) = mesh_domain(&domain, size, spec.tet_force.unwrap_or(false))?;
     if let Some(k) = key {
         remember(k, &mesh, &report);
     }

@@ -52,6 +52,13 @@ pub trait Domain: Sync {
         None
     }
 
+    /// The input as a lattice of spacing `size` can follow it, when it has features thinner
+    /// than that to drop (an image: `ImageDomain::at_resolution`); `None` when the domain
+    /// is its own best description (a surface, a function).
+    fn at_resolution(&self, _size: Real) -> Option<Box<dyn Domain>> {
+        None
+    }
+
     /// The physical tag of the region holding `p` (several labels of one image); 1 by
     /// default.
     fn tag_at(&self, _p: Vec3) -> i32 {

@@ -4,7 +4,7 @@
 //! one, so the meshed volume follows the selected voxels' volume.
 
 use crate::error::MeshError;
-use crate::image::{CleanReport, Cleaning, VoxelImage, clean_mask};
+use crate::image::{CleanReport, Cleaning, VoxelImage, clean_mask, open_close_ball};
 use crate::math::{Real, Vec3};
 use crate::voxel::VoxelGrid;
 
@@ -206,6 +206,24 @@ impl ImageDomain {
         self
     }
 
+    /// The same domain with every feature thinner than `size` gone: the voxels inside (the
+    /// mask at or above its level) opened then closed by a ball of radius `size`/2
+    /// (`image::open_close_ball`). Voxels the filter leaves as they were keep their (blurred)
+    /// values, so the boundary is unchanged wherever the input is resolvable at this size;
+    /// the others become 1 or 0. This is the input a lattice of spacing `size` can follow,
+    /// which the report checks the boundary guarantee against.
+    pub fn at_resolution(&self, size: Real) -> Self {
+        let inside: Vec<bool> = self.mask.iter().map(|&m| m >= self.level).collect();
+        let resolved = open_close_ball(&inside, self.dims, self.spacing, 0.5 * size);
+        let mut out = self.clone();
+        for ((m, &was), &now) in out.mask.iter_mut().zip(&inside).zip(&resolved) {
+            if was != now {
+                *m = if now { 1.0 } else { 0.0 };
+            }
+        }
+        out
+    }
+
     /// Number of selected voxels.
     pub fn selected_voxels(&self) -> usize {
         self.selected
@@ -252,6 +270,10 @@ impl Domain for ImageDomain {
         let c = self.cleaning.clone()?;
         let before = c.voxels_before as Real * voxel;
         Some((c, before))
+    }
+
+    fn at_resolution(&self, size: Real) -> Option<Box<dyn Domain>> {
+        Some(Box::new(ImageDomain::at_resolution(self, size)))
     }
 
     fn tag_at(&self, p: Vec3) -> i32 {

@@ -54,9 +54,21 @@ pub struct MeshingReport {
     /// Largest distance from a mesh boundary point (vertex, face centroid, edge midpoint) to
     /// the input boundary (m).
     pub mesh_to_input: Real,
-    /// Largest distance from an input boundary sample to the mesh boundary (m).
+    /// Largest distance from an input boundary sample to the mesh boundary (m), over the
+    /// whole input, features thinner than h included.
     pub input_to_mesh: Real,
-    /// max of the two: the (sampled) Hausdorff distance.
+    /// The fraction of the input boundary samples farther than h/2 from the mesh boundary
+    /// (what the mesh misses), and the farthest sample (m).
+    pub input_beyond_half_size: Real,
+    pub farthest_input_sample: [Real; 3],
+    /// For an image: the largest distance from the input *at resolution h* (the voxels
+    /// opened and closed by a ball of radius h/2, so without the sheets, strands, cracks
+    /// and channels thinner than h that no lattice of spacing h can follow) to the mesh
+    /// boundary (m). The boundary guarantee is checked with this when it is given.
+    pub resolved_input_to_mesh: Option<Real>,
+    /// max of `mesh_to_input` and the checked input→mesh distance (`resolved_input_to_mesh`
+    /// when given, else `input_to_mesh`): the (sampled) Hausdorff distance the guarantee
+    /// holds to h/2.
     pub hausdorff: Real,
     /// How `mesh_to_input` was measured: "exact" (a surface) or "first-order" (|f|/|∇f|).
     pub distance_method: &'static str,
@@ -158,13 +170,35 @@ impl fmt::Display for MeshingReport {
         }
         writeln!(
             f,
-            "boundary:        mesh→input {:.3e} m ({}), input→mesh {:.3e} m; Hausdorff {:.3e} m = {:.3} h",
+            "boundary:        mesh→input {:.3e} m ({}), input→mesh {:.3e} m{}; Hausdorff {:.3e} m = {:.3} h",
             self.mesh_to_input,
             self.distance_method,
-            self.input_to_mesh,
+            self.resolved_input_to_mesh.unwrap_or(self.input_to_mesh),
+            if self.resolved_input_to_mesh.is_some() {
+                " (from the input at resolution h)"
+            } else {
+                ""
+            },
             self.hausdorff,
             self.hausdorff / self.size
         )?;
+        if self.input_beyond_half_size > 0.0 {
+            let [x, y, z] = self.farthest_input_sample;
+            writeln!(
+                f,
+                "not followed:    {:.2} % of the input boundary lies farther than h/2 from the mesh, \
+                 up to {:.3e} m = {:.2} h (at {x:.4}, {y:.4}, {z:.4} m){}",
+                100.0 * self.input_beyond_half_size,
+                self.input_to_mesh,
+                self.input_to_mesh / self.size,
+                if self.resolved_input_to_mesh.is_some() {
+                    ": sheets, strands, cracks or channels of the input thinner than h, which \
+                     a lattice of spacing h cannot follow; a smaller size follows them"
+                } else {
+                    ""
+                }
+            )?;
+        }
         let v = self.violations();
         if v.is_empty() {
             writeln!(
@@ -278,13 +312,26 @@ pub fn measure(
             0.5 * (c + a),
         ]);
     }
-    // Input → mesh: boundary samples of the input, about h/4 apart.
+    // Input → mesh: boundary samples of the input, about h/4 apart; of the whole input (what
+    // the mesh misses, reported) and of the input at resolution h (what it must follow).
     let samples = domain.boundary_samples(0.25 * size);
     let index = TriangleIndex::new(&boundary.vertices, &boundary.triangles);
-    let input_to_mesh = samples
-        .iter()
-        .map(|&p| index.distance(p))
-        .fold(0.0, Real::max);
+    let (mut input_to_mesh, mut farthest, mut beyond) = (0.0, Vec3::ZERO, 0usize);
+    for &p in &samples {
+        let d = index.distance(p);
+        if d > 0.5 * size {
+            beyond += 1;
+        }
+        if d > input_to_mesh {
+            (input_to_mesh, farthest) = (d, p);
+        }
+    }
+    let resolved_input_to_mesh = domain.at_resolution(size).map(|r| {
+        r.boundary_samples(0.25 * size)
+            .iter()
+            .map(|&p| index.distance(p))
+            .fold(0.0, Real::max)
+    });
     // Without the exact surface, the first-order estimate, bounded above by the distance to
     // the nearest boundary sample (which is on the boundary, so never an underestimate);
     // the samples are indexed as one-point triangles.
@@ -339,7 +386,10 @@ pub fn measure(
         cleaning: cleaning.map(|c| c.0),
         mesh_to_input,
         input_to_mesh,
-        hausdorff: mesh_to_input.max(input_to_mesh),
+        input_beyond_half_size: beyond as Real / samples.len().max(1) as Real,
+        farthest_input_sample: farthest.to_array(),
+        resolved_input_to_mesh,
+        hausdorff: mesh_to_input.max(resolved_input_to_mesh.unwrap_or(input_to_mesh)),
         distance_method: if exact_distance.is_some() {
             "exact"
         } else {

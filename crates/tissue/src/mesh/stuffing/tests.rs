@@ -158,6 +158,69 @@ fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
     assert!(r.volume_error.is_some_and(|e| e.abs() < 0.02), "{r}");
 }
 
+/// A ball of voxels cut by the image's border and split by a crack 1 voxel wide from its
+/// surface to its centre: the lattice (h = 3 voxels) cannot follow the crack, and the report
+/// says so (input→mesh over h/2 on the whole input, a share of the input boundary beyond
+/// h/2, the farthest sample in the crack) while the guarantee, checked against the input at
+/// resolution h (the crack closed), holds; where the ball meets the border the mesh closes
+/// it half a voxel beyond, within h/2.
+#[test]
+fn a_crack_thinner_than_h_is_reported_and_the_border_closes_the_mesh() {
+    use crate::image::{ByteOrder, SourceType, VoxelImage};
+    let (n, sp, h) = ([36, 36, 24], 0.001, 0.003);
+    // Centre on the last z slice: the top half of the ball is beyond the image.
+    let c = Vec3::new(17.5, 17.5, 23.0);
+    let mut values = vec![0f32; n[0] * n[1] * n[2]];
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                let p = Vec3::new(i as Real, j as Real, k as Real);
+                let in_ball = (p - c).length() < 15.0;
+                let in_crack = j == 17 && p.x > c.x;
+                values[i + n[0] * (j + n[1] * k)] = if in_ball && !in_crack { 1.0 } else { 0.0 };
+            }
+        }
+    }
+    let image = VoxelImage {
+        dims: n,
+        spacing: Vec3::splat(sp),
+        origin: Vec3::ZERO,
+        values,
+        source_type: SourceType::U8,
+        byte_order: ByteOrder::Little,
+        segments: Vec::new(),
+    };
+    let d = ImageDomain::from_threshold(&image, 0.5, 1.5).unwrap_or_else(|e| panic!("{e}"));
+    let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+    let r = &s.report;
+    assert_eq!((r.inverted, r.degenerate), (0, 0), "{r}");
+    assert!(r.min_dihedral_deg >= 10.0, "{r}");
+    // The crack's walls are up to its depth (measured 2.0 h) from the mesh's boundary.
+    assert!(r.input_to_mesh > 1.5 * h, "{r}");
+    assert!(r.input_beyond_half_size > 0.01, "{r}");
+    let far = Vec3::from_array(r.farthest_input_sample) / sp;
+    assert!(
+        (16.0..19.0).contains(&far.y) && far.x > c.x,
+        "farthest at {far} voxels: {r}"
+    );
+    let resolved = r.resolved_input_to_mesh.unwrap_or(Real::INFINITY);
+    assert!(resolved <= 0.5 * h, "{r}");
+    assert!(
+        r.hausdorff <= 0.5 * h && r.violations().iter().all(|v| !v.contains("boundary")),
+        "{r}"
+    );
+    // The cut face: boundary vertices reach z = 23.5 voxels (half a voxel past the last
+    // slice) and none goes farther.
+    let top = s
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| v.z / sp)
+        .fold(0.0, Real::max);
+    assert!((23.0..=23.5 + 1e-9).contains(&top), "top at {top} voxels");
+    assert!(r.to_string().contains("thinner than h"), "{r}");
+}
+
 /// Speed and accuracy at about 100k and 1M tetrahedra, printed (run on one core with
 /// `RAYON_NUM_THREADS=1 cargo test --release -p tissue --lib stuffing_speed -- --ignored
 /// --nocapture`).
@@ -330,6 +393,175 @@ fn brain_image_study() {
                     r.hausdorff / h,
                     r.violations()
                 );
+            }
+        }
+    }
+}
+
+/// Where the input→mesh distance comes from on the shipped images: the farthest input
+/// boundary samples with the voxel they lie in, whether it is on the image's border, and the
+/// run of selected voxels through it along x, y and z (thin parts show as short runs).
+/// `STUDY_FACTOR` is the ball radius of the resolution filter in h (default 0.5).
+#[test]
+#[ignore]
+fn image_far_samples_study() {
+    use crate::image::{Cleaning, read_image};
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/images/");
+    let factor: Real = std::env::var("STUDY_FACTOR")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.5);
+    for (file, scale, lo, hi, h, smooth, premesh) in [
+        ("pelvis_f.mhd", 0.1, 20.0, 75.0, 0.009935, 0.0, false),
+        ("pelvis_f.mhd", 0.1, 20.0, 75.0, 0.006, 0.003, false),
+        ("pelvis_f.mhd", 0.1, 20.0, 75.0, 0.006, 0.0, true),
+        (
+            "anatomical.nii",
+            0.001,
+            6000.0,
+            40000.0,
+            0.005,
+            0.0025,
+            false,
+        ),
+        ("anatomical.nii", 0.001, 6000.0, 40000.0, 0.005, 0.0, true),
+        ("anatomical.nii", 0.001, 6000.0, 40000.0, 0.004, 0.0, true),
+    ] {
+        let image = read_image(std::path::Path::new(&format!("{root}{file}")), scale)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let raw = ImageDomain::from_threshold(&image, lo, hi)
+            .and_then(|d| d.cleaned(Cleaning::default()))
+            .unwrap_or_else(|e| panic!("{e}"))
+            .smoothed(smooth);
+        let clock = std::time::Instant::now();
+        let resolved = raw.at_resolution(2.0 * factor * h);
+        println!("at_resolution: {:.2} s", clock.elapsed().as_secs_f64());
+        let d = if premesh { &resolved } else { &raw };
+        let s = stuff(d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+        let boundary = crate::mesh::boundary::boundary_surface(&s.mesh).surface;
+        let index = TriangleIndex::new(&boundary.vertices, &boundary.triangles);
+        let far_of = |dom: &ImageDomain| {
+            let mut far: Vec<(Real, Vec3)> = dom
+                .boundary_samples(0.25 * h)
+                .iter()
+                .map(|&p| (index.distance(p), p))
+                .collect();
+            far.sort_by(|a, b| b.0.total_cmp(&a.0));
+            far
+        };
+        let far = far_of(&raw);
+        let far_r = far_of(&resolved);
+        let beyond = far.iter().filter(|f| f.0 > 0.5 * h).count();
+        println!(
+            "{file} h {h} σ {smooth} meshed at resolution {premesh}: {} tets, min {:.2}°, volume vs cleaned {:+.2} %, mesh→input {:.3} h, input→mesh raw {:.3} h ({:.2} % beyond h/2), resolved (r = {factor} h) {:.3} h",
+            s.report.tets,
+            s.report.min_dihedral_deg,
+            100.0 * (s.report.volume / raw.reference_volume().unwrap_or(1.0) - 1.0),
+            s.report.mesh_to_input / h,
+            far[0].0 / h,
+            100.0 * beyond as Real / far.len() as Real,
+            far_r[0].0 / h,
+        );
+        if std::env::var("STUDY_VERBOSE").is_err() {
+            continue;
+        }
+        for &(dist, p) in far_r.iter().take(6) {
+            let u = ((p - image.origin) / image.spacing).round();
+            println!(
+                "  at resolution h: {:.2} h at {:.4?} voxel {:?}; raw value {:.3}, resolved {:.3}",
+                dist / h,
+                p.to_array(),
+                u.to_array(),
+                raw.value(p),
+                resolved.value(p)
+            );
+        }
+        let [nx, ny, nz] = image.dims;
+        let inside = |i: i64, j: i64, k: i64| {
+            i >= 0
+                && j >= 0
+                && k >= 0
+                && (i as usize) < nx
+                && (j as usize) < ny
+                && (k as usize) < nz
+                && raw.value(image.position(i as usize, j as usize, k as usize)) < 0.0
+        };
+        for &(dist, p) in far.iter().take(12) {
+            let u = ((p - image.origin) / image.spacing).round();
+            let (i, j, k) = (u.x as i64, u.y as i64, u.z as i64);
+            let border = i <= 0
+                || j <= 0
+                || k <= 0
+                || i + 1 >= nx as i64
+                || j + 1 >= ny as i64
+                || k + 1 >= nz as i64;
+            // Runs of voxels of the same side as this one through it, along x, y, z.
+            let side = inside(i, j, k);
+            let run = |di: i64, dj: i64, dk: i64| {
+                let mut n = 1;
+                for s in [-1i64, 1] {
+                    let mut t = 1;
+                    while inside(i + s * t * di, j + s * t * dj, k + s * t * dk) == side && t < 400
+                    {
+                        n += 1;
+                        t += 1;
+                    }
+                }
+                n
+            };
+            println!(
+                "  {:.2} h at {:.4?} voxel ({i},{j},{k}) {} border {border}: runs x {} y {} z {} voxels",
+                dist / h,
+                p.to_array(),
+                if side { "selected" } else { "unselected" },
+                run(1, 0, 0),
+                run(0, 1, 0),
+                run(0, 0, 1),
+            );
+        }
+    }
+}
+
+/// Settings for the image → tetrahedra scenes: size, blur and opening on the shipped pelvis
+/// and brain, with what each keeps
+/// (`cargo test --release -p tissue --lib image_settings_study -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn image_settings_study() {
+    use crate::image::{Cleaning, read_image};
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/images/");
+    for (file, scale, lo, hi, sizes) in [
+        ("anatomical.nii", 0.001, 6000.0, 40000.0, [0.004, 0.005]),
+        ("pelvis_f.mhd", 0.1, 20.0, 75.0, [0.006, 0.008]),
+    ] {
+        let image = read_image(std::path::Path::new(&format!("{root}{file}")), scale)
+            .unwrap_or_else(|e| panic!("{e}"));
+        for h in sizes {
+            for open_close in [1, 2] {
+                for smooth in [0.5, 0.75] {
+                    let c = Cleaning {
+                        open_close,
+                        ..Cleaning::default()
+                    };
+                    let d = ImageDomain::from_threshold(&image, lo, hi)
+                        .and_then(|d| d.cleaned(c))
+                        .unwrap_or_else(|e| panic!("{e}"))
+                        .smoothed(smooth * h);
+                    let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+                    let r = &s.report;
+                    println!(
+                        "{file} h {h} open {open_close} σ {smooth}h: {} tets, min {:.1}°, volume {:+.2} %, mesh→input {:.3} h, input→mesh {:.3} h ({:.2} % beyond h/2), resolved {:.3} h, {:.1} s; {:?}",
+                        r.tets,
+                        r.min_dihedral_deg,
+                        100.0 * r.volume_error.unwrap_or(0.0),
+                        r.mesh_to_input / h,
+                        r.input_to_mesh / h,
+                        100.0 * r.input_beyond_half_size,
+                        r.resolved_input_to_mesh.unwrap_or(0.0) / h,
+                        r.seconds,
+                        r.violations()
+                    );
+                }
             }
         }
     }
