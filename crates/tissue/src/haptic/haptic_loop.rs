@@ -334,7 +334,13 @@ mod tests {
         let c = Arc::clone(&count);
         lp.handle()
             .set_sink(Some(Box::new(move |_| *lock(&c) += 1)));
+        // Until the sink has seen ticks (a loaded machine may not schedule the loop's thread
+        // for a while: CI saw 0 ticks in a fixed 100 ms), at most 10 s.
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
         std::thread::sleep(Duration::from_millis(100));
+        while *lock(&count) < 10 && std::time::Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
         lp.handle().set_sink(None);
         let n = *lock(&count);
         let stats = lp.stop();

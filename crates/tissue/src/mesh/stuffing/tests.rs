@@ -362,6 +362,21 @@ fn quality_table() {
     }
 }
 
+/// The studies' image mesh: the voxels in `window`, cleaned, blurred by `sigma`, stuffed at `h`.
+fn stuff_window(
+    image: &crate::image::VoxelImage,
+    window: (Real, Real),
+    cleaning: crate::image::Cleaning,
+    sigma: Real,
+    h: Real,
+) -> Stuffed {
+    let d = ImageDomain::from_threshold(image, window.0, window.1)
+        .and_then(|d| d.cleaned(cleaning))
+        .unwrap_or_else(|e| panic!("{e}"))
+        .smoothed(sigma);
+    stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// Image → tetrahedra settings for the brain scene, printed
 /// (`cargo test --release --workspace --lib brain_image_study -- --ignored --nocapture`).
 #[test]
@@ -376,11 +391,7 @@ fn brain_image_study() {
     for cleaning in [Cleaning::NONE, Cleaning::default()] {
         for h in [0.004, 0.005, 0.006] {
             for smooth in [0.0, 0.5, 1.0] {
-                let d = ImageDomain::from_threshold(&image, 6000.0, 40000.0)
-                    .and_then(|d| d.cleaned(cleaning))
-                    .unwrap_or_else(|e| panic!("{e}"))
-                    .smoothed(smooth * h);
-                let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+                let s = stuff_window(&image, (6000.0, 40000.0), cleaning, smooth * h, h);
                 let r = &s.report;
                 println!(
                     "clean {} h {h} smooth {smooth}h: {} tets, dihedral {:.2}..{:.2}, volume {:+.2} % (uncleaned {:+.2} %), Hausdorff {:.3} h; {:?}",
@@ -543,11 +554,7 @@ fn image_settings_study() {
                         open_close,
                         ..Cleaning::default()
                     };
-                    let d = ImageDomain::from_threshold(&image, lo, hi)
-                        .and_then(|d| d.cleaned(c))
-                        .unwrap_or_else(|e| panic!("{e}"))
-                        .smoothed(smooth * h);
-                    let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+                    let s = stuff_window(&image, (lo, hi), c, smooth * h, h);
                     let r = &s.report;
                     println!(
                         "{file} h {h} open {open_close} σ {smooth}h: {} tets, min {:.1}°, volume {:+.2} %, mesh→input {:.3} h, input→mesh {:.3} h ({:.2} % beyond h/2), resolved {:.3} h, {:.1} s; {:?}",
