@@ -365,7 +365,7 @@ fn quality_table() {
 /// The studies' image mesh: the voxels in `window`, cleaned, blurred by `sigma`, stuffed at `h`.
 fn stuff_window(
     image: &crate::image::VoxelImage,
-    window: (Real, Real),
+    window: (f32, f32),
     cleaning: crate::image::Cleaning,
     sigma: Real,
     h: Real,
