@@ -300,16 +300,27 @@ mod tests {
             sequence: 42,
             flags: 0,
         });
+        // At least 300 ms, and until the loop has answered the pose (a loaded machine may not
+        // schedule its thread for a while), at most 10 s.
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
         std::thread::sleep(Duration::from_millis(300));
+        while h.latest().sequence != 42 && std::time::Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let out = h.latest();
         assert_eq!(out.sequence, 42);
         // 1 N + 200 N/m * 1 mm.
         assert!((out.force.y - 1.2).abs() < 1e-12, "{:?}", out.force);
         assert!((h.max_force() - 1.2).abs() < 1e-12);
         let stats = lp.stop();
-        // 300 ms at 1 kHz, with generous slack for a shared 2-core machine.
-        assert!(stats.ticks >= 150 && stats.ticks <= 320, "{stats:?}");
-        assert!(stats.rate_hz > 500.0 && stats.rate_hz < 1100.0, "{stats:?}");
+        // What holds on any machine: never faster than asked, and a loop that fell behind
+        // says so (its periods are ticked or counted as missed). How close to 1 kHz a quiet
+        // machine comes is `tissue haptic-bench`'s to measure, not a unit test's.
+        assert!(stats.ticks > 0 && stats.rate_hz <= 1010.0, "{stats:?}");
+        assert!(
+            stats.rate_hz > 900.0 || stats.missed_deadlines > 0,
+            "{stats:?}"
+        );
         assert!(stats.p50_us > 0.0 && stats.p50_us <= stats.p99_us);
     }
 
