@@ -23,6 +23,7 @@ mod grow;
 mod model;
 mod rest;
 mod split;
+mod sym_panels;
 
 use serde::Deserialize;
 

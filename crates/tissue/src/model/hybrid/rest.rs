@@ -35,6 +35,7 @@ use crate::model::Deformable;
 use crate::model::fem::{DofProblem, FemStatic, Order};
 
 use super::split::{NONE, Split};
+use super::sym_panels::SymPanels;
 
 /// y (+)= alpha · a · x for column vectors.
 fn gemv(y: &mut Mat<Real>, accum: Accum, a: MatRef<'_, Real>, x: MatRef<'_, Real>, alpha: Real) {
@@ -57,82 +58,6 @@ fn dot(x: &[Real], y: &[Real]) -> Real {
         }
     }
     acc.iter().sum::<Real>() + tail
-}
-
-/// y += alpha · S x for the symmetric S (n × n): y_i += alpha · (column i of S) · x, since
-/// S's column i is its row i and a column of a faer matrix is contiguous. Eight columns at
-/// a time with AVX2 and FMA when the CPU has them (as the tensor-mass kernel does): one
-/// load of x serves eight multiply-adds whose S operand comes straight from memory, 0.3
-/// instructions per entry of S. The packed upper triangle this replaces read half the
-/// bytes but had to load and store y for every four columns (1.4 instructions per stored
-/// entry: 69 k per product at 309 interface dofs, against 33 k here); S (0.76 MB at 309
-/// dofs) still fits a core's L2.
-fn sym_mul_add(s: &Mat<Real>, x: &[Real], y: &mut [Real], alpha: Real) {
-    let n = s.nrows();
-    assert!(s.ncols() == n && x.len() >= n && y.len() >= n);
-    #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU supports the features this function is compiled for.
-        return unsafe { sym_mul_add_avx2(s, x, y, alpha) };
-    }
-    sym_columns(s, 0, x, y, alpha);
-}
-
-/// `sym_mul_add` over columns `from..n`, one dot product each (the portable path, and the
-/// AVX2 one's last n mod 8 columns).
-fn sym_columns(s: &Mat<Real>, from: usize, x: &[Real], y: &mut [Real], alpha: Real) {
-    let n = s.nrows();
-    for (i, yi) in y.iter_mut().enumerate().take(n).skip(from) {
-        *yi += alpha * dot(s.col_as_slice(i), &x[..n]);
-    }
-}
-
-/// `sym_mul_add` with AVX2 and FMA: eight columns of S at a time, four rows per load.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn sym_mul_add_avx2(s: &Mat<Real>, x: &[Real], y: &mut [Real], alpha: Real) {
-    use std::arch::x86_64::{
-        _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_setzero_pd, _mm256_storeu_pd,
-    };
-    let n = s.nrows();
-    assert!(s.ncols() == n && x.len() >= n && y.len() >= n);
-    let rows = n - n % 4;
-    let mut i = 0;
-    while i + 8 <= n {
-        let cols: [&[Real]; 8] = std::array::from_fn(|m| s.col_as_slice(i + m));
-        assert!(cols.iter().all(|c| c.len() >= n));
-        let mut lanes = [[0.0; 4]; 8];
-        // SAFETY: rows r..r + 4 ≤ n of the eight columns (each at least n long) and of x
-        // (at least n long), as asserted above.
-        unsafe {
-            let mut acc = [_mm256_setzero_pd(); 8];
-            let xp = x.as_ptr();
-            let cp = cols.map(<[Real]>::as_ptr);
-            let mut r = 0;
-            while r < rows {
-                let xx = _mm256_loadu_pd(xp.add(r));
-                for m in 0..8 {
-                    acc[m] = _mm256_fmadd_pd(_mm256_loadu_pd(cp[m].add(r)), xx, acc[m]);
-                }
-                r += 4;
-            }
-            for m in 0..8 {
-                _mm256_storeu_pd(lanes[m].as_mut_ptr(), acc[m]);
-            }
-        }
-        for (m, l) in lanes.iter().enumerate() {
-            let mut d = (l[0] + l[1]) + (l[2] + l[3]);
-            for r in rows..n {
-                d = cols[m][r].mul_add(x[r], d);
-            }
-            y[i + m] = alpha.mul_add(d, y[i + m]);
-        }
-        i += 8;
-    }
-    sym_columns(s, i, x, y, alpha);
 }
 
 /// The contacts on the outer surface, as the coupling forces use them.
@@ -168,7 +93,9 @@ pub(super) struct RestPart {
     outer_slot: Vec<u32>,
     /// −(interface reactions) per unit interface displacement: 3n_I × 3n_I.
     s: Mat<Real>,
-    /// S packed, for the product every force evaluation takes.
+    /// S again, as panels of its upper triangle: the product every force evaluation takes
+    /// reads half the bytes (`sym_panels`).
+    panels: SymPanels,
     /// Outer displacements per unit interface displacement, G (3n_O × 3n_I), stored
     /// transposed: the three rows of one outer node are contiguous, for the few nodes a
     /// contact search needs (`outer_displacement`).
@@ -276,6 +203,7 @@ impl RestPart {
             iface,
             outer,
             outer_slot,
+            panels: SymPanels::new(&s),
             s,
             gt,
             g_norms,
@@ -311,6 +239,7 @@ impl RestPart {
             outer: Vec::new(),
             outer_slot: Vec::new(),
             s: Mat::zeros(0, 0),
+            panels: SymPanels::default(),
             gt: Mat::zeros(0, 0),
             g_norms: Vec::new(),
             r0: Mat::zeros(0, 1),
@@ -563,7 +492,8 @@ impl RestPart {
     ) {
         self.contact_forces_into(u_i, y, z);
         out.as_mut().copy_from(self.r0.as_ref());
-        sym_mul_add(&self.s, u_i.col_as_slice(0), out.col_as_slice_mut(0), -1.0);
+        self.panels
+            .mul_add(u_i.col_as_slice(0), out.col_as_slice_mut(0), -1.0);
         // + G_cᵀ z, row after row of G_c.
         let ni = out.nrows();
         let o = out.col_as_slice_mut(0);
@@ -810,6 +740,7 @@ impl RestPart {
         self.fem
             .as_ref()
             .map_or(0, |f| f.borrow().info().memory_bytes)
+            + self.panels.bytes()
             + 8 * (self.s.nrows() * self.s.ncols()
                 + self.gt.nrows() * self.gt.ncols()
                 + self.columns.len() * 3 * self.gt.ncols())
@@ -939,7 +870,8 @@ impl NodeCoupling for Coupling<'_> {
         }
         let rest = self.rest;
         let mut k = Mat::zeros(u.nrows(), 1);
-        sym_mul_add(&rest.s, u.col_as_slice(0), k.col_as_slice_mut(0), 1.0);
+        rest.panels
+            .mul_add(u.col_as_slice(0), k.col_as_slice_mut(0), 1.0);
         let c = &rest.contacts;
         if c.g.nrows() > 0 {
             let mut y = Mat::zeros(c.g.nrows(), 1);
@@ -968,40 +900,6 @@ impl NodeCoupling for Coupling<'_> {
             );
             if let Some(di) = d.get_mut(n as usize) {
                 *di += diagonal;
-            }
-        }
-    }
-}
-
-#[cfg(test)]
-mod product_tests {
-    use super::*;
-
-    /// The symmetric product over S's columns equals faer's dense one (sizes below, at and
-    /// above the eight-column block and the four-row chunk).
-    #[test]
-    fn symmetric_product_equals_faers_dense_one() {
-        for n in [1, 3, 4, 5, 7, 8, 9, 15, 16, 17, 33, 64, 67, 130] {
-            let a = Mat::<Real>::from_fn(n, n, |i, j| ((3 * i + 7 * j) % 11) as Real - 5.0);
-            let s = Mat::<Real>::from_fn(n, n, |i, j| a[(i, j)] + a[(j, i)]);
-            let x = Mat::<Real>::from_fn(n, 1, |i, _| (i as Real * 0.37).sin());
-            let mut dense = Mat::<Real>::from_fn(n, 1, |i, _| i as Real);
-            let mut fast = dense.clone();
-            gemv(&mut dense, Accum::Add, s.as_ref(), x.as_ref(), -0.5);
-            sym_mul_add(&s, x.col_as_slice(0), fast.col_as_slice_mut(0), -0.5);
-            // The portable path too (the AVX2 one above when the CPU has it).
-            let mut portable: Vec<Real> = (0..n).map(|i| i as Real).collect();
-            sym_columns(&s, 0, x.col_as_slice(0), &mut portable, -0.5);
-            for i in 0..n {
-                let tol = 1e-12 * (1.0 + dense[(i, 0)].abs());
-                assert!(
-                    (dense[(i, 0)] - fast[(i, 0)]).abs() < tol,
-                    "n = {n}, row {i}"
-                );
-                assert!(
-                    (dense[(i, 0)] - portable[i]).abs() < tol,
-                    "portable, n = {n}, row {i}"
-                );
             }
         }
     }
