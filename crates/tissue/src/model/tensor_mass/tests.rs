@@ -547,6 +547,14 @@ fn kernel_paths_agree(
     // rounding (on a CPU without AVX2 and FMA it is the baseline: the same bits).
     assert_eq!(fb, fs);
     assert_eq!(wb, ws);
+    // The AVX-512 instance is the AVX2 code with 32 registers: the same bits.
+    if kernel::VectorPath::detect() == kernel::VectorPath::Avx512 {
+        let (mut f2, mut f5) = (vec![Vec3::ZERO; u.len()], vec![Vec3::ZERO; u.len()]);
+        let w2 = k.add_forces_on(kernel::VectorPath::Avx2, u, &mut f2);
+        let w5 = k.add_forces_on(kernel::VectorPath::Avx512, u, &mut f5);
+        assert_eq!(f2, f5);
+        assert_eq!(w2, w5);
+    }
     assert!(
         max_diff(&fv, &fs) <= 1e-14 * max_norm(&fs),
         "{}",
