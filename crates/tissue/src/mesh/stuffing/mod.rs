@@ -19,6 +19,7 @@
 pub mod domain;
 pub mod image_domain;
 mod lattice;
+pub mod manifold;
 pub mod report;
 mod split_rule;
 mod stencil;
@@ -311,8 +312,10 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     }
     let seconds = clock.elapsed().as_secs_f64();
     progress.report("report", 0.0);
-    let mesh = TetMesh::new(vertices, tets);
+    let mut mesh = TetMesh::new(vertices, tets);
+    let manifold = manifold::make_boundary_manifold(&mut mesh, &mut tags);
     let mut report = measure(&mesh, domain, domain_index(domain), size);
+    report.manifold = manifold;
     report.warped = warped;
     report.steiner_points = steiner_points;
     report.cut_points = cuts.len();

@@ -74,6 +74,9 @@ pub struct MeshingReport {
     pub distance_method: &'static str,
     /// Wall time of the meshing itself, in s.
     pub seconds: Real,
+    /// Tetrahedra removed so that the boundary is a 2-manifold, and any defect left
+    /// (`manifold`).
+    pub manifold: super::manifold::ManifoldRepair,
 }
 
 impl MeshingReport {
@@ -102,6 +105,14 @@ impl MeshingReport {
                 "boundary {:.3e} m from the input, more than h/2 = {:.3e} m",
                 self.hausdorff,
                 0.5 * self.size
+            ));
+        }
+        let m = &self.manifold;
+        if m.edges_left + m.vertices_left > 0 {
+            v.push(format!(
+                "boundary not a 2-manifold: {} edges shared by more than two triangles, {} \
+                 vertices where parts touch",
+                m.edges_left, m.vertices_left
             ));
         }
         if let Some(e) = self.volume_error
@@ -199,11 +210,19 @@ impl fmt::Display for MeshingReport {
                 }
             )?;
         }
+        if self.manifold.removed > 0 {
+            writeln!(
+                f,
+                "manifold:        {} tetrahedra ({:.3e} m³) removed where parts of the mesh \
+                 touched along an edge or at a vertex",
+                self.manifold.removed, self.manifold.removed_volume
+            )?;
+        }
         let v = self.violations();
         if v.is_empty() {
             writeln!(
                 f,
-                "guarantees kept: no inverted or degenerate element, min dihedral ≥ {MIN_DIHEDRAL_DEG}°, boundary within h/2{}",
+                "guarantees kept: no inverted or degenerate element, min dihedral ≥ {MIN_DIHEDRAL_DEG}°, boundary a 2-manifold within h/2{}",
                 if self.volume_error.is_some() {
                     ", volume within 1 %"
                 } else {
@@ -396,6 +415,7 @@ pub fn measure(
             "first-order"
         },
         seconds: 0.0,
+        manifold: Default::default(),
     }
 }
 
