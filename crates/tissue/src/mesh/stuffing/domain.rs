@@ -65,6 +65,12 @@ pub trait Domain: Sync {
         1
     }
 
+    /// Whether the input is one piece (an image whose largest part was kept): a mesh in
+    /// several pieces then keeps its largest (`pieces`).
+    fn one_piece(&self) -> bool {
+        false
+    }
+
     /// The input surface, indexed, when the domain is one (exact boundary distances).
     fn surface_index(&self) -> Option<&TriangleIndex> {
         None

@@ -29,6 +29,8 @@ pub struct ImageDomain {
     /// What `cleaned` changed (the selected voxels before it are the report's second
     /// reference volume).
     cleaning: Option<CleanReport>,
+    /// The cleaning kept the largest part only: the mesh keeps its largest piece.
+    one_piece: bool,
 }
 
 impl ImageDomain {
@@ -97,6 +99,7 @@ impl ImageDomain {
             hi: hi + image.spacing,
             selected,
             cleaning: None,
+            one_piece: false,
         })
     }
 
@@ -147,6 +150,7 @@ impl ImageDomain {
         self.mask = mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect();
         self.selected = report.voxels_after;
         self.cleaning = Some(report);
+        self.one_piece = c.largest_component;
         Ok(self)
     }
 
@@ -274,6 +278,10 @@ impl Domain for ImageDomain {
 
     fn at_resolution(&self, size: Real) -> Option<Box<dyn Domain>> {
         Some(Box::new(ImageDomain::at_resolution(self, size)))
+    }
+
+    fn one_piece(&self) -> bool {
+        self.one_piece
     }
 
     fn tag_at(&self, p: Vec3) -> i32 {

@@ -20,6 +20,7 @@ pub mod domain;
 pub mod image_domain;
 mod lattice;
 pub mod manifold;
+pub mod pieces;
 pub mod report;
 mod split_rule;
 mod stencil;
@@ -314,8 +315,10 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     progress.report("report", 0.0);
     let mut mesh = TetMesh::new(vertices, tets);
     let manifold = manifold::make_boundary_manifold(&mut mesh, &mut tags);
+    let pieces = pieces::pieces(&mut mesh, &mut tags, domain.one_piece());
     let mut report = measure(&mesh, domain, domain_index(domain), size);
     report.manifold = manifold;
+    report.pieces = pieces;
     report.warped = warped;
     report.steiner_points = steiner_points;
     report.cut_points = cuts.len();

@@ -77,6 +77,8 @@ pub struct MeshingReport {
     /// Tetrahedra removed so that the boundary is a 2-manifold, and any defect left
     /// (`manifold`).
     pub manifold: super::manifold::ManifoldRepair,
+    /// The mesh's pieces, and those dropped when the input is one piece (`pieces`).
+    pub pieces: super::pieces::Pieces,
 }
 
 impl MeshingReport {
@@ -216,6 +218,21 @@ impl fmt::Display for MeshingReport {
                 "manifold:        {} tetrahedra ({:.3e} m³) removed where parts of the mesh \
                  touched along an edge or at a vertex",
                 self.manifold.removed, self.manifold.removed_volume
+            )?;
+        }
+        let p = &self.pieces;
+        if p.dropped > 0 {
+            writeln!(
+                f,
+                "pieces:          {} small pieces dropped ({} tetrahedra, {:.3e} m³): joined \
+                 to the rest only by strands thinner than h, which the lattice cannot follow",
+                p.dropped, p.dropped_tets, p.dropped_volume
+            )?;
+        } else if p.count > 1 {
+            writeln!(
+                f,
+                "pieces:          {} (a piece that no support holds leaves a model singular)",
+                p.count
             )?;
         }
         let v = self.violations();
@@ -416,6 +433,7 @@ pub fn measure(
         },
         seconds: 0.0,
         manifold: Default::default(),
+        pieces: Default::default(),
     }
 }
 
