@@ -8,6 +8,7 @@ pub mod cg;
 pub mod ordering;
 pub mod schur;
 pub mod sparse;
+mod tree_solve;
 
 pub use cg::{CgResult, CgWorkspace};
 pub use schur::HeldSchur;
