@@ -5,6 +5,7 @@
 //! preconditioned conjugate gradient for the implicit dynamic models.
 
 pub mod cg;
+pub mod chooser;
 pub mod ordering;
 pub mod schur;
 pub mod sparse;

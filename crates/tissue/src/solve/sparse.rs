@@ -219,9 +219,10 @@ const NESTED_DISSECTION_MIN_DIM: usize = 3000;
 /// simplicial factors, by faer's solve.
 const TREE_MIN_VALUES: usize = 0;
 
-/// The tree solve runs its groups on rayon's threads (when there are several) from this
-/// many factor values, and when its top and largest group carry at most `PARALLEL_SPAN` of
-/// the work: below, waking a worker costs more than half the solve saves.
+/// The tree solve may run its groups on rayon's threads (when there are several, and when
+/// `chooser` measures it faster) from this many factor values, and when its top and largest
+/// group carry at most `PARALLEL_SPAN` of the work: below, waking a worker costs more than
+/// half the solve saves.
 const PARALLEL_MIN_VALUES: usize = 100_000;
 const PARALLEL_SPAN: f64 = 0.75;
 
@@ -254,8 +255,10 @@ pub struct SparseCholesky {
     /// The supernodal solve split by the elimination tree (`tree_solve`), for factors of
     /// at least `TREE_MIN_VALUES` values.
     tree: Option<TreeSolve>,
-    /// Whether `tree` runs its groups on rayon's threads (size and split permitting).
+    /// Whether `tree` may run its groups on rayon's threads (size and split permitting).
     parallel: bool,
+    /// Whether it does, measured (`chooser`): the same bits either way.
+    chooser: super::chooser::Chooser,
     /// Tests: the tree's groups on rayon's threads always (`Some(true)`), never, or by size.
     #[cfg(test)]
     force_parallel: Option<bool>,
@@ -382,6 +385,7 @@ impl SparseCholesky {
             factored: false,
             tree,
             parallel,
+            chooser: Default::default(),
             #[cfg(test)]
             force_parallel: None,
         })
@@ -500,12 +504,21 @@ impl SparseCholesky {
         }
         if let Some(tree) = self.tree.as_mut() {
             #[cfg(feature = "parallel")]
-            let parallel = self.parallel && rayon::current_num_threads() > 1;
+            let may = self.parallel && rayon::current_num_threads() > 1;
             #[cfg(not(feature = "parallel"))]
-            let parallel = false;
+            let may = false;
+            #[cfg(test)]
+            let may = may || self.force_parallel == Some(true);
+            if !may {
+                tree.solve(&self.l_values, rhs, false);
+                return Ok(());
+            }
+            let parallel = self.chooser.pick();
             #[cfg(test)]
             let parallel = self.force_parallel.unwrap_or(parallel);
+            let start = std::time::Instant::now();
             tree.solve(&self.l_values, rhs, parallel);
+            self.chooser.record(parallel, start.elapsed());
             return Ok(());
         }
         self.faer_solve(rhs);
