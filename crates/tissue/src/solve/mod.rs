@@ -1,13 +1,16 @@
 //! Linear algebra for the models: sparse matrices with a fixed pattern and a sparse Cholesky
 //! factorisation whose symbolic analysis (AMD or nested dissection, whichever fills less) is
 //! done once and reused, with extra held unknowns imposed through a Schur complement instead of
-//! a new factorisation (`schur`); a matrix-free Jacobi-
+//! a new factorisation (`schur`), and triangular solves split along the elimination tree
+//! (`tree_solve`, serial or parallel as `chooser` measures); a matrix-free Jacobi-
 //! preconditioned conjugate gradient for the implicit dynamic models.
 
 pub mod cg;
+pub mod chooser;
 pub mod ordering;
 pub mod schur;
 pub mod sparse;
+mod tree_solve;
 
 pub use cg::{CgResult, CgWorkspace};
 pub use schur::HeldSchur;

@@ -7,17 +7,22 @@
 //!
 //! `SparseCholesky` keeps the symbolic factorisation (fill-reducing ordering and the pattern
 //! of L), the numeric values and the work memory, so that refactorising a matrix with the same
-//! pattern and solving allocate nothing.
+//! pattern and solving allocate nothing. faer computes the factor; a supernodal factor is
+//! solved by `tree_solve` (our loops, the elimination tree's subtrees on two threads when
+//! measured faster), a simplicial one by faer.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
-    LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
 
 use crate::error::SimError;
 use crate::math::{Real, Vec3};
+
+use super::tree_solve::TreeSolve;
 
 /// The compressed-column pattern of a symmetric matrix with `block` unknowns per node.
 #[derive(Clone, Debug, PartialEq)]
@@ -211,6 +216,18 @@ pub enum Ordering {
 /// it AMD's factor is small anyway and the second analysis would cost more than it saves.
 const NESTED_DISSECTION_MIN_DIM: usize = 3000;
 
+/// Supernodal factors with at least this many values are solved by `tree_solve` (our own
+/// loops over the supernodes, the independent subtrees on two threads); smaller ones, and
+/// simplicial factors, by faer's solve.
+const TREE_MIN_VALUES: usize = 0;
+
+/// The tree solve may run its groups on rayon's threads (when there are several, and when
+/// `chooser` measures it faster) from this many factor values, and when its top and largest
+/// group carry at most `PARALLEL_SPAN` of the work: below, waking a worker costs more than
+/// half the solve saves.
+const PARALLEL_MIN_VALUES: usize = 100_000;
+const PARALLEL_SPAN: f64 = 0.75;
+
 /// The nested-dissection order of the pattern's nodes, expanded to their unknowns, as faer's
 /// (forward: new → original, inverse) pair.
 fn dof_permutation(pattern: &BlockPattern, positions: &[Vec3]) -> (Vec<usize>, Vec<usize>) {
@@ -237,6 +254,16 @@ pub struct SparseCholesky {
     solve_mem: MemBuffer,
     diag_slots: Vec<usize>,
     factored: bool,
+    /// The supernodal solve split by the elimination tree (`tree_solve`), for factors of
+    /// at least `TREE_MIN_VALUES` values.
+    tree: Option<TreeSolve>,
+    /// Whether `tree` may run its groups on rayon's threads (size and split permitting).
+    parallel: bool,
+    /// Whether it does, measured (`chooser`): the same bits either way.
+    chooser: super::chooser::Chooser,
+    /// Tests: the tree's groups on rayon's threads always (`Some(true)`), never, or by size.
+    #[cfg(test)]
+    force_parallel: Option<bool>,
 }
 
 impl std::fmt::Debug for SparseCholesky {
@@ -270,6 +297,24 @@ impl SparseCholesky {
         positions: &[Vec3],
         ordering: Ordering,
     ) -> Result<Self, SimError> {
+        Self::build(
+            pattern,
+            positions,
+            ordering,
+            Default::default(),
+            TREE_MIN_VALUES,
+        )
+    }
+
+    /// `with_ordering` with faer's symbolic parameters (tests force a supernodal factor) and
+    /// the smallest factor solved by the tree solve.
+    fn build(
+        pattern: &BlockPattern,
+        positions: &[Vec3],
+        ordering: Ordering,
+        params: CholeskySymbolicParams<'_>,
+        tree_min_values: usize,
+    ) -> Result<Self, SimError> {
         let ordering = if positions.len() * pattern.block < pattern.dim() {
             Ordering::Amd
         } else {
@@ -283,25 +328,27 @@ impl SparseCholesky {
             None,
             &pattern.row_idx,
         );
-        fn analyse(
+        fn analyse_with(
             sym: faer::sparse::SymbolicSparseColMatRef<'_, usize>,
             ord: SymmetricOrdering<'_, usize>,
+            params: CholeskySymbolicParams<'_>,
         ) -> Result<SymbolicCholesky<usize>, SimError> {
-            factorize_symbolic_cholesky(sym, Side::Lower, ord, Default::default())
+            factorize_symbolic_cholesky(sym, Side::Lower, ord, params)
                 .map_err(|e| internal(&format!("symbolic Cholesky failed: {e:?}")))
         }
         let nested = || {
             let (fwd, inv) = dof_permutation(pattern, positions);
-            analyse(
+            analyse_with(
                 sym,
                 SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(&fwd, &inv, n)),
+                params,
             )
         };
         let symbolic = match ordering {
-            Ordering::Amd => analyse(sym, SymmetricOrdering::Amd)?,
+            Ordering::Amd => analyse_with(sym, SymmetricOrdering::Amd, params)?,
             Ordering::NestedDissection => nested()?,
             Ordering::Smaller => {
-                let amd = analyse(sym, SymmetricOrdering::Amd)?;
+                let amd = analyse_with(sym, SymmetricOrdering::Amd, params)?;
                 if n >= NESTED_DISSECTION_MIN_DIM {
                     let nd = nested()?;
                     if nd.len_val() < amd.len_val() {
@@ -322,6 +369,15 @@ impl SparseCholesky {
         let solve_mem = MemBuffer::try_new(symbolic.solve_in_place_scratch::<Real>(1, par))
             .map_err(|_| internal("out of memory for the Cholesky work space"))?;
         let l_values = vec![0.0; symbolic.len_val()];
+        let tree = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) if s.len_val() >= tree_min_values && n > 0 => {
+                TreeSolve::new(s, symbolic.perm().map(|p| p.arrays().0))
+            }
+            _ => None,
+        };
+        let parallel = tree
+            .as_ref()
+            .is_some_and(|t| symbolic.len_val() >= PARALLEL_MIN_VALUES && t.splits(PARALLEL_SPAN));
         Ok(Self {
             symbolic,
             l_values,
@@ -329,6 +385,11 @@ impl SparseCholesky {
             solve_mem,
             diag_slots: pattern.diagonal_slots(),
             factored: false,
+            tree,
+            parallel,
+            chooser: Default::default(),
+            #[cfg(test)]
+            force_parallel: None,
         })
     }
 
@@ -339,10 +400,18 @@ impl SparseCholesky {
 
     /// True when faer chose the supernodal (dense-block) factorisation over the simplicial one.
     pub fn is_supernodal(&self) -> bool {
-        matches!(
-            self.symbolic.raw(),
-            faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)
-        )
+        matches!(self.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+    }
+
+    /// Whether solves go through `tree_solve`, and whether its groups run on rayon's
+    /// threads when there are several (the same bits either way).
+    pub fn tree_solve(&self) -> (bool, bool) {
+        (self.tree.is_some(), self.parallel)
+    }
+
+    /// The tree solve's work estimates (whole, serial top, largest group), if it is used.
+    pub fn tree_work(&self) -> Option<(u64, u64, u64)> {
+        self.tree.as_ref().map(TreeSolve::work)
     }
 
     /// True after a successful `factorize`.
@@ -395,7 +464,6 @@ impl SparseCholesky {
     }
 
     fn small_pivot(&self, values: &[Real], original: &dyn Fn(usize) -> usize) -> Option<usize> {
-        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
         let ratio = |i: usize, lii: Real| {
             let row = original(i);
             let aii = self
@@ -436,6 +504,32 @@ impl SparseCholesky {
         if rhs.len() != n {
             return Err(internal("right-hand side length does not match the matrix"));
         }
+        if let Some(tree) = self.tree.as_mut() {
+            #[cfg(feature = "parallel")]
+            let may = self.parallel && rayon::current_num_threads() > 1;
+            #[cfg(not(feature = "parallel"))]
+            let may = false;
+            #[cfg(test)]
+            let may = may || self.force_parallel == Some(true);
+            if !may {
+                tree.solve(&self.l_values, rhs, false);
+                return Ok(());
+            }
+            let parallel = self.chooser.pick();
+            #[cfg(test)]
+            let parallel = self.force_parallel.unwrap_or(parallel);
+            let start = std::time::Instant::now();
+            tree.solve(&self.l_values, rhs, parallel);
+            self.chooser.record(parallel, start.elapsed());
+            return Ok(());
+        }
+        self.faer_solve(rhs);
+        Ok(())
+    }
+
+    /// faer's supernodal or simplicial solve, with its permutation.
+    fn faer_solve(&mut self, rhs: &mut [Real]) {
+        let n = self.symbolic.nrows();
         let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.l_values);
         llt.solve_in_place_with_conj(
             Conj::No,
@@ -443,7 +537,6 @@ impl SparseCholesky {
             Par::Seq,
             MemStack::new(&mut self.solve_mem),
         );
-        Ok(())
     }
 
     /// Solves A X = B in place for `ncols` right-hand sides stored column after column in
@@ -667,6 +760,211 @@ mod tests {
                     p.dim(),
                     chol.factor_nnz(),
                     t.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
+
+    /// A factor forced supernodal (faer keeps small or thin ones simplicial), solved by the
+    /// tree from any size.
+    fn supernodal(p: &BlockPattern, positions: &[Vec3], ordering: Ordering) -> SparseCholesky {
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold:
+                faer::sparse::linalg::SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        SparseCholesky::build(p, positions, ordering, params, 0).unwrap()
+    }
+
+    fn max_abs(x: &[Real]) -> Real {
+        x.iter().fold(0.0, |m: Real, v| m.max(v.abs()))
+    }
+
+    /// The tree solve against faer's on `p` with SPD values: within 1e-12 of the largest
+    /// unknown, the same bits on two threads as on one, and again after a refactorisation
+    /// with other values (the work memory reused). Returns the tree's work split.
+    fn check_tree(
+        p: &BlockPattern,
+        positions: &[Vec3],
+        ordering: Ordering,
+        what: &str,
+    ) -> (u64, u64, u64) {
+        let mut chol = supernodal(p, positions, ordering);
+        let work = chol
+            .tree_work()
+            .unwrap_or_else(|| panic!("{what}: no tree solve"));
+        for (round, scale) in [1.0, 3.0].into_iter().enumerate() {
+            let v: Vec<Real> = spd(p).iter().map(|a| a * scale).collect();
+            chol.factorize(p, &v, "").unwrap();
+            let b: Vec<Real> = (0..p.dim())
+                .map(|i| ((i * 37 + round * 5) % 11) as Real - 5.0)
+                .collect();
+            let mut want = b.clone();
+            chol.faer_solve(&mut want);
+            let mut serial = b.clone();
+            chol.force_parallel = Some(false);
+            chol.solve_in_place(&mut serial).unwrap();
+            let err = max_abs(
+                &serial
+                    .iter()
+                    .zip(&want)
+                    .map(|(x, y)| x - y)
+                    .collect::<Vec<_>>(),
+            );
+            assert!(
+                err <= 1e-12 * max_abs(&want),
+                "{what}: {err:e} from faer's solve (largest unknown {:e})",
+                max_abs(&want)
+            );
+            #[cfg(feature = "parallel")]
+            {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(2)
+                    .build()
+                    .unwrap();
+                chol.force_parallel = Some(true);
+                let mut parallel = b.clone();
+                pool.install(|| chol.solve_in_place(&mut parallel).unwrap());
+                assert!(
+                    serial
+                        .iter()
+                        .zip(&parallel)
+                        .all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{what}: two threads changed the bits"
+                );
+            }
+        }
+        work
+    }
+
+    /// Two separate cubes of `n`³ nodes side by side: a forest of two trees.
+    fn two_cubes(n: usize) -> (BlockPattern, Vec<Vec3>) {
+        let (one, pos) = cube(n);
+        let nodes = pos.len();
+        let mut elements = Vec::new();
+        for a in 0..nodes {
+            for &b in &one.node_adj[one.node_ptr[a]..one.node_ptr[a + 1]] {
+                for shift in [0, nodes as u32] {
+                    elements.extend([a as u32 + shift, b + shift]);
+                }
+            }
+        }
+        let positions = pos
+            .iter()
+            .copied()
+            .chain(
+                pos.iter()
+                    .map(|q| *q + Vec3::new(2.0 * n as Real, 0.0, 0.0)),
+            )
+            .collect();
+        (
+            BlockPattern::from_elements(2 * nodes, 3, &elements, 2),
+            positions,
+        )
+    }
+
+    #[test]
+    fn tree_solve_equals_faers_on_many_patterns() {
+        // A chain, ordered by AMD and by nested dissection (a balanced tree).
+        let n = 3000;
+        let line: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as Real, 0.0, 0.0)).collect();
+        check_tree(&chain(n), &line, Ordering::Amd, "chain, AMD");
+        let (total, top, group) =
+            check_tree(&chain(n), &line, Ordering::NestedDissection, "chain, ND");
+        assert!(
+            top + group < total * 3 / 4,
+            "chain, ND: {top} + {group} of {total}"
+        );
+        // A 3-D grid both ways: nested dissection splits under its top separator.
+        let (p, positions) = cube(10);
+        let (total, top, group) =
+            check_tree(&p, &positions, Ordering::NestedDissection, "grid, ND");
+        assert!(
+            top + group < total * 3 / 4,
+            "grid, ND: {top} + {group} of {total}"
+        );
+        check_tree(&p, &positions, Ordering::Amd, "grid, AMD");
+        // Two nodes (one supernode), and a dense matrix: a tree that does not split.
+        let tiny = BlockPattern::from_elements(2, 3, &[0, 1], 2);
+        check_tree(&tiny, &[], Ordering::Amd, "tiny");
+        let all: Vec<u32> = (0..24).collect();
+        let dense = BlockPattern::from_elements(24, 3, &all, 24);
+        let (total, top, group) = check_tree(&dense, &[], Ordering::Amd, "dense");
+        assert_eq!(top + group, total, "dense: nothing to split");
+        // A forest: two components, two roots.
+        let (p, positions) = two_cubes(6);
+        check_tree(&p, &positions, Ordering::NestedDissection, "forest, ND");
+        check_tree(&p, &positions, Ordering::Amd, "forest, AMD");
+    }
+
+    /// Study (prints): the factor of the issue-24 beams' pattern under both orderings, and
+    /// the time of one solve by faer, by the tree on one thread and on two (wall, best of
+    /// interleaved batches): the ceiling of what the split gains on this machine.
+    /// `cargo test --release -p tissue --lib tree_solve_study -- --ignored --nocapture`
+    #[test]
+    #[ignore = "a printing study of the solves, tens of seconds"]
+    fn tree_solve_study() {
+        use crate::benchmark::beam::{BeamSpec, size_cells};
+        #[cfg(feature = "parallel")]
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        for size in ["1k", "5k", "20k", "80k"] {
+            let mesh = BeamSpec::new(size_cells(size).unwrap()).mesh();
+            let flat: Vec<u32> = mesh.tets.iter().flatten().copied().collect();
+            let p = BlockPattern::from_elements(mesh.vertices.len(), 3, &flat, 4);
+            let v = spd(&p);
+            let b: Vec<Real> = (0..p.dim())
+                .map(|i| ((i * 37) % 11) as Real - 5.0)
+                .collect();
+            for ordering in [Ordering::Amd, Ordering::NestedDissection] {
+                let mut chol = SparseCholesky::with_ordering(&p, &mesh.vertices, ordering).unwrap();
+                chol.factorize(&p, &v, "").unwrap();
+                let reps = (20_000_000 / chol.factor_nnz().max(1)).clamp(1, 2000);
+                let mut best = [f64::INFINITY; 3];
+                for _ in 0..7 {
+                    for (how, t) in best.iter_mut().enumerate() {
+                        chol.force_parallel = Some(how == 2);
+                        let mut x = b.clone();
+                        let chol = &mut chol;
+                        let mut batch = || {
+                            let start = std::time::Instant::now();
+                            for _ in 0..reps {
+                                x.copy_from_slice(&b);
+                                match how {
+                                    0 => chol.faer_solve(&mut x),
+                                    _ => chol.solve_in_place(&mut x).unwrap(),
+                                }
+                            }
+                            start.elapsed().as_secs_f64() / reps as f64
+                        };
+                        #[cfg(feature = "parallel")]
+                        let took = if how == 2 {
+                            pool.install(batch)
+                        } else {
+                            batch()
+                        };
+                        #[cfg(not(feature = "parallel"))]
+                        let took = batch();
+                        *t = t.min(took);
+                    }
+                }
+                let (total, top, group) = chol.tree_work().unwrap_or_default();
+                println!(
+                    "{size} beam, {} unknowns, {ordering:?}: factor {} values, supernodal {}, \
+                     work top {:.3} largest group {:.3}; solve faer {:.1} us, tree 1 thread \
+                     {:.1} us, 2 threads {:.1} us (x{:.2} over faer, x{:.2} over 1 thread)",
+                    p.dim(),
+                    chol.factor_nnz(),
+                    chol.is_supernodal(),
+                    top as f64 / total.max(1) as f64,
+                    group as f64 / total.max(1) as f64,
+                    best[0] * 1e6,
+                    best[1] * 1e6,
+                    best[2] * 1e6,
+                    best[0] / best[2],
+                    best[1] / best[2],
                 );
             }
         }

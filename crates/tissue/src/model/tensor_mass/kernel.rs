@@ -85,7 +85,7 @@ pub struct ElementKernel {
     u: Vec<Padded>,
     /// Whether the parts run on rayon's threads: measured, not guessed (see `Chooser`).
     #[cfg(feature = "parallel")]
-    chooser: Chooser,
+    chooser: crate::solve::chooser::Chooser,
 }
 
 /// Blocks (of four tetrahedra) per run: a mesh of `n` blocks is cut into
@@ -97,51 +97,6 @@ pub const PART_BLOCKS: usize = 1024;
 /// At most this many runs: each has its own force buffer to clear and add up, so more runs
 /// than the cores that can share them cost a little and gain nothing on two cores.
 pub const MAX_PARTS: usize = 4;
-
-/// Decides, by measuring, whether a pass with several runs is faster on rayon's threads or
-/// on the calling one. Waking the workers costs tens of microseconds per pass (one pass per
-/// explicit substep, 54 per millisecond on the issue-24 beam at 20k), and a loaded machine
-/// may have no free core: a fixed size threshold was slower than one thread on both counts.
-/// Every `RECALIBRATE` passes the next `CALIBRATION` alternate between the two (the first
-/// two, cold, not counted) and the faster by 10% is kept until the next calibration. Both
-/// ways give the same bits, so the choice changes only the time.
-#[cfg(feature = "parallel")]
-#[derive(Clone, Debug, Default)]
-struct Chooser {
-    pass: u32,
-    /// Wall time of the calibration's serial [0] and parallel [1] passes.
-    spent: [std::time::Duration; 2],
-    parallel: bool,
-    /// Tests: always (`Some(true)`) or never in parallel.
-    forced: Option<bool>,
-}
-
-#[cfg(feature = "parallel")]
-impl Chooser {
-    const CALIBRATION: u32 = 18;
-    const RECALIBRATE: u32 = 2048;
-
-    fn pick(&self) -> bool {
-        match self.forced {
-            Some(on) => on,
-            None if self.pass < Self::CALIBRATION => self.pass % 2 == 1,
-            None => self.parallel,
-        }
-    }
-
-    fn record(&mut self, parallel: bool, took: std::time::Duration) {
-        if (2..Self::CALIBRATION).contains(&self.pass) {
-            self.spent[usize::from(parallel)] += took;
-        }
-        self.pass += 1;
-        if self.pass == Self::CALIBRATION {
-            self.parallel = self.spent[1] < self.spent[0].mul_f64(0.9);
-            self.spent = Default::default();
-        } else if self.pass >= Self::RECALIBRATE {
-            self.pass = 0;
-        }
-    }
-}
 
 impl ElementKernel {
     /// Packs tetrahedra `list` (isotropic: `Elasticity::has_fibre` false) in the given order,
@@ -231,7 +186,7 @@ impl ElementKernel {
             parts,
             u: Vec::new(),
             #[cfg(feature = "parallel")]
-            chooser: Chooser::default(),
+            chooser: Default::default(),
         }
     }
 
@@ -256,7 +211,7 @@ impl ElementKernel {
     /// (`None`).
     #[cfg(all(test, feature = "parallel"))]
     pub fn force_parallel(&mut self, on: Option<bool>) {
-        self.chooser.forced = on;
+        self.chooser.force(on);
     }
 
     /// f += the St Venant–Kirchhoff forces at displacements `u`; returns their energy.

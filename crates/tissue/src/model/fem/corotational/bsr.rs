@@ -20,6 +20,18 @@ const SKIP: u32 = u32::MAX;
 /// A 3×3 block, row-major.
 type Block = [Real; 9];
 
+/// blk += one element's block (a, b): l ĝ_a ĝ_bᵀ + m ĝ_b ĝ_aᵀ + d I, with ĝ = R g, l = λV,
+/// m = μV and d = μV g_a·g_b.
+#[inline]
+fn add_term(blk: &mut Block, ga: &[Real; 3], gb: &[Real; 3], l: Real, m: Real, d: Real) {
+    for i in 0..3 {
+        for j in 0..3 {
+            blk[3 * i + j] += l * ga[i] * gb[j] + m * gb[i] * ga[j];
+        }
+        blk[4 * i] += d;
+    }
+}
+
 /// The node-node stiffness in block-sparse rows, with each element's 16 block slots.
 #[derive(Clone, Debug, Default)]
 pub struct BlockStiffness {
@@ -32,6 +44,11 @@ pub struct BlockStiffness {
     slots: Vec<[u32; 16]>,
     /// Per node, the slot of its diagonal block.
     diag: Vec<u32>,
+    /// Block `s`'s terms are `terms[term_start[s]..term_start[s + 1]]`, each `16 e + k`
+    /// (element e's block k = 4a + b), in element order: the parallel assembly gathers them
+    /// and adds them in the order the serial one scatters them.
+    term_start: Vec<u32>,
+    terms: Vec<u32>,
 }
 
 impl BlockStiffness {
@@ -61,7 +78,7 @@ impl BlockStiffness {
             let k = cols[s..t].binary_search(&b).unwrap_or(0);
             (s + k) as u32
         };
-        let slots = elements
+        let slots: Vec<[u32; 16]> = elements
             .iter()
             .map(|e| {
                 let mut s = [0u32; 16];
@@ -72,12 +89,33 @@ impl BlockStiffness {
             })
             .collect();
         let diag = (0..nodes as u32).map(|a| slot(a, a)).collect();
+        let mut term_start = vec![0u32; cols.len() + 1];
+        for e in &slots {
+            for &sk in e.iter().filter(|&&sk| sk != SKIP) {
+                term_start[sk as usize + 1] += 1;
+            }
+        }
+        for s in 0..cols.len() {
+            term_start[s + 1] += term_start[s];
+        }
+        let mut fill = term_start.clone();
+        let mut terms = vec![0u32; term_start[cols.len()] as usize];
+        for (e, el) in slots.iter().enumerate() {
+            for (k, &sk) in el.iter().enumerate() {
+                if sk != SKIP {
+                    terms[fill[sk as usize] as usize] = (16 * e + k) as u32;
+                    fill[sk as usize] += 1;
+                }
+            }
+        }
         Self {
             blocks: vec![[0.0; 9]; cols.len()],
             row_start,
             cols,
             slots,
             diag,
+            term_start,
+            terms,
         }
     }
 
@@ -87,10 +125,39 @@ impl BlockStiffness {
             + self.blocks.len() * 72
             + self.slots.len() * 64
             + self.diag.len() * 4
+            + (self.term_start.len() + self.terms.len()) * 4
     }
 
-    /// K = Σ R K_e Rᵀ for the given element rotations.
+    /// K = Σ R K_e Rᵀ for the given element rotations. On large meshes (and the `parallel`
+    /// feature) each block gathers its terms on rayon's threads, in element order, with the
+    /// arithmetic of the serial scatter: the same bits on any number of threads.
     pub fn assemble(&mut self, elements: &[ElementRest], lame: Lame, rotations: &[Mat3]) {
+        #[cfg(feature = "parallel")]
+        if elements.len() >= super::force::PARALLEL_MIN_ELEMENTS
+            && rayon::current_num_threads() > 1
+            && self.slots.len() == elements.len()
+        {
+            use rayon::prelude::*;
+            let (start, terms) = (&self.term_start, &self.terms);
+            self.blocks
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(256)
+                .for_each(|(s, blk)| {
+                    *blk = [0.0; 9];
+                    for &t in &terms[start[s] as usize..start[s + 1] as usize] {
+                        let (e, k) = (t as usize / 16, t as usize % 16);
+                        let el = &elements[e];
+                        let g = el.shape_gradients();
+                        let r = rotations[e];
+                        let (a, b) = (k / 4, k % 4);
+                        let (ga, gb) = ((r * g[a]).to_array(), (r * g[b]).to_array());
+                        let (l, m) = (lame.lambda * el.volume, lame.mu * el.volume);
+                        add_term(blk, &ga, &gb, l, m, m * g[a].dot(g[b]));
+                    }
+                });
+            return;
+        }
         self.blocks.iter_mut().for_each(|b| *b = [0.0; 9]);
         let blocks = &mut self.blocks;
         for ((e, r), slots) in elements.iter().zip(rotations).zip(&self.slots) {
@@ -102,15 +169,14 @@ impl BlockStiffness {
                     continue;
                 }
                 let (a, b) = (k / 4, k % 4);
-                let (ga, gb) = (&rg[a], &rg[b]);
-                let d = m * g[a].dot(g[b]);
-                let blk = &mut blocks[s as usize];
-                for i in 0..3 {
-                    for j in 0..3 {
-                        blk[3 * i + j] += l * ga[i] * gb[j] + m * gb[i] * ga[j];
-                    }
-                    blk[4 * i] += d;
-                }
+                add_term(
+                    &mut blocks[s as usize],
+                    &rg[a],
+                    &rg[b],
+                    l,
+                    m,
+                    m * g[a].dot(g[b]),
+                );
             }
         }
     }

@@ -182,7 +182,23 @@ pub fn add_stiffness_product(
     dx: &[Real],
     y: &mut [Real],
 ) {
+    add_stiffness_product_where(elements, lame, rotations, dx, y, |_| true);
+}
+
+/// `add_stiffness_product` over the elements `keep` accepts (the others' terms left out;
+/// each kept element adds the same terms in the same order as the full product).
+pub fn add_stiffness_product_where(
+    elements: &[ElementRest],
+    lame: Lame,
+    rotations: &[Mat3],
+    dx: &[Real],
+    y: &mut [Real],
+    keep: impl Fn(&ElementRest) -> bool,
+) {
     for (e, r) in elements.iter().zip(rotations) {
+        if !keep(e) {
+            continue;
+        }
         let h = r.transpose() * e.gradient_flat(dx);
         let p = *r * lame.stress(&h) * e.volume;
         scatter(e, &p, 1.0, y);

@@ -289,7 +289,7 @@ impl FemCorotational {
             CorotationalSolver::WarpPcg | CorotationalSolver::Auto => true,
         };
         if want_warp && self.warp.is_none() {
-            match warp::WarpPreconditioner::new(&self.elements, self.lame, self.rest.len()) {
+            match warp::WarpPreconditioner::new(&self.elements, self.lame, &self.rest) {
                 Ok(w) => self.warp = Some(w),
                 Err(e) if self.params.solver == CorotationalSolver::Auto => {
                     self.fallback_reason = Some(e.to_string());

@@ -158,12 +158,16 @@ impl FemCorotational {
         let kv = &mut self.ws.kv;
         kv.iter_mut().for_each(|y| *y = 0.0);
         if beta > 0.0 {
-            force::add_stiffness_product(
+            // Only the held nodes' rows are read below, so only their elements are needed:
+            // each held row gets the same terms in the same order as from the full product.
+            let holds = &self.holds;
+            force::add_stiffness_product_where(
                 &self.elements,
                 self.lame,
                 &self.rotations,
                 flatten(&self.v),
                 kv,
+                |e| e.nodes.iter().any(|&n| holds[n as usize] != Hold::Free),
             );
         }
         let alpha = self.material.damping;

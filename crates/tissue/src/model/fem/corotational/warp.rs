@@ -21,6 +21,11 @@ use super::bsr::BlockStiffness;
 use super::force::{ElementRest, Lame};
 use super::rotation::polar_rotation_near;
 
+/// Nodes from which their rotations are computed on rayon's threads (a polar factor is
+/// ~0.1 µs: below ~1,000 nodes the pass is not much longer than waking a worker).
+#[cfg(feature = "parallel")]
+const PARALLEL_MIN_NODES: usize = 1024;
+
 /// What A₀ was last factorised for.
 #[derive(Clone, Debug, PartialEq)]
 struct FactorKey {
@@ -46,11 +51,14 @@ pub(super) struct WarpPreconditioner {
 }
 
 impl WarpPreconditioner {
-    /// Symbolic analysis of the node adjacency of `elements` (no factorisation yet).
-    pub fn new(elements: &[ElementRest], lame: Lame, nodes: usize) -> Result<Self, SimError> {
+    /// Symbolic analysis of the node adjacency of `elements` over the nodes at `rest` (no
+    /// factorisation yet). The ordering is AMD or nested dissection by the rest positions,
+    /// whichever gives the smaller factor (`SparseCholesky::with_positions`).
+    pub fn new(elements: &[ElementRest], lame: Lame, rest: &[Vec3]) -> Result<Self, SimError> {
+        let nodes = rest.len();
         let flat: Vec<u32> = elements.iter().flat_map(|e| e.nodes).collect();
         let pattern = BlockPattern::from_elements(nodes, 3, &flat, 4);
-        let cholesky = SparseCholesky::new(&pattern)?;
+        let cholesky = SparseCholesky::with_positions(&pattern, rest)?;
         let mut rest_stiffness = BlockStiffness::new(elements, nodes);
         rest_stiffness.assemble(elements, lame, &vec![Mat3::IDENTITY; elements.len()]);
         Ok(Self {
@@ -128,11 +136,26 @@ impl WarpPreconditioner {
                 self.sums[n as usize] += w;
             }
         }
-        for (rot, sum) in self.node_rotations.iter_mut().zip(&self.sums) {
+        let polar = |(rot, sum): (&mut Mat3, &Mat3)| {
             if let Some(r) = polar_rotation_near(sum, rot) {
                 *rot = r;
             }
+        };
+        // Each node on its own: the same bits on any number of threads.
+        #[cfg(feature = "parallel")]
+        if self.node_rotations.len() >= PARALLEL_MIN_NODES && rayon::current_num_threads() > 1 {
+            use rayon::prelude::*;
+            self.node_rotations
+                .par_iter_mut()
+                .zip(self.sums.par_iter())
+                .with_min_len(256)
+                .for_each(polar);
+            return;
         }
+        self.node_rotations
+            .iter_mut()
+            .zip(&self.sums)
+            .for_each(polar);
     }
 
     /// z = R A₀⁻¹ Rᵀ r (flat). A failed solve (never after a successful factorisation)
