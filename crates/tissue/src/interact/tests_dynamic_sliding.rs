@@ -117,7 +117,9 @@ struct Solver {
 
 /// (time, force, contacts) at every step, and what the solver did.
 fn run(kind: &str, mesh: &MeshData, dt: Real) -> (Vec<(Real, Vec3, usize)>, Solver) {
-    let mut sim = sim(kind, mesh, &path());
+    // `DYNAMIC_SLIDE_STICKING`: the default sticking contact instead, for comparison.
+    let sticking = std::env::var("DYNAMIC_SLIDE_STICKING").is_ok();
+    let mut sim = sim_with(kind, mesh, &path(), !sticking);
     let mut out = Vec::new();
     let mut solver = Solver::default();
     while sim.time() < END - 1e-9 {
@@ -126,6 +128,14 @@ fn run(kind: &str, mesh: &MeshData, dt: Real) -> (Vec<(Real, Vec3, usize)>, Solv
         solver.mean += r.info.iterations as Real;
         solver.most = solver.most.max(r.info.iterations);
         solver.capped += usize::from(r.info.capped);
+        if r.info.capped && std::env::var("DYNAMIC_SLIDE_TRACE").is_ok() {
+            let details = sim.model().info().details;
+            let solves = details.iter().find(|(k, _)| k == "contact_solves");
+            eprintln!(
+                "  capped at {:.3} s: {} iterations, residual {:.2e}, {solves:?}",
+                r.time, r.info.iterations, r.info.residual
+            );
+        }
     }
     solver.mean /= out.len().max(1) as Real;
     (out, solver)
@@ -222,7 +232,9 @@ fn report(kind: &str, dt: Real, cells: usize, h: &[(Real, Vec3, usize)], referen
 }
 
 /// The study: every dynamic kind at 1 ms (tensor-mass also at 0.2 ms) on 8- and 16-cell
-/// blocks. `DYNAMIC_SLIDE_KINDS=kind,kind` and `DYNAMIC_SLIDE_CELLS=8,16` narrow it.
+/// blocks. `DYNAMIC_SLIDE_KINDS=kind,kind` and `DYNAMIC_SLIDE_CELLS=8,16` narrow it;
+/// `DYNAMIC_SLIDE_TRACE` prints the force early in the hold and every step the model
+/// reported capped; `DYNAMIC_SLIDE_STICKING` runs the default sticking contact instead.
 #[test]
 #[ignore = "study, a minute or more: cargo test --release -p tissue --lib dynamic_sliding_study -- --ignored --nocapture"]
 fn dynamic_sliding_study() {
