@@ -22,23 +22,24 @@ struct Solve<'a> {
     inv_diag: &'a [Real],
     rhs: &'a [Real],
     cap: usize,
-    tol: Real,
 }
 
 impl Solve<'_> {
     /// Modified PCG (`CgWorkspace::solve_filtered`) from `dv`, whose filtered-out part
-    /// (held dofs, contacts' normal components) is the known velocity change.
+    /// (held dofs, contacts' normal components) is the known velocity change, to the
+    /// relative residual `tol` of S b.
     fn run(
         &self,
         cg: &mut CgWorkspace,
         warp: Option<&mut WarpPreconditioner>,
         filter: &Filter,
         dv: &mut [Real],
+        tol: Real,
     ) -> CgResult {
         let (masses, stiffness, cm, ck) = (self.masses, self.stiffness, self.cm, self.ck);
         let apply = |z: &[Real], y: &mut [Real]| stiffness.apply(cm, ck, masses, z, y);
         let filter = |v: &mut [Real]| filter.apply(v);
-        let (cap, tol) = (self.cap, self.tol);
+        let cap = self.cap;
         match warp {
             Some(w) => {
                 let precondition = |r: &[Real], z: &mut [Real]| w.apply(r, z);
@@ -138,7 +139,6 @@ impl FemCorotational {
             inv_diag: &ws.inv_diag,
             rhs: &ws.rhs,
             cap,
-            tol,
         };
         // The contacts' active set (`contact`): the ones that pushed in the last step or
         // start past their planes are held first.
@@ -157,6 +157,8 @@ impl FemCorotational {
         let depth = 1e-12 * self.length;
         let mut solves = 0;
         let mut iterations = 0;
+        // ‖S b‖ over the load the tolerance is relative to (`share` below).
+        let mut share: Real;
         let (cg, settled) = loop {
             solves += 1;
             ws.filter.along.clear();
@@ -169,7 +171,27 @@ impl FemCorotational {
                 set_node(&mut ws.dv, i, d + n * (known - n.dot(d)));
                 ws.filter.along.push((i, n));
             }
-            let cg = solve.run(&mut ws.cg, warp.as_deref_mut(), &ws.filter, &mut ws.dv);
+            // The tolerance is relative to the step's load on the unknowns not held in full,
+            // the contacts' normal loads included: settled, the filtered load S b alone is
+            // roundoff (the targets follow the vertices), and a tolerance relative to it
+            // stopped every step of a still hold at the cap. Without contacts the two agree.
+            ws.kv.copy_from_slice(&ws.rhs);
+            ws.filter.held.iter().for_each(|&d| ws.kv[d] = 0.0);
+            let load = ws.kv.iter().map(|b| b * b).sum::<Real>().sqrt();
+            ws.filter.apply(&mut ws.kv);
+            let filtered = ws.kv.iter().map(|b| b * b).sum::<Real>().sqrt();
+            share = if filtered > 0.0 && load > filtered {
+                filtered / load
+            } else {
+                1.0
+            };
+            let cg = solve.run(
+                &mut ws.cg,
+                warp.as_deref_mut(),
+                &ws.filter,
+                &mut ws.dv,
+                tol / share,
+            );
             iterations += cg.iterations;
             if contacts.is_empty() || !cg.relative_residual.is_finite() {
                 break (cg, true);
@@ -257,7 +279,12 @@ impl FemCorotational {
         std::mem::swap(&mut self.elastic, &mut ws.elastic);
         std::mem::swap(&mut self.last_dv, &mut ws.dv);
         self.steps += 1;
-        self.last_cg = cg;
+        // The residual relative to the load the tolerance is relative to.
+        let residual = cg.relative_residual * share;
+        self.last_cg = CgResult {
+            iterations: cg.iterations,
+            relative_residual: residual,
+        };
         // A contact pushes only: one left pulling by an unsettled active set reads 0 (the
         // step says `capped`).
         self.pushed.iter_mut().for_each(|p| *p = false);
@@ -271,8 +298,8 @@ impl FemCorotational {
         self.update_surface();
         Ok(StepInfo {
             iterations,
-            residual: cg.relative_residual,
-            capped: (cg.iterations >= cap && cg.relative_residual > tol) || !settled,
+            residual,
+            capped: (cg.iterations >= cap && residual > tol) || !settled,
             substeps: 1,
         })
     }

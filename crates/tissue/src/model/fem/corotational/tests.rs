@@ -802,18 +802,19 @@ fn contacts_along_normals_push_only_and_settle_to_fem_static() {
             assert!(r.dot(n) <= 0.0, "step {step}: pulls {r}");
         }
     };
-    // (Settled, the step's load S b is roundoff and the relative tolerance out of reach:
-    // the steps then stop at the cap, as with full holds.)
-    let (mut iterations, mut capped) = (0, 0);
+    // Settled, the filtered load S b is roundoff; the tolerance, relative to the load with
+    // the contacts' normal loads, is still met (relative to S b alone, 260 of the 300 steps
+    // stopped at the cap).
+    let mut iterations = 0;
     for step in 0..300 {
         let info = m.step(0.02).unwrap();
+        assert!(!info.capped, "step {step}: {info:?}");
         iterations = iterations.max(info.iterations);
-        capped += usize::from(info.capped);
         check(&m, step);
     }
     let r = m.reactions().prescribed.to_vec();
     eprintln!(
-        "pushes along normals: corotational {r:?}, fem-static {r_ref:?}, at most {iterations} CG iterations a step, {capped} of 300 steps capped"
+        "pushes along normals: corotational {r:?}, fem-static {r_ref:?}, at most {iterations} CG iterations a step"
     );
     for (a, b) in r.iter().zip(&r_ref) {
         assert!((*a - *b).length() < 1e-2 * scale, "{a} vs {b}");
