@@ -106,15 +106,39 @@ fn path() -> Vec<(Real, Vec3)> {
     ]
 }
 
-/// (time, force, contacts) at every step.
-fn run(kind: &str, mesh: &MeshData, dt: Real) -> Vec<(Real, Vec3, usize)> {
-    let mut sim = sim(kind, mesh, &path());
+/// What the model's inner solver did over a run (`StepInfo`): iterations per step (mean
+/// and most, 0 for a direct solve) and steps it reported capped.
+#[derive(Debug, Default)]
+struct Solver {
+    mean: Real,
+    most: usize,
+    capped: usize,
+}
+
+/// (time, force, contacts) at every step, and what the solver did.
+fn run(kind: &str, mesh: &MeshData, dt: Real) -> (Vec<(Real, Vec3, usize)>, Solver) {
+    // `DYNAMIC_SLIDE_STICKING`: the default sticking contact instead, for comparison.
+    let sticking = std::env::var("DYNAMIC_SLIDE_STICKING").is_ok();
+    let mut sim = sim_with(kind, mesh, &path(), !sticking);
     let mut out = Vec::new();
+    let mut solver = Solver::default();
     while sim.time() < END - 1e-9 {
         let r = sim.step(dt).unwrap();
         out.push((r.time, r.forces[0], r.contacts[0]));
+        solver.mean += r.info.iterations as Real;
+        solver.most = solver.most.max(r.info.iterations);
+        solver.capped += usize::from(r.info.capped);
+        if r.info.capped && std::env::var("DYNAMIC_SLIDE_TRACE").is_ok() {
+            let details = sim.model().info().details;
+            let solves = details.iter().find(|(k, _)| k == "contact_solves");
+            eprintln!(
+                "  capped at {:.3} s: {} iterations, residual {:.2e}, {solves:?}",
+                r.time, r.info.iterations, r.info.residual
+            );
+        }
     }
-    out
+    solver.mean /= out.len().max(1) as Real;
+    (out, solver)
 }
 
 /// `fem-static`'s force with the probe at `at` (pressed there in a few static steps).
@@ -208,12 +232,14 @@ fn report(kind: &str, dt: Real, cells: usize, h: &[(Real, Vec3, usize)], referen
 }
 
 /// The study: every dynamic kind at 1 ms (tensor-mass also at 0.2 ms) on 8- and 16-cell
-/// blocks. `DYNAMIC_SLIDE_KINDS=kind,kind` and `DYNAMIC_SLIDE_CELLS=8,16` narrow it.
+/// blocks. `DYNAMIC_SLIDE_KINDS=kind,kind` and `DYNAMIC_SLIDE_CELLS=8,16` narrow it;
+/// `DYNAMIC_SLIDE_TRACE` prints the force early in the hold and every step the model
+/// reported capped; `DYNAMIC_SLIDE_STICKING` runs the default sticking contact instead.
 #[test]
 #[ignore = "study, a minute or more: cargo test --release -p tissue --lib dynamic_sliding_study -- --ignored --nocapture"]
 fn dynamic_sliding_study() {
     let kinds = std::env::var("DYNAMIC_SLIDE_KINDS").unwrap_or_else(|_| {
-        "fem-static,tensor-mass,tensor-mass-nonlinear,volumetric-spring-mass,fem-semi-implicit,fem-explicit"
+        "fem-static,tensor-mass,tensor-mass-nonlinear,volumetric-spring-mass,fem-semi-implicit,fem-explicit,fem-corotational"
             .into()
     });
     let cells = std::env::var("DYNAMIC_SLIDE_CELLS").unwrap_or_else(|_| "8,16".into());
@@ -229,8 +255,14 @@ fn dynamic_sliding_study() {
         ];
         for kind in kinds.split(',').map(str::trim) {
             for dt in dts.split(',').filter_map(|d| d.trim().parse::<Real>().ok()) {
-                let h = run(kind, &mesh, dt);
+                let (h, solver) = run(kind, &mesh, dt);
                 report(kind, dt, c, &h, reference);
+                if solver.most > 0 {
+                    eprintln!(
+                        "{kind:>22} inner solver: {:.1} iterations a step on average, {} at most, {} steps capped",
+                        solver.mean, solver.most, solver.capped
+                    );
+                }
                 if std::env::var("DYNAMIC_SLIDE_TRACE").is_ok() {
                     for (t, f, n) in h.iter().filter(|(t, _, _)| *t > 1.0 && *t < 1.1) {
                         eprintln!("  t {t:.4} F {f:.6} contacts {n}");
@@ -242,33 +274,37 @@ fn dynamic_sliding_study() {
 }
 
 /// The property issue 20 asked for, on the 8-cell block at 1 ms: pressed 0.3 mm and held,
-/// the dynamic kinds (on the shared integrator, and `fem-explicit`, `fem-semi-implicit`)
-/// give a force that no longer changes between steps (below 0.1 % of it, against jumps of
-/// 17 times it before on `tensor-mass`), that never pulls at any contact, and that (the
-/// kinds with the same linear elasticity as `fem-static`) is `fem-static`'s to 0.5 %; slid 1 mm, the sideways force stays at `fem-static`'s on this
-/// mesh (2.1 % of the push; 0.4 % at 16 cells in the study).
+/// the dynamic kinds (on the shared integrator, `fem-explicit`, `fem-semi-implicit` and
+/// `fem-corotational`) give a force that no longer changes between steps (below 0.1 % of
+/// it, against jumps of 17 times it before on `tensor-mass`), that never pulls at any
+/// contact, and that (the kinds with the same linear elasticity as `fem-static`) is
+/// `fem-static`'s to 0.5 % (`fem-corotational`, the same elasticity in rotated frames, to
+/// COROTATIONAL_GAP); slid 1 mm, the sideways force stays at `fem-static`'s on this mesh
+/// (2.1 % of the push; 0.4 % at 16 cells in the study); lifted off, the probe is let go:
+/// no force and no contact held.
 #[test]
 fn held_probe_force_on_dynamic_kinds_is_smooth_pushes_and_matches_fem_static() {
     let mesh = graded_block(8);
     let reference = settled(&mesh, pressed()).z;
     let slid = pressed() + Vec3::X * 1e-3;
+    let lifted = slid + Vec3::Z * (DEPTH + 2e-3);
     let path = [
         (0.0, start()),
         (0.3, pressed()),
         (0.6, pressed()),
         (0.9, slid),
+        (1.0, lifted),
     ];
-    for kind in [
-        "tensor-mass",
-        "volumetric-spring-mass",
-        "fem-explicit",
-        "fem-semi-implicit",
+    for (kind, gap_bound) in [
+        ("tensor-mass", Some(5e-3)),
+        ("volumetric-spring-mass", None),
+        ("fem-explicit", Some(5e-3)),
+        ("fem-semi-implicit", Some(5e-3)),
+        ("fem-corotational", Some(COROTATIONAL_GAP)),
     ] {
-        // The same linear elasticity as `fem-static`: its force.
-        let linear = kind != "volumetric-spring-mass";
         let mut sim = sim(kind, &mesh, &path);
         let mut last: Option<Vec3> = None;
-        while sim.time() < 0.9 - 1e-9 {
+        while sim.time() < 1.1 - 1e-9 {
             let r = sim.step(1e-3).unwrap();
             let f = r.forces[0];
             let probe = &sim.instruments()[0];
@@ -285,18 +321,34 @@ fn held_probe_force_on_dynamic_kinds_is_smooth_pushes_and_matches_fem_static() {
                     assert!(jump < 1e-3 * f.z, "{kind} at {:.3} s: {l} -> {f}", r.time);
                 }
                 last = Some(f);
-                if linear && r.time > 0.5 {
+                if let Some(bound) = gap_bound.filter(|_| r.time > 0.5) {
                     let gap = (f.z / reference - 1.0).abs();
-                    assert!(gap < 5e-3, "{kind}: {} against {reference}", f.z);
+                    assert!(gap < bound, "{kind}: {} against {reference}", f.z);
                 }
             }
-            if r.time > 0.65 {
+            if r.time > 0.65 && r.time <= 0.9 + 1e-9 {
                 let ft = Vec3::new(f.x, f.y, 0.0).length();
                 assert!(ft < 0.03 * f.z, "{kind} at {:.3} s: {f}", r.time);
+            }
+            if r.time > 1.05 {
+                assert_eq!(
+                    (f, r.contacts[0]),
+                    (Vec3::ZERO, 0),
+                    "{kind} at {:.3} s",
+                    r.time
+                );
             }
         }
     }
 }
+
+/// `fem-corotational`'s held force against `fem-static`'s at the 0.3 mm press: linear
+/// elasticity in each element's rotated frame, which differs from linear FEM by the
+/// rotations the press gives the elements under the probe. Measured −1.47 % at 8 cells and
+/// −2.26 % at 16, the geometric non-linearity `fem-static` leaves out: it vanishes with the
+/// press (`corotational_gap_study`: −0.10 % and −0.23 % at 10 µm;
+/// `fem_corotational_settles_on_fem_static_as_the_press_gets_small`).
+const COROTATIONAL_GAP: Real = 3e-2;
 
 /// A probe jumping onto a resting `fem-explicit` block (the viewer's first point after the
 /// probe is parked): parked 0.1 mm above the top, the organ at rest (energy 0), then 1 mm
@@ -326,4 +378,95 @@ fn fem_explicit_takes_a_probe_jumping_onto_it_from_rest() {
         }
         assert!(f.z > 0.0, "frictionless {frictionless}: {f}");
     }
+}
+
+/// `fem-corotational` on the 16-cell block (the study's finer mesh, where `fem-static`'s
+/// own sideways force while sliding is 0.4 % of the push), at a 5 ms step (implicit Euler):
+/// pressed 0.3 mm and held, its force settles on `fem-static`'s within COROTATIONAL_GAP
+/// (−2.26 %, the geometric non-linearity);
+/// slid 1 mm sideways, the tangential force stays below 1 % of the push (frictionless); no
+/// contact pulls at any step.
+#[test]
+fn fem_corotational_holds_and_slides_frictionless_on_the_finer_block() {
+    let mesh = graded_block(16);
+    let reference = settled(&mesh, pressed()).z;
+    let slid = pressed() + Vec3::X * 1e-3;
+    let path = [
+        (0.0, start()),
+        (0.3, pressed()),
+        (0.6, pressed()),
+        (0.9, slid),
+    ];
+    let mut sim = sim("fem-corotational", &mesh, &path);
+    let (mut held, mut worst_ft): (Option<Real>, Real) = (None, 0.0);
+    while sim.time() < 0.9 - 1e-9 {
+        let r = sim.step(5e-3).unwrap();
+        assert!(!r.info.capped, "at {:.3} s: {:?}", r.time, r.info);
+        let f = r.forces[0];
+        let probe = &sim.instruments()[0];
+        let shape = probe.shape().unwrap();
+        for (k, g) in probe.contacts.iter().zip(probe.contact_reactions()) {
+            let push = -g.dot(k.normal(&shape, probe.position));
+            assert!(push >= 0.0, "at {:.3} s: contact pulls {g}", r.time);
+        }
+        if r.time > 0.6 - 1e-9 && r.time < 0.6 + 1e-9 {
+            held = Some(f.z);
+        }
+        if r.time > 0.65 {
+            worst_ft = worst_ft.max(Vec3::new(f.x, f.y, 0.0).length() / f.z);
+        }
+    }
+    let held = held.unwrap();
+    eprintln!(
+        "fem-corotational, 16 cells, 5 ms: held {held:.6} N (fem-static {reference:.6} N, {:+.2} %), |F_t|/F_n at most {:.2} % while sliding",
+        100.0 * (held / reference - 1.0),
+        100.0 * worst_ft
+    );
+    assert!(
+        (held / reference - 1.0).abs() < COROTATIONAL_GAP,
+        "{held} vs {reference}"
+    );
+    assert!(worst_ft < 0.01, "{worst_ft}");
+}
+
+/// `fem-corotational`'s held force over `fem-static`'s, less one, pressed `depth` on the
+/// `cells` block (over 0.3 s, held to 0.6 s, 5 ms steps).
+fn corotational_gap(cells: usize, depth: Real) -> Real {
+    let mesh = graded_block(cells);
+    let at = start() - Vec3::Z * depth;
+    let reference = settled(&mesh, at).z;
+    let path = [(0.0, start()), (0.3, at), (0.6, at)];
+    let mut sim = sim("fem-corotational", &mesh, &path);
+    let mut f = Vec3::ZERO;
+    while sim.time() < 0.6 - 1e-9 {
+        f = sim.step(5e-3).unwrap().forces[0];
+    }
+    f.z / reference - 1.0
+}
+
+/// The gap between `fem-corotational`'s held force and `fem-static`'s against the press,
+/// on the 8- and 16-cell blocks.
+#[test]
+#[ignore = "study, half a minute: cargo test --release -p tissue --lib corotational_gap_study -- --ignored --nocapture"]
+fn corotational_gap_study() {
+    for cells in [8, 16] {
+        for depth in [3e-4, 1e-4, 3e-5, 1e-5] {
+            let gap = corotational_gap(cells, depth);
+            eprintln!(
+                "{cells} cells, depth {:.3} mm: corotational / fem-static − 1 = {:+.3} %",
+                depth * 1e3,
+                100.0 * gap
+            );
+        }
+    }
+}
+
+/// Small deformation: the held force of `fem-corotational` goes to `fem-static`'s as the
+/// press gets small (8 cells: −1.47 % at 0.3 mm, −0.31 % at 0.03 mm), so what is left at
+/// 0.3 mm is the geometric non-linearity linear FEM leaves out, not the contact.
+#[test]
+fn fem_corotational_settles_on_fem_static_as_the_press_gets_small() {
+    let (deep, shallow) = (corotational_gap(8, 3e-4), corotational_gap(8, 3e-5));
+    assert!(shallow.abs() < 5e-3, "{shallow}");
+    assert!(shallow.abs() < deep.abs() / 3.0, "{shallow} vs {deep}");
 }

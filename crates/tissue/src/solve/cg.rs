@@ -73,54 +73,104 @@ impl CgWorkspace {
     #[allow(clippy::too_many_arguments)]
     pub fn solve_preconditioned(
         &mut self,
-        mut apply: impl FnMut(&[Real], &mut [Real]),
-        mut precondition: impl FnMut(&[Real], &mut [Real]),
+        apply: impl FnMut(&[Real], &mut [Real]),
+        precondition: impl FnMut(&[Real], &mut [Real]),
         free: &[Real],
         b: &[Real],
         x: &mut [Real],
         max_iterations: usize,
         tolerance: Real,
     ) -> CgResult {
-        let inv_diag = free;
-        let n = self.r.len().min(inv_diag.len()).min(b.len()).min(x.len());
+        let mask = |v: &mut [Real]| {
+            for (vi, d) in v.iter_mut().zip(free) {
+                if *d == 0.0 {
+                    *vi = 0.0;
+                }
+            }
+        };
+        let n = free.len();
+        self.solve_filtered(
+            apply,
+            precondition,
+            mask,
+            &b[..n.min(b.len())],
+            x,
+            max_iterations,
+            tolerance,
+        )
+    }
+
+    /// The modified PCG of Baraff & Witkin (1998, as corrected by Ascher & Boxerman 2003):
+    /// solves A x = b on the subspace a filter S keeps (an orthogonal projection,
+    /// `filter(v)` writing S v in place), the rest of x, (I − S) x, being the caller's
+    /// known values, left as given. A held unknown is S = 0 on its entry; a node held along a
+    /// direction n only is S = I − n nᵀ on its three entries. The residual, the
+    /// preconditioned residual and each A·p are filtered, so CG runs on SAS with the
+    /// preconditioner S P⁻¹ S (symmetric, positive definite on the subspace). The residual
+    /// reported is ‖S(b − A x)‖ / ‖S b‖ (/ ‖S(b − A x_c)‖ when S b = 0). The normal components of A x − b the filter drops
+    /// are the constraint forces (the caller reads them after the solve).
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_filtered(
+        &mut self,
+        mut apply: impl FnMut(&[Real], &mut [Real]),
+        mut precondition: impl FnMut(&[Real], &mut [Real]),
+        mut filter: impl FnMut(&mut [Real]),
+        b: &[Real],
+        x: &mut [Real],
+        max_iterations: usize,
+        tolerance: Real,
+    ) -> CgResult {
+        let n = self.r.len().min(b.len()).min(x.len());
         let (r, z, p, q) = (
             &mut self.r[..n],
             &mut self.z[..n],
             &mut self.p[..n],
             &mut self.q[..n],
         );
-        let (b, x, inv_diag) = (&b[..n], &mut x[..n], &inv_diag[..n]);
-        let masked_norm = |v: &[Real]| -> Real {
-            v.iter()
-                .zip(inv_diag)
-                .filter(|(_, d)| **d != 0.0)
-                .map(|(a, _)| a * a)
-                .sum::<Real>()
-                .sqrt()
-        };
-        let b_norm = masked_norm(b);
+        let (b, x) = (&b[..n], &mut x[..n]);
+        let norm = |v: &[Real]| v.iter().map(|a| a * a).sum::<Real>().sqrt();
+        r.copy_from_slice(b);
+        filter(r);
+        let mut b_norm = norm(r);
         if b_norm == 0.0 {
-            for (xi, d) in x.iter_mut().zip(inv_diag) {
-                if *d != 0.0 {
-                    *xi = 0.0;
-                }
+            // No load on the free part: what moves it is the known part x_c = (I − S) x
+            // alone (a held node moved from rest), S(b − A x_c), the reference then. x starts
+            // at x_c (the warm start is dropped).
+            z.copy_from_slice(x);
+            filter(z);
+            for (xi, zi) in x.iter_mut().zip(z.iter()) {
+                *xi -= zi;
             }
-            return CgResult::default();
+            apply(x, q);
+            for i in 0..n {
+                r[i] = b[i] - q[i];
+            }
+            filter(r);
+            b_norm = norm(r);
+            if b_norm == 0.0 {
+                return CgResult::default();
+            }
         }
         apply(x, q);
-        // A warm start worse than none in the energy norm of the free unknowns is dropped:
-        // with an iteration cap, a bad guess lets the error of truncated solves build up from
-        // step to step until the dynamics blow up. With x = (x_f, x_c) (free, held), A x_c
-        // in the free rows (one more product) gives φ(x_f) = ½x_fᵀA_ff x_f − (b − A x_c)ᵀx_f,
-        // to compare with φ(0) = 0.
-        if (0..n).any(|i| inv_diag[i] != 0.0 && x[i] != 0.0) {
-            for i in 0..n {
-                z[i] = if inv_diag[i] != 0.0 { 0.0 } else { x[i] };
+        // A warm start worse than none in the energy norm of the free part is dropped: with
+        // an iteration cap, a bad guess lets the error of truncated solves build up from
+        // step to step until the dynamics blow up. With x = x_f + x_c (x_f = S x, x_c the
+        // known part), A x_c (one more product) gives
+        // φ(x_f) = ½x_fᵀA x_f − (b − A x_c)ᵀx_f = x_fᵀ(½(A x + A x_c) − b), to compare with
+        // φ(0) = 0.
+        z.copy_from_slice(x);
+        filter(z);
+        if z.iter().any(|v| *v != 0.0) {
+            // z = x_c.
+            for (zi, xi) in z.iter_mut().zip(x.iter()) {
+                *zi = xi - *zi;
             }
             apply(z, p);
+            // Entries with no free part are left out (a held row of A·x may be anything).
             let phi: Real = (0..n)
-                .filter(|&i| inv_diag[i] != 0.0)
-                .map(|i| x[i] * (0.5 * (q[i] + p[i]) - b[i]))
+                .map(|i| (x[i] - z[i], i))
+                .filter(|(xf, _)| *xf != 0.0)
+                .map(|(xf, i)| xf * (0.5 * (q[i] + p[i]) - b[i]))
                 .sum();
             if phi > 0.0 || phi.is_nan() {
                 x.copy_from_slice(z);
@@ -128,27 +178,19 @@ impl CgWorkspace {
             }
         }
         for i in 0..n {
-            r[i] = if inv_diag[i] != 0.0 { b[i] - q[i] } else { 0.0 };
+            r[i] = b[i] - q[i];
         }
+        filter(r);
         precondition(r, z);
-        for i in 0..n {
-            if inv_diag[i] == 0.0 {
-                z[i] = 0.0;
-            }
-            p[i] = z[i];
-        }
+        filter(z);
+        p.copy_from_slice(z);
         let mut rz: Real = r.iter().zip(z.iter()).map(|(a, b)| a * b).sum();
-        let mut res = masked_norm(r) / b_norm;
+        let mut res = norm(r) / b_norm;
         let mut it = 0;
         while it < max_iterations && res > tolerance {
             apply(p, q);
-            let mut pq = 0.0;
-            for i in 0..n {
-                if inv_diag[i] == 0.0 {
-                    q[i] = 0.0;
-                }
-                pq += p[i] * q[i];
-            }
+            filter(q);
+            let pq: Real = p.iter().zip(q.iter()).map(|(a, b)| a * b).sum();
             // A breakdown (pᵀAp ≤ 0 or not finite): A is not positive definite along p.
             if !(pq > 0.0 && pq.is_finite()) {
                 break;
@@ -161,11 +203,7 @@ impl CgWorkspace {
                 rr += r[i] * r[i];
             }
             precondition(r, z);
-            for i in 0..n {
-                if inv_diag[i] == 0.0 {
-                    z[i] = 0.0;
-                }
-            }
+            filter(z);
             it += 1;
             res = rr.sqrt() / b_norm;
             let rz_new: Real = r.iter().zip(z.iter()).map(|(a, b)| a * b).sum();
@@ -238,6 +276,28 @@ mod tests {
         }
     }
 
+    /// No load on the free unknowns and a held one moved (a node pushed from rest): the
+    /// free ones answer it (A_ff x_f = −A_fc x_c), they are not left at 0.
+    #[test]
+    fn a_held_unknown_moved_with_no_load_moves_the_free_ones() {
+        let n = 10;
+        let mut inv = vec![1.0 / 2.5; n];
+        inv[0] = 0.0;
+        let mut x = vec![0.0; n];
+        x[0] = 3.0;
+        let b = vec![0.0; n];
+        let mut ws = CgWorkspace::new(n);
+        let res = ws.solve(laplacian, &inv, &b, &mut x, 100, 1e-13);
+        assert!(res.iterations > 0, "{res:?}");
+        assert_eq!(x[0], 3.0);
+        assert!(x[1] > 1.0, "{x:?}");
+        let mut y = vec![0.0; n];
+        laplacian(&x, &mut y);
+        for (i, yi) in y.iter().enumerate().skip(1) {
+            assert!(yi.abs() < 1e-11, "row {i}: {yi} ({res:?})");
+        }
+    }
+
     #[test]
     fn a_warm_start_worse_than_none_is_dropped_and_a_good_one_kept() {
         // One iteration from a wild guess (φ > 0) must end where one iteration from zero
@@ -270,5 +330,50 @@ mod tests {
         near[0] = 3.0;
         ws.solve(laplacian, &inv, &b, &mut near, 1, 0.0);
         assert!(error(&near) < 1e-2 * error(&from_zero));
+    }
+
+    /// A node held along a direction n only (S = I − n nᵀ on its three entries): the
+    /// solution is the constrained minimiser, which the two KKT conditions determine: the
+    /// node sits on its plane (n·x = g, as given) and the residual b − A x vanishes except
+    /// along n at that node (the constraint force).
+    #[test]
+    fn a_node_held_along_a_direction_keeps_its_component_and_is_free_across() {
+        let n = 30;
+        let node = 4;
+        let dir = [1.0 / 3.0, 2.0 / 3.0, -2.0 / 3.0];
+        let g = 0.7;
+        let b: Vec<Real> = (0..n).map(|i| ((i * 5 % 7) as Real) - 3.0).collect();
+        let filter = |v: &mut [Real]| {
+            let j = 3 * node;
+            let s: Real = (0..3).map(|k| dir[k] * v[j + k]).sum();
+            (0..3).for_each(|k| v[j + k] -= s * dir[k]);
+        };
+        let mut x: Vec<Real> = (0..n).map(|i| 0.1 * i as Real).collect();
+        // The known part: n·x_node = g.
+        let j = 3 * node;
+        let s: Real = (0..3).map(|k| dir[k] * x[j + k]).sum();
+        (0..3).for_each(|k| x[j + k] += (g - s) * dir[k]);
+        let mut ws = CgWorkspace::new(n);
+        let jacobi = |r: &[Real], z: &mut [Real]| {
+            z.iter_mut().zip(r).for_each(|(zi, ri)| *zi = ri / 2.5);
+        };
+        let res = ws.solve_filtered(laplacian, jacobi, filter, &b, &mut x, 200, 1e-14);
+        assert!(res.relative_residual <= 1e-14, "{res:?}");
+        let along: Real = (0..3).map(|k| dir[k] * x[j + k]).sum();
+        assert!((along - g).abs() < 1e-14, "{along}");
+        let mut y = vec![0.0; n];
+        laplacian(&x, &mut y);
+        let r: Vec<Real> = (0..n).map(|i| b[i] - y[i]).collect();
+        for (i, ri) in r.iter().enumerate() {
+            if i / 3 != node {
+                assert!(ri.abs() < 1e-12, "row {i}: {ri}");
+            }
+        }
+        // At the node: parallel to n, and not zero (the hold carries a force).
+        let rn: Real = (0..3).map(|k| dir[k] * r[j + k]).sum();
+        for k in 0..3 {
+            assert!((r[j + k] - rn * dir[k]).abs() < 1e-12, "{:?}", &r[j..j + 3]);
+        }
+        assert!(rn.abs() > 1e-3, "{rn}");
     }
 }

@@ -2,12 +2,13 @@
 //! reactions handed back per given constraint (as `fem-static` does).
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::interact::{Constraints, Loads, SurfaceHold};
 use crate::math::{Real, Vec3};
 use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
 
 use super::super::surface_nodes::node_of;
 use super::FemCorotational;
+use super::contact::PushContact;
 
 impl FemCorotational {
     fn node_of(&self, vertex: u32) -> Result<usize, SimError> {
@@ -74,19 +75,59 @@ impl Deformable for FemCorotational {
     /// Fixed vertices keep zero velocity, prescribed ones reach their target within each step
     /// (the last entry wins for a vertex prescribed twice; fixed wins over prescribed).
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        self.set_constraints_along(c, &[]).map(|_| ())
+    }
+
+    /// An entry with a direction is a frictionless contact that only pushes (`contact`):
+    /// held along its normal by the CG's filter while it pushes, free otherwise, decided
+    /// within each step. Every entry is held as asked (the filter costs nothing per contact
+    /// beyond its node, so there is no cap).
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        let holds = c.surface_holds(&self.boundary.surface.vertices, normals)?;
         let fixed = c
             .fixed
             .iter()
             .map(|&v| self.node_of(v))
             .collect::<Result<Vec<_>, _>>()?;
+        // Entries held in full keep their given position (fixed wins in
+        // `set_node_constraints`); a vertex held along a direction takes its last entry's.
         let prescribed = c
             .prescribed
             .iter()
+            .filter(|p| {
+                let h = holds.get(p.vertex as usize).copied().flatten();
+                h.is_some_and(|h| h.along.is_none())
+            })
             .map(|p| Ok((self.node_of(p.vertex)?, p.position)))
             .collect::<Result<Vec<_>, SimError>>()?;
+        let rest = &self.boundary.surface.vertices;
+        let mut contacts = Vec::new();
+        for (v, h) in holds.iter().enumerate() {
+            if let Some(SurfaceHold {
+                displacement,
+                along: Some(normal),
+            }) = *h
+            {
+                contacts.push(PushContact {
+                    node: self.node_of(v as u32)?,
+                    normal,
+                    target: rest[v] + displacement,
+                    push: 0.0,
+                });
+            }
+        }
         self.set_node_constraints(&fixed, &prescribed)?;
+        self.contacts = contacts;
         self.reactions.set(c);
-        Ok(())
+        Ok(true)
+    }
+
+    fn contacts_push_only(&self) -> bool {
+        true
     }
 
     /// Gravity acts as the lumped share m_i g on each node; point loads on their vertex's node.
@@ -144,6 +185,15 @@ impl Deformable for FemCorotational {
                 (
                     "last_cg_residual".into(),
                     format!("{:.3e}", self.last_cg.relative_residual),
+                ),
+                (
+                    "contact_solves".into(),
+                    format!(
+                        "{} (last step; {} steps stopped unsettled at {})",
+                        self.contact_solves,
+                        self.contact_caps,
+                        super::contact::MAX_CONTACT_SOLVES
+                    ),
                 ),
             ],
         }

@@ -25,7 +25,9 @@
 //! - `auto` (default): warp unless its factor would exceed `MAX_FACTOR_NNZ` values.
 //!
 //! Constrained dofs are projected out: fixed nodes get zero velocity, prescribed
-//! ones the velocity that reaches their target in this step.
+//! ones the velocity that reaches their target in this step. A frictionless instrument
+//! contact (`set_constraints_along`) is a contact that only pushes, held along its normal by
+//! the CG's filter S = I − n nᵀ with an active set settled within the step (`contact`).
 //!
 //! Reactions are the forces the tissue exerts on the constrained nodes: elastic + damping +
 //! the node's share of the external loads, evaluated after the step; at rest they balance the
@@ -41,8 +43,10 @@
 //! - `bsr`: the step's stiffness assembled into 3×3 block-sparse rows for the CG products
 //! - `warp`: the warp-canceling preconditioner (rest factor, node rotations)
 //! - `step`: the implicit Euler step; `deformable`: the `Deformable` interface
+//! - `contact`: frictionless contacts that only push (the filter, the active set's data)
 
 mod bsr;
+mod contact;
 mod deformable;
 pub mod force;
 pub mod rotation;
@@ -150,6 +154,12 @@ struct Workspace {
     elastic: Vec<Real>,
     /// Per-element node forces of the parallel force loop.
     element_forces: Vec<[Vec3; 4]>,
+    /// The CG's filter (held dofs, contacts held along their normals).
+    filter: contact::Filter,
+    /// Per contact, within the step: held along its normal; let go for pulling; its push.
+    active: Vec<bool>,
+    released: Vec<bool>,
+    pushes: Vec<Real>,
 }
 
 /// The corotational implicit model (see the module doc).
@@ -176,6 +186,15 @@ pub struct FemCorotational {
     steps: u64,
     // Constraints and loads, per node.
     holds: Vec<Hold>,
+    /// Frictionless contacts that only push (`contact`), on free nodes.
+    contacts: Vec<contact::PushContact>,
+    /// Per node: a contact on it pushed in the last step (the next step starts it held).
+    pushed: Vec<bool>,
+    /// Solves the last step's active set took, and steps that stopped at the bound.
+    contact_solves: usize,
+    contact_caps: u64,
+    /// The mesh's size (bounding-box diagonal), m: the scale of roundoff in positions.
+    length: Real,
     external: Vec<Vec3>,
     node_reactions: Vec<Vec3>,
     loads: Loads,
@@ -231,6 +250,10 @@ impl FemCorotational {
         let boundary = boundary_surface(&mesh);
         let rest = mesh.vertices.clone();
         let (n, ne) = (rest.len(), elements.len());
+        let (lo, hi) = rest.iter().fold(
+            (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
         let mut model = Self {
             lame: Lame {
                 lambda: material.lambda(),
@@ -247,6 +270,11 @@ impl FemCorotational {
             last_dv: vec![0.0; 3 * n],
             steps: 0,
             holds: vec![Hold::Free; n],
+            contacts: Vec::new(),
+            pushed: vec![false; n],
+            contact_solves: 0,
+            contact_caps: 0,
+            length: (hi - lo).length(),
             external: vec![Vec3::ZERO; n],
             node_reactions: vec![Vec3::ZERO; n],
             loads: Loads::default(),
@@ -263,6 +291,10 @@ impl FemCorotational {
                 rotations: vec![Mat3::IDENTITY; ne],
                 elastic: vec![0.0; 3 * n],
                 element_forces: Vec::new(),
+                filter: contact::Filter::default(),
+                active: Vec::new(),
+                released: Vec::new(),
+                pushes: Vec::new(),
             },
             precompute_seconds: start.elapsed().as_secs_f64(),
             last_cg: Default::default(),
@@ -385,7 +417,7 @@ impl FemCorotational {
     }
 
     /// Holds nodes: `fixed` get zero velocity, `prescribed` reach their target in each step
-    /// (fixed wins). Node ids must exist and targets be finite.
+    /// (fixed wins); no contacts. Node ids must exist and targets be finite.
     pub fn set_node_constraints(
         &mut self,
         fixed: &[usize],
@@ -412,6 +444,7 @@ impl FemCorotational {
         for &node in fixed {
             self.holds[node] = Hold::Fixed;
         }
+        self.contacts.clear();
         self.node_reactions.iter_mut().for_each(|r| *r = Vec3::ZERO);
         Ok(())
     }

@@ -1,12 +1,62 @@
-//! The implicit Euler step of `FemCorotational`: right-hand side, projected PCG solve,
-//! trial state, checks, commit, reactions.
+//! The implicit Euler step of `FemCorotational`: right-hand side, projected PCG solve (the
+//! contacts' active set settled by solving again, `contact`), trial state, checks, commit,
+//! reactions.
 
 use crate::error::SimError;
 use crate::math::{Real, Vec3, flatten};
 use crate::model::StepInfo;
+use crate::solve::{CgResult, CgWorkspace};
 
+use super::bsr::BlockStiffness;
+use super::contact::{Filter, MAX_CONTACT_SOLVES, node_vec, set_node};
 use super::force;
+use super::warp::WarpPreconditioner;
 use super::{FemCorotational, Hold, Resolved};
+
+/// One solve of A Δv = b: what is fixed over the step's solves.
+struct Solve<'a> {
+    stiffness: &'a BlockStiffness,
+    masses: &'a [Real],
+    cm: Real,
+    ck: Real,
+    inv_diag: &'a [Real],
+    rhs: &'a [Real],
+    cap: usize,
+}
+
+impl Solve<'_> {
+    /// Modified PCG (`CgWorkspace::solve_filtered`) from `dv`, whose filtered-out part
+    /// (held dofs, contacts' normal components) is the known velocity change, to the
+    /// relative residual `tol` of S b.
+    fn run(
+        &self,
+        cg: &mut CgWorkspace,
+        warp: Option<&mut WarpPreconditioner>,
+        filter: &Filter,
+        dv: &mut [Real],
+        tol: Real,
+    ) -> CgResult {
+        let (masses, stiffness, cm, ck) = (self.masses, self.stiffness, self.cm, self.ck);
+        let apply = |z: &[Real], y: &mut [Real]| stiffness.apply(cm, ck, masses, z, y);
+        let filter = |v: &mut [Real]| filter.apply(v);
+        let cap = self.cap;
+        match warp {
+            Some(w) => {
+                let precondition = |r: &[Real], z: &mut [Real]| w.apply(r, z);
+                cg.solve_filtered(apply, precondition, filter, self.rhs, dv, cap, tol)
+            }
+            None => {
+                let inv_diag = self.inv_diag;
+                let jacobi = |r: &[Real], z: &mut [Real]| {
+                    for ((zi, ri), d) in z.iter_mut().zip(r).zip(inv_diag) {
+                        *zi = d * ri;
+                    }
+                };
+                cg.solve_filtered(apply, jacobi, filter, self.rhs, dv, cap, tol)
+            }
+        }
+    }
+}
 
 impl FemCorotational {
     /// Advances by `dt` seconds. On a non-finite result the state is left as it was.
@@ -33,6 +83,7 @@ impl FemCorotational {
         let (cm, ck) = (1.0 + h * alpha, h * beta + h * h);
         ws.inv_diag.iter_mut().for_each(|d| *d = 0.0);
         ws.stiffness.add_diagonal(&mut ws.inv_diag);
+        ws.filter.held.clear();
         for (i, hold) in self.holds.iter().enumerate() {
             let m = self.masses[i];
             let fext = self.external[i];
@@ -54,6 +105,7 @@ impl FemCorotational {
                     Some(d) => {
                         ws.dv[j] = d;
                         ws.inv_diag[j] = 0.0;
+                        ws.filter.held.push(j);
                     }
                 }
             }
@@ -68,29 +120,115 @@ impl FemCorotational {
                 reason: format!("the step's system is not finite (dt = {dt} s)"),
             });
         }
-        let masses = &self.masses;
-        let stiffness = &ws.stiffness;
-        let apply = |z: &[Real], y: &mut [Real]| stiffness.apply(cm, ck, masses, z, y);
         let (cap, tol) = (self.params.cg_iterations, self.params.cg_tolerance);
-        let cg = match (&self.resolved, self.warp.as_mut()) {
+        let mut warp = match (&self.resolved, self.warp.as_mut()) {
             (Some(Resolved::Warp), Some(w)) => {
+                // Contact nodes are free here: a contact taken or let go never refactorises.
                 let held = self.holds.iter().map(|h| *h != Hold::Free);
-                w.ensure_factored(cm, ck, masses, held)?;
+                w.ensure_factored(cm, ck, &self.masses, held)?;
                 w.update_rotations(elements, rotations);
-                let precondition = |r: &[Real], z: &mut [Real]| w.apply(r, z);
-                ws.cg.solve_preconditioned(
-                    apply,
-                    precondition,
-                    &ws.inv_diag,
-                    &ws.rhs,
-                    &mut ws.dv,
-                    cap,
-                    tol,
-                )
+                Some(w)
             }
-            _ => ws
-                .cg
-                .solve(apply, &ws.inv_diag, &ws.rhs, &mut ws.dv, cap, tol),
+            _ => None,
+        };
+        let solve = Solve {
+            stiffness: &ws.stiffness,
+            masses: &self.masses,
+            cm,
+            ck,
+            inv_diag: &ws.inv_diag,
+            rhs: &ws.rhs,
+            cap,
+        };
+        // The contacts' active set (`contact`): the ones that pushed in the last step or
+        // start past their planes are held first.
+        let contacts = &self.contacts;
+        ws.active.clear();
+        ws.active.extend(
+            contacts
+                .iter()
+                .map(|k| self.pushed[k.node] || k.gap(self.x[k.node]) < 0.0),
+        );
+        ws.released.clear();
+        ws.released.resize(contacts.len(), false);
+        ws.pushes.clear();
+        ws.pushes.resize(contacts.len(), 0.0);
+        // Pulls and penetrations below roundoff of the pushes and of the motion are none.
+        let depth = 1e-12 * self.length;
+        let mut solves = 0;
+        let mut iterations = 0;
+        // ‖S b‖ over the load the tolerance is relative to (`share` below).
+        let mut share: Real;
+        let (cg, settled) = loop {
+            solves += 1;
+            ws.filter.along.clear();
+            for (k, _) in contacts.iter().zip(&ws.active).filter(|(_, a)| **a) {
+                // Δv along n takes the node onto the plane at the end of the step.
+                let i = k.node;
+                let n = k.normal;
+                let known = n.dot(k.target - self.x[i]) / h - n.dot(self.v[i]);
+                let d = node_vec(&ws.dv, i);
+                set_node(&mut ws.dv, i, d + n * (known - n.dot(d)));
+                ws.filter.along.push((i, n));
+            }
+            // The tolerance is relative to the step's load on the unknowns not held in full,
+            // the contacts' normal loads included: settled, the filtered load S b alone is
+            // roundoff (the targets follow the vertices), and a tolerance relative to it
+            // stopped every step of a still hold at the cap. Without contacts the two agree.
+            ws.kv.copy_from_slice(&ws.rhs);
+            ws.filter.held.iter().for_each(|&d| ws.kv[d] = 0.0);
+            let load = ws.kv.iter().map(|b| b * b).sum::<Real>().sqrt();
+            ws.filter.apply(&mut ws.kv);
+            let filtered = ws.kv.iter().map(|b| b * b).sum::<Real>().sqrt();
+            share = if filtered > 0.0 && load > filtered {
+                filtered / load
+            } else {
+                1.0
+            };
+            let cg = solve.run(
+                &mut ws.cg,
+                warp.as_deref_mut(),
+                &ws.filter,
+                &mut ws.dv,
+                tol / share,
+            );
+            iterations += cg.iterations;
+            if contacts.is_empty() || !cg.relative_residual.is_finite() {
+                break (cg, true);
+            }
+            // The pushes: the normal rows of A Δv − b (which the filter left out) over h.
+            ws.stiffness.apply(cm, ck, &self.masses, &ws.dv, &mut ws.kv);
+            for ((k, &a), p) in contacts.iter().zip(&ws.active).zip(&mut ws.pushes) {
+                *p = if a {
+                    k.normal
+                        .dot(node_vec(&ws.kv, k.node) - node_vec(&ws.rhs, k.node))
+                        / h
+                } else {
+                    0.0
+                };
+            }
+            let scale: Real = ws.pushes.iter().map(|p| p.abs()).sum();
+            let mut changed = false;
+            for (j, k) in contacts.iter().enumerate() {
+                let i = k.node;
+                if ws.active[j] && ws.pushes[j] < -1e-9 * scale {
+                    ws.active[j] = false;
+                    ws.released[j] = true;
+                    changed = true;
+                } else if !ws.active[j] && !ws.released[j] {
+                    let end = self.x[i] + (self.v[i] + node_vec(&ws.dv, i)) * h;
+                    if k.gap(end) < -depth {
+                        ws.active[j] = true;
+                        changed = true;
+                    }
+                }
+            }
+            if !changed {
+                break (cg, true);
+            }
+            if solves >= MAX_CONTACT_SOLVES {
+                break (cg, false);
+            }
         };
 
         if !cg.relative_residual.is_finite() {
@@ -141,13 +279,27 @@ impl FemCorotational {
         std::mem::swap(&mut self.elastic, &mut ws.elastic);
         std::mem::swap(&mut self.last_dv, &mut ws.dv);
         self.steps += 1;
-        self.last_cg = cg;
+        // The residual relative to the load the tolerance is relative to.
+        let residual = cg.relative_residual * share;
+        self.last_cg = CgResult {
+            iterations: cg.iterations,
+            relative_residual: residual,
+        };
+        // A contact pushes only: one left pulling by an unsettled active set reads 0 (the
+        // step says `capped`).
+        self.pushed.iter_mut().for_each(|p| *p = false);
+        for (k, &p) in self.contacts.iter_mut().zip(&ws.pushes) {
+            k.push = p.max(0.0);
+            self.pushed[k.node] = k.push > 0.0;
+        }
+        self.contact_solves = solves;
+        self.contact_caps += u64::from(!settled);
         self.update_reactions();
         self.update_surface();
         Ok(StepInfo {
-            iterations: cg.iterations,
-            residual: cg.relative_residual,
-            capped: cg.iterations >= cap && cg.relative_residual > tol,
+            iterations,
+            residual,
+            capped: (cg.iterations >= cap && residual > tol) || !settled,
             substeps: 1,
         })
     }
@@ -182,6 +334,9 @@ impl FemCorotational {
                 }
             };
         }
+        for k in &self.contacts {
+            self.node_reactions[k.node] = -k.normal * k.push;
+        }
         self.distribute_reactions();
     }
 
@@ -196,6 +351,8 @@ impl FemCorotational {
         self.elastic.iter_mut().for_each(|f| *f = 0.0);
         self.elastic_valid = true;
         self.steps = 0;
+        self.contacts.iter_mut().for_each(|k| k.push = 0.0);
+        self.pushed.iter_mut().for_each(|p| *p = false);
         if let Some(w) = self.warp.as_mut() {
             w.reset();
         }
