@@ -289,6 +289,16 @@ mod tests {
         m
     }
 
+    fn total_volume(m: &TetMesh) -> Real {
+        m.tets
+            .iter()
+            .map(|t| {
+                let p = t.map(|v| m.vertices[v as usize]);
+                tet_signed_volume(p[0], p[1], p[2], p[3])
+            })
+            .sum()
+    }
+
     fn defects(m: &TetMesh) -> (usize, usize) {
         let d = find_defects(&m.tets, &vec![true; m.tets.len()]);
         (d.edges.len(), d.vertices.len())
@@ -308,14 +318,7 @@ mod tests {
         for offset in [[1, 1, 0], [1, 1, 1]] {
             let mut m = two_cubes(offset);
             assert_ne!(defects(&m), (0, 0), "{offset:?}: the defect is found");
-            let before: Real = m
-                .tets
-                .iter()
-                .map(|t| {
-                    let p = t.map(|v| m.vertices[v as usize]);
-                    tet_signed_volume(p[0], p[1], p[2], p[3])
-                })
-                .sum();
+            let before = total_volume(&m);
             let mut tags: Vec<i32> = (0..m.tets.len() as i32).collect();
             let r = make_boundary_manifold(&mut m, &mut tags);
             assert_eq!(defects(&m), (0, 0), "{offset:?}: manifold after the repair");
@@ -323,14 +326,7 @@ mod tests {
             assert_eq!((r.edges_left, r.vertices_left), (0, 0));
             assert_eq!(m.tets.len(), 12 - r.removed);
             assert_eq!(tags.len(), m.tets.len());
-            let after: Real = m
-                .tets
-                .iter()
-                .map(|t| {
-                    let p = t.map(|v| m.vertices[v as usize]);
-                    tet_signed_volume(p[0], p[1], p[2], p[3])
-                })
-                .sum();
+            let after = total_volume(&m);
             assert!((before - after - r.removed_volume).abs() < 1e-12);
             assert!(m.validate_indices().is_ok());
         }
