@@ -91,10 +91,9 @@ pub(super) struct RestPart {
     pub outer: Vec<u32>,
     /// Rest-local node → outer slot, or `NONE`.
     outer_slot: Vec<u32>,
-    /// −(interface reactions) per unit interface displacement: 3n_I × 3n_I.
-    s: Mat<Real>,
-    /// S again, as panels of its upper triangle: the product every force evaluation takes
-    /// reads half the bytes (`sym_panels`).
+    /// S, −(interface reactions) per unit interface displacement (3n_I × 3n_I, symmetric),
+    /// kept as panels of its upper triangle: the product every force evaluation takes reads
+    /// half the bytes (`sym_panels`), and nothing needs the dense matrix.
     panels: SymPanels,
     /// Outer displacements per unit interface displacement, G (3n_O × 3n_I), stored
     /// transposed: the three rows of one outer node are contiguous, for the few nodes a
@@ -204,7 +203,6 @@ impl RestPart {
             outer,
             outer_slot,
             panels: SymPanels::new(&s),
-            s,
             gt,
             g_norms,
             r0: Mat::zeros(ni, 1),
@@ -238,7 +236,6 @@ impl RestPart {
             iface: Vec::new(),
             outer: Vec::new(),
             outer_slot: Vec::new(),
-            s: Mat::zeros(0, 0),
             panels: SymPanels::default(),
             gt: Mat::zeros(0, 0),
             g_norms: Vec::new(),
@@ -393,7 +390,7 @@ impl RestPart {
             self.ensure_column(s)?;
         }
         let m3 = 3 * slots.len();
-        let ni = self.s.ncols();
+        let ni = self.panels.dim();
         let mut c = Contacts {
             slots: slots.to_vec(),
             rhs: Mat::zeros(m3, 1),
@@ -511,7 +508,7 @@ impl RestPart {
     /// d_Iᵀ S d_I + yᵀ W_cc⁻¹ y, y = G_c d_I − d_c (the Hessian of the coupling energy in
     /// the interface displacements and the contact targets). 3×3, N/m.
     pub fn translation_stiffness(&self, iface_held: &[bool], contact_held: &[bool]) -> Mat3 {
-        let ni = self.s.nrows();
+        let ni = self.panels.dim();
         let m3 = self.contacts.rhs.nrows();
         let mut d = Mat::<Real>::zeros(ni, 3);
         for (a, _) in iface_held.iter().enumerate().filter(|(_, h)| **h) {
@@ -520,14 +517,10 @@ impl RestPart {
             }
         }
         let mut sd = Mat::<Real>::zeros(ni, 3);
-        faer::linalg::matmul::matmul(
-            sd.as_mut(),
-            Accum::Replace,
-            self.s.as_ref(),
-            d.as_ref(),
-            1.0,
-            Par::Seq,
-        );
+        for l in 0..3 {
+            self.panels
+                .mul_add(d.col_as_slice(l), sd.col_as_slice_mut(l), 1.0);
+        }
         let mut k = Mat::<Real>::zeros(3, 3);
         faer::linalg::matmul::matmul(
             k.as_mut(),
@@ -741,9 +734,7 @@ impl RestPart {
             .as_ref()
             .map_or(0, |f| f.borrow().info().memory_bytes)
             + self.panels.bytes()
-            + 8 * (self.s.nrows() * self.s.ncols()
-                + self.gt.nrows() * self.gt.ncols()
-                + self.columns.len() * 3 * self.gt.ncols())
+            + 8 * (self.gt.nrows() * self.gt.ncols() + self.columns.len() * 3 * self.gt.ncols())
     }
 
     /// The coupling seen from the region: interface node `i` is region node `region_node[i]`,
@@ -894,9 +885,9 @@ impl NodeCoupling for Coupling<'_> {
     fn add_stiffness_diagonal(&self, d: &mut [Vec3]) {
         for (a, &n) in self.region_node.iter().enumerate() {
             let diagonal = Vec3::new(
-                self.rest.s[(3 * a, 3 * a)],
-                self.rest.s[(3 * a + 1, 3 * a + 1)],
-                self.rest.s[(3 * a + 2, 3 * a + 2)],
+                self.rest.panels.diagonal(3 * a),
+                self.rest.panels.diagonal(3 * a + 1),
+                self.rest.panels.diagonal(3 * a + 2),
             );
             if let Some(di) = d.get_mut(n as usize) {
                 *di += diagonal;

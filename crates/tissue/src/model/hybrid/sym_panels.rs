@@ -57,6 +57,17 @@ impl SymPanels {
         8 * self.data.len()
     }
 
+    /// n, the order of S.
+    pub fn dim(&self) -> usize {
+        self.n
+    }
+
+    /// S[i, i].
+    pub fn diagonal(&self, i: usize) -> Real {
+        let (p, c) = (i / 4, i % 4);
+        self.panel(p)[BLOCK * p + 4 * c + c]
+    }
+
     /// y += alpha · S x (`x` and `y` at least n long).
     pub fn mul_add(&self, x: &[Real], y: &mut [Real], alpha: Real) {
         assert!(x.len() >= self.n && y.len() >= self.n);
@@ -214,6 +225,7 @@ mod tests {
             panels.full_panels(n / 4, x.col_as_slice(0), &mut portable, -0.5);
             panels.last_panel(x.col_as_slice(0), &mut portable, -0.5);
             for i in 0..n {
+                assert_eq!(panels.diagonal(i), s[(i, i)]);
                 let tol = 1e-12 * (1.0 + dense[(i, 0)].abs());
                 assert!((dense[(i, 0)] - fast[i]).abs() < tol, "n = {n}, row {i}");
                 assert!(

@@ -69,13 +69,3 @@ impl Filter {
         }
     }
 }
-
-/// Node `i` of flat `v`.
-pub(super) fn node_vec(v: &[Real], i: usize) -> Vec3 {
-    Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2])
-}
-
-/// Sets node `i` of flat `v`.
-pub(super) fn set_node(v: &mut [Real], i: usize, x: Vec3) {
-    v[3 * i..3 * i + 3].copy_from_slice(&x.to_array());
-}

@@ -250,10 +250,7 @@ impl FemCorotational {
         let boundary = boundary_surface(&mesh);
         let rest = mesh.vertices.clone();
         let (n, ne) = (rest.len(), elements.len());
-        let (lo, hi) = rest.iter().fold(
-            (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        );
+        let length = mesh.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length());
         let mut model = Self {
             lame: Lame {
                 lambda: material.lambda(),
@@ -274,7 +271,7 @@ impl FemCorotational {
             pushed: vec![false; n],
             contact_solves: 0,
             contact_caps: 0,
-            length: (hi - lo).length(),
+            length,
             external: vec![Vec3::ZERO; n],
             node_reactions: vec![Vec3::ZERO; n],
             loads: Loads::default(),

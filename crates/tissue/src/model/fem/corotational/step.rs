@@ -3,12 +3,12 @@
 //! reactions.
 
 use crate::error::SimError;
-use crate::math::{Real, Vec3, flatten};
+use crate::math::{Real, Vec3, flatten, unflatten, unflatten_mut};
 use crate::model::StepInfo;
 use crate::solve::{CgResult, CgWorkspace};
 
 use super::bsr::BlockStiffness;
-use super::contact::{Filter, MAX_CONTACT_SOLVES, node_vec, set_node};
+use super::contact::{Filter, MAX_CONTACT_SOLVES};
 use super::force;
 use super::warp::WarpPreconditioner;
 use super::{FemCorotational, Hold, Resolved};
@@ -167,8 +167,8 @@ impl FemCorotational {
                 let i = k.node;
                 let n = k.normal;
                 let known = n.dot(k.target - self.x[i]) / h - n.dot(self.v[i]);
-                let d = node_vec(&ws.dv, i);
-                set_node(&mut ws.dv, i, d + n * (known - n.dot(d)));
+                let d = &mut unflatten_mut(&mut ws.dv)[i];
+                *d += n * (known - n.dot(*d));
                 ws.filter.along.push((i, n));
             }
             // The tolerance is relative to the step's load on the unknowns not held in full,
@@ -201,7 +201,7 @@ impl FemCorotational {
             for ((k, &a), p) in contacts.iter().zip(&ws.active).zip(&mut ws.pushes) {
                 *p = if a {
                     k.normal
-                        .dot(node_vec(&ws.kv, k.node) - node_vec(&ws.rhs, k.node))
+                        .dot(unflatten(&ws.kv)[k.node] - unflatten(&ws.rhs)[k.node])
                         / h
                 } else {
                     0.0
@@ -216,7 +216,7 @@ impl FemCorotational {
                     ws.released[j] = true;
                     changed = true;
                 } else if !ws.active[j] && !ws.released[j] {
-                    let end = self.x[i] + (self.v[i] + node_vec(&ws.dv, i)) * h;
+                    let end = self.x[i] + (self.v[i] + unflatten(&ws.dv)[i]) * h;
                     if k.gap(end) < -depth {
                         ws.active[j] = true;
                         changed = true;
