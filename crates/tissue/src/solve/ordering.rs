@@ -3,15 +3,19 @@
 //! faer orders by approximate minimum degree (AMD). Nested dissection orders a separator (a
 //! set of nodes whose removal splits the mesh in two) after the two halves, recursively, so
 //! the elimination of one half never fills into the other and the dense work concentrates in
-//! the separators. Which is better depends on the mesh: on regular 3-D grids (the beams of
-//! the benchmark) nested dissection wins (32³ nodes: a factor 1.6× smaller, 4× faster to
-//! compute), on the liver refined for the comparison's reference AMD does (166k unknowns:
-//! 334M values against 516M). `SparseCholesky::with_positions` analyses both and keeps the
-//! smaller factor, so this never makes a factorisation worse.
+//! the separators. Which is better depends on the mesh: on regular 3-D grids nested
+//! dissection wins (32³ nodes: a factor 1.6× smaller, 4× faster to compute), on the
+//! benchmark's beams it depends on the size (20k: 4.0M values against AMD's 3.56M; 80k:
+//! 28.0M against 31.8M), on the liver refined for the comparison's reference AMD wins (166k
+//! unknowns: 334M values against 516M). `SparseCholesky::with_positions` analyses both and
+//! keeps the smaller factor, so this never makes a factorisation worse. Its elimination tree
+//! always splits evenly (two subtrees of equal work under a small top), which is what the
+//! two-thread solve needs (`Ordering::QuickestSolve`).
 //!
-//! Separators are geometric: the part's nodes split at the median of their longest extent,
-//! and the nodes of one side coupled to the other side form the separator (a layer about one
-//! element thick). Breadth-first level sets, which need no coordinates, were tried first: on
+//! Separators are geometric: the part's nodes split at the median of their longest extent
+//! (nodes level with the median all on one side, so a structured mesh's layer is never cut
+//! through), and the nodes of one side coupled to the other side form the separator (a layer
+//! about one element thick). Breadth-first level sets, which need no coordinates, were tried first: on
 //! meshes with diagonal couplings their levels are shells around the start, nearly twice a
 //! plane's size, and the factor came out larger than AMD's even on grids.
 
@@ -75,11 +79,30 @@ fn bisect(
     } else {
         2
     };
+    let coord = |v: u32| positions[v as usize][axis];
     let half = part.len() / 2;
-    part.select_nth_unstable_by(half, |&a, &b| {
-        positions[a as usize][axis].total_cmp(&positions[b as usize][axis])
-    });
-    let b = part.split_off(half);
+    part.select_nth_unstable_by(half, |&a, &b| coord(a).total_cmp(&coord(b)));
+    // Nodes level with the median go to the second half together: a structured mesh's layer
+    // of nodes is then not cut through, and the separator is one layer, not parts of two.
+    let median = coord(part[half]);
+    let mut cut = half;
+    while cut > 0 && coord(part[cut - 1]) == median {
+        cut -= 1;
+    }
+    // `select_nth` leaves only "not greater" before the median: its equals must be moved.
+    let mut i = 0;
+    while i < cut {
+        if coord(part[i]) == median {
+            cut -= 1;
+            part.swap(i, cut);
+        } else {
+            i += 1;
+        }
+    }
+    if cut == 0 {
+        cut = half;
+    }
+    let b = part.split_off(cut);
     for &v in &part {
         side[v as usize] = 1;
     }
@@ -141,24 +164,32 @@ mod tests {
 
     #[test]
     fn a_separator_disconnects_the_halves_and_is_a_thin_layer() {
-        let n = 12;
-        let (ptr, adj, positions) = grid(n);
-        let part: Vec<u32> = (0..(n * n * n) as u32).collect();
-        let mut side = vec![0u8; part.len()];
-        let (a, b, sep) = bisect(&ptr, &adj, &positions, part.clone(), &mut side);
-        assert_eq!(a.len() + b.len() + sep.len(), part.len());
-        let mut half = vec![0u8; part.len()];
-        a.iter().for_each(|&v| half[v as usize] = 1);
-        b.iter().for_each(|&v| half[v as usize] = 2);
-        for &v in &a {
-            let nb = &adj[ptr[v as usize]..ptr[v as usize + 1]];
-            assert!(nb.iter().all(|&w| half[w as usize] != 2), "edge {v} across");
+        // Even: the median falls between two layers of nodes; odd: in the middle of one,
+        // which goes whole to the second half (a layer cut through gave a separator of parts
+        // of two layers, and the 20k beam's factor 28% more values).
+        for n in [12, 11] {
+            let (ptr, adj, positions) = grid(n);
+            let part: Vec<u32> = (0..(n * n * n) as u32).collect();
+            let mut side = vec![0u8; part.len()];
+            let (a, b, sep) = bisect(&ptr, &adj, &positions, part.clone(), &mut side);
+            assert_eq!(a.len() + b.len() + sep.len(), part.len());
+            let mut half = vec![0u8; part.len()];
+            a.iter().for_each(|&v| half[v as usize] = 1);
+            b.iter().for_each(|&v| half[v as usize] = 2);
+            for &v in &a {
+                let nb = &adj[ptr[v as usize]..ptr[v as usize + 1]];
+                assert!(nb.iter().all(|&w| half[w as usize] != 2), "edge {v} across");
+            }
+            // One layer of n² nodes, all at one x.
+            assert_eq!(sep.len(), n * n, "n = {n}");
+            let x = positions[sep[0] as usize].x;
+            assert!(sep.iter().all(|&v| positions[v as usize].x == x));
+            if n % 2 == 0 {
+                assert_eq!(a.len() + sep.len(), b.len());
+            }
+            // The scratch is left clean for the next split.
+            assert!(side.iter().all(|&s| s == 0));
         }
-        // The median plane of a cube of nodes: one layer of n² nodes, the halves equal.
-        assert_eq!(sep.len(), n * n);
-        assert_eq!(a.len() + sep.len(), b.len());
-        // The scratch is left clean for the next split.
-        assert!(side.iter().all(|&s| s == 0));
     }
 
     #[test]

@@ -200,6 +200,34 @@ fn internal(what: &str) -> SimError {
 /// stiffness matrices stay far above it (a slender beam of aspect 100 has ratios ~1e-6).
 const PIVOT_RATIO_MIN: Real = 1e-13;
 
+/// The work on the critical path of a solve with `symbolic`'s factor on rayon's threads at
+/// hand: the tree solve's top and largest group when its groups may run in parallel, else
+/// the whole (in the tree solve's units, or the factor's values where it is not used).
+fn solve_span(symbolic: &SymbolicCholesky<usize>, tree_min_values: usize) -> u64 {
+    #[cfg(feature = "parallel")]
+    let threads = rayon::current_num_threads();
+    #[cfg(not(feature = "parallel"))]
+    let threads = 1;
+    let tree = match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(s) if s.len_val() >= tree_min_values => {
+            TreeSolve::new(s, symbolic.perm().map(|p| p.arrays().0))
+        }
+        _ => None,
+    };
+    match tree {
+        Some(t) => {
+            let (total, top, group) = t.work();
+            if threads >= 2 && symbolic.len_val() >= PARALLEL_MIN_VALUES && t.splits(PARALLEL_SPAN)
+            {
+                top + group
+            } else {
+                total
+            }
+        }
+        None => symbolic.len_val() as u64,
+    }
+}
+
 /// The fill-reducing ordering of a factorisation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ordering {
@@ -210,6 +238,13 @@ pub enum Ordering {
     /// Whichever of the two gives the smaller factor; AMD alone below
     /// `NESTED_DISSECTION_MIN_DIM` unknowns.
     Smaller,
+    /// Whichever of AMD and nested dissection gives the solve the least work on its
+    /// critical path with the threads at hand (rayon's pool when the factor is built): on one
+    /// thread the smaller factor, on two the one whose elimination tree splits more evenly
+    /// for `tree_solve`. For factors solved many times and rarely refactorised (a
+    /// preconditioner); a factor computed often wants `Smaller`, the factorisation itself
+    /// being serial.
+    QuickestSolve,
 }
 
 /// Patterns with at least this many unknowns also get a nested-dissection analysis: below
@@ -228,11 +263,10 @@ const TREE_MIN_VALUES: usize = 0;
 const PARALLEL_MIN_VALUES: usize = 100_000;
 const PARALLEL_SPAN: f64 = 0.75;
 
-/// The nested-dissection order of the pattern's nodes, expanded to their unknowns, as faer's
+/// A node order of the pattern's nodes (`ordering`), expanded to their unknowns, as faer's
 /// (forward: new → original, inverse) pair.
-fn dof_permutation(pattern: &BlockPattern, positions: &[Vec3]) -> (Vec<usize>, Vec<usize>) {
+fn dof_permutation(pattern: &BlockPattern, nodes: &[u32]) -> (Vec<usize>, Vec<usize>) {
     let b = pattern.block;
-    let nodes = super::ordering::nested_dissection(&pattern.node_ptr, &pattern.node_adj, positions);
     let fwd: Vec<usize> = nodes
         .iter()
         .flat_map(|&v| (0..b).map(move |k| b * v as usize + k))
@@ -261,6 +295,9 @@ pub struct SparseCholesky {
     parallel: bool,
     /// Whether it does, measured (`chooser`): the same bits either way.
     chooser: super::chooser::Chooser,
+    /// A single-precision copy of L that the tree solve reads instead of `l_values`
+    /// (`single_precision_solves`).
+    single: Option<Vec<f32>>,
     /// Tests: the tree's groups on rayon's threads always (`Some(true)`), never, or by size.
     #[cfg(test)]
     force_parallel: Option<bool>,
@@ -337,7 +374,9 @@ impl SparseCholesky {
                 .map_err(|e| internal(&format!("symbolic Cholesky failed: {e:?}")))
         }
         let nested = || {
-            let (fwd, inv) = dof_permutation(pattern, positions);
+            let nodes =
+                super::ordering::nested_dissection(&pattern.node_ptr, &pattern.node_adj, positions);
+            let (fwd, inv) = dof_permutation(pattern, &nodes);
             analyse_with(
                 sym,
                 SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(&fwd, &inv, n)),
@@ -347,15 +386,15 @@ impl SparseCholesky {
         let symbolic = match ordering {
             Ordering::Amd => analyse_with(sym, SymmetricOrdering::Amd, params)?,
             Ordering::NestedDissection => nested()?,
-            Ordering::Smaller => {
+            Ordering::Smaller | Ordering::QuickestSolve => {
                 let amd = analyse_with(sym, SymmetricOrdering::Amd, params)?;
                 if n >= NESTED_DISSECTION_MIN_DIM {
                     let nd = nested()?;
-                    if nd.len_val() < amd.len_val() {
-                        nd
-                    } else {
-                        amd
-                    }
+                    let cost = |s: &SymbolicCholesky<usize>| match ordering {
+                        Ordering::QuickestSolve => solve_span(s, tree_min_values),
+                        _ => s.len_val() as u64,
+                    };
+                    if cost(&nd) < cost(&amd) { nd } else { amd }
                 } else {
                     amd
                 }
@@ -388,6 +427,7 @@ impl SparseCholesky {
             tree,
             parallel,
             chooser: Default::default(),
+            single: None,
             #[cfg(test)]
             force_parallel: None,
         })
@@ -459,8 +499,24 @@ impl SparseCholesky {
                 hint: hint.to_string(),
             });
         }
+        if let Some(single) = &mut self.single {
+            single.clear();
+            single.extend(self.l_values.iter().map(|&v| v as f32));
+        }
         self.factored = true;
         Ok(())
+    }
+
+    /// Solves (`solve_in_place`) with a single-precision copy of L, for a preconditioner:
+    /// the solve streams half the bytes (it is memory-bound: on the 20k beam's warp factor,
+    /// 32 MB of f64 against a 32 MB L3), the arithmetic stays f64, and forward and backward
+    /// read the same rounded L̃, so what is solved is exactly L̃ L̃ᵀ, symmetric positive
+    /// definite (relative error of L̃ 6e-8, far below a CG tolerance). Only the tree solve
+    /// reads it (supernodal factors); `solve_many_in_place` stays in f64. Takes effect from
+    /// the present factor on.
+    pub fn single_precision_solves(&mut self, on: bool) {
+        let l = &self.l_values;
+        self.single = (on && self.tree.is_some()).then(|| l.iter().map(|&v| v as f32).collect());
     }
 
     fn small_pivot(&self, values: &[Real], original: &dyn Fn(usize) -> usize) -> Option<usize> {
@@ -511,15 +567,20 @@ impl SparseCholesky {
             let may = false;
             #[cfg(test)]
             let may = may || self.force_parallel == Some(true);
+            let single = self.single.as_deref();
+            let mut solve = |parallel| match single {
+                Some(l) => tree.solve(l, rhs, parallel),
+                None => tree.solve(&self.l_values, rhs, parallel),
+            };
             if !may {
-                tree.solve(&self.l_values, rhs, false);
+                solve(false);
                 return Ok(());
             }
             let parallel = self.chooser.pick();
             #[cfg(test)]
             let parallel = self.force_parallel.unwrap_or(parallel);
             let start = std::time::Instant::now();
-            tree.solve(&self.l_values, rhs, parallel);
+            solve(parallel);
             self.chooser.record(parallel, start.elapsed());
             return Ok(());
         }
@@ -833,8 +894,54 @@ mod tests {
                     "{what}: two threads changed the bits"
                 );
             }
+            check_single_precision(&mut chol, &b, &want, what);
         }
         work
+    }
+
+    /// The single-precision copy of L solves within f32's rounding of the f64 answer, gives
+    /// the same bits on one thread and two, and is a symmetric operator (forward and
+    /// backward read the same rounded L̃): b₂ · M⁻¹b₁ = b₁ · M⁻¹b₂, what CG relies on.
+    fn check_single_precision(chol: &mut SparseCholesky, b: &[Real], want: &[Real], what: &str) {
+        chol.single_precision_solves(true);
+        chol.force_parallel = Some(false);
+        let solve = |chol: &mut SparseCholesky, rhs: &[Real]| {
+            let mut x = rhs.to_vec();
+            chol.solve_in_place(&mut x).unwrap();
+            x
+        };
+        let x = solve(chol, b);
+        let err = max_abs(&x.iter().zip(want).map(|(x, y)| x - y).collect::<Vec<_>>());
+        assert!(
+            err <= 1e-5 * max_abs(want),
+            "{what}, f32: {err:e} from the f64 solve (largest unknown {:e})",
+            max_abs(want)
+        );
+        let b2: Vec<Real> = (0..b.len()).map(|i| ((i * 13) % 7) as Real - 3.0).collect();
+        let x2 = solve(chol, &b2);
+        let (d12, d21) = (dot(&b2, &x), dot(b, &x2));
+        assert!(
+            (d12 - d21).abs() <= 1e-12 * d12.abs().max(d21.abs()),
+            "{what}, f32: not symmetric, {d12:e} against {d21:e}"
+        );
+        #[cfg(feature = "parallel")]
+        {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(2)
+                .build()
+                .unwrap();
+            chol.force_parallel = Some(true);
+            let two = pool.install(|| solve(chol, b));
+            assert!(
+                x.iter().zip(&two).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{what}, f32: two threads changed the bits"
+            );
+        }
+        chol.single_precision_solves(false);
+    }
+
+    fn dot(a: &[Real], b: &[Real]) -> Real {
+        a.iter().zip(b).map(|(x, y)| x * y).sum()
     }
 
     /// Two separate cubes of `n`³ nodes side by side: a forest of two trees.
@@ -910,7 +1017,8 @@ mod tests {
             .num_threads(2)
             .build()
             .unwrap();
-        for size in ["1k", "5k", "20k", "80k"] {
+        let sizes = std::env::var("TREE_SIZES").unwrap_or_else(|_| "1k,5k,20k,80k".into());
+        for size in sizes.split(',') {
             let mesh = BeamSpec::new(size_cells(size).unwrap()).mesh();
             let flat: Vec<u32> = mesh.tets.iter().flatten().copied().collect();
             let p = BlockPattern::from_elements(mesh.vertices.len(), 3, &flat, 4);
@@ -918,9 +1026,15 @@ mod tests {
             let b: Vec<Real> = (0..p.dim())
                 .map(|i| ((i * 37) % 11) as Real - 5.0)
                 .collect();
-            for ordering in [Ordering::Amd, Ordering::NestedDissection] {
+            for (ordering, single) in [
+                (Ordering::Amd, false),
+                (Ordering::Amd, true),
+                (Ordering::NestedDissection, false),
+                (Ordering::NestedDissection, true),
+            ] {
                 let mut chol = SparseCholesky::with_ordering(&p, &mesh.vertices, ordering).unwrap();
                 chol.factorize(&p, &v, "").unwrap();
+                chol.single_precision_solves(single);
                 let reps = (20_000_000 / chol.factor_nnz().max(1)).clamp(1, 2000);
                 let mut best = [f64::INFINITY; 3];
                 for _ in 0..7 {
@@ -952,10 +1066,11 @@ mod tests {
                 }
                 let (total, top, group) = chol.tree_work().unwrap_or_default();
                 println!(
-                    "{size} beam, {} unknowns, {ordering:?}: factor {} values, supernodal {}, \
+                    "{size} beam, {} unknowns, {ordering:?}{}: factor {} values, supernodal {}, \
                      work top {:.3} largest group {:.3}; solve faer {:.1} us, tree 1 thread \
                      {:.1} us, 2 threads {:.1} us (x{:.2} over faer, x{:.2} over 1 thread)",
                     p.dim(),
+                    if single { " f32" } else { "" },
                     chol.factor_nnz(),
                     chol.is_supernodal(),
                     top as f64 / total.max(1) as f64,

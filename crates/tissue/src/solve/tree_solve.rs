@@ -50,10 +50,53 @@ const NODE_WORK: u64 = 32;
 /// Not a segment index: the top.
 const TOP: u32 = u32::MAX;
 
+/// How L's values are stored for the solve: `f64`, or `f32` for a preconditioner's copy
+/// (`SparseCholesky::single_precision_solves`). The arithmetic is f64 either way; an f32
+/// copy halves the bytes a memory-bound solve streams, and forward and backward read the
+/// same rounded L, so the preconditioner stays exactly L̃ L̃ᵀ: symmetric positive definite.
+pub trait Stored: Copy + Send + Sync + 'static {
+    fn widen(self) -> Real;
+    /// Four consecutive values widened into one AVX register.
+    ///
+    /// # Safety
+    /// `p` must point at four readable values, and the CPU must support AVX.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn load4(p: *const Self) -> std::arch::x86_64::__m256d;
+}
+
+impl Stored for f64 {
+    #[inline(always)]
+    fn widen(self) -> Real {
+        self
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn load4(p: *const Self) -> std::arch::x86_64::__m256d {
+        // SAFETY: the caller's contract.
+        unsafe { std::arch::x86_64::_mm256_loadu_pd(p) }
+    }
+}
+
+impl Stored for f32 {
+    #[inline(always)]
+    fn widen(self) -> Real {
+        Real::from(self)
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn load4(p: *const Self) -> std::arch::x86_64::__m256d {
+        use std::arch::x86_64::{_mm_loadu_ps, _mm256_cvtps_pd};
+        // SAFETY: the caller's contract.
+        unsafe { _mm256_cvtps_pd(_mm_loadu_ps(p)) }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 struct Node {
-    /// Offset of the supernode's dense block (column-major, `rows` × `cols`) in L's values.
+    /// Offset of the piece's dense block (column-major, `rows` × `cols`, columns `ld`
+    /// apart: a piece of a wider supernode keeps the supernode's columns) in L's values.
     val: usize,
+    ld: u32,
     cols: u32,
     /// Columns plus off-diagonal rows.
     rows: u32,
@@ -63,6 +106,117 @@ struct Node {
     pat: usize,
     /// How many of those rows are in its own segment; the rest are the top's.
     own: u32,
+}
+
+/// faer's supernodes cut where another subtree joins them.
+///
+/// A supernode is a run of columns with one dense pattern; when a child subtree's first
+/// off-diagonal row falls inside it (not at its first column), the columns before that row
+/// are, in the elimination tree, a chain below the one it joins. faer's supernodes merge a
+/// parent with the last of its children whenever that adds no zeros, so under a separator
+/// ordered last (nested dissection, or one cut with AMD in the halves) the separator's
+/// supernode also holds the last columns of one half, and the split would put that half's
+/// heaviest columns in the serial top. Cut there, each piece is a supernode of its own (the
+/// same values, read with the supernode's column stride) and the split can fall between them.
+struct Pieces<'a> {
+    symbolic: &'a SymbolicSupernodalCholesky<usize>,
+    /// Per piece: its supernode and its first column; pieces ascend by column.
+    supernode: Vec<usize>,
+    first: Vec<usize>,
+    /// The piece holding the piece's first off-diagonal row (`usize::MAX`: a root).
+    parent: Vec<usize>,
+}
+
+impl<'a> Pieces<'a> {
+    /// `None` if a row of a supernode is not after it (never from faer's factors).
+    fn new(symbolic: &'a SymbolicSupernodalCholesky<usize>) -> Option<Self> {
+        let ns = symbolic.n_supernodes();
+        let n = symbolic.nrows();
+        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+        // Where a supernode's subtree joins its parent: the first off-diagonal row.
+        let mut cut = vec![false; n];
+        for s in 0..ns {
+            match symbolic.supernode(s).pattern().first() {
+                Some(&r) if r < end[s] => return None,
+                Some(&r) => cut[r] = true,
+                None => {}
+            }
+        }
+        let (mut supernode, mut first) = (Vec::with_capacity(ns), Vec::with_capacity(ns));
+        let mut piece_of_col = vec![0usize; n];
+        for s in 0..ns {
+            for c in begin[s]..end[s] {
+                if c == begin[s] || cut[c] {
+                    supernode.push(s);
+                    first.push(c);
+                }
+                piece_of_col[c] = first.len() - 1;
+            }
+        }
+        let mut pieces = Self {
+            symbolic,
+            supernode,
+            first,
+            parent: Vec::new(),
+        };
+        pieces.parent = (0..pieces.len())
+            .map(|p| {
+                pieces
+                    .off_diagonal_rows(p)
+                    .next()
+                    .map_or(usize::MAX, |r| piece_of_col[r])
+            })
+            .collect();
+        Some(pieces)
+    }
+
+    fn len(&self) -> usize {
+        self.first.len()
+    }
+
+    /// One past the piece's last column.
+    fn end(&self, p: usize) -> usize {
+        match self.supernode.get(p + 1) {
+            Some(&s) if s == self.supernode[p] => self.first[p + 1],
+            _ => self.symbolic.supernode_end()[self.supernode[p]],
+        }
+    }
+
+    fn columns(&self, p: usize) -> std::ops::Range<usize> {
+        self.first[p]..self.end(p)
+    }
+
+    fn cols(&self, p: usize) -> usize {
+        self.end(p) - self.first[p]
+    }
+
+    /// Its columns and off-diagonal rows: the supernode's from the piece's first column on.
+    fn rows(&self, p: usize) -> usize {
+        let s = self.supernode[p];
+        self.symbolic.supernode_end()[s] - self.first[p]
+            + self.symbolic.supernode(s).pattern().len()
+    }
+
+    /// The supernode's rows: its block's column stride.
+    fn ld(&self, p: usize) -> usize {
+        let s = self.supernode[p];
+        self.symbolic.supernode_end()[s] - self.symbolic.supernode_begin()[s]
+            + self.symbolic.supernode(s).pattern().len()
+    }
+
+    /// Offset of the piece's diagonal entry of its first column in L's values.
+    fn val(&self, p: usize) -> usize {
+        let s = self.supernode[p];
+        let k = self.first[p] - self.symbolic.supernode_begin()[s];
+        self.symbolic.col_ptr_for_val()[s] + k * (self.ld(p) + 1)
+    }
+
+    /// The rows below its columns, ascending: the supernode's later columns, then its pattern.
+    fn off_diagonal_rows(&self, p: usize) -> impl Iterator<Item = usize> + '_ {
+        let s = self.supernode[p];
+        (self.end(p)..self.symbolic.supernode_end()[s])
+            .chain(self.symbolic.supernode(s).pattern().iter().copied())
+    }
 }
 
 /// A group of subtrees, or the top: its supernodes and its unknowns.
@@ -101,49 +255,36 @@ impl TreeSolve {
         symbolic: &SymbolicSupernodalCholesky<usize>,
         perm_fwd: Option<&[usize]>,
     ) -> Option<Self> {
-        let ns = symbolic.n_supernodes();
         let n = symbolic.nrows();
         if perm_fwd.is_some_and(|p| p.len() != n) || n >= u32::MAX as usize {
             return None;
         }
-        let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
-        let val_ptr = symbolic.col_ptr_for_val();
-        let mut super_of_col = vec![0usize; n];
-        for s in 0..ns {
-            super_of_col[begin[s]..end[s]].fill(s);
-        }
-        // The parent is the supernode of the first off-diagonal row; always a later one.
-        let mut parent = vec![usize::MAX; ns];
-        let mut own = vec![0u64; ns];
-        for s in 0..ns {
-            let pattern = symbolic.supernode(s).pattern();
-            if let Some(&r) = pattern.first() {
-                parent[s] = super_of_col[r];
-                if parent[s] <= s {
-                    return None;
-                }
-            }
-            let rows = (end[s] - begin[s] + pattern.len()) as u64;
-            own[s] = (val_ptr[s + 1] - val_ptr[s]) as u64 + ROW_WORK * rows + NODE_WORK;
+        let pieces = Pieces::new(symbolic)?;
+        let np = pieces.len();
+        let parent = &pieces.parent;
+        let mut own = vec![0u64; np];
+        for p in 0..np {
+            let (cols, rows) = (pieces.cols(p) as u64, pieces.rows(p) as u64);
+            own[p] = cols * rows + ROW_WORK * rows + NODE_WORK;
         }
         let mut sub = own.clone();
-        for s in 0..ns {
-            if parent[s] != usize::MAX {
-                sub[parent[s]] += sub[s];
+        for p in 0..np {
+            if parent[p] != usize::MAX {
+                sub[parent[p]] += sub[p];
             }
         }
-        let split = best_split(&parent, &sub, &own);
+        let split = best_split(parent, &sub, &own);
         // Segments: a frontier root's group, inherited down its subtree (parents come later).
-        let mut seg = vec![TOP; ns];
-        let mut root_group = vec![TOP; ns];
+        let mut seg = vec![TOP; np];
+        let mut root_group = vec![TOP; np];
         for &(r, g) in &split.roots {
             root_group[r] = g as u32;
         }
-        for s in (0..ns).rev() {
-            seg[s] = if root_group[s] != TOP {
-                root_group[s]
-            } else if parent[s] != usize::MAX {
-                seg[parent[s]]
+        for p in (0..np).rev() {
+            seg[p] = if root_group[p] != TOP {
+                root_group[p]
+            } else if parent[p] != usize::MAX {
+                seg[parent[p]]
             } else {
                 TOP
             };
@@ -152,36 +293,37 @@ impl TreeSolve {
         let mut top = Segment::default();
         let mut col_local = vec![0u32; n];
         let mut col_seg = vec![TOP; n];
-        let mut nodes = Vec::with_capacity(ns);
-        for s in 0..ns {
-            let segment = match seg[s] {
+        let mut nodes = Vec::with_capacity(np);
+        for p in 0..np {
+            let segment = match seg[p] {
                 TOP => &mut top,
                 g => &mut groups[g as usize],
             };
             let local = segment.orig.len() as u32;
-            for (k, c) in (begin[s]..end[s]).enumerate() {
+            for (k, c) in pieces.columns(p).enumerate() {
                 col_local[c] = local + k as u32;
-                col_seg[c] = seg[s];
+                col_seg[c] = seg[p];
                 segment.orig.push(perm_fwd.map_or(c, |p| p[c]) as u32);
             }
-            segment.nodes.push(s as u32);
+            segment.nodes.push(p as u32);
             nodes.push(Node {
-                val: val_ptr[s],
-                cols: (end[s] - begin[s]) as u32,
-                rows: (end[s] - begin[s] + symbolic.supernode(s).pattern().len()) as u32,
+                val: pieces.val(p),
+                ld: pieces.ld(p) as u32,
+                cols: pieces.cols(p) as u32,
+                rows: pieces.rows(p) as u32,
                 local,
                 pat: 0,
                 own: 0,
             });
         }
-        // Rows renumbered: first those in the supernode's own segment, then the top's.
+        // Rows renumbered: first those in the piece's own segment, then the top's.
         let mut pattern = Vec::with_capacity(symbolic.row_idx().len());
-        for s in 0..ns {
-            nodes[s].pat = pattern.len();
+        for p in 0..np {
+            nodes[p].pat = pattern.len();
             let mut own_rows = 0;
             let mut in_top = false;
-            for &r in symbolic.supernode(s).pattern() {
-                if col_seg[r] == seg[s] && !in_top {
+            for r in pieces.off_diagonal_rows(p) {
+                if col_seg[r] == seg[p] && !in_top {
                     own_rows += 1;
                 } else if col_seg[r] == TOP {
                     in_top = true;
@@ -190,7 +332,7 @@ impl TreeSolve {
                 }
                 pattern.push(col_local[r]);
             }
-            nodes[s].own = own_rows;
+            nodes[p].own = own_rows;
         }
         let top_len = top.orig.len();
         for segment in groups.iter_mut().chain(std::iter::once(&mut top)) {
@@ -217,7 +359,7 @@ impl TreeSolve {
             top,
             work_total: sub
                 .iter()
-                .zip(&parent)
+                .zip(parent)
                 .filter(|(_, p)| **p == usize::MAX)
                 .map(|(w, _)| w)
                 .sum(),
@@ -240,7 +382,7 @@ impl TreeSolve {
 
     /// Solves L Lᵀ x = b in place (`rhs` holds b, then x) with L's `values`, the groups on
     /// rayon's threads when `parallel` (the same bits either way).
-    pub fn solve(&mut self, values: &[Real], rhs: &mut [Real], parallel: bool) {
+    pub fn solve<V: Stored>(&mut self, values: &[V], rhs: &mut [Real], parallel: bool) {
         let Self {
             nodes,
             pattern,
@@ -371,7 +513,7 @@ fn deal(frontier: &[usize], sub: &[u64], top: u64) -> Split {
 
 /// The forward solve through a segment's supernodes: their columns in `seg.x`, their
 /// updates to rows of the same segment into `seg.x` and to the top's rows into `seg.up`.
-fn forward(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[Real], avx2: bool) {
+fn forward<V: Stored>(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[V], avx2: bool) {
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: `avx2` was detected on this CPU.
@@ -383,12 +525,12 @@ fn forward(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[Real], avx2:
 
 /// The backward solve through a segment's supernodes (descending), reading the top's
 /// unknowns from `top_x`.
-fn backward(
+fn backward<V: Stored>(
     seg: &mut Segment,
     top_x: &[Real],
     nodes: &[Node],
     pattern: &[u32],
-    l: &[Real],
+    l: &[V],
     avx2: bool,
 ) {
     #[cfg(target_arch = "x86_64")]
@@ -397,14 +539,14 @@ fn backward(
         return unsafe { backward_avx2(seg, top_x, nodes, pattern, l) };
     }
     let _ = avx2;
-    backward_body::<false>(seg, top_x, nodes, pattern, l);
+    backward_body::<V, false>(seg, top_x, nodes, pattern, l);
 }
 
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn forward_avx2(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[Real]) {
+unsafe fn forward_avx2<V: Stored>(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[V]) {
     forward_body(seg, nodes, pattern, l);
 }
 
@@ -412,18 +554,18 @@ unsafe fn forward_avx2(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn backward_avx2(
+unsafe fn backward_avx2<V: Stored>(
     seg: &mut Segment,
     top_x: &[Real],
     nodes: &[Node],
     pattern: &[u32],
-    l: &[Real],
+    l: &[V],
 ) {
-    backward_body::<true>(seg, top_x, nodes, pattern, l);
+    backward_body::<V, true>(seg, top_x, nodes, pattern, l);
 }
 
 #[inline(always)]
-fn forward_body(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[Real]) {
+fn forward_body<V: Stored>(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[V]) {
     let Segment {
         nodes: list,
         x,
@@ -434,16 +576,17 @@ fn forward_body(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[Real]) 
     for &s in list.iter() {
         let nd = nodes[s as usize];
         let (nc, nr, at) = (nd.cols as usize, nd.rows as usize, nd.local as usize);
-        let block = &l[nd.val..nd.val + nc * nr];
+        let ld = nd.ld as usize;
+        let block = &l[nd.val..nd.val + (nc - 1) * ld + nr];
         let w = &mut work[..nr];
         w[..nc].copy_from_slice(&x[at..at + nc]);
         w[nc..].fill(0.0);
         for j in 0..nc {
-            let col = &block[j * nr..(j + 1) * nr];
-            let wj = w[j] / col[j];
+            let col = &block[j * ld..j * ld + nr];
+            let wj = w[j] / col[j].widen();
             w[j] = wj;
             for (wi, ci) in w[j + 1..].iter_mut().zip(&col[j + 1..]) {
-                *wi -= ci * wj;
+                *wi -= ci.widen() * wj;
             }
         }
         x[at..at + nc].copy_from_slice(&w[..nc]);
@@ -460,12 +603,12 @@ fn forward_body(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[Real]) 
 
 /// `AVX2`: compiled for AVX2 (`backward_avx2`), whose dot products use its intrinsics.
 #[inline(always)]
-fn backward_body<const AVX2: bool>(
+fn backward_body<V: Stored, const AVX2: bool>(
     seg: &mut Segment,
     top_x: &[Real],
     nodes: &[Node],
     pattern: &[u32],
-    l: &[Real],
+    l: &[V],
 ) {
     let Segment {
         nodes: list,
@@ -476,7 +619,8 @@ fn backward_body<const AVX2: bool>(
     for &s in list.iter().rev() {
         let nd = nodes[s as usize];
         let (nc, nr, at) = (nd.cols as usize, nd.rows as usize, nd.local as usize);
-        let block = &l[nd.val..nd.val + nc * nr];
+        let ld = nd.ld as usize;
+        let block = &l[nd.val..nd.val + (nc - 1) * ld + nr];
         let w = &mut work[..nr];
         w[..nc].copy_from_slice(&x[at..at + nc]);
         let (own, rest) = pattern[nd.pat..nd.pat + nr - nc].split_at(nd.own as usize);
@@ -493,13 +637,13 @@ fn backward_body<const AVX2: bool>(
         // solve's time on the 20k beam).
         let (w_top, w_rows) = w.split_at_mut(nc);
         for (j, wj) in w_top.iter_mut().enumerate() {
-            *wj -= dot_for::<AVX2>(&block[j * nr + nc..(j + 1) * nr], w_rows);
+            *wj -= dot_for::<V, AVX2>(&block[j * ld + nc..j * ld + nr], w_rows);
         }
         // Then the triangle, last column first.
         for j in (0..nc).rev() {
-            let col = &block[j * nr..j * nr + nc];
-            let d = dot_for::<AVX2>(&col[j + 1..], &w[j + 1..nc]);
-            w[j] = (w[j] - d) / col[j];
+            let col = &block[j * ld..j * ld + nc];
+            let d = dot_for::<V, AVX2>(&col[j + 1..], &w[j + 1..nc]);
+            w[j] = (w[j] - d) / col[j].widen();
         }
         x[at..at + nc].copy_from_slice(&w[..nc]);
     }
@@ -507,7 +651,7 @@ fn backward_body<const AVX2: bool>(
 
 /// `dot`, with AVX2 intrinsics when compiled for it (`AVX2`).
 #[inline(always)]
-fn dot_for<const AVX2: bool>(a: &[Real], b: &[Real]) -> Real {
+fn dot_for<V: Stored, const AVX2: bool>(a: &[V], b: &[Real]) -> Real {
     #[cfg(target_arch = "x86_64")]
     if AVX2 {
         // SAFETY: only `backward_avx2`, called when AVX2 was detected, passes `AVX2`.
@@ -525,7 +669,7 @@ fn dot_for<const AVX2: bool>(a: &[Real], b: &[Real]) -> Real {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn dot_avx2(a: &[Real], b: &[Real]) -> Real {
+unsafe fn dot_avx2<V: Stored>(a: &[V], b: &[Real]) -> Real {
     use std::arch::x86_64::{
         _mm256_add_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_setzero_pd, _mm256_storeu_pd,
     };
@@ -537,11 +681,8 @@ unsafe fn dot_avx2(a: &[Real], b: &[Real]) -> Real {
     while i < full {
         // SAFETY: i + 8 ≤ n, and both slices are at least n long.
         unsafe {
-            let p0 = _mm256_mul_pd(_mm256_loadu_pd(pa.add(i)), _mm256_loadu_pd(pb.add(i)));
-            let p1 = _mm256_mul_pd(
-                _mm256_loadu_pd(pa.add(i + 4)),
-                _mm256_loadu_pd(pb.add(i + 4)),
-            );
+            let p0 = _mm256_mul_pd(V::load4(pa.add(i)), _mm256_loadu_pd(pb.add(i)));
+            let p1 = _mm256_mul_pd(V::load4(pa.add(i + 4)), _mm256_loadu_pd(pb.add(i + 4)));
             s0 = _mm256_add_pd(s0, p0);
             s1 = _mm256_add_pd(s1, p1);
         }
@@ -552,7 +693,7 @@ unsafe fn dot_avx2(a: &[Real], b: &[Real]) -> Real {
     unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), _mm256_add_pd(s0, s1)) };
     let mut d = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
     for k in full..n {
-        d += a[k] * b[k];
+        d += a[k].widen() * b[k];
     }
     d
 }
@@ -560,7 +701,7 @@ unsafe fn dot_avx2(a: &[Real], b: &[Real]) -> Real {
 /// Σ a_i b_i in eight interleaved partial sums (vectorisable, and the same order on every
 /// instruction set).
 #[inline(always)]
-fn dot(a: &[Real], b: &[Real]) -> Real {
+fn dot<V: Stored>(a: &[V], b: &[Real]) -> Real {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
     let mut acc = [0.0; 8];
@@ -568,12 +709,12 @@ fn dot(a: &[Real], b: &[Real]) -> Real {
     let (ar, br) = (ac.remainder(), bc.remainder());
     for (x, y) in ac.zip(bc) {
         for k in 0..8 {
-            acc[k] += x[k] * y[k];
+            acc[k] += x[k].widen() * y[k];
         }
     }
     let mut d = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
     for (x, y) in ar.iter().zip(br) {
-        d += x * y;
+        d += x.widen() * y;
     }
     d
 }
