@@ -9,8 +9,10 @@
 //! 28.0M against 31.8M), on the liver refined for the comparison's reference AMD wins (166k
 //! unknowns: 334M values against 516M). `SparseCholesky::with_positions` analyses both and
 //! keeps the smaller factor, so this never makes a factorisation worse. Its elimination tree
-//! always splits evenly (two subtrees of equal work under a small top), which is what the
-//! two-thread solve needs (`Ordering::QuickestSolve`).
+//! splits evenly (two subtrees of equal work under a top of 1-2%, where AMD's beam tree
+//! keeps a third of the work in its top), but its many small supernodes are slower per
+//! value in the solve: at 20k, in f32, 2.29 ms against AMD's 1.49 on one thread, and 1.42
+//! against 1.27 on two (`tree_solve_study`).
 //!
 //! Separators are geometric: the part's nodes split at the median of their longest extent
 //! (nodes level with the median all on one side, so a structured mesh's layer is never cut

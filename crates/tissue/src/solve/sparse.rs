@@ -200,34 +200,6 @@ fn internal(what: &str) -> SimError {
 /// stiffness matrices stay far above it (a slender beam of aspect 100 has ratios ~1e-6).
 const PIVOT_RATIO_MIN: Real = 1e-13;
 
-/// The work on the critical path of a solve with `symbolic`'s factor on rayon's threads at
-/// hand: the tree solve's top and largest group when its groups may run in parallel, else
-/// the whole (in the tree solve's units, or the factor's values where it is not used).
-fn solve_span(symbolic: &SymbolicCholesky<usize>, tree_min_values: usize) -> u64 {
-    #[cfg(feature = "parallel")]
-    let threads = rayon::current_num_threads();
-    #[cfg(not(feature = "parallel"))]
-    let threads = 1;
-    let tree = match symbolic.raw() {
-        SymbolicCholeskyRaw::Supernodal(s) if s.len_val() >= tree_min_values => {
-            TreeSolve::new(s, symbolic.perm().map(|p| p.arrays().0))
-        }
-        _ => None,
-    };
-    match tree {
-        Some(t) => {
-            let (total, top, group) = t.work();
-            if threads >= 2 && symbolic.len_val() >= PARALLEL_MIN_VALUES && t.splits(PARALLEL_SPAN)
-            {
-                top + group
-            } else {
-                total
-            }
-        }
-        None => symbolic.len_val() as u64,
-    }
-}
-
 /// The fill-reducing ordering of a factorisation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ordering {
@@ -238,13 +210,6 @@ pub enum Ordering {
     /// Whichever of the two gives the smaller factor; AMD alone below
     /// `NESTED_DISSECTION_MIN_DIM` unknowns.
     Smaller,
-    /// Whichever of AMD and nested dissection gives the solve the least work on its
-    /// critical path with the threads at hand (rayon's pool when the factor is built): on one
-    /// thread the smaller factor, on two the one whose elimination tree splits more evenly
-    /// for `tree_solve`. For factors solved many times and rarely refactorised (a
-    /// preconditioner); a factor computed often wants `Smaller`, the factorisation itself
-    /// being serial.
-    QuickestSolve,
 }
 
 /// Patterns with at least this many unknowns also get a nested-dissection analysis: below
@@ -386,15 +351,15 @@ impl SparseCholesky {
         let symbolic = match ordering {
             Ordering::Amd => analyse_with(sym, SymmetricOrdering::Amd, params)?,
             Ordering::NestedDissection => nested()?,
-            Ordering::Smaller | Ordering::QuickestSolve => {
+            Ordering::Smaller => {
                 let amd = analyse_with(sym, SymmetricOrdering::Amd, params)?;
                 if n >= NESTED_DISSECTION_MIN_DIM {
                     let nd = nested()?;
-                    let cost = |s: &SymbolicCholesky<usize>| match ordering {
-                        Ordering::QuickestSolve => solve_span(s, tree_min_values),
-                        _ => s.len_val() as u64,
-                    };
-                    if cost(&nd) < cost(&amd) { nd } else { amd }
+                    if nd.len_val() < amd.len_val() {
+                        nd
+                    } else {
+                        amd
+                    }
                 } else {
                     amd
                 }

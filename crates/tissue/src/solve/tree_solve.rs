@@ -114,9 +114,9 @@ struct Node {
 /// off-diagonal row falls inside it (not at its first column), the columns before that row
 /// are, in the elimination tree, a chain below the one it joins. faer's supernodes merge a
 /// parent with the last of its children whenever that adds no zeros, so under a separator
-/// ordered last (nested dissection, or one cut with AMD in the halves) the separator's
-/// supernode also holds the last columns of one half, and the split would put that half's
-/// heaviest columns in the serial top. Cut there, each piece is a supernode of its own (the
+/// ordered last (nested dissection) the separator's supernode also holds the last columns
+/// of one half, and the split put that half's heaviest columns in the serial top (7.6% of
+/// the 20k beam's work, 1.5% once cut). Cut there, each piece is a supernode of its own (the
 /// same values, read with the supernode's column stride) and the split can fall between them.
 struct Pieces<'a> {
     symbolic: &'a SymbolicSupernodalCholesky<usize>,

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use crate::error::SimError;
 use crate::math::{Mat3, Real, Vec3};
-use crate::solve::{BlockPattern, Ordering, SparseCholesky};
+use crate::solve::{BlockPattern, SparseCholesky};
 
 use super::bsr::BlockStiffness;
 use super::force::{ElementRest, Lame};
@@ -53,14 +53,13 @@ pub(super) struct WarpPreconditioner {
 impl WarpPreconditioner {
     /// Symbolic analysis of the node adjacency of `elements` over the nodes at `rest` (no
     /// factorisation yet). The ordering is AMD or nested dissection by the rest positions,
-    /// whichever gives the solve the least work on its critical path with the threads at
-    /// hand (`Ordering::QuickestSolve`): the factor is solved with at every CG iteration and
-    /// refactorised rarely, off the stepping thread.
+    /// whichever gives the smaller factor (`SparseCholesky::with_positions`). Solved with
+    /// at every CG iteration, the factor is read from an f32 copy.
     pub fn new(elements: &[ElementRest], lame: Lame, rest: &[Vec3]) -> Result<Self, SimError> {
         let nodes = rest.len();
         let flat: Vec<u32> = elements.iter().flat_map(|e| e.nodes).collect();
         let pattern = BlockPattern::from_elements(nodes, 3, &flat, 4);
-        let mut cholesky = SparseCholesky::with_ordering(&pattern, rest, Ordering::QuickestSolve)?;
+        let mut cholesky = SparseCholesky::with_positions(&pattern, rest)?;
         // A preconditioner needs no f64 factor: half the bytes per solve (`sparse`).
         cholesky.single_precision_solves(true);
         let mut rest_stiffness = BlockStiffness::new(elements, nodes);
