@@ -48,22 +48,30 @@ struct Row {
     unknown: Vec3,
 }
 
-/// The rows of the last solve, kept so that a contact update allocates nothing once the
-/// largest contact set was seen.
-#[derive(Debug, Default)]
+/// The rows and the block of the last solve, kept so that a contact update allocates
+/// nothing once the largest contact set was seen.
 pub(crate) struct HeldRows {
     rows: Vec<Row>,
+    small: SmallDense,
+}
+
+impl Default for HeldRows {
+    fn default() -> Self {
+        Self {
+            rows: Vec::new(),
+            small: SmallDense::new(0),
+        }
+    }
 }
 
 impl HeldRows {
     /// Solves for the unknowns of contacts held along `normals` (a unit vector: along it
     /// only; zero: in all three directions), writing a_k into `unknowns[3k..3k + 3]`.
-    /// `small` holds the block; a singular block is an error, never a panic.
+    /// A singular block is an error, never a panic.
     pub fn solve<T: ContactResponse>(
         &mut self,
         response: &T,
         normals: &[Vec3],
-        small: &mut SmallDense,
         unknowns: &mut [Real],
     ) -> Result<(), SimError> {
         const AXES: [Vec3; 3] = [Vec3::X, Vec3::Y, Vec3::Z];
@@ -82,6 +90,7 @@ impl HeldRows {
             }));
         }
         let m = self.rows.len();
+        let small = &mut self.small;
         let (mut block, rhs) = small.block_and_rhs(m);
         for (c, col) in self.rows.iter().enumerate() {
             let first = if T::SYMMETRIC { c } else { 0 };

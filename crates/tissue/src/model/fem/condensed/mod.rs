@@ -208,7 +208,7 @@ impl FemCondensed {
             u0: &self.u0,
         };
         core.held
-            .solve(&response, &core.normals, &mut core.small, &mut core.lambda)?;
+            .solve(&response, &core.normals, &mut core.lambda)?;
         self.superpose_lambda();
         Ok(())
     }

@@ -193,12 +193,8 @@ impl SurfaceResponse for FemPrecomputedTensors {
                 contacts: &core.contacts,
                 targets: &core.targets,
             };
-            core.held.solve(
-                &response,
-                &core.normals,
-                &mut core.small,
-                &mut core.unknowns,
-            )?;
+            core.held
+                .solve(&response, &core.normals, &mut core.unknowns)?;
             self.superpose();
             return Ok(());
         }
