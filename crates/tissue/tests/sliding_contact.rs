@@ -503,13 +503,15 @@ fn normal_only_contact_on_the_tensors_agrees_with_fem_condensed() {
 }
 
 /// `bem` holds each frictionless contact along the probe's normal only, solved with its
-/// pre-inverted response (`BemSystem::solve_along`): on the 8-cell block's surface its force
-/// is `fem-static`'s on the tetrahedra within the two discretisations' difference (linear
-/// tetrahedra this coarse are stiff, the BEM's collocation on the same triangles is not the
-/// same approximation: measured 4–6 %), it pushes nearly straight down while sliding, and
-/// it matches its own relaxation to the relaxation's tolerance in fewer solves.
+/// pre-inverted response (`BemSystem::solve_along`), on the 8-cell block's surface. It
+/// pushes nearly straight down while sliding, matches its own relaxation (`Relaxed`) to the
+/// relaxation's tolerance in fewer solves, and with the probe centred reads Hertz's force
+/// within 15 % (measured +9.8 %; the 2 cm layer on its fixed floor is stiffer than a
+/// half-space). `fem-static`'s linear tetrahedra on the same block are much stiffer (+66 %
+/// of Hertz at 8 cells, +22 % at 16: `hertz_coarse_fem_static`): the two differ by
+/// `fem-static`'s coarse-mesh stiffness (measured 35 % apart), not by the contact.
 #[test]
-fn normal_only_contact_on_bem_is_close_to_fem_static() {
+fn normal_only_contact_on_bem_is_close_to_hertz() {
     let (bem, solves) = slide_of("bem", 0.0, 0.05, 8, false);
     let (relaxed, relaxed_solves) = slide_of("bem", 0.0, 0.05, 8, true);
     let reference = slide_on("fem-static", 0.0, 0.05, 8);
@@ -522,243 +524,28 @@ fn normal_only_contact_on_bem_is_close_to_fem_static() {
             tangential(*a) / a.z
         );
     }
+    // The step with the probe centred (x from −1.5 to +1.5 mm over the slide).
+    let centred = bem.len() / 2 - 1;
+    let f_hertz = hertz(0.3, SLIDE_R, SLIDE_DEPTH);
+    let (to_hertz, fem_to_hertz) = (
+        bem[centred].z / f_hertz - 1.0,
+        reference[centred].z / f_hertz - 1.0,
+    );
     eprintln!(
-        "bem along normals vs fem-static: worst gap {gap:.2e}, |Ft|/Fn at most {sideways:.1e}, \
-         {solves} solves a step at most; vs its relaxation: {relaxed_gap:.2e} \
-         ({relaxed_solves} solves)"
+        "bem along normals: centred {:.5} N, {to_hertz:+.3} of Hertz ({f_hertz:.5} N; \
+         fem-static {fem_to_hertz:+.3}); worst gap to fem-static {gap:.2e}, |Ft|/Fn at most \
+         {sideways:.1e}, {solves} solves a step at most; vs its relaxation: \
+         {relaxed_gap:.2e} ({relaxed_solves} solves)",
+        bem[centred].z
     );
     for f in &bem {
         assert!(f.z > 0.0, "{f}");
     }
     assert!(sideways < 0.03, "{sideways}");
-    assert!(gap < 0.15, "{gap}");
+    assert!(to_hertz.abs() < 0.15, "{to_hertz}");
+    assert!(fem_to_hertz > to_hertz, "{fem_to_hertz} vs {to_hertz}");
     assert!(relaxed_gap < 0.01, "{relaxed_gap}");
     assert!(solves < relaxed_solves, "{solves} vs {relaxed_solves}");
-}
-
-#[test]
-fn coulomb_probe_drags_mu_times_the_push_while_sliding() {
-    let mu = 0.3;
-    let forces = slide("fem-static", mu, 0.05);
-    for f in &forces {
-        eprintln!("mu 0.3: F = {f:.4}, |Ft|/Fn = {:.4}", tangential(*f) / f.z);
-    }
-    // The first steps stick (the tangential force builds up), then it slides at μN,
-    // resisting the motion (the probe moves +x, the tissue pushes it back, −x).
-    let sliding: Vec<&Vec3> = forces
-        .iter()
-        .filter(|f| tangential(**f) > 0.9 * mu * f.z)
-        .collect();
-    assert!(sliding.len() >= forces.len() / 2, "it should slide");
-    for f in &sliding {
-        assert!(f.x < 0.0, "{f}");
-        assert!((tangential(**f) / f.z - mu).abs() < 0.05 * mu, "{f}");
-    }
-    for f in &forces {
-        assert!(tangential(*f) <= mu * f.z * 1.05, "{f}");
-    }
-}
-
-#[test]
-fn coulomb_probe_sticks_below_the_bound() {
-    // A sideways move too small to reach μN: the tangential force stays below it and the
-    // centre of the contact keeps its points of the probe (the rim, where the pressure falls
-    // to zero, slips a little: Cattaneo and Mindlin's partial slip).
-    let mesh = block(L, H, 16, &|_| 0.0);
-    let mut sim = sim_on_floor(model("fem-static", &mesh, 0.3));
-    sim.set_max_contact_iterations(60);
-    let down = Vec3::new(0.0, 0.0, H + SLIDE_R - SLIDE_DEPTH);
-    let probe = Instrument::new(
-        "probe",
-        InstrumentKind::Probe,
-        SLIDE_R,
-        path(&[(0.0, down), (1.0, down + Vec3::X * 2e-5)]),
-    )
-    .unwrap()
-    .with_friction(0.3)
-    .unwrap();
-    sim.add_instrument(probe);
-    sim.step(0.5).unwrap();
-    let before: Vec<_> = sim.instruments()[0].contacts().to_vec();
-    let p0 = sim.instruments()[0].position();
-    let r = sim.step(0.5).unwrap();
-    let f = r.forces[0];
-    let inst = &sim.instruments()[0];
-    let shift = inst.position() - p0;
-    eprintln!("stick: F = {f:.4}, |Ft|/Fn = {:.4}", tangential(f) / f.z);
-    assert!(tangential(f) < 0.3 * f.z && f.x < 0.0, "{f}");
-    let a = (SLIDE_R * SLIDE_DEPTH).sqrt();
-    let mut centre = 0;
-    let mut held = 0;
-    for k in inst.contacts() {
-        let Some(b) = before.iter().find(|b| b.vertex == k.vertex) else {
-            continue;
-        };
-        let off = k.target - inst.position();
-        let slid = (k.target - b.target - shift).length();
-        held += usize::from(slid < 1e-12);
-        if off.x.hypot(off.y) < 0.5 * a {
-            centre += 1;
-            assert!(
-                slid < 0.05 * shift.length(),
-                "vertex {} slid {slid} m",
-                k.vertex
-            );
-        }
-    }
-    let count = inst.contacts().len();
-    eprintln!("stick: {held} of {count} contacts kept their point of the probe");
-    assert!(centre >= 3, "{centre} contacts in the centre");
-    // The rim was left at the cone by the press itself (Spence's radial slip under a pure
-    // normal load), so it slips at any sideways load: measured 13 of 30 held.
-    assert!(3 * held >= count, "{held} of {count} stuck");
-}
-
-#[test]
-fn frictionless_force_on_a_curved_surface_is_along_its_normal() {
-    // The top rises as z = H + A sin(πx / 2l); the probe comes straight down at x0 where the
-    // slope is about 0.4. The surface normal there is (−z'(x0), 0, 1).
-    let a = 0.006;
-    let k = std::f64::consts::PI / (2.0 * L);
-    let lift = move |x: Real| a * (k * x).sin();
-    let mesh = block(L, H, 16, &lift);
-    let mut sim = sim_on_floor(model("fem-static", &mesh, 0.3));
-    sim.set_max_contact_iterations(60);
-    let x0 = 0.004;
-    let normal = Vec3::new(-a * k * (k * x0).cos(), 0.0, 1.0).normalize();
-    let contact = Vec3::new(x0, 0.0, H + lift(x0));
-    let start = contact + normal * R;
-    let probe = Instrument::new(
-        "probe",
-        InstrumentKind::Probe,
-        R,
-        path(&[(0.0, start), (1.0, start - Vec3::Z * 1e-3)]),
-    )
-    .unwrap()
-    .with_friction(0.0)
-    .unwrap();
-    sim.add_instrument(probe);
-    let mut f = Vec3::ZERO;
-    for _ in 0..10 {
-        f = sim.step(0.1).unwrap().forces[0];
-    }
-    let angle = f
-        .normalize()
-        .dot(normal)
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees();
-    let push_angle = f.normalize().dot(Vec3::Z).acos().to_degrees();
-    eprintln!(
-        "curved: F = {f:.4}, {angle:.2}° from the surface normal ({:.1}° from the push)",
-        push_angle
-    );
-    assert!(angle < 5.0, "{angle}°");
-}
-
-#[test]
-fn a_plane_pressing_the_top_is_uniaxial_compression() {
-    // ν = 0: the fixed floor does not hold the block sideways, so a frictionless plane
-    // pushing the top down by d gives F = E A d / h exactly (linear FEM is exact for it).
-    let mesh = block(L, H, 8, &|_| 0.0);
-    let mut sim = sim_on_floor(model("fem-static", &mesh, 0.0));
-    let d = 2e-4;
-    let plane = Instrument::new(
-        "table",
-        InstrumentKind::Plane { normal: -Vec3::Z },
-        0.01,
-        path(&[(0.0, Vec3::new(0.0, 0.0, H - d))]),
-    )
-    .unwrap()
-    .with_friction(0.0)
-    .unwrap();
-    sim.add_instrument(plane);
-    let r = sim.step(1.0).unwrap();
-    let f = r.forces[0];
-    let exact = E * (2.0 * L) * (2.0 * L) * d / H;
-    eprintln!("plane: F = {f:.6}, E A d / h = {exact:.5e}");
-    assert!((f.z - exact).abs() < 1e-6 * exact, "{f}");
-    assert!(tangential(f) < 1e-6 * exact);
-}
-
-#[test]
-fn a_capsule_lying_on_the_block_pushes_straight_down() {
-    let mesh = block(L, H, 12, &|_| 0.0);
-    let mut sim = sim_on_floor(model("fem-static", &mesh, 0.3));
-    sim.set_max_contact_iterations(60);
-    let r = 0.003;
-    let tip = Vec3::new(-0.008, 0.0, H + r - 5e-4);
-    let shaft = Instrument::new(
-        "shaft",
-        InstrumentKind::Capsule {
-            axis: Vec3::X,
-            length: 0.016,
-        },
-        r,
-        path(&[(0.0, tip)]),
-    )
-    .unwrap()
-    .with_friction(0.0)
-    .unwrap();
-    sim.add_instrument(shaft);
-    let rep = sim.step(1.0).unwrap();
-    let f = rep.forces[0];
-    eprintln!("capsule: F = {f:.5}, {} contacts", rep.contacts[0]);
-    assert!(rep.contacts[0] > 10);
-    assert!(f.z > 0.0 && tangential(f) < 0.01 * f.z, "{f}");
-    // Every contact pushes (no adhesion) and lies on the capsule.
-    let inst = &sim.instruments()[0];
-    let shape = inst.shape().unwrap();
-    for (k, f) in inst.contacts().iter().zip(inst.contact_reactions()) {
-        let c = shape.closest(inst.position(), k.target, Vec3::ZERO);
-        assert!(c.depth.abs() < 1e-12);
-        assert!(f.dot(c.normal) <= 1e-9 * rep.forces[0].length(), "{f}");
-    }
-}
-
-/// The shipped liver scene with its fine surface (`[mesh] visual`), fem-static: contacts are
-/// found on the 2194 fine vertices and handed to the coarse surface by the map's weights.
-#[test]
-fn fine_liver_surface_holds_the_probe_out_and_the_supports_balance() {
-    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
-        .unwrap()
-        .replace("../assets", &format!("{root}/assets"))
-        .replace(
-            "scale = 0.01",
-            &format!("scale = 0.01\nvisual = \"{root}/assets/meshes/liver-smooth.obj\""),
-        );
-    let dir = std::env::temp_dir().join(format!("tissue-fine-liver-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("fine.toml");
-    std::fs::write(&path, text).unwrap();
-    let scene = tissue::scene::Scene::load(&path).unwrap();
-    let mut sim = scene.build().unwrap();
-    assert_eq!(sim.fine_surface().unwrap().0.len(), 2194);
-    for _ in 0..scene.run.step_count() {
-        sim.step(scene.run.dt).unwrap();
-    }
-    let inst = &sim.instruments()[0];
-    let (c, r) = (inst.position(), inst.radius());
-    let (_, fine) = sim.fine_surface().unwrap();
-    let deepest = fine
-        .iter()
-        .map(|p| r - p.distance(c))
-        .fold(Real::NEG_INFINITY, Real::max);
-    let f = inst.force();
-    let balance = f + sim.fixed_reaction_total();
-    eprintln!(
-        "fine liver: F = {f:.5} N on {} coarse vertices, deepest fine vertex {deepest:.2e} m \
-         inside, balance {:.1e} N",
-        inst.contacts().len(),
-        balance.length()
-    );
-    // The probe goes down (−y): the liver pushes it up.
-    assert!(f.y > 0.0, "{f}");
-    // No fine vertex left inside the probe beyond rounding; static: the fixed vertices take
-    // what the probe gives.
-    assert!(deepest < 1e-6 * r, "{deepest}");
-    assert!(balance.length() < 1e-6 * f.length(), "{balance}");
 }
 
 /// What a frictionless press of the coarse liver showed (`coarse_liver_press`).
@@ -799,6 +586,13 @@ fn coarse_liver_press_with(kind: &str, relaxed: bool) -> LiverPress {
             "kind = \"probe\"\ncontact = \"sliding\"",
         )
         .replace("max_iterations = 8", "max_iterations = 50")
+        // Three point supports have no fully fixed triangle for the BEM's discontinuous
+        // rule, and with it a contact released for pulling leaves its neighbours' tractions
+        // on fewer triangles: the continuous rule (see the bem test below).
+        .replace(
+            "kind = \"bem\"",
+            "kind = \"bem\"\ndiscontinuous_contacts = false",
+        )
         .replace("radius = 0.005", "radius = 0.02")
         .replace("0.0555, 0.0067", "0.0705, 0.0067")
         .replace("0.0455, 0.0067", "0.0625, 0.0067");
@@ -946,15 +740,16 @@ fn coarse_liver_frictionless_probe_on_the_tensors_pushes_and_balances() {
     assert!(tensors.solves < relaxed.solves);
 }
 
-/// `bem` on the same press (the tetrahedra's boundary, the tractions continuous across the
-/// contact rim: the scene's three fixed vertices have no fully fixed triangle for the
-/// discontinuous rule): contacts held along their normals and solved with the pre-inverted
-/// response, no pulling contact, every reaction along its normal; its force within a
-/// discretisation's difference of `fem-condensed`'s. The supports balance the probe only as
-/// well as the collocation's tractions integrate to zero over the surface (a BEM is not
-/// in exact equilibrium node by node).
+/// `bem` on the same press (the tetrahedra's boundary; the tractions continuous across the
+/// contact rim, see `coarse_liver_press`): contacts held along their normals and solved
+/// with the pre-inverted response, no pulling contact, every reaction along its normal, in
+/// fewer solves than the relaxation of its targets (`Relaxed`), which leaves pulls and
+/// sideways reactions; its force within 5 % of `fem-condensed`'s on the same surface
+/// (measured 3.1 %: two discretisations). The supports balance the probe only as well as
+/// the collocation's tractions at three point supports integrate (18 % here, the same with
+/// the relaxation: the BEM's, not the contact's), so that is not checked.
 #[test]
-fn coarse_liver_frictionless_probe_on_bem_pushes_and_balances() {
+fn coarse_liver_frictionless_probe_on_bem_pushes_along_the_normals() {
     let exact = coarse_liver_press("fem-condensed");
     let bem = coarse_liver_press("bem");
     let relaxed = coarse_liver_press_with("bem", true);
@@ -966,5 +761,5 @@ fn coarse_liver_frictionless_probe_on_bem_pushes_and_balances() {
     assert!(bem.worst_angle < 1e-5, "{}", bem.worst_angle);
     assert!(bem.backed_off.iter().all(|&f| f > 0.0));
     assert!(bem.solves < relaxed.solves);
-    assert!(gap < 0.3, "{gap}");
+    assert!(gap < 0.05, "{gap}");
 }
