@@ -75,6 +75,13 @@ impl HeldRows {
         unknowns: &mut [Real],
     ) -> Result<(), SimError> {
         const AXES: [Vec3; 3] = [Vec3::X, Vec3::Y, Vec3::Z];
+        if unknowns.len() < 3 * normals.len() {
+            return Err(SimError::BadParameter {
+                name: "unknowns",
+                value: format!("{} for {} contacts", unknowns.len(), normals.len()),
+                reason: "three unknowns per contact".into(),
+            });
+        }
         self.rows.clear();
         for (k, &n) in normals.iter().enumerate() {
             let per_force = response.unknown_per_force(k);
@@ -121,4 +128,85 @@ impl HeldRows {
 /// The 3×3 block of `m` whose first entry is (r0, c0).
 pub(crate) fn block3(m: MatRef<'_, Real>, r0: usize, c0: usize) -> Mat3 {
     Mat3::from_cols_array_2d(&[0, 1, 2].map(|c| [0, 1, 2].map(|r| m[(r0 + r, c0 + c)])))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A general (not symmetric) response: A_jk and F_k from a seeded sequence, A made
+    /// diagonally dominant so that the problem is regular.
+    struct Random {
+        a: Vec<Mat3>,
+        per_force: Vec<Mat3>,
+        gap: Vec<Vec3>,
+        m: usize,
+    }
+
+    impl ContactResponse for Random {
+        const SYMMETRIC: bool = false;
+        fn block(&self, j: usize, k: usize) -> Mat3 {
+            self.a[j * self.m + k]
+        }
+        fn unknown_per_force(&self, k: usize) -> Mat3 {
+            self.per_force[k]
+        }
+        fn gap(&self, k: usize) -> Vec3 {
+            self.gap[k]
+        }
+    }
+
+    /// The defining property: each contact held along n reaches its gap along n and
+    /// applies a force F_k a_k along n; one held in full reaches its whole gap.
+    #[test]
+    fn held_rows_meet_their_gaps_and_push_along_their_directions() {
+        let mut state = 3u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as Real / (1u64 << 53) as Real - 0.5
+        };
+        let mut mat = |diag: Real| {
+            Mat3::from_cols_array(&std::array::from_fn(|_| next())) + Mat3::IDENTITY * diag
+        };
+        let m = 5;
+        let a: Vec<Mat3> = (0..m * m)
+            .map(|i| mat(if i % (m + 1) == 0 { 4.0 } else { 0.0 }))
+            .collect();
+        let per_force: Vec<Mat3> = (0..m).map(|_| mat(2.0)).collect();
+        let mut vec = || Vec3::new(next(), next(), next());
+        let gap: Vec<Vec3> = (0..m).map(|_| vec()).collect();
+        let normals: Vec<Vec3> = (0..m)
+            .map(|k| {
+                if k % 2 == 0 {
+                    vec().normalize()
+                } else {
+                    Vec3::ZERO
+                }
+            })
+            .collect();
+        let response = Random {
+            a,
+            per_force,
+            gap,
+            m,
+        };
+        let mut unknowns = vec![0.0; 3 * m];
+        let mut held = HeldRows::default();
+        held.solve(&response, &normals, &mut unknowns).unwrap();
+        let at = |k: usize| Vec3::new(unknowns[3 * k], unknowns[3 * k + 1], unknowns[3 * k + 2]);
+        for (j, n) in normals.iter().enumerate() {
+            let reached: Vec3 = (0..m).map(|k| response.block(j, k) * at(k)).sum();
+            if *n == Vec3::ZERO {
+                assert!((reached - response.gap[j]).length() < 1e-12, "{j}");
+            } else {
+                assert!((reached - response.gap[j]).dot(*n).abs() < 1e-12, "{j}");
+                let force = response.per_force[j].inverse() * at(j);
+                assert!(force.cross(*n).length() < 1e-12 * force.length(), "{j}");
+            }
+        }
+        // Too few unknowns for the contacts: an error, not a panic.
+        assert!(held.solve(&response, &normals, &mut [0.0; 3]).is_err());
+    }
 }

@@ -484,16 +484,15 @@ impl BemSystem {
         if m == 0 {
             return Ok(());
         }
+        let (Some(normals), Some(p)) = (normals.get(..m / 3), p_contact.get_mut(..m)) else {
+            return Err(along_mismatch(normals.len(), m / 3));
+        };
         let response = Tractions {
             system: self,
             targets,
             u_load,
         };
-        held.solve(
-            &response,
-            &normals[..self.contacts.len()],
-            &mut p_contact[..m],
-        )?;
+        held.solve(&response, normals, p)?;
         for (r, &pr) in p_contact.iter().enumerate().take(m) {
             if pr != 0.0 {
                 axpy(x, pr, self.contact_column(r));
@@ -606,6 +605,15 @@ pub(super) fn base_entry(inf: &Influence, unknown_traction: &[bool], r: usize, c
         -inf.g[r * n + c]
     } else {
         inf.h[r * n + c]
+    }
+}
+
+/// `solve_along` given fewer directions (or traction slots) than contacts.
+fn along_mismatch(given: usize, contacts: usize) -> SimError {
+    SimError::BadParameter {
+        name: "normals",
+        value: format!("{given} directions for {contacts} contacts"),
+        reason: "a solve along normals takes one direction (or zero) per contact".into(),
     }
 }
 
