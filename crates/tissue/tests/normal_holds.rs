@@ -151,12 +151,12 @@ fn coarse_liver_press_with(kind: &str, relaxed: bool) -> LiverPress {
     liver_press_on("liver-fem-condensed.toml", kind, relaxed)
 }
 
-/// The same press on the shipped `scene` (its probe and `[contact]` lines as in
+/// The same press on the shipped scene `file` (its probe and `[contact]` lines as in
 /// `liver-fem-condensed.toml`), the model of `kind`.
-fn liver_press_on(scene: &str, kind: &str, relaxed: bool) -> LiverPress {
+fn liver_press_on(file: &str, kind: &str, relaxed: bool) -> LiverPress {
     static RUN: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(format!("{root}/scenes/{scene}"))
+    let text = std::fs::read_to_string(format!("{root}/scenes/{file}"))
         .unwrap()
         .replace("../assets", &format!("{root}/assets"))
         .replace("\"fem-condensed\"", &format!("\"{kind}\""))
@@ -250,7 +250,7 @@ fn liver_press_on(scene: &str, kind: &str, relaxed: bool) -> LiverPress {
         check(&sim, &r, &mut out);
     }
     eprintln!(
-        "{scene}, frictionless probe, {kind}{}: F = {:.5} N at 8 mm, {} contacts, at \
+        "{file}, frictionless probe, {kind}{}: F = {:.5} N at 8 mm, {} contacts, at \
          most {} solves a step ({} in {} steps, all converged: {}), worst pull {:.1e} of F, \
          balance {:.1e}, reactions within {:.1e} rad of their normals, backing off F_y = \
          {:.5?}",
