@@ -1,90 +1,19 @@
 //! Sliding contact checked against contact mechanics: Hertz's force law for a sphere pressed
 //! into a block, frictionless and Coulomb sliding on a flat block, the force direction on a
-//! curved surface, and a plane pressing a whole face (uniaxial compression).
+//! curved surface, and a plane pressing a whole face (uniaxial compression). The
+//! comparisons of the kinds that hold a contact along its normal are in `normal_holds.rs`.
 //!
 //! The blocks are graded: fine (about half a millimetre) where the probe touches, coarse far
 //! away, so a block much larger than the contact stays small enough to solve in seconds.
 
-use tissue::interact::{Instrument, InstrumentKind, Keyframe, Loads, Trajectory};
-use tissue::material::Material;
+mod sliding;
+
+use sliding::*;
+use tissue::interact::{Instrument, InstrumentKind};
 use tissue::math::{Real, Vec3};
 use tissue::mesh::MeshData;
 use tissue::mesh::generate::{BoxSplit, box_tets};
-use tissue::model::registry::{BuildInput, build};
-use tissue::sim::Simulation;
 
-const E: Real = 3000.0;
-
-/// A block [−l, l]² × [0, h] on a fixed floor, `cells` cells across (half as many deep),
-/// graded toward the top centre: x = l (α s + (1 − α) s³), s ∈ [−1, 1], and the same
-/// toward the top in z. `lift(x)` raises the top surface (a curved block), fading to the
-/// floor.
-fn block(l: Real, h: Real, cells: usize, lift: &dyn Fn(Real) -> Real) -> MeshData {
-    let mut mesh = box_tets(
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 1.0),
-        [cells, cells, cells / 2],
-        BoxSplit::Six,
-    );
-    let alpha = 0.25;
-    let grade = |s: Real| alpha * s + (1.0 - alpha) * s * s * s;
-    for p in &mut mesh.vertices {
-        let (x, y) = (l * grade(p.x), l * grade(p.y));
-        // 1 − grade(1 − z): fine at the top.
-        let t = 1.0 - grade(1.0 - p.z);
-        *p = Vec3::new(x, y, h * t + t * lift(x));
-    }
-    MeshData::from_tets(&mesh)
-}
-
-fn model(kind: &str, mesh: &MeshData, nu: Real) -> Box<dyn tissue::model::Deformable> {
-    model_with(kind, mesh, nu, toml::Table::new())
-}
-
-fn model_with(
-    kind: &str,
-    mesh: &MeshData,
-    nu: Real,
-    params: toml::Table,
-) -> Box<dyn tissue::model::Deformable> {
-    let mut material = Material::new(E, nu).unwrap();
-    material.damping = 20.0;
-    let input = BuildInput {
-        mesh,
-        source: "graded block",
-        material,
-        params: &params,
-    };
-    build(kind, &input).unwrap()
-}
-
-/// The simulation with the floor (z = 0) fixed.
-fn sim_on_floor(model: Box<dyn tissue::model::Deformable>) -> Simulation {
-    let fixed: Vec<u32> = (0..model.rest_surface().len() as u32)
-        .filter(|&v| model.rest_surface()[v as usize].z < 1e-9)
-        .collect();
-    Simulation::new(model, fixed, Loads::default()).unwrap()
-}
-
-fn path(keys: &[(Real, Vec3)]) -> Trajectory {
-    Trajectory::new(
-        keys.iter()
-            .map(|&(t, p)| Keyframe {
-                t,
-                position: p.to_array(),
-            })
-            .collect(),
-    )
-    .unwrap()
-}
-
-/// Hertz: F = 4/3 · E/(1 − ν²) · √R · δ^{3/2}.
-fn hertz(nu: Real, r: Real, depth: Real) -> Real {
-    4.0 / 3.0 * E / (1.0 - nu * nu) * r.sqrt() * depth.powf(1.5)
-}
-
-const L: Real = 0.02;
-const H: Real = 0.02;
 const R: Real = 0.005;
 
 /// Presses a probe of radius R at the top centre to each depth, one static step each; the
@@ -304,55 +233,6 @@ fn hertz_deep_block() {
     }
 }
 
-/// The sliding probe: large against its indentation (contact radius √(R δ) = 2.4 mm, a/R =
-/// 0.12), so that its surface is nearly flat over the contact and μN along the surface is
-/// μN sideways within 1%.
-const SLIDE_R: Real = 0.02;
-const SLIDE_DEPTH: Real = 3e-4;
-
-/// Presses the probe into the flat block, then moves it 3 mm along +x; the force at each
-/// step of the move.
-fn slide(kind: &str, friction: Real, dt: Real) -> Vec<Vec3> {
-    slide_on(kind, friction, dt, 16)
-}
-
-/// `slide` on a block of `cells` cells across.
-fn slide_on(kind: &str, friction: Real, dt: Real, cells: usize) -> Vec<Vec3> {
-    let mesh = block(L, H, cells, &|_| 0.0);
-    let mut sim = sim_on_floor(model(kind, &mesh, 0.3));
-    sim.set_max_contact_iterations(60);
-    let top = Vec3::new(-0.0015, 0.0, H + SLIDE_R);
-    let down = top - Vec3::Z * SLIDE_DEPTH;
-    let probe = Instrument::new(
-        "probe",
-        InstrumentKind::Probe,
-        SLIDE_R,
-        path(&[(0.0, top), (0.5, down), (1.5, down + Vec3::X * 3e-3)]),
-    )
-    .unwrap()
-    .with_friction(friction)
-    .unwrap();
-    sim.add_instrument(probe);
-    let mut forces = Vec::new();
-    let mut t = 0.0;
-    while t < 1.5 - 1e-9 {
-        let r = sim.step(dt).unwrap();
-        t = r.time;
-        if t > 0.5 + 1e-9 {
-            forces.push(r.forces[0]);
-            eprintln!(
-                "t {t:.2}: {} solves, slide residual {:.1e}, {} contacts",
-                r.contact_iterations, r.slide_residual, r.contacts[0]
-            );
-        }
-    }
-    forces
-}
-
-fn tangential(f: Vec3) -> Real {
-    Vec3::new(f.x, f.y, 0.0).length()
-}
-
 #[test]
 fn frictionless_probe_slides_without_drag() {
     let forces = slide("fem-static", 0.0, 0.05);
@@ -366,35 +246,6 @@ fn frictionless_probe_slides_without_drag() {
         assert!(f.z > 0.0);
         assert!(tangential(*f) < 0.01 * f.z, "{f}");
     }
-}
-
-/// Two independent normal-only holds agree: `fem-condensed` holds each frictionless contact
-/// along the probe's normal only and solves it with its surface compliance (one small dense
-/// solve per contact set), `fem-static` adds one row nᵀu = nᵀd per contact to its sparse
-/// solve through the Schur complement (`fem::system`). Same linear FEM on the same mesh: the
-/// same forces at every step of the slide, to 1e-6 (measured 5e-15). 8 cells: the condensed
-/// block's dense compliance stays small.
-#[test]
-fn normal_only_contact_on_the_compliance_agrees_with_fem_static() {
-    let exact = slide_on("fem-condensed", 0.0, 0.05, 8);
-    let relaxed = slide_on("fem-static", 0.0, 0.05, 8);
-    assert_eq!(exact.len(), relaxed.len());
-    let mut worst: Real = 0.0;
-    for (a, b) in exact.iter().zip(&relaxed) {
-        let gap = (*a - *b).length() / b.z;
-        worst = worst.max(gap);
-        eprintln!(
-            "fem-condensed {a:.5} (|Ft|/Fn {:.1e}), fem-static {b:.5} (|Ft|/Fn {:.1e}): gap {gap:.1e}",
-            tangential(*a) / a.z,
-            tangential(*b) / b.z
-        );
-        // The sideways part left is the coarse mesh's (8 cells: measured 1.7%, alike for
-        // both; 0.4% at 16 cells in `frictionless_probe_slides_without_drag`).
-        assert!(a.z > 0.0);
-        assert!(tangential(*a) < 0.03 * a.z, "{a}");
-    }
-    eprintln!("worst gap {worst:.2e}");
-    assert!(worst < 1e-6, "{worst}");
 }
 
 #[test]
@@ -620,145 +471,4 @@ fn fine_liver_surface_holds_the_probe_out_and_the_supports_balance() {
     // what the probe gives.
     assert!(deepest < 1e-6 * r, "{deepest}");
     assert!(balance.length() < 1e-6 * f.length(), "{balance}");
-}
-
-/// What a frictionless press of the coarse liver showed (`coarse_liver_press`).
-struct LiverPress {
-    force: Vec3,
-    contacts: usize,
-    most_solves: usize,
-    all_converged: bool,
-    /// The largest pull of a contact along its normal, relative to the probe force.
-    worst_pull: Real,
-    /// The largest |supports + probe| relative to the probe force.
-    worst_balance: Real,
-    /// The largest angle between a contact's reaction and its normal, in rad.
-    worst_angle: Real,
-    /// The probe force along +y (out of the liver) at each back-off step.
-    backed_off: Vec<Real>,
-}
-
-/// The shipped coarse liver (edges about 1 cm, `liver-fem-condensed.toml` with `kind`) under
-/// a frictionless 2 cm probe (larger than the edges, so that the contact is resolved by the
-/// mesh's vertices) pressed 8 mm, then backed off 0.2 mm in three directions and returned.
-fn coarse_liver_press(kind: &str) -> LiverPress {
-    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(format!("{root}/scenes/liver-fem-condensed.toml"))
-        .unwrap()
-        .replace("../assets", &format!("{root}/assets"))
-        .replace("\"fem-condensed\"", &format!("\"{kind}\""))
-        .replace(
-            "kind = \"probe\"",
-            "kind = \"probe\"\ncontact = \"sliding\"",
-        )
-        .replace("max_iterations = 8", "max_iterations = 50")
-        .replace("radius = 0.005", "radius = 0.02")
-        .replace("0.0555, 0.0067", "0.0705, 0.0067")
-        .replace("0.0455, 0.0067", "0.0625, 0.0067");
-    let dir = std::env::temp_dir().join(format!(
-        "tissue-sliding-liver-{kind}-{}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("sliding.toml");
-    std::fs::write(&path, text).unwrap();
-    let scene = tissue::scene::Scene::load(&path).unwrap();
-    let mut sim = scene.build().unwrap();
-    assert_eq!(sim.model().kind(), kind);
-    assert_eq!(sim.instruments()[0].friction(), Some(0.0));
-    let mut out = LiverPress {
-        force: Vec3::ZERO,
-        contacts: 0,
-        most_solves: 0,
-        all_converged: true,
-        worst_pull: 0.0,
-        worst_balance: 0.0,
-        worst_angle: 0.0,
-        backed_off: Vec::new(),
-    };
-    let check = |sim: &Simulation, r: &tissue::sim::StepReport, out: &mut LiverPress| {
-        out.most_solves = out.most_solves.max(r.contact_iterations);
-        out.all_converged &= r.contact_converged;
-        let inst = &sim.instruments()[0];
-        let f = inst.force();
-        let scale = f.length().max(1e-30);
-        let balance = (f + sim.fixed_reaction_total()).length() / scale;
-        out.worst_balance = out.worst_balance.max(balance);
-        let shape = inst.shape().unwrap();
-        for (k, r) in inst.contacts().iter().zip(inst.contact_reactions()) {
-            let n = k.normal(&shape, inst.position());
-            out.worst_angle = out
-                .worst_angle
-                .max(r.cross(n).length() / r.length().max(1e-300));
-            out.worst_pull = out.worst_pull.max(r.dot(n) / scale);
-        }
-    };
-    for _ in 0..scene.run.step_count() {
-        let r = sim.step(scene.run.dt).unwrap();
-        check(&sim, &r, &mut out);
-    }
-    out.force = sim.instruments()[0].force();
-    out.contacts = sim.instruments()[0].contacts().len();
-    let deep = sim.instruments()[0].position();
-    for d in [
-        Vec3::new(0.0, 2e-4, 0.0),
-        Vec3::new(2e-4, 0.0, 0.0),
-        Vec3::new(0.0, 0.0, 2e-4),
-        Vec3::ZERO,
-    ] {
-        sim.set_instrument_position(0, Some(deep + d)).unwrap();
-        let r = sim.step(0.01).unwrap();
-        out.backed_off.push(r.forces[0].y);
-        check(&sim, &r, &mut out);
-    }
-    eprintln!(
-        "coarse liver, frictionless probe, {kind}: F = {:.5} N at 8 mm, {} contacts, at most \
-         {} solves a step (all converged: {}), worst pull {:.1e} of F, balance {:.1e}, \
-         reactions within {:.1e} rad of their normals, backing off F_y = {:.5?}",
-        out.force,
-        out.contacts,
-        out.most_solves,
-        out.all_converged,
-        out.worst_pull,
-        out.worst_balance,
-        out.worst_angle,
-        out.backed_off
-    );
-    out
-}
-
-/// `fem-condensed` holds each frictionless contact along the probe's normal only and solves
-/// it with its compliance: every step converges, the supports take what the probe gives, no
-/// contact pulls and every reaction is along its normal.
-#[test]
-fn coarse_liver_frictionless_probe_on_the_compliance_pushes_and_balances() {
-    let out = coarse_liver_press("fem-condensed");
-    assert!(out.force.y > 0.0 && out.contacts >= 3, "{}", out.force);
-    assert!(out.all_converged);
-    assert!(out.worst_balance < 1e-9, "{}", out.worst_balance);
-    assert!(out.worst_pull <= 1e-9, "{}", out.worst_pull);
-    assert!(out.worst_angle < 1e-5, "{}", out.worst_angle);
-    assert!(
-        out.backed_off.iter().all(|&f| f > 0.0),
-        "{:?}",
-        out.backed_off
-    );
-}
-
-/// The same press on `fem-static`, which holds the contacts along their normals in its
-/// sparse solve: the same forces as the compliance to 1e-6 (measured 6e-15), with no
-/// pulling contact and every reaction along its normal. (With the relaxation it used
-/// before, contacts held in all three directions, the forces agreed within 9.2e-4 but the
-/// steps took the 50-solve cap and left contacts pulling a quarter of the probe force.)
-#[test]
-fn coarse_liver_fem_static_normal_holds_agree_with_the_compliance() {
-    let exact = coarse_liver_press("fem-condensed");
-    let sparse = coarse_liver_press("fem-static");
-    let gap = (exact.force - sparse.force).length() / exact.force.length();
-    eprintln!("force gap {gap:.2e}");
-    assert!(gap < 1e-6, "{gap}");
-    assert!(sparse.all_converged);
-    assert!(sparse.worst_balance < 1e-9, "{}", sparse.worst_balance);
-    assert!(sparse.worst_pull <= 1e-9, "{}", sparse.worst_pull);
-    assert!(sparse.worst_angle < 1e-5, "{}", sparse.worst_angle);
 }

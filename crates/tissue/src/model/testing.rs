@@ -1,6 +1,6 @@
 //! Checks shared by the tests of several model families.
 
-use crate::interact::Constraints;
+use crate::interact::{Constraints, Prescribed};
 use crate::math::{Real, Vec3};
 
 use super::Deformable;
@@ -46,4 +46,90 @@ pub fn decay(z: &[Real], dt: Real, skip: usize) -> (Real, Real) {
     let sigma = (first.1 / last.1).ln() / (last.0 - first.0);
     let half = (ext[ext.len() - 1].0 - ext[0].0) / (ext.len() - 1) as Real;
     (sigma, std::f64::consts::PI / half)
+}
+
+/// Unit directions, pseudo-random from `seed`, for every other entry of `count` (the others
+/// `None`: held in full).
+pub fn every_other_direction(count: usize, seed: u64) -> Vec<Option<Vec3>> {
+    let mut state = seed;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as Real / (1u64 << 53) as Real - 0.5
+    };
+    (0..count)
+        .map(|k| {
+            let d = Vec3::new(next(), next(), next());
+            (k % 2 == 0).then(|| d.normalize())
+        })
+        .collect()
+}
+
+/// `c`'s prescribed entries held along `normals` (`Deformable::set_constraints_along`, which
+/// must say it did so): an equilibrium where each entry with a direction n sits on its
+/// plane nᵀ(x − t) = 0, has slid across it, and is pushed along n only (|r × n| < 1e-9 of
+/// the largest reaction); the others reach their targets. Holding every entry in full where
+/// that solution put it must then give the same reactions (1e-8) and surface (1e-12 m):
+/// the same equilibrium, reached by the plain three-direction solve. Returns the reactions
+/// and the surface of the solve along the normals.
+pub fn check_held_along(
+    model: &mut dyn Deformable,
+    c: &Constraints,
+    normals: &[Option<Vec3>],
+) -> (Vec<Vec3>, Vec<Vec3>) {
+    assert!(model.set_constraints_along(c, normals).unwrap());
+    model.step(0.01).unwrap();
+    let along: Vec<Vec3> = model.reactions().prescribed.to_vec();
+    let reached: Vec<Vec3> = model.surface().positions.to_vec();
+    let scale = along.iter().map(|r| r.length()).fold(0.0, Real::max);
+    assert!(scale > 0.0);
+    let (mut slid, mut off, mut sideways): (Real, Real, Real) = (0.0, 0.0, 0.0);
+    for ((p, n), r) in c.prescribed.iter().zip(normals).zip(&along) {
+        let x = reached[p.vertex as usize];
+        match n {
+            Some(n) => {
+                off = off.max((x - p.position).dot(*n).abs());
+                sideways = sideways.max(r.cross(*n).length() / scale);
+                slid = slid.max((x - p.position).length());
+            }
+            None => off = off.max((x - p.position).length()),
+        }
+    }
+    assert!(off < 1e-12, "off its plane by {off:e} m");
+    assert!(
+        sideways < 1e-9,
+        "sideways reaction {sideways:e} of the largest"
+    );
+    assert!(slid > 1e-5, "{slid}");
+    let pinned = Constraints {
+        fixed: c.fixed.clone(),
+        prescribed: c
+            .prescribed
+            .iter()
+            .map(|p| Prescribed {
+                vertex: p.vertex,
+                position: reached[p.vertex as usize],
+            })
+            .collect(),
+    };
+    model.set_constraints(&pinned).unwrap();
+    model.step(0.01).unwrap();
+    let gap = |a: &[Vec3], b: &[Vec3]| {
+        a.iter()
+            .zip(b)
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, Real::max)
+    };
+    let reactions = gap(&along, model.reactions().prescribed) / scale;
+    let surface = gap(&reached, model.surface().positions);
+    eprintln!(
+        "{}: held along normals: off the planes {off:.1e} m, sideways {sideways:.1e} of the \
+         largest reaction, slid {slid:.1e} m; the full hold there: reactions {reactions:.1e} \
+         relative, surface {surface:.1e} m",
+        model.kind()
+    );
+    assert!(reactions < 1e-8, "{reactions:e}");
+    assert!(surface < 1e-12, "{surface:e} m");
+    (along, reached)
 }

@@ -3,15 +3,21 @@
 //! done once and reused, with extra held unknowns imposed through a Schur complement instead of
 //! a new factorisation (`schur`), and triangular solves split along the elimination tree
 //! (`tree_solve`, serial or parallel as `chooser` measures); a matrix-free Jacobi-
-//! preconditioned conjugate gradient for the implicit dynamic models.
+//! preconditioned conjugate gradient for the implicit dynamic models; small dense contact
+//! blocks solved in place (`small_dense`), and contacts held along their normals on a dense
+//! response (`along`).
 
+mod along;
 pub mod cg;
 pub mod chooser;
 pub mod ordering;
 pub mod schur;
+mod small_dense;
 pub mod sparse;
 mod tree_solve;
 
+pub(crate) use along::{ContactResponse, HeldRows, block3};
 pub use cg::{CgResult, CgWorkspace};
 pub use schur::HeldSchur;
+pub(crate) use small_dense::SmallDense;
 pub use sparse::{BlockPattern, Ordering, SparseCholesky};

@@ -44,9 +44,14 @@ impl Bem {
 
     /// Checks `c` (as `Constraints::surface_displacements` does: a vertex that does not
     /// exist or a non-finite target is an error naming it) into the reused masks: the fixed
-    /// set, each vertex's held displacement (fixed wins, the last prescribed entry counts)
-    /// and the contacts (held, not fixed), ascending. Nothing of the model changes.
-    fn stage_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+    /// set, each vertex's held displacement and direction (`normals`, as
+    /// `set_constraints_along` takes them; fixed wins, the last prescribed entry counts) and
+    /// the contacts (held, not fixed), ascending. Nothing of the model changes.
+    fn stage_constraints(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<(), SimError> {
         let rest = &self.surface.vertices;
         let n = rest.len();
         let bad = |v: u32| SimError::BadConstraint {
@@ -76,10 +81,17 @@ impl Bem {
         }
         s.held.clear();
         s.held.resize(n, None);
-        for p in &c.prescribed {
+        s.along.clear();
+        s.along.resize(n, Vec3::ZERO);
+        for (entry, p) in c.prescribed.iter().enumerate() {
             let v = p.vertex as usize;
             if !s.fixed[v] {
                 s.held[v] = Some(p.position - rest[v]);
+                s.along[v] = normals
+                    .get(entry)
+                    .copied()
+                    .flatten()
+                    .map_or(Vec3::ZERO, |n| n.normalize_or_zero());
             }
         }
         s.contacts.clear();
@@ -100,12 +112,26 @@ impl Bem {
             self.homogeneous_targets
                 .push(self.contact_targets.get(k).copied().unwrap_or(Vec3::ZERO) - shift);
         }
-        self.system.solve(
-            &self.homogeneous_targets,
-            &self.u_load,
-            &mut self.x,
-            &mut self.p_contact,
-        )?;
+        // Contacts held along their normals (a direction each) have the held directions'
+        // block solved per step; else the kept capacitance inverse answers.
+        let along = self.contact_normals.len() == self.system.contacts().len()
+            && self.contact_normals.iter().any(|n| *n != Vec3::ZERO);
+        if along {
+            self.system.solve_along(
+                &self.homogeneous_targets,
+                &self.contact_normals,
+                &self.u_load,
+                (&mut self.x, &mut self.p_contact),
+                &mut self.held,
+            )?;
+        } else {
+            self.system.solve(
+                &self.homogeneous_targets,
+                &self.u_load,
+                &mut self.x,
+                &mut self.p_contact,
+            )?;
+        }
         let fixed = self.system.fixed();
         let at = |x: &[Real], v: usize| Vec3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
         let area = |v: usize| traction_area(&self.system, &self.areas, v);
@@ -122,7 +148,11 @@ impl Bem {
             }
         }
         for (k, &v) in self.system.contacts().iter().enumerate() {
-            self.target[v] = self.surface.vertices[v] + self.contact_targets[k];
+            // A contact held along its normal stays where the solve slid it (as a free
+            // vertex, above); one held in full is at its target.
+            if !(along && self.contact_normals[k] != Vec3::ZERO) {
+                self.target[v] = self.surface.vertices[v] + self.contact_targets[k];
+            }
             self.traction[v] += at(&self.p_contact, k);
         }
         // The tissue pushes on its support with the load on that vertex minus the traction
@@ -161,7 +191,17 @@ impl Deformable for Bem {
     /// Reactions go to the first fixed entry of a vertex, else its last prescribed entry.
     /// With the same vertices as the last call (targets may move) nothing is allocated.
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        self.stage_constraints(c)?;
+        self.set_constraints_along(c, &[]).map(|_| ())
+    }
+
+    /// `set_constraints`; an entry with a direction n is held along n only, solved exactly
+    /// with the pre-inverted response (`BemSystem::solve_along`).
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.stage_constraints(c, normals)?;
         self.assemble_pending();
         if self.scratch.fixed.as_slice() != self.system.fixed() || !self.system.is_factored() {
             let stage = "bem: factorising A0 and W = A0^-1 G";
@@ -183,8 +223,12 @@ impl Deformable for Bem {
                 .iter()
                 .map(|&v| held[v].unwrap_or(Vec3::ZERO)),
         );
+        self.contact_normals.clear();
+        let along = &self.scratch.along;
+        self.contact_normals
+            .extend(self.scratch.contacts.iter().map(|&v| along[v]));
         self.reactions.set(c);
-        Ok(())
+        Ok(true)
     }
 
     /// Point loads become tractions over their vertex's tributary area; gravity (times the
@@ -262,7 +306,12 @@ impl Deformable for Bem {
 
     /// The reactions are −P_c · area_c with P_C = W̃_CC⁻¹ (targets − u_L): linear in the
     /// targets, so the stiffness is exact and the same whatever the targets are.
+    /// A contact held along its normal only has a stiffness along it alone: not in this
+    /// closed form (`None`; the haptic loop then estimates it from successive updates).
     fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        if self.contact_normals.iter().any(|n| *n != Vec3::ZERO) {
+            return None;
+        }
         let vertices: Vec<usize> = (self.reactions.owned_prescribed(entries)?.iter())
             .map(|&v| v as usize)
             .collect();

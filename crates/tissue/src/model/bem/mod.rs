@@ -27,6 +27,8 @@ mod viscous;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
+mod tests_along;
+#[cfg(test)]
 mod tests_background;
 #[cfg(test)]
 mod tests_cut;

@@ -16,6 +16,7 @@ use crate::mesh::SurfaceMesh;
 use crate::model::ConstraintReactions;
 use crate::model::registry::parse_params;
 use crate::model::{BuildInput, Progress};
+use crate::solve::HeldRows;
 
 use super::assembly::{Geometry, Influence, assemble};
 use super::body_force::GravityResponse;
@@ -96,6 +97,11 @@ pub struct Bem {
     pub(super) reactions: ConstraintReactions,
     /// Contact vertices (prescribed, not fixed), ascending, and their displacements.
     pub(super) contact_targets: Vec<Vec3>,
+    /// Per contact, the direction it is held along only (`set_constraints_along`), or zero
+    /// for a contact held in all three directions.
+    pub(super) contact_normals: Vec<Vec3>,
+    /// The held directions' block of a solve with contacts held along their normals.
+    pub(super) held: HeldRows,
     pub(super) point_forces: Vec<Vec3>,
     /// Known tractions per dof (point loads over tributary areas), in Pa.
     pub(super) load_traction: Vec<Real>,
@@ -134,6 +140,8 @@ pub(super) struct ConstraintScratch {
     pub fixed: Vec<bool>,
     /// Held displacement of each non-fixed vertex with a prescribed target.
     pub held: Vec<Option<Vec3>>,
+    /// The direction each held vertex is held along only (zero: all three directions).
+    pub along: Vec<Vec3>,
     /// The vertices with `held`, ascending.
     pub contacts: Vec<usize>,
 }
@@ -282,6 +290,8 @@ impl Bem {
             system: BemSystem::new(inf),
             reactions: ConstraintReactions::default(),
             contact_targets: Vec::new(),
+            contact_normals: Vec::new(),
+            held: HeldRows::default(),
             point_forces: vec![Vec3::ZERO; n],
             load_traction: vec![0.0; 3 * n],
             u_load: vec![0.0; 3 * n],

@@ -32,6 +32,7 @@ use faer::{Accum, Conj, Mat, MatMut, MatRef, Par};
 
 use crate::error::SimError;
 use crate::math::{Mat3, Real, Vec3};
+use crate::solve::{ContactResponse, HeldRows, block3};
 
 use super::assembly::{Geometry, Influence};
 use super::border::BaseInverse;
@@ -456,13 +457,56 @@ impl BemSystem {
                     hint: "the contact solve gave a non-finite traction".into(),
                 });
             }
-            let column = match &self.rims {
-                Some(rims) => rims.wt.col_as_slice(r),
-                None => self.w.col_as_slice(3 * self.contacts[r / 3] + r % 3),
-            };
-            axpy(x, *pr, column);
+            axpy(x, *pr, self.contact_column(r));
         }
         Ok(())
+    }
+
+    /// `solve` with contact k held along `normals[k]` only (zero: in all three directions):
+    /// its traction is along n, its displacement along n reaches its target's and it moves
+    /// freely across n. The held directions' block of W̃_CC (the collocation block, not
+    /// symmetric) is formed and factorised by LU per call (`solve::along`), O(r³) for r
+    /// held directions, then x = u_L + W̃_{:,C} P_C as in `solve`.
+    pub(crate) fn solve_along(
+        &self,
+        targets: &[Vec3],
+        normals: &[Vec3],
+        u_load: &[Real],
+        out: (&mut [Real], &mut [Real]),
+        held: &mut HeldRows,
+    ) -> Result<(), SimError> {
+        if !self.is_factored() {
+            return Err(not_factored());
+        }
+        let (x, p_contact) = out;
+        x.copy_from_slice(u_load);
+        let m = 3 * self.contacts.len();
+        if m == 0 {
+            return Ok(());
+        }
+        let (Some(normals), Some(p)) = (normals.get(..m / 3), p_contact.get_mut(..m)) else {
+            return Err(along_mismatch(normals.len(), m / 3));
+        };
+        let response = Tractions {
+            system: self,
+            targets,
+            u_load,
+        };
+        held.solve(&response, normals, p)?;
+        for (r, &pr) in p_contact.iter().enumerate().take(m) {
+            if pr != 0.0 {
+                axpy(x, pr, self.contact_column(r));
+            }
+        }
+        Ok(())
+    }
+
+    /// Column r of W̃_{:,C}: the whole surface's response to a unit traction on contact dof r.
+    fn contact_column(&self, r: usize) -> &[Real] {
+        match &self.rims {
+            Some(rims) => rims.wt.col_as_slice(r),
+            None => self.w.col_as_slice(3 * self.contacts[r / 3] + r % 3),
+        }
     }
 
     /// d(Σ_{c∈V} area_c P_c)/dt for the contacts V among `vertices` (others are skipped),
@@ -523,6 +567,36 @@ impl BemSystem {
     }
 }
 
+/// The contacts' response for `solve::along`: the unknowns are the contact tractions P_C
+/// (the force is P times the contact's support area, a scalar: along P), A = W̃_CC.
+struct Tractions<'a> {
+    system: &'a BemSystem,
+    targets: &'a [Vec3],
+    u_load: &'a [Real],
+}
+
+impl ContactResponse for Tractions<'_> {
+    const SYMMETRIC: bool = false;
+
+    fn block(&self, j: usize, k: usize) -> Mat3 {
+        let row = 3 * self.system.contacts[j];
+        match &self.system.rims {
+            Some(rims) => block3(rims.wt.as_ref(), row, 3 * k),
+            None => block3((*self.system.w).as_ref(), row, 3 * self.system.contacts[k]),
+        }
+    }
+
+    fn unknown_per_force(&self, _k: usize) -> Mat3 {
+        Mat3::IDENTITY
+    }
+
+    fn gap(&self, k: usize) -> Vec3 {
+        let v = self.system.contacts[k];
+        let u = &self.u_load[3 * v..3 * v + 3];
+        self.targets.get(k).copied().unwrap_or(Vec3::ZERO) - Vec3::new(u[0], u[1], u[2])
+    }
+}
+
 /// Entry (r, c) of the reordered matrix: −G for vertices whose traction is unknown, H
 /// otherwise. The one definition `reordered`, `factor` and the bordering share.
 pub(super) fn base_entry(inf: &Influence, unknown_traction: &[bool], r: usize, c: usize) -> Real {
@@ -531,6 +605,15 @@ pub(super) fn base_entry(inf: &Influence, unknown_traction: &[bool], r: usize, c
         -inf.g[r * n + c]
     } else {
         inf.h[r * n + c]
+    }
+}
+
+/// `solve_along` given fewer directions (or traction slots) than contacts.
+fn along_mismatch(given: usize, contacts: usize) -> SimError {
+    SimError::BadParameter {
+        name: "normals",
+        value: format!("{given} directions for {contacts} contacts"),
+        reason: "a solve along normals takes one direction (or zero) per contact".into(),
     }
 }
 

@@ -17,7 +17,6 @@
 //! - `static_model`: `FemStatic`, node-level API; `deformable_impl`: the `Deformable` interface
 //! - `surface_nodes`: surface vertices (as constraints and loads name them) to mesh nodes
 //! - `surface_response`: K condensed onto the surface (C, W = C⁻¹), shared by the two below
-//! - `small_dense`: the in-place contact block solver of the two below
 //! - `condensed`: `fem-condensed`, fast finite elements (Bro-Nielsen), pre-inverted compliance
 //! - `precomputed`: `fem-precomputed-tensors`, Cotin's displacement/force tensors
 //! - `dynamic`: `fem-explicit` and `fem-semi-implicit`, linear elastodynamics (eq. (6)-(10))
@@ -33,7 +32,6 @@ pub mod element_quadratic;
 pub mod mass;
 mod precomputed;
 pub mod quadratic_mesh;
-mod small_dense;
 mod static_model;
 mod surface_nodes;
 mod surface_response;

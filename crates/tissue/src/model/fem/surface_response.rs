@@ -29,7 +29,7 @@ use super::static_model::{FemStatic, NodalSolution};
 use super::surface_nodes::nodal_forces;
 use super::system::DofProblem;
 
-use super::small_dense::SmallDense;
+use crate::solve::{HeldRows, SmallDense};
 
 const NONE: u32 = u32::MAX;
 
@@ -188,6 +188,10 @@ pub(crate) struct SurfaceCore {
     pub lambda: Vec<Real>,
     /// The contact block and its right-hand side, solved in place.
     pub small: SmallDense,
+    /// The held directions of a solve with contacts held along their normals, and the
+    /// contacts' unknowns it gives (3 per contact; `ContactResponse`).
+    pub held: HeldRows,
+    pub unknowns: Vec<Real>,
     surface_positions: Vec<Vec3>,
     surface_reaction: Vec<Vec3>,
     reactions: ConstraintReactions,
@@ -219,6 +223,8 @@ impl SurfaceCore {
             us_trial: Vec::new(),
             lambda: Vec::new(),
             small: SmallDense::new(3 * INITIAL_CONTACTS),
+            held: HeldRows::default(),
+            unknowns: Vec::new(),
             surface_reaction: vec![Vec3::ZERO; ns],
             reactions: ConstraintReactions::default(),
             precompute_seconds: 0.0,
@@ -323,6 +329,13 @@ impl SurfaceCore {
         self.reactions.set(c);
         self.lambda.clear();
         self.lambda.resize(self.targets.len(), 0.0);
+        self.unknowns.clear();
+        self.unknowns.resize(self.targets.len(), 0.0);
+    }
+
+    /// Whether some contact is held along a direction only.
+    pub fn holds_along(&self) -> bool {
+        self.normals.iter().any(|n| *n != Vec3::ZERO)
     }
 
     /// Condenses `self.forces` onto the surface: f̃_s = f_s − K_si K_ii⁻¹ f_i on free dofs,
@@ -460,11 +473,9 @@ pub(crate) trait SurfaceResponse: Send {
     fn adopt_compliance(&mut self, w: Mat<Real>) -> Result<(), SimError>;
     /// Refreshes the surface displacements under the loads alone.
     fn update_u0(&mut self);
-    /// Solves for the core's contacts, writing `us_trial` and `lambda`.
+    /// Solves for the core's contacts, writing `us_trial` and `lambda`; a contact with a
+    /// direction in `SurfaceCore::normals` is held along it only (`solve::along`).
     fn solve_contacts(&mut self) -> Result<(), SimError>;
-    /// Whether `solve_contacts` holds a contact along its direction only when the core has
-    /// one (`SurfaceCore::normals`); the others hold every contact in all three directions.
-    const HOLDS_ALONG_NORMALS: bool = false;
     /// The contacts' system as `solve_contacts` forms it (3m × 3m, all of it): A a = t − u₀
     /// for the contacts' unknowns a.
     fn contact_block(&self) -> Mat<Real>;
@@ -535,9 +546,6 @@ impl<T: SurfaceResponse> Deformable for T {
         c: &Constraints,
         normals: &[Option<Vec3>],
     ) -> Result<bool, SimError> {
-        if !T::HOLDS_ALONG_NORMALS {
-            return self.set_constraints(c).map(|()| false);
-        }
         if self.core_mut().check(c)? {
             let progress = self.core().progress.clone();
             self.rebuild(&|f| progress.report(T::REBUILD_STAGE, f))?;
@@ -580,7 +588,7 @@ impl<T: SurfaceResponse> Deformable for T {
     fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
         // A contact held along its normal only has a stiffness along it alone: not in the
         // closed form below (the haptic loop then estimates it from successive updates).
-        if self.core().normals.iter().any(|n| *n != Vec3::ZERO) {
+        if self.core().holds_along() {
             return None;
         }
         let selected = self.core().contacts_of_entries(entries)?;

@@ -18,6 +18,7 @@ use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
+use crate::solve::{ContactResponse, block3};
 
 use super::static_model::{FemStatic, Order};
 use super::surface_response::{SurfaceCore, SurfaceResponse};
@@ -135,7 +136,7 @@ impl SurfaceResponse for FemCondensed {
 
     /// W_pp λ = u_p − (W f̃)_p, then u_s = W f̃ + W_{:,p} λ.
     fn solve_contacts(&mut self) -> Result<(), SimError> {
-        if self.core.normals.iter().any(|n| *n != Vec3::ZERO) {
+        if self.core.holds_along() {
             return self.solve_contacts_along();
         }
         let m = self.core.targets.len();
@@ -147,18 +148,10 @@ impl SurfaceResponse for FemCondensed {
             *x = self.core.targets[r] - self.u0[dof(r)];
         }
         let rhs = self.core.small.solve_spd_rhs(m)?;
-        let us = &mut self.core.us_trial;
-        us.copy_from_slice(&self.u0);
-        for (r, &l) in rhs.iter().enumerate() {
-            for (u, &w) in us.iter_mut().zip(self.w.col_as_slice(dof(r))) {
-                *u += w * l;
-            }
-        }
         self.core.lambda.copy_from_slice(rhs);
+        self.superpose_lambda();
         Ok(())
     }
-
-    const HOLDS_ALONG_NORMALS: bool = true;
 
     fn contact_block(&self) -> Mat<Real> {
         let m = 3 * self.core.contacts.len();
@@ -204,68 +197,67 @@ fn fill_compliance_block(w: &Mat<Real>, contacts: &[u32], mut a: MatMut<'_, Real
 
 impl FemCondensed {
     /// The contact problem with some contacts held along their normal only, solved exactly
-    /// with the compliance (the survey's reason for pre-computing it). Each contact k gives
-    /// rows e (x, y, z; or its normal n alone), a force Σ μ_e e, and the equations
-    /// eᵀ(u₀ + W λ)_k = eᵀ t_k: the block Bᵀ W_CC B (symmetric positive definite as W_CC is),
-    /// one row per held direction.
+    /// with the compliance (`solve::along`: Bᵀ W_CC B μ = Bᵀ(t − u₀), symmetric positive
+    /// definite as W_CC is, one row per held direction), then u_s = u₀ + W_{:,C} λ.
     fn solve_contacts_along(&mut self) -> Result<(), SimError> {
         let core = &mut self.core;
-        let rows: Vec<(usize, Vec3)> = core
-            .normals
-            .iter()
-            .enumerate()
-            .flat_map(|(k, &n)| {
-                let dirs: &[Vec3] = if n == Vec3::ZERO {
-                    &[Vec3::X, Vec3::Y, Vec3::Z]
-                } else {
-                    std::slice::from_ref(&core.normals[k])
-                };
-                dirs.iter().map(move |&e| (k, e))
-            })
-            .collect();
-        let m = rows.len();
-        let contacts = &core.contacts;
-        let dof = |k: usize, i: usize| 3 * contacts[k] as usize + i;
-        let w = &self.w;
-        let (mut block, rhs) = core.small.block_and_rhs(m);
-        for c in 0..m {
-            let (kc, ec) = rows[c];
-            for r in c..m {
-                let (kr, er) = rows[r];
-                let mut sum = 0.0;
-                for i in 0..3 {
-                    for j in 0..3 {
-                        sum += er[i] * w[(dof(kr, i), dof(kc, j))] * ec[j];
-                    }
-                }
-                block[(r, c)] = sum;
-            }
-        }
-        for (r, x) in rhs.iter_mut().enumerate() {
-            let (k, e) = rows[r];
-            let t = &core.targets[3 * k..3 * k + 3];
-            *x = (0..3).map(|i| e[i] * (t[i] - self.u0[dof(k, i)])).sum();
-        }
-        let mu = core.small.solve_spd_rhs(m)?;
-        core.lambda.iter_mut().for_each(|l| *l = 0.0);
-        for (r, &l) in mu.iter().enumerate() {
-            let (k, e) = rows[r];
-            for i in 0..3 {
-                core.lambda[3 * k + i] += l * e[i];
-            }
-        }
-        let us = &mut core.us_trial;
-        us.copy_from_slice(&self.u0);
-        for (k, &a) in contacts.iter().enumerate() {
+        let response = Compliance {
+            w: &self.w,
+            contacts: &core.contacts,
+            targets: &core.targets,
+            u0: &self.u0,
+        };
+        core.held
+            .solve(&response, &core.normals, &mut core.lambda)?;
+        self.superpose_lambda();
+        Ok(())
+    }
+
+    /// u_s = u₀ + W_{:,C} λ into the trial surface displacements.
+    fn superpose_lambda(&mut self) {
+        let core = &mut self.core;
+        core.us_trial.copy_from_slice(&self.u0);
+        for (k, &a) in core.contacts.iter().enumerate() {
             for i in 0..3 {
                 let l = core.lambda[3 * k + i];
                 if l != 0.0 {
-                    for (u, &w) in us.iter_mut().zip(w.col_as_slice(3 * a as usize + i)) {
+                    let column = self.w.col_as_slice(3 * a as usize + i);
+                    for (u, &w) in core.us_trial.iter_mut().zip(column) {
                         *u += w * l;
                     }
                 }
             }
         }
-        Ok(())
+    }
+}
+
+/// The compliance between the contacts: the unknowns are the contact forces (F = I).
+struct Compliance<'a> {
+    w: &'a Mat<Real>,
+    contacts: &'a [u32],
+    targets: &'a [Real],
+    u0: &'a [Real],
+}
+
+impl ContactResponse for Compliance<'_> {
+    const SYMMETRIC: bool = true;
+
+    fn block(&self, j: usize, k: usize) -> Mat3 {
+        let (a, b) = (self.contacts[j] as usize, self.contacts[k] as usize);
+        block3(self.w.as_ref(), 3 * a, 3 * b)
+    }
+
+    fn unknown_per_force(&self, _k: usize) -> Mat3 {
+        Mat3::IDENTITY
+    }
+
+    fn gap(&self, k: usize) -> Vec3 {
+        let d = 3 * self.contacts[k] as usize;
+        let t = &self.targets[3 * k..3 * k + 3];
+        Vec3::new(
+            t[0] - self.u0[d],
+            t[1] - self.u0[d + 1],
+            t[2] - self.u0[d + 2],
+        )
     }
 }

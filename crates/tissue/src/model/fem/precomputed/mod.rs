@@ -22,6 +22,7 @@ use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::BuildInput;
 use crate::model::registry::parse_params;
+use crate::solve::{ContactResponse, block3};
 
 use super::static_model::{FemStatic, Order};
 use super::surface_response::{SurfaceCore, SurfaceResponse};
@@ -57,7 +58,7 @@ impl std::fmt::Debug for FemPrecomputedTensors {
 }
 
 fn block(w: &faer::Mat<Real>, i: usize, k: usize) -> Mat3 {
-    Mat3::from_cols_array_2d(&[0, 1, 2].map(|c| [0, 1, 2].map(|r| w[(3 * i + r, 3 * k + c)])))
+    block3(w.as_ref(), 3 * i, 3 * k)
 }
 
 impl FemPrecomputedTensors {
@@ -179,7 +180,24 @@ impl SurfaceResponse for FemPrecomputedTensors {
     }
 
     /// Σ_k T^U_jk a_k = target_j − u0_j for the virtual displacements a, then superposition.
+    /// With contacts held along their normals, the same system in the contact forces
+    /// (`solve::along`: a_k = W_kk n_k μ_k, one row per held direction).
     fn solve_contacts(&mut self) -> Result<(), SimError> {
+        if self.core.holds_along() {
+            let core = &mut self.core;
+            let response = Tensors {
+                n: self.n,
+                t_u: &self.t_u,
+                w_diag: &self.w_diag,
+                u0: &self.u0,
+                contacts: &core.contacts,
+                targets: &core.targets,
+            };
+            core.held
+                .solve(&response, &core.normals, &mut core.unknowns)?;
+            self.superpose();
+            return Ok(());
+        }
         let m = self.core.targets.len();
         let (n, contacts) = (self.n, &self.core.contacts);
         let (a, rhs) = self.core.small.block_and_rhs(m);
@@ -190,22 +208,8 @@ impl SurfaceResponse for FemPrecomputedTensors {
             }
         }
         let rhs = self.core.small.solve_general_rhs(m)?;
-        let us = &mut self.core.us_trial;
-        for (i, u) in self.u0.iter().enumerate() {
-            us[3 * i..3 * i + 3].copy_from_slice(&u.to_array());
-        }
-        for (kb, &k) in contacts.iter().enumerate() {
-            let ak = Vec3::new(rhs[3 * kb], rhs[3 * kb + 1], rhs[3 * kb + 2]);
-            let tk = &self.t_u[k as usize * n..(k as usize + 1) * n];
-            for (i, t) in tk.iter().enumerate() {
-                let d = *t * ak;
-                us[3 * i] += d.x;
-                us[3 * i + 1] += d.y;
-                us[3 * i + 2] += d.z;
-            }
-            let p = self.t_f[k as usize] * ak;
-            self.core.lambda[3 * kb..3 * kb + 3].copy_from_slice(&p.to_array());
-        }
+        self.core.unknowns.copy_from_slice(rhs);
+        self.superpose();
         Ok(())
     }
 
@@ -230,6 +234,60 @@ impl SurfaceResponse for FemPrecomputedTensors {
             ("surface_nodes".into(), self.n.to_string()),
             ("tensor_bytes".into(), self.tensor_bytes().to_string()),
         ]
+    }
+}
+
+impl FemPrecomputedTensors {
+    /// u_i = u0_i + Σ_k T^U_{i,k} a_k into the trial surface displacements and
+    /// λ_k = T^F_k a_k, for the contacts' virtual displacements a (`core.unknowns`).
+    fn superpose(&mut self) {
+        let n = self.n;
+        let core = &mut self.core;
+        let us = &mut core.us_trial;
+        for (i, u) in self.u0.iter().enumerate() {
+            us[3 * i..3 * i + 3].copy_from_slice(&u.to_array());
+        }
+        for (kb, &k) in core.contacts.iter().enumerate() {
+            let a = &core.unknowns[3 * kb..3 * kb + 3];
+            let ak = Vec3::new(a[0], a[1], a[2]);
+            let tk = &self.t_u[k as usize * n..(k as usize + 1) * n];
+            for (i, t) in tk.iter().enumerate() {
+                let d = *t * ak;
+                us[3 * i] += d.x;
+                us[3 * i + 1] += d.y;
+                us[3 * i + 2] += d.z;
+            }
+            let p = self.t_f[k as usize] * ak;
+            core.lambda[3 * kb..3 * kb + 3].copy_from_slice(&p.to_array());
+        }
+    }
+}
+
+/// The tensors between the contacts: the unknowns are virtual displacements a_k, A_jk =
+/// T^U_{j,k} and F_k = T^F_k = W_kk⁻¹, so A F⁻¹ = W_CC only up to roundoff (an LU).
+struct Tensors<'a> {
+    n: usize,
+    t_u: &'a [Mat3],
+    w_diag: &'a [Mat3],
+    u0: &'a [Vec3],
+    contacts: &'a [u32],
+    targets: &'a [Real],
+}
+
+impl ContactResponse for Tensors<'_> {
+    const SYMMETRIC: bool = false;
+
+    fn block(&self, j: usize, k: usize) -> Mat3 {
+        self.t_u[self.contacts[k] as usize * self.n + self.contacts[j] as usize]
+    }
+
+    fn unknown_per_force(&self, k: usize) -> Mat3 {
+        self.w_diag[self.contacts[k] as usize]
+    }
+
+    fn gap(&self, k: usize) -> Vec3 {
+        let t = &self.targets[3 * k..3 * k + 3];
+        Vec3::new(t[0], t[1], t[2]) - self.u0[self.contacts[k] as usize]
     }
 }
 

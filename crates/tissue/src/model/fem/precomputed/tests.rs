@@ -10,6 +10,7 @@ use crate::model::fem::condensed::tests::{
     compare, liver_material, liver_static, loads, random_constraints,
     stiffness_matches_fem_static_differences_with,
 };
+use crate::model::testing::{check_held_along, every_other_direction};
 
 #[test]
 fn liver_matches_fem_static_and_fem_condensed() {
@@ -102,4 +103,32 @@ fn bad_input_is_refused_and_keeps_the_state() {
     assert_cannot_cut(&mut model);
     model.reset();
     assert_eq!(model.surface().positions, &rest[..]);
+}
+
+/// Seven contacts on the liver under gravity and a point load, four held along a random
+/// direction only: the tensors' solve in the contact forces (`solve::along`, an LU: their
+/// block is W_CC only up to roundoff) is the equilibrium of the full hold where it put the
+/// vertices (`check_held_along`), and `fem-condensed`'s along the same normals (its
+/// compliance, a Cholesky): the same reactions and surface.
+#[test]
+fn contacts_held_along_normals_match_the_full_hold_and_fem_condensed() {
+    let (mesh, _, fixed) = liver_static();
+    let mut tensors = FemPrecomputedTensors::new(&mesh, liver_material(), &fixed).unwrap();
+    let mut condensed = FemCondensed::new(&mesh, liver_material(), &fixed).unwrap();
+    let rest = tensors.rest_surface().to_vec();
+    let c = random_constraints(&rest, &fixed, 7, 2e-3, &mut Rng::new(23));
+    let normals = every_other_direction(7, 23);
+    let l = loads(fixed[0] + 2);
+    tensors.set_loads(&l).unwrap();
+    condensed.set_loads(&l).unwrap();
+    let (along, reached) = check_held_along(&mut tensors, &c, &normals);
+    assert!(condensed.set_constraints_along(&c, &normals).unwrap());
+    condensed.step(0.01).unwrap();
+    let scale = along.iter().map(|r| r.length()).fold(0.0, Real::max);
+    for (a, b) in along.iter().zip(condensed.reactions().prescribed) {
+        assert!((*a - *b).length() < 1e-9 * scale, "{a} vs {b}");
+    }
+    for (a, b) in reached.iter().zip(condensed.surface().positions) {
+        assert!((*a - *b).length() < 1e-12, "{a} vs {b}");
+    }
 }

@@ -1,6 +1,7 @@
-//! A small dense system (the contact block of `fem-condensed` and `fem-precomputed-tensors`)
-//! factorised and solved in place by faer, in memory kept across steps: it grows only when a
-//! larger contact set appears, so a contact update allocates nothing after warm-up.
+//! A small dense system (the contact block of `fem-condensed` and `fem-precomputed-tensors`,
+//! the held-direction block of `along`) factorised and solved in place by faer, in memory
+//! kept across steps: it grows only when a larger contact set appears, so a contact update
+//! allocates nothing after warm-up.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltParams, LltRegularization, cholesky_in_place};
