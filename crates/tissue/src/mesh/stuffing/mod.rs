@@ -775,4 +775,6 @@ fn emit(
 }
 
 #[cfg(test)]
+mod label_tests;
+#[cfg(test)]
 mod tests;

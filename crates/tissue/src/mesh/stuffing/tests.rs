@@ -101,7 +101,7 @@ fn an_open_surface_is_refused_naming_an_edge() {
 
 /// A ball of label 2 (voxels closer than `r_in` voxels to the centre) inside a ball of
 /// label 1 (`r_out`), in an image of n³ voxels of 1 mm.
-fn nested_balls(n: usize, r_in: Real, r_out: Real) -> crate::image::VoxelImage {
+pub(super) fn nested_balls(n: usize, r_in: Real, r_out: Real) -> crate::image::VoxelImage {
     use crate::image::{ByteOrder, SourceType, VoxelImage};
     let mut values = vec![0f32; n * n * n];
     let c = Vec3::splat((n as Real - 1.0) / 2.0);
