@@ -56,8 +56,10 @@ impl ImageDomain {
                 materials.push(t);
             }
         }
-        Ok(Self::from_mask(image, mask, tags, &format!("labels {labels:?}"))?
-            .with_materials(materials))
+        Ok(
+            Self::from_mask(image, mask, tags, &format!("labels {labels:?}"))?
+                .with_materials(materials),
+        )
     }
 
     /// The voxels with `lo <= value <= hi`, all tagged 1.

@@ -108,7 +108,10 @@ fn measure_interface(
                 }
             }
             f.sort_unstable();
-            faces.entry(f).or_default().push(tags.get(t).copied().unwrap_or(0));
+            faces
+                .entry(f)
+                .or_default()
+                .push(tags.get(t).copied().unwrap_or(0));
         }
     }
     let mut report = InterfaceReport::default();

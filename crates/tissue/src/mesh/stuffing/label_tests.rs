@@ -183,7 +183,10 @@ fn nested_balls_give_a_conforming_closed_interface() {
         println!("{found:?}");
         assert_eq!((r.inverted, r.degenerate), (0, 0), "{r}");
         assert!(r.min_dihedral_deg >= report::MIN_DIHEDRAL_DEG, "{r}");
-        assert!(found.interface_faces > 100 && found.interface_rim_edges == 0, "{found:?}");
+        assert!(
+            found.interface_faces > 100 && found.interface_rim_edges == 0,
+            "{found:?}"
+        );
         assert!(found.straddle <= 0.5, "{found:?}");
         let labels = r.labels.as_ref().unwrap_or_else(|| panic!("labels"));
         assert_eq!(labels.interface.nonconforming_faces, 0);
@@ -561,5 +564,8 @@ fn exact_layers_under_compression_give_the_series_stiffness() {
     // other's from the staircase of tetrahedra across the plane, too stiff.
     let (c, st) = (errors[1].0, errors[1].1);
     assert!(c < 0.0 && c.abs() < 0.015 && st > 0.0, "{errors:?}");
-    assert!(errors[0].0.abs() > c.abs() && errors[0].1 > st, "{errors:?}");
+    assert!(
+        errors[0].0.abs() > c.abs() && errors[0].1 > st,
+        "{errors:?}"
+    );
 }

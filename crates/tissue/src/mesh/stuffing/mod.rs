@@ -13,6 +13,11 @@
 //!    points of its edges are dropped.
 //! 4. Fill every BCC tetrahedron by the stencil its signs select (`stencil`).
 //!
+//! A domain with several materials (`Domain::material_tags`: labels of one image) is
+//! stuffed with every label a region of its own and the interfaces between them made of
+//! mesh faces (`materials`): interface cut points, warping onto interfaces, each material's
+//! stencil, and junction tetrahedra where three materials meet.
+//!
 //! Every output is measured (`report::measure`): angles, validity, volume, and the distance
 //! between the boundaries; the caller refuses what breaks a guarantee.
 
@@ -21,9 +26,9 @@ pub mod image_domain;
 pub mod interfaces;
 mod lattice;
 pub mod manifold;
+mod materials;
 pub mod pieces;
 pub mod report;
-mod materials;
 mod split_rule;
 mod stencil;
 #[cfg(test)]
@@ -42,8 +47,8 @@ use crate::model::Progress;
 
 pub use domain::{Domain, Implicit};
 pub use image_domain::ImageDomain;
-use lattice::Lattice;
 pub use interfaces::{InterfaceReport, LabelVolume, Labels};
+use lattice::Lattice;
 use materials::{Side, may_warp};
 pub use report::{JunctionCount, MeshingReport, dihedral_angles, measure, radius_ratio};
 use split_rule::Site;
@@ -340,14 +345,7 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
         present.dedup();
         if sides.iter().all(|s| s.is_single()) && present.len() >= 3 {
             junctions.fill(
-                t,
-                &material,
-                &cut_key,
-                &actual,
-                &reference,
-                &split,
-                &mut out,
-                tag_of,
+                t, &material, &cut_key, &actual, &reference, &split, &mut out, tag_of,
             );
             return;
         }
@@ -357,8 +355,16 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
         let inside: Vec<u16> = present.iter().copied().filter(|&m| m != 0).collect();
         let diagonals: Vec<Option<(Key, Key)>> = match inside.as_slice() {
             &[x, y] if !present.contains(&0) => {
-                let ins: Vec<u32> = t.iter().copied().filter(|&v| side[v as usize] == Side::single(x)).collect();
-                let outs: Vec<u32> = t.iter().copied().filter(|&v| side[v as usize] == Side::single(y)).collect();
+                let ins: Vec<u32> = t
+                    .iter()
+                    .copied()
+                    .filter(|&v| side[v as usize] == Side::single(x))
+                    .collect();
+                let outs: Vec<u32> = t
+                    .iter()
+                    .copied()
+                    .filter(|&v| side[v as usize] == Side::single(y))
+                    .collect();
                 if ins.len() == 2 && outs.len() == 2 {
                     vec![
                         Some((cut_key(ins[0], outs[0]), cut_key(ins[1], outs[1]))),
@@ -403,7 +409,13 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
                 let shift = all_steiner.len() as Key;
                 parts.extend(pieces.iter().map(|p| {
                     (
-                        p.map(|k| if k >= stencil::STEINER_BASE { k + shift } else { k }),
+                        p.map(|k| {
+                            if k >= stencil::STEINER_BASE {
+                                k + shift
+                            } else {
+                                k
+                            }
+                        }),
                         m,
                     )
                 }));
@@ -695,7 +707,11 @@ impl Junctions {
             }
             f.sort_unstable();
             let (id, r) = *self.triple.entry(f).or_insert_with(|| {
-                let ks = [cut_key(f[0], f[1]), cut_key(f[1], f[2]), cut_key(f[0], f[2])];
+                let ks = [
+                    cut_key(f[0], f[1]),
+                    cut_key(f[1], f[2]),
+                    cut_key(f[0], f[2]),
+                ];
                 let id = out.vertices.len() as u32;
                 out.vertices
                     .push(ks.iter().map(|&k| actual(k)).sum::<Vec3>() / 3.0);

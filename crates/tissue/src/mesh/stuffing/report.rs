@@ -301,11 +301,9 @@ impl fmt::Display for MeshingReport {
                     l.volume
                 )?;
                 match (l.voxel_volume, l.volume_error) {
-                    (Some(r), Some(e)) => writeln!(
-                        f,
-                        " against its voxels' {r:.6e} m³ ({:+.3} %)",
-                        100.0 * e
-                    )?,
+                    (Some(r), Some(e)) => {
+                        writeln!(f, " against its voxels' {r:.6e} m³ ({:+.3} %)", 100.0 * e)?
+                    }
                     _ => writeln!(f)?,
                 }
             }
