@@ -105,16 +105,13 @@ impl ImageDomain {
         let n = self.mask.len();
         let mut fields = vec![vec![0f32; n]; materials.len()];
         let mut counts = vec![0usize; materials.len()];
-        for v in 0..n {
-            if self.mask[v] < 0.5 {
+        for (v, (&mask, &label)) in self.mask.iter().zip(&self.labels).enumerate() {
+            if mask < 0.5 {
                 continue;
             }
             // A selected voxel whose label is not one of the materials (a hole filled by
             // the cleaning whose label could not be spread) joins the first.
-            let k = materials
-                .iter()
-                .position(|&m| m == self.labels[v])
-                .unwrap_or(0);
+            let k = materials.iter().position(|&m| m == label).unwrap_or(0);
             fields[k][v] = 1.0;
             counts[k] += 1;
         }

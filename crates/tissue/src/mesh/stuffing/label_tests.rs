@@ -375,27 +375,27 @@ fn compression_reaction(
     let mut kp = vec![0.0; 3 * n];
     for _ in 0..20 * n {
         apply(&p, &mut kp);
-        for i in 0..3 * n {
+        for (i, k) in kp.iter_mut().enumerate() {
             if !free(i) {
-                kp[i] = 0.0;
+                *k = 0.0;
             }
         }
         let alpha = rz / p.iter().zip(&kp).map(|(a, b)| a * b).sum::<Real>();
-        for i in 0..3 * n {
-            u[i] += alpha * p[i];
-            r[i] -= alpha * kp[i];
+        for ((ui, ri), (pi, ki)) in u.iter_mut().zip(r.iter_mut()).zip(p.iter().zip(&kp)) {
+            *ui += alpha * pi;
+            *ri -= alpha * ki;
         }
         if r.iter().map(|x| x * x).sum::<Real>().sqrt() <= 1e-12 * r0 {
             break;
         }
-        for i in 0..3 * n {
-            z[i] = r[i] / diag[i].max(1e-300);
+        for ((zi, ri), di) in z.iter_mut().zip(&r).zip(&diag) {
+            *zi = ri / di.max(1e-300);
         }
         let rz_new: Real = r.iter().zip(&z).map(|(a, b)| a * b).sum();
         let beta = rz_new / rz;
         rz = rz_new;
-        for i in 0..3 * n {
-            p[i] = z[i] + beta * p[i];
+        for (pi, zi) in p.iter_mut().zip(&z) {
+            *pi = zi + beta * *pi;
         }
     }
     apply(&u, &mut ku);

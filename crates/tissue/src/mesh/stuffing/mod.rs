@@ -98,6 +98,9 @@ pub fn size_for(volume: Real, tets: usize) -> Real {
     (12.0 * volume.abs() / tets.max(1) as Real).cbrt()
 }
 
+/// Tetrahedra of one BCC tetrahedron with the material each belongs to.
+type Parts = Vec<([Key; 4], u16)>;
+
 /// A cut point: the lattice edge (a, b) it lies on and its position.
 struct Cut {
     a: u32,
@@ -376,7 +379,7 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
             }
             _ => vec![None],
         };
-        let mut best: Option<(Real, Vec<([Key; 4], u16)>, Vec<[Key; 6]>)> = None;
+        let mut best: Option<(Real, Parts, Vec<[Key; 6]>)> = None;
         let mut zero = false;
         for &diagonal in &diagonals {
             let forced = |q: [Key; 4]| {
