@@ -75,6 +75,37 @@ pub trait Domain: Sync {
     fn surface_index(&self) -> Option<&TriangleIndex> {
         None
     }
+
+    /// The tags of the regions meshed as separate materials, whose interfaces the mesh
+    /// follows with its faces (several labels of one image). Empty (the default): the
+    /// inside is one region, each tetrahedron tagged by `tag_at`.
+    fn material_tags(&self) -> &[i32] {
+        &[]
+    }
+
+    /// The material (an index into `material_tags`) holding `p`, a point inside.
+    fn material_at(&self, _p: Vec3) -> usize {
+        0
+    }
+
+    /// Negative on material `a`'s side of its interface with material `b`, positive on
+    /// `b`'s, zero on it (only its sign matters for meshing; its magnitude helps the
+    /// report's distance estimate).
+    fn interface_value(&self, _p: Vec3, _a: usize, _b: usize) -> Real {
+        0.0
+    }
+
+    /// A point of the interface between material `a` (at `pa`) and `b` (at `pb`) on the
+    /// segment between them. Default: bisection on `interface_value`.
+    fn interface_cut(&self, pa: Vec3, a: usize, pb: Vec3, b: usize) -> Vec3 {
+        bisect(|p| self.interface_value(p, a, b), pa, pb)
+    }
+
+    /// Each material's volume (m³) as the input states it (an image's voxels of that
+    /// label), in the order of `material_tags`; empty when unknown.
+    fn material_volumes(&self) -> Vec<Real> {
+        Vec::new()
+    }
 }
 
 /// A shape given by a function (negative inside) and a box that holds it.
@@ -102,6 +133,14 @@ impl<F: Fn(Vec3) -> Real + Sync> Domain for Implicit<F> {
 /// bracket 1e-12 of the segment), then the secant point inside the last bracket.
 pub(crate) fn bisect(f: impl Fn(Vec3) -> Real, mut a: Vec3, mut b: Vec3) -> Vec3 {
     let (mut fa, mut fb) = (f(a), f(b));
+    // An end exactly on the boundary is the crossing (a lattice vertex half way between
+    // voxel centres, where the image's value is exactly 1/2).
+    if fa == 0.0 {
+        return a;
+    }
+    if fb == 0.0 {
+        return b;
+    }
     if !(fa < 0.0 && fb > 0.0) {
         return 0.5 * (a + b);
     }

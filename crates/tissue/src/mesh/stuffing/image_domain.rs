@@ -31,6 +31,13 @@ pub struct ImageDomain {
     cleaning: Option<CleanReport>,
     /// The cleaning kept the largest part only: the mesh keeps its largest piece.
     one_piece: bool,
+    /// With two labels or more, each meshed as its own region (`Domain::material_tags`):
+    /// the labels, and per label its indicator field (1 on its selected voxels, 0
+    /// elsewhere; blurred with the mask), whose trilinear interpolations decide which
+    /// label holds a point (the largest) and where two labels meet (equal values).
+    materials: Vec<i32>,
+    fields: Vec<Vec<f32>>,
+    material_voxels: Vec<usize>,
 }
 
 impl ImageDomain {
@@ -42,7 +49,17 @@ impl ImageDomain {
         }
         let mask: Vec<bool> = image.values.iter().map(|v| labels.contains(v)).collect();
         let tags = image.values.iter().map(|&v| v.round() as i32).collect();
-        Self::from_mask(image, mask, tags, &format!("labels {labels:?}"))
+        let mut materials: Vec<i32> = Vec::new();
+        for l in labels {
+            let t = l.round() as i32;
+            if !materials.contains(&t) {
+                materials.push(t);
+            }
+        }
+        Ok(
+            Self::from_mask(image, mask, tags, &format!("labels {labels:?}"))?
+                .with_materials(materials),
+        )
     }
 
     /// The voxels with `lo <= value <= hi`, all tagged 1.
@@ -65,7 +82,69 @@ impl ImageDomain {
         };
         let mask = grid.labels.iter().map(|&l| l > 0).collect();
         let tags = grid.labels.iter().map(|&l| i32::from(l)).collect();
-        Self::from_mask(&image, mask, tags, "the grid")
+        let mut materials: Vec<i32> = grid
+            .labels
+            .iter()
+            .filter(|&&l| l > 0)
+            .map(|&l| i32::from(l))
+            .collect();
+        materials.sort_unstable();
+        materials.dedup();
+        Ok(Self::from_mask(&image, mask, tags, "the grid")?.with_materials(materials))
+    }
+
+    /// With two labels or more, each becomes a region of its own: its indicator field is
+    /// built from the selected voxels (`fields`). One label keeps the single-region path.
+    fn with_materials(mut self, materials: Vec<i32>) -> Self {
+        if materials.len() < 2 {
+            self.materials.clear();
+            self.fields.clear();
+            self.material_voxels.clear();
+            return self;
+        }
+        let n = self.mask.len();
+        let mut fields = vec![vec![0f32; n]; materials.len()];
+        let mut counts = vec![0usize; materials.len()];
+        for (v, (&mask, &label)) in self.mask.iter().zip(&self.labels).enumerate() {
+            if mask < 0.5 {
+                continue;
+            }
+            // A selected voxel whose label is not one of the materials (a hole filled by
+            // the cleaning whose label could not be spread) joins the first.
+            let k = materials.iter().position(|&m| m == label).unwrap_or(0);
+            fields[k][v] = 1.0;
+            counts[k] += 1;
+        }
+        self.materials = materials;
+        self.fields = fields;
+        self.material_voxels = counts;
+        self
+    }
+
+    /// The label tags meshed as separate regions (empty for one region).
+    pub fn materials(&self) -> &[i32] {
+        &self.materials
+    }
+
+    /// Trilinear interpolation of a voxel field at `p`.
+    fn interpolate(&self, field: &[f32], p: Vec3) -> Real {
+        let u = (p - self.origin) / self.spacing;
+        let f = u.floor();
+        let (i, j, k) = (f.x as i64, f.y as i64, f.z as i64);
+        let t = u - f;
+        let [nx, ny, nz] = self.dims.map(|v| v as i64);
+        let mut m = 0.0;
+        for c in 0..8 {
+            let (di, dj, dk) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+            let w = (if di == 1 { t.x } else { 1.0 - t.x })
+                * (if dj == 1 { t.y } else { 1.0 - t.y })
+                * (if dk == 1 { t.z } else { 1.0 - t.z });
+            let (a, b, cc) = (i + di, j + dj, k + dk);
+            if w > 0.0 && a >= 0 && b >= 0 && cc >= 0 && a < nx && b < ny && cc < nz {
+                m += w * Real::from(field[(a + nx * (b + ny * cc)) as usize]);
+            }
+        }
+        m
     }
 
     fn from_mask(
@@ -100,6 +179,9 @@ impl ImageDomain {
             selected,
             cleaning: None,
             one_piece: false,
+            materials: Vec::new(),
+            fields: Vec::new(),
+            material_voxels: Vec::new(),
         })
     }
 
@@ -151,7 +233,8 @@ impl ImageDomain {
         self.selected = report.voxels_after;
         self.cleaning = Some(report);
         self.one_piece = c.largest_component;
-        Ok(self)
+        let materials = std::mem::take(&mut self.materials);
+        Ok(self.with_materials(materials))
     }
 
     /// Blurs the mask with a Gaussian of standard deviation `sigma` (m) along each axis, so
@@ -163,46 +246,9 @@ impl ImageDomain {
         if !(sigma.is_finite() && sigma > 0.0) {
             return self;
         }
-        for axis in 0..3 {
-            let s = sigma / self.spacing[axis];
-            let radius = (3.0 * s).ceil() as usize;
-            if radius == 0 {
-                continue;
-            }
-            let kernel: Vec<f32> = {
-                let k: Vec<Real> = (0..=2 * radius)
-                    .map(|i| {
-                        let x = i as Real - radius as Real;
-                        (-0.5 * x * x / (s * s)).exp()
-                    })
-                    .collect();
-                let sum: Real = k.iter().sum();
-                k.iter().map(|v| (v / sum) as f32).collect()
-            };
-            let [nx, ny, _] = self.dims;
-            let stride = [1, nx, nx * ny][axis];
-            let n = self.dims[axis];
-            let mut line = vec![0f32; n];
-            let src = self.mask.clone();
-            for start in 0..src.len() {
-                // Each line along `axis` once, from its first voxel.
-                if (start / stride) % n != 0 {
-                    continue;
-                }
-                for (i, l) in line.iter_mut().enumerate() {
-                    *l = src[start + i * stride];
-                }
-                for i in 0..n {
-                    let mut acc = 0.0f32;
-                    for (j, &w) in kernel.iter().enumerate() {
-                        let k = i as i64 + j as i64 - radius as i64;
-                        if k >= 0 && (k as usize) < n {
-                            acc += w * line[k as usize];
-                        }
-                    }
-                    self.mask[start + i * stride] = acc;
-                }
-            }
+        blur(&mut self.mask, self.dims, self.spacing, sigma);
+        for field in &mut self.fields {
+            blur(field, self.dims, self.spacing, sigma);
         }
         let grow = Vec3::splat(3.0 * sigma);
         self.lo -= grow;
@@ -284,6 +330,37 @@ impl Domain for ImageDomain {
         self.one_piece
     }
 
+    fn material_tags(&self) -> &[i32] {
+        &self.materials
+    }
+
+    /// The label whose indicator is largest at `p` (ties to the first listed).
+    fn material_at(&self, p: Vec3) -> usize {
+        let mut best = (0, Real::NEG_INFINITY);
+        for (k, field) in self.fields.iter().enumerate() {
+            let g = self.interpolate(field, p);
+            if g > best.1 {
+                best = (k, g);
+            }
+        }
+        best.0
+    }
+
+    fn interface_value(&self, p: Vec3, a: usize, b: usize) -> Real {
+        match (self.fields.get(a), self.fields.get(b)) {
+            (Some(fa), Some(fb)) => self.interpolate(fb, p) - self.interpolate(fa, p),
+            _ => 0.0,
+        }
+    }
+
+    fn material_volumes(&self) -> Vec<Real> {
+        let voxel = self.spacing.x * self.spacing.y * self.spacing.z;
+        self.material_voxels
+            .iter()
+            .map(|&n| n as Real * voxel)
+            .collect()
+    }
+
     fn tag_at(&self, p: Vec3) -> i32 {
         if self.labels.is_empty() {
             return 1;
@@ -308,5 +385,51 @@ impl Domain for ImageDomain {
             }
         }
         best.map_or(0, |(_, l)| l)
+    }
+}
+
+/// Blurs a voxel field in place with a Gaussian of standard deviation `sigma` (m) along
+/// each axis (voxels beyond the image count as 0).
+fn blur(field: &mut [f32], dims: [usize; 3], spacing: Vec3, sigma: Real) {
+    for axis in 0..3 {
+        let s = sigma / spacing[axis];
+        let radius = (3.0 * s).ceil() as usize;
+        if radius == 0 {
+            continue;
+        }
+        let kernel: Vec<f32> = {
+            let k: Vec<Real> = (0..=2 * radius)
+                .map(|i| {
+                    let x = i as Real - radius as Real;
+                    (-0.5 * x * x / (s * s)).exp()
+                })
+                .collect();
+            let sum: Real = k.iter().sum();
+            k.iter().map(|v| (v / sum) as f32).collect()
+        };
+        let [nx, ny, _] = dims;
+        let stride = [1, nx, nx * ny][axis];
+        let n = dims[axis];
+        let mut line = vec![0f32; n];
+        let src = field.to_vec();
+        for start in 0..src.len() {
+            // Each line along `axis` once, from its first voxel.
+            if (start / stride) % n != 0 {
+                continue;
+            }
+            for (i, l) in line.iter_mut().enumerate() {
+                *l = src[start + i * stride];
+            }
+            for i in 0..n {
+                let mut acc = 0.0f32;
+                for (j, &w) in kernel.iter().enumerate() {
+                    let k = i as i64 + j as i64 - radius as i64;
+                    if k >= 0 && (k as usize) < n {
+                        acc += w * line[k as usize];
+                    }
+                }
+                field[start + i * stride] = acc;
+            }
+        }
     }
 }

@@ -85,6 +85,27 @@ impl Lattice {
         (a < nb) == (b < nb)
     }
 
+    /// Calls `f(u)` for each lattice neighbour of `v` (joined to it by an edge): up to six
+    /// along the axes at distance h and eight across the cube diagonals at h·√3/2.
+    pub fn for_each_neighbour(&self, v: u32, mut f: impl FnMut(u32)) {
+        let d = self.coords(v);
+        for axis in 0..3 {
+            for s in [-2, 2] {
+                let mut e = d;
+                e[axis] += s;
+                if let Some(u) = self.id(e) {
+                    f(u);
+                }
+            }
+        }
+        for c in 0..8 {
+            let o = [c & 1, (c >> 1) & 1, (c >> 2) & 1].map(|b| 2 * b as i64 - 1);
+            if let Some(u) = self.id([d[0] + o[0], d[1] + o[1], d[2] + o[2]]) {
+                f(u);
+            }
+        }
+    }
+
     /// Calls `f(a, b)` once for every lattice edge: long edges along +x, +y, +z from every
     /// vertex, and the eight black–red edges of every red vertex.
     pub fn for_each_edge(&self, mut f: impl FnMut(u32, u32)) {

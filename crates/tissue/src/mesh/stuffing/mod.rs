@@ -13,13 +13,20 @@
 //!    points of its edges are dropped.
 //! 4. Fill every BCC tetrahedron by the stencil its signs select (`stencil`).
 //!
+//! A domain with several materials (`Domain::material_tags`: labels of one image) is
+//! stuffed with every label a region of its own and the interfaces between them made of
+//! mesh faces (`materials`): interface cut points, warping onto interfaces, each material's
+//! stencil, and junction tetrahedra where three materials meet.
+//!
 //! Every output is measured (`report::measure`): angles, validity, volume, and the distance
 //! between the boundaries; the caller refuses what breaks a guarantee.
 
 pub mod domain;
 pub mod image_domain;
+pub mod interfaces;
 mod lattice;
 pub mod manifold;
+mod materials;
 pub mod pieces;
 pub mod report;
 mod split_rule;
@@ -40,8 +47,10 @@ use crate::model::Progress;
 
 pub use domain::{Domain, Implicit};
 pub use image_domain::ImageDomain;
+pub use interfaces::{InterfaceReport, LabelVolume, Labels};
 use lattice::Lattice;
-pub use report::{MeshingReport, dihedral_angles, measure, radius_ratio};
+use materials::{Side, may_warp};
+pub use report::{JunctionCount, MeshingReport, dihedral_angles, measure, radius_ratio};
 use split_rule::Site;
 use stencil::{Fill, Key};
 pub use surface_domain::SurfaceDomain;
@@ -89,6 +98,9 @@ pub fn size_for(volume: Real, tets: usize) -> Real {
     (12.0 * volume.abs() / tets.max(1) as Real).cbrt()
 }
 
+/// Tetrahedra of one BCC tetrahedron with the material each belongs to.
+type Parts = Vec<([Key; 4], u16)>;
+
 /// A cut point: the lattice edge (a, b) it lies on and its position.
 struct Cut {
     a: u32,
@@ -130,40 +142,76 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     };
     let nl = lattice.vertex_count();
 
-    // 1. Signs.
+    // 1. Signs, and with several materials the material of every vertex (0 outside; a
+    // vertex exactly on the boundary counts as outside, its cut point is then itself).
     progress.report("signs", 0.0);
     let mut pos: Vec<Vec3> = (0..nl as u32).map(|v| lattice.position(v)).collect();
     let mut sign: Vec<i8> = signs(domain, &pos, progress);
+    let material_tags = domain.material_tags();
+    let multi = material_tags.len() >= 2;
+    let material: Vec<u16> = if multi {
+        pos.iter()
+            .zip(&sign)
+            .map(|(&p, &s)| {
+                if s < 0 {
+                    1 + domain.material_at(p).min(material_tags.len() - 1) as u16
+                } else {
+                    0
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut side: Vec<Side> = material.iter().map(|&m| Side::single(m)).collect();
 
     // 2. Cut points.
     progress.report("cut points", 0.0);
     let mut cuts: Vec<Cut> = Vec::new();
     let mut cut_of: FxHashMap<(u32, u32), u32> = FxHashMap::default();
     lattice.for_each_edge(|a, b| {
-        let (sa, sb) = (sign[a as usize], sign[b as usize]);
-        if sa * sb < 0 {
-            let (pa, pb) = (pos[a as usize], pos[b as usize]);
-            let at = if sa < 0 {
+        let (pa, pb) = (pos[a as usize], pos[b as usize]);
+        let at = if multi {
+            let (ma, mb) = (material[a as usize], material[b as usize]);
+            if ma == mb {
+                return;
+            }
+            if ma == 0 {
+                domain.cut(pb, pa)
+            } else if mb == 0 {
+                domain.cut(pa, pb)
+            } else {
+                domain.interface_cut(pa, usize::from(ma - 1), pb, usize::from(mb - 1))
+            }
+        } else {
+            let (sa, sb) = (sign[a as usize], sign[b as usize]);
+            if sa * sb >= 0 {
+                return;
+            }
+            if sa < 0 {
                 domain.cut(pa, pb)
             } else {
                 domain.cut(pb, pa)
-            };
-            cut_of.insert((a.min(b), a.max(b)), cuts.len() as u32);
-            cuts.push(Cut { a, b, at });
-        }
+            }
+        };
+        cut_of.insert((a.min(b), a.max(b)), cuts.len() as u32);
+        cuts.push(Cut { a, b, at });
     });
 
     // 3. Warping. A cut point violates at most one end (both α < 1/2).
     progress.report("warping", 0.0);
     let mut candidates: Vec<(u32, Real, u32)> = Vec::new();
-    for (c, cut) in cuts.iter().enumerate() {
-        let (pa, pb) = (pos[cut.a as usize], pos[cut.b as usize]);
-        let len = (pb - pa).length();
-        let alpha = if lattice.is_long(cut.a, cut.b) {
+    let alpha_of = |a: u32, b: u32| {
+        if lattice.is_long(a, b) {
             ALPHA_LONG
         } else {
             ALPHA_SHORT
-        };
+        }
+    };
+    for (c, cut) in cuts.iter().enumerate() {
+        let (pa, pb) = (pos[cut.a as usize], pos[cut.b as usize]);
+        let len = (pb - pa).length();
+        let alpha = alpha_of(cut.a, cut.b);
         let (da, db) = ((cut.at - pa).length(), (cut.at - pb).length());
         if da < alpha * len {
             candidates.push((cut.a, da, c as u32));
@@ -176,22 +224,52 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     for &(v, _, c) in &candidates {
         let cut = &cuts[c as usize];
         let other = if cut.a == v { cut.b } else { cut.a };
-        // The nearest cut point still alive: neither end already warped.
-        if sign[v as usize] != 0 && sign[other as usize] != 0 {
+        if multi {
+            // Both ends still inside one material, and v next to no third material.
+            let (sv, so) = (side[v as usize], side[other as usize]);
+            let to = material[other as usize];
+            if sv.is_single() && so.is_single() && may_warp(&lattice, &material, v, to) {
+                pos[v as usize] = cut.at;
+                side[v as usize] = Side {
+                    a: material[v as usize],
+                    b: to,
+                };
+                sign[v as usize] = 0;
+                warped += 1;
+            }
+        } else if sign[v as usize] != 0 && sign[other as usize] != 0 {
+            // The nearest cut point still alive: neither end already warped.
             pos[v as usize] = cut.at;
             sign[v as usize] = 0;
             warped += 1;
+        }
+    }
+    // A vertex refused a warp (next to a third material) keeps its cut points at least
+    // α·length away, as warping would have left them.
+    let mut clamped = 0;
+    if multi {
+        for &(v, _, c) in &candidates {
+            let cut = &cuts[c as usize];
+            let other = if cut.a == v { cut.b } else { cut.a };
+            if side[v as usize].is_single() && side[other as usize].is_single() {
+                let (pv, po) = (pos[v as usize], pos[other as usize]);
+                let at = pv + alpha_of(v, other) * (po - pv);
+                cuts[c as usize].at = at;
+                clamped += 1;
+            }
         }
     }
 
     // 4. Stencils.
     progress.report("stencils", 0.0);
     let cut_base = nl as Key;
-    let mut out_of_lattice = vec![u32::MAX; nl];
-    let mut out_of_cut = vec![u32::MAX; cuts.len()];
-    let mut vertices: Vec<Vec3> = Vec::new();
-    let mut tets: Vec<[u32; 4]> = Vec::new();
-    let mut tags: Vec<i32> = Vec::new();
+    let mut out = Output {
+        of_lattice: vec![u32::MAX; nl],
+        of_cut: vec![u32::MAX; cuts.len()],
+        vertices: Vec::new(),
+        tets: Vec::new(),
+        tags: Vec::new(),
+    };
     let mut pieces: Vec<[Key; 4]> = Vec::new();
     let missing_cut = std::cell::Cell::new(false);
     let cut_key = |a: u32, b: u32| -> Key {
@@ -234,77 +312,166 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     let mut all_zero = Vec::new();
     let mut steiner: Vec<[Key; 6]> = Vec::new();
     let mut steiner_points = 0;
+    let mut junctions = Junctions::default();
+    let tag_of = |m: u16| material_tags[usize::from(m) - 1];
     lattice.for_each_tet(|t| {
-        if t.iter().all(|&v| sign[v as usize] > 0) {
+        if !multi {
+            if t.iter().all(|&v| sign[v as usize] > 0) {
+                return;
+            }
+            pieces.clear();
+            steiner.clear();
+            let fill = stencil::fill(
+                t,
+                |v| sign[v as usize],
+                cut_key,
+                &split,
+                &quality,
+                &mut pieces,
+                &mut steiner,
+            );
+            if fill == Fill::AllZero {
+                all_zero.push(t);
+            }
+            steiner_points += steiner.len();
+            out.add(&pieces, &steiner, cut_base, &actual, &reference, |c| {
+                domain.tag_at(c)
+            });
             return;
         }
-        pieces.clear();
-        steiner.clear();
-        let fill = stencil::fill(
-            t,
-            |v| sign[v as usize],
-            cut_key,
-            &split,
-            &quality,
-            &mut pieces,
-            &mut steiner,
-        );
-        if fill == Fill::AllZero {
+        let sides = t.map(|v| side[v as usize]);
+        if sides.iter().all(|s| *s == Side::single(0)) {
+            return;
+        }
+        let mut present: Vec<u16> = sides.iter().flat_map(|s| [s.a, s.b]).collect();
+        present.sort_unstable();
+        present.dedup();
+        if sides.iter().all(|s| s.is_single()) && present.len() >= 3 {
+            junctions.fill(
+                t, &material, &cut_key, &actual, &reference, &split, &mut out, tag_of,
+            );
+            return;
+        }
+        // At most two materials: each one's stencil. A two-in two-out tetrahedron between
+        // two labels has a quadrilateral of cut points inside it, which both prisms must
+        // split alike: try both diagonals, keep the one whose worse prism is better.
+        let inside: Vec<u16> = present.iter().copied().filter(|&m| m != 0).collect();
+        let diagonals: Vec<Option<(Key, Key)>> = match inside.as_slice() {
+            &[x, y] if !present.contains(&0) => {
+                let ins: Vec<u32> = t
+                    .iter()
+                    .copied()
+                    .filter(|&v| side[v as usize] == Side::single(x))
+                    .collect();
+                let outs: Vec<u32> = t
+                    .iter()
+                    .copied()
+                    .filter(|&v| side[v as usize] == Side::single(y))
+                    .collect();
+                if ins.len() == 2 && outs.len() == 2 {
+                    vec![
+                        Some((cut_key(ins[0], outs[0]), cut_key(ins[1], outs[1]))),
+                        Some((cut_key(ins[0], outs[1]), cut_key(ins[1], outs[0]))),
+                    ]
+                } else {
+                    vec![None]
+                }
+            }
+            _ => vec![None],
+        };
+        let mut best: Option<(Real, Parts, Vec<[Key; 6]>)> = None;
+        let mut zero = false;
+        for &diagonal in &diagonals {
+            let forced = |q: [Key; 4]| {
+                split(q).or_else(|| {
+                    diagonal.map(|(x, y)| (q[0] == x && q[2] == y) || (q[0] == y && q[2] == x))
+                })
+            };
+            let mut parts: Vec<([Key; 4], u16)> = Vec::new();
+            let mut all_steiner: Vec<[Key; 6]> = Vec::new();
+            let mut worst = Real::INFINITY;
+            for &m in &inside {
+                pieces.clear();
+                steiner.clear();
+                let fill = stencil::fill(
+                    t,
+                    |v| side[v as usize].sign(m),
+                    cut_key,
+                    &forced,
+                    &quality,
+                    &mut pieces,
+                    &mut steiner,
+                );
+                zero |= fill == Fill::AllZero;
+                worst = worst.min(if steiner.is_empty() {
+                    quality(&pieces)
+                } else {
+                    0.0
+                });
+                // Steiner keys are numbered per tetrahedron across its materials.
+                let shift = all_steiner.len() as Key;
+                parts.extend(pieces.iter().map(|p| {
+                    (
+                        p.map(|k| {
+                            if k >= stencil::STEINER_BASE {
+                                k + shift
+                            } else {
+                                k
+                            }
+                        }),
+                        m,
+                    )
+                }));
+                all_steiner.extend_from_slice(&steiner);
+            }
+            if best.as_ref().is_none_or(|(q, _, _)| worst > *q) {
+                best = Some((worst, parts, all_steiner));
+            }
+        }
+        if zero {
             all_zero.push(t);
         }
-        // Steiner points of this tetrahedron's prisms: new vertices at the prism centres.
-        let extra: Vec<(u32, Vec3)> = steiner
-            .iter()
-            .map(|p| {
-                let id = vertices.len() as u32;
-                vertices.push(p.iter().map(|&k| actual(k)).sum::<Vec3>() / 6.0);
-                (id, p.iter().map(|&k| reference(k)).sum::<Vec3>() / 6.0)
-            })
-            .collect();
-        steiner_points += extra.len();
-        for piece in &pieces {
-            let centroid = piece
-                .iter()
-                .map(|&k| match k.checked_sub(stencil::STEINER_BASE) {
-                    Some(s) => vertices[extra[s as usize].0 as usize],
-                    None => actual(k),
-                })
-                .sum::<Vec3>()
-                / 4.0;
-            emit(
-                *piece,
-                &|k| match k.checked_sub(stencil::STEINER_BASE) {
-                    Some(s) => extra[s as usize].1,
-                    None => reference(k),
-                },
-                &actual,
-                &extra,
-                cut_base,
-                (&mut out_of_lattice, &mut out_of_cut),
-                &mut vertices,
-                &mut tets,
-            );
-            tags.push(domain.tag_at(centroid));
+        if let Some((_, parts, all_steiner)) = best {
+            steiner_points += all_steiner.len();
+            out.add_tagged(&parts, &all_steiner, cut_base, &actual, &reference, tag_of);
         }
     });
     // A tetrahedron with all four corners on the boundary is inside when its centre is; it
-    // is kept only when it keeps the angle bound (`stencil::keep_all_zero`).
+    // is kept only when it keeps the angle bound (`stencil::keep_all_zero`). Between two
+    // labels (no corner on the outer boundary) it is always kept: leaving it out would
+    // leave a hole inside the mesh.
     for t in all_zero {
         let keys = t.map(|v| v as Key);
         let centroid = keys.iter().map(|&k| actual(k)).sum::<Vec3>() / 4.0;
-        if domain.value(centroid) < 0.0 && stencil::keep_all_zero(keys.map(actual)) {
-            emit(
-                keys,
-                &reference,
-                &actual,
-                &[],
-                cut_base,
-                (&mut out_of_lattice, &mut out_of_cut),
-                &mut vertices,
-                &mut tets,
-            );
-            tags.push(domain.tag_at(centroid));
+        if !multi {
+            if domain.value(centroid) < 0.0 && stencil::keep_all_zero(keys.map(actual)) {
+                out.add(&[keys], &[], cut_base, &actual, &reference, |c| {
+                    domain.tag_at(c)
+                });
+            }
+            continue;
         }
+        let sides = t.map(|v| side[v as usize]);
+        let mut common: Vec<u16> = vec![sides[0].a, sides[0].b];
+        common.retain(|&m| sides.iter().all(|s| s.touches(m)));
+        common.dedup();
+        let m = if common.contains(&0) {
+            let Some(&m) = common.iter().find(|&&m| m != 0) else {
+                continue;
+            };
+            if !(domain.value(centroid) < 0.0 && stencil::keep_all_zero(keys.map(actual))) {
+                continue;
+            }
+            m
+        } else {
+            let at = 1 + domain.material_at(centroid) as u16;
+            match common.as_slice() {
+                [] => continue,
+                c if c.contains(&at) => at,
+                c => c[0],
+            }
+        };
+        out.add_tagged(&[(keys, m)], &[], cut_base, &actual, &reference, tag_of);
     }
     if missing_cut.get() {
         return Err(MeshError::Invalid(
@@ -313,6 +480,12 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     }
     let seconds = clock.elapsed().as_secs_f64();
     progress.report("report", 0.0);
+    let Output {
+        vertices,
+        tets,
+        mut tags,
+        ..
+    } = out;
     let mut mesh = TetMesh::new(vertices, tets);
     let manifold = manifold::make_boundary_manifold(&mut mesh, &mut tags);
     let pieces = pieces::pieces(&mut mesh, &mut tags, domain.one_piece());
@@ -323,6 +496,15 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     report.steiner_points = steiner_points;
     report.cut_points = cuts.len();
     report.seconds = seconds;
+    if multi {
+        report.labels = Some(interfaces::measure_labels(&mesh, &tags, domain, size));
+        report.junctions = Some(JunctionCount {
+            tets: junctions.tets,
+            pieces: junctions.pieces,
+            min_dihedral_deg: junctions.min_dihedral_deg,
+            clamped_cuts: clamped,
+        });
+    }
     progress.report("report", 1.0);
     Ok(Stuffed { mesh, tags, report })
 }
@@ -378,6 +560,204 @@ fn stencil_quality(
     worst
 }
 
+/// The mesh being made: output vertices (lattice vertices and cut points made on first
+/// use), tetrahedra and their tags.
+struct Output {
+    of_lattice: Vec<u32>,
+    of_cut: Vec<u32>,
+    vertices: Vec<Vec3>,
+    tets: Vec<[u32; 4]>,
+    tags: Vec<i32>,
+}
+
+impl Output {
+    /// Adds one BCC tetrahedron's pieces, its prisms' Steiner points first (new vertices at
+    /// the prism centres), each piece tagged by `tag` at its centroid.
+    fn add(
+        &mut self,
+        pieces: &[[Key; 4]],
+        steiner: &[[Key; 6]],
+        cut_base: Key,
+        actual: &dyn Fn(Key) -> Vec3,
+        reference: &dyn Fn(Key) -> Vec3,
+        tag: impl Fn(Vec3) -> i32,
+    ) {
+        let extra = self.steiner_points(steiner, actual, reference);
+        for piece in pieces {
+            let centroid = piece
+                .iter()
+                .map(|&k| match k.checked_sub(stencil::STEINER_BASE) {
+                    Some(s) => self.vertices[extra[s as usize].0 as usize],
+                    None => actual(k),
+                })
+                .sum::<Vec3>()
+                / 4.0;
+            self.emit(*piece, &extra, cut_base, actual, reference);
+            self.tags.push(tag(centroid));
+        }
+    }
+
+    /// Adds pieces whose material is known, tagged `tag_of(material)`.
+    fn add_tagged(
+        &mut self,
+        parts: &[([Key; 4], u16)],
+        steiner: &[[Key; 6]],
+        cut_base: Key,
+        actual: &dyn Fn(Key) -> Vec3,
+        reference: &dyn Fn(Key) -> Vec3,
+        tag_of: impl Fn(u16) -> i32,
+    ) {
+        let extra = self.steiner_points(steiner, actual, reference);
+        for &(piece, m) in parts {
+            self.emit(piece, &extra, cut_base, actual, reference);
+            self.tags.push(tag_of(m));
+        }
+    }
+
+    fn steiner_points(
+        &mut self,
+        steiner: &[[Key; 6]],
+        actual: &dyn Fn(Key) -> Vec3,
+        reference: &dyn Fn(Key) -> Vec3,
+    ) -> Vec<(u32, Vec3)> {
+        steiner
+            .iter()
+            .map(|p| {
+                let id = self.vertices.len() as u32;
+                self.vertices
+                    .push(p.iter().map(|&k| actual(k)).sum::<Vec3>() / 6.0);
+                (id, p.iter().map(|&k| reference(k)).sum::<Vec3>() / 6.0)
+            })
+            .collect()
+    }
+
+    fn emit(
+        &mut self,
+        piece: [Key; 4],
+        extra: &[(u32, Vec3)],
+        cut_base: Key,
+        actual: &dyn Fn(Key) -> Vec3,
+        reference: &dyn Fn(Key) -> Vec3,
+    ) {
+        emit(
+            piece,
+            &|k| match k.checked_sub(stencil::STEINER_BASE) {
+                Some(s) => extra[s as usize].1,
+                None => reference(k),
+            },
+            actual,
+            extra,
+            cut_base,
+            (&mut self.of_lattice, &mut self.of_cut),
+            &mut self.vertices,
+            &mut self.tets,
+        );
+    }
+}
+
+/// The junction tetrahedra (three materials or more) and the points where a face's three
+/// materials meet, shared by the two tetrahedra on the face.
+#[derive(Default)]
+struct Junctions {
+    triple: FxHashMap<[u32; 3], (u32, Vec3)>,
+    tets: usize,
+    pieces: usize,
+    min_dihedral_deg: Option<Real>,
+}
+
+impl Junctions {
+    /// Fills junction tetrahedron `t` (`materials::junction`): its face triangles joined to
+    /// the mean of its interface points (cut points and face triple points).
+    #[allow(clippy::too_many_arguments)]
+    fn fill(
+        &mut self,
+        t: [u32; 4],
+        material: &[u16],
+        cut_key: &dyn Fn(u32, u32) -> Key,
+        actual: &dyn Fn(Key) -> Vec3,
+        reference: &dyn Fn(Key) -> Vec3,
+        split: &stencil::Split<'_>,
+        out: &mut Output,
+        tag_of: impl Fn(u16) -> i32,
+    ) {
+        let m = |v: u32| material[v as usize];
+        // Slot 0 is the centre, then the faces' triple points.
+        let mut extra: Vec<(u32, Vec3)> = vec![(0, Vec3::ZERO)];
+        let mut faces: Vec<[u32; 3]> = Vec::new();
+        let (mut sum, mut sum_ref, mut count) = (Vec3::ZERO, Vec3::ZERO, 0.0);
+        for i in 0..4 {
+            for j in i + 1..4 {
+                if m(t[i]) != m(t[j]) {
+                    let k = cut_key(t[i], t[j]);
+                    sum += actual(k);
+                    sum_ref += reference(k);
+                    count += 1.0;
+                }
+            }
+        }
+        for skip in 0..4 {
+            let mut f = [0u32; 3];
+            let mut n = 0;
+            for (i, &v) in t.iter().enumerate() {
+                if i != skip {
+                    f[n] = v;
+                    n += 1;
+                }
+            }
+            let [a, b, c] = f.map(m);
+            if a == b || b == c || a == c {
+                continue;
+            }
+            f.sort_unstable();
+            let (id, r) = *self.triple.entry(f).or_insert_with(|| {
+                let ks = [
+                    cut_key(f[0], f[1]),
+                    cut_key(f[1], f[2]),
+                    cut_key(f[0], f[2]),
+                ];
+                let id = out.vertices.len() as u32;
+                out.vertices
+                    .push(ks.iter().map(|&k| actual(k)).sum::<Vec3>() / 3.0);
+                (id, ks.iter().map(|&k| reference(k)).sum::<Vec3>() / 3.0)
+            });
+            sum += out.vertices[id as usize];
+            sum_ref += r;
+            count += 1.0;
+            extra.push((id, r));
+            faces.push(f);
+        }
+        let centre = out.vertices.len() as u32;
+        out.vertices.push(sum / count);
+        extra[0] = (centre, sum_ref / count);
+        let mut parts = Vec::new();
+        materials::junction(
+            t,
+            m,
+            cut_key,
+            split,
+            |f| {
+                let i = faces.iter().position(|g| *g == f).unwrap_or(0);
+                stencil::STEINER_BASE + 1 + i as Key
+            },
+            stencil::STEINER_BASE,
+            &mut parts,
+        );
+        let cut_base = out.of_lattice.len() as Key;
+        for &(piece, mat) in &parts {
+            out.emit(piece, &extra, cut_base, actual, reference);
+            out.tags.push(tag_of(mat));
+            let tet = out.tets[out.tets.len() - 1];
+            let p = tet.map(|v| out.vertices[v as usize]);
+            let worst = dihedral_angles(p)
+                .iter()
+                .fold(Real::INFINITY, |a, &b| a.min(b.to_degrees()));
+            self.min_dihedral_deg = Some(self.min_dihedral_deg.map_or(worst, |w| w.min(worst)));
+        }
+        self.tets += 1;
+        self.pieces += parts.len();
+    }
+}
+
 /// Adds one output tetrahedron: maps its keys to output vertices (made on first use) and
 /// orients it positively as measured on the reference geometry.
 #[allow(clippy::too_many_arguments)]
@@ -413,5 +793,7 @@ fn emit(
     tets.push(tet);
 }
 
+#[cfg(test)]
+mod label_tests;
 #[cfg(test)]
 mod tests;

@@ -17,6 +17,8 @@ use super::triangle_index::TriangleIndex;
 pub const MIN_DIHEDRAL_DEG: Real = 10.0;
 /// Largest allowed relative volume error.
 pub const MAX_VOLUME_ERROR: Real = 0.01;
+/// Largest allowed relative volume error of one label against its voxels.
+pub const MAX_LABEL_VOLUME_ERROR: Real = 0.01;
 /// A tetrahedron is degenerate below this volume, relative to h³.
 const DEGENERATE_VOLUME: Real = 1e-9;
 
@@ -79,6 +81,25 @@ pub struct MeshingReport {
     pub manifold: super::manifold::ManifoldRepair,
     /// The mesh's pieces, and those dropped when the input is one piece (`pieces`).
     pub pieces: super::pieces::Pieces,
+    /// Several labels meshed as separate regions: each label's tetrahedra and volume
+    /// against its voxels, and the interfaces' distance to the input's (`interfaces`).
+    pub labels: Option<super::interfaces::Labels>,
+    /// Several labels: the tetrahedra where three materials meet, filled without the
+    /// stencils' angle bound (`materials`), and the smallest angle they reached.
+    pub junctions: Option<JunctionCount>,
+}
+
+/// The junction tetrahedra of a mesh of several labels (`materials::junction`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct JunctionCount {
+    /// Lattice tetrahedra with three or four materials, and the tetrahedra made of them.
+    pub tets: usize,
+    pub pieces: usize,
+    /// Their smallest dihedral angle (degrees), before the manifold repair.
+    pub min_dihedral_deg: Option<Real>,
+    /// Cut points kept α·length from a vertex that could not be warped (next to a third
+    /// material).
+    pub clamped_cuts: usize,
 }
 
 impl MeshingReport {
@@ -125,6 +146,41 @@ impl MeshingReport {
                 100.0 * e,
                 100.0 * MAX_VOLUME_ERROR
             ));
+        }
+        if let Some(labels) = &self.labels {
+            for l in &labels.volumes {
+                if let Some(e) = l.volume_error
+                    && e.abs() > MAX_LABEL_VOLUME_ERROR
+                {
+                    v.push(format!(
+                        "label {}: volume {:+.2} % off its voxels' (more than {} %)",
+                        l.tag,
+                        100.0 * e,
+                        100.0 * MAX_LABEL_VOLUME_ERROR
+                    ));
+                }
+                if l.tets == 0 {
+                    v.push(format!(
+                        "label {}: no tetrahedra (thinner than the size)",
+                        l.tag
+                    ));
+                }
+            }
+            let i = &labels.interface;
+            let far = i.mesh_to_input.max(i.input_to_mesh);
+            if far > 0.5 * self.size {
+                v.push(format!(
+                    "interface between labels {far:.3e} m from the voxels', more than h/2 = \
+                     {:.3e} m",
+                    0.5 * self.size
+                ));
+            }
+            if i.nonconforming_faces > 0 {
+                v.push(format!(
+                    "{} faces where labels do not conform",
+                    i.nonconforming_faces
+                ));
+            }
         }
         v
     }
@@ -233,6 +289,49 @@ impl fmt::Display for MeshingReport {
                 f,
                 "pieces:          {} (a piece that no support holds leaves a model singular)",
                 p.count
+            )?;
+        }
+        if let Some(labels) = &self.labels {
+            for l in &labels.volumes {
+                write!(
+                    f,
+                    "label {:<9} {} tetrahedra, volume {:.6e} m³",
+                    format!("{}:", l.tag),
+                    l.tets,
+                    l.volume
+                )?;
+                match (l.voxel_volume, l.volume_error) {
+                    (Some(r), Some(e)) => {
+                        writeln!(f, " against its voxels' {r:.6e} m³ ({:+.3} %)", 100.0 * e)?
+                    }
+                    _ => writeln!(f)?,
+                }
+            }
+            let i = &labels.interface;
+            writeln!(
+                f,
+                "interfaces:      {} triangles ({} rim edges where they meet the boundary); \
+                 mesh→voxel interface {:.3e} m = {:.3} h, voxel interface→mesh {:.3e} m = {:.3} h",
+                i.triangles,
+                i.rim_edges,
+                i.mesh_to_input,
+                i.mesh_to_input / self.size,
+                i.input_to_mesh,
+                i.input_to_mesh / self.size
+            )?;
+        }
+        if let Some(j) = &self.junctions
+            && j.tets > 0
+        {
+            writeln!(
+                f,
+                "junctions:       {} lattice tetrahedra where three labels (or two and the \
+                 outside) meet, filled by {} cones (min dihedral {:.2}°, no proven bound); {} \
+                 cut points held α·length from a vertex that could not be warped",
+                j.tets,
+                j.pieces,
+                j.min_dihedral_deg.unwrap_or(0.0),
+                j.clamped_cuts
             )?;
         }
         let v = self.violations();
@@ -434,6 +533,8 @@ pub fn measure(
         seconds: 0.0,
         manifold: Default::default(),
         pieces: Default::default(),
+        labels: None,
+        junctions: None,
     }
 }
 
