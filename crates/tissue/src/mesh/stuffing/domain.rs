@@ -160,41 +160,48 @@ pub(crate) fn bisect(f: impl Fn(Vec3) -> Real, mut a: Vec3, mut b: Vec3) -> Vec3
     a + t * (b - a)
 }
 
-/// Boundary points where the sign of `d.value` changes between neighbouring samples of
-/// lines along x, y and z through a grid of `spacing` over the domain's box.
-pub(crate) fn line_crossings<D: Domain + ?Sized>(d: &D, spacing: Real) -> Vec<Vec3> {
-    let (lo, hi) = d.bounds();
+/// Every point of a grid of `spacing` over the box `lo`..`hi`, line after line along x,
+/// then along y, then along z: `f(p, starts_line)`, for walks that compare neighbouring
+/// samples of a line.
+pub(crate) fn walk_grid_lines(lo: Vec3, hi: Vec3, spacing: Real, mut f: impl FnMut(Vec3, bool)) {
     let n = ((hi - lo) / spacing).ceil().max(Vec3::ONE);
     let n = [n.x as usize + 1, n.y as usize + 1, n.z as usize + 1];
-    let at =
-        |i: usize, j: usize, k: usize| lo + spacing * Vec3::new(i as Real, j as Real, k as Real);
-    let mut out = Vec::new();
     for axis in 0..3 {
         let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
         for a in 0..n[u] {
             for b in 0..n[w] {
-                let mut prev: Option<(Vec3, Real)> = None;
                 for s in 0..n[axis] {
                     let mut idx = [0; 3];
                     idx[axis] = s;
                     idx[u] = a;
                     idx[w] = b;
-                    let p = at(idx[0], idx[1], idx[2]);
-                    let f = d.value(p);
-                    if let Some((q, g)) = prev {
-                        if g < 0.0 && f > 0.0 {
-                            out.push(d.cut(q, p));
-                        } else if g > 0.0 && f < 0.0 {
-                            out.push(d.cut(p, q));
-                        } else if f == 0.0 {
-                            out.push(p);
-                        }
-                    }
-                    prev = Some((p, f));
+                    let step = Vec3::new(idx[0] as Real, idx[1] as Real, idx[2] as Real);
+                    f(lo + spacing * step, s == 0);
                 }
             }
         }
     }
+}
+
+/// Boundary points where the sign of `d.value` changes between neighbouring samples of
+/// lines along x, y and z through a grid of `spacing` over the domain's box.
+pub(crate) fn line_crossings<D: Domain + ?Sized>(d: &D, spacing: Real) -> Vec<Vec3> {
+    let (lo, hi) = d.bounds();
+    let mut out = Vec::new();
+    let mut prev: Option<(Vec3, Real)> = None;
+    walk_grid_lines(lo, hi, spacing, |p, starts_line| {
+        let f = d.value(p);
+        if let Some((q, g)) = prev.filter(|_| !starts_line) {
+            if g < 0.0 && f > 0.0 {
+                out.push(d.cut(q, p));
+            } else if g > 0.0 && f < 0.0 {
+                out.push(d.cut(p, q));
+            } else if f == 0.0 {
+                out.push(p);
+            }
+        }
+        prev = Some((p, f));
+    });
     out
 }
 

@@ -9,7 +9,7 @@ use serde::Serialize;
 use crate::math::{Real, Vec3, tet_signed_volume};
 use crate::mesh::TetMesh;
 
-use super::domain::Domain;
+use super::domain::{Domain, walk_grid_lines};
 use super::triangle_index::TriangleIndex;
 
 /// One label's share of the mesh.
@@ -192,34 +192,18 @@ fn measure_interface(
 /// found by `Domain::interface_cut`.
 pub fn interface_samples(domain: &dyn Domain, spacing: Real) -> Vec<Vec3> {
     let (lo, hi) = domain.bounds();
-    let n = ((hi - lo) / spacing).ceil().max(Vec3::ONE);
-    let n = [n.x as usize + 1, n.y as usize + 1, n.z as usize + 1];
-    let at =
-        |i: usize, j: usize, k: usize| lo + spacing * Vec3::new(i as Real, j as Real, k as Real);
     let material = |p: Vec3| (domain.value(p) < 0.0).then(|| domain.material_at(p));
     let mut out = Vec::new();
-    for axis in 0..3 {
-        let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
-        for a in 0..n[u] {
-            for b in 0..n[w] {
-                let mut prev: Option<(Vec3, Option<usize>)> = None;
-                for s in 0..n[axis] {
-                    let mut idx = [0; 3];
-                    idx[axis] = s;
-                    idx[u] = a;
-                    idx[w] = b;
-                    let p = at(idx[0], idx[1], idx[2]);
-                    let m = material(p);
-                    if let Some((q, Some(mq))) = prev
-                        && let Some(mp) = m
-                        && mp != mq
-                    {
-                        out.push(domain.interface_cut(q, mq, p, mp));
-                    }
-                    prev = Some((p, m));
-                }
-            }
+    let mut prev: Option<(Vec3, Option<usize>)> = None;
+    walk_grid_lines(lo, hi, spacing, |p, starts_line| {
+        let m = material(p);
+        if let Some((q, Some(mq))) = prev.filter(|_| !starts_line)
+            && let Some(mp) = m
+            && mp != mq
+        {
+            out.push(domain.interface_cut(q, mq, p, mp));
         }
-    }
+        prev = Some((p, m));
+    });
     out
 }
