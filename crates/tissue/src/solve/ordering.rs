@@ -87,11 +87,9 @@ fn bisect(
     // Nodes level with the median go to the second half together: a structured mesh's layer
     // of nodes is then not cut through, and the separator is one layer, not parts of two.
     let median = coord(part[half]);
+    // `select_nth` leaves only "not greater" before the median: its equals are moved to
+    // just before it.
     let mut cut = half;
-    while cut > 0 && coord(part[cut - 1]) == median {
-        cut -= 1;
-    }
-    // `select_nth` leaves only "not greater" before the median: its equals must be moved.
     let mut i = 0;
     while i < cut {
         if coord(part[i]) == median {

@@ -11,7 +11,7 @@
 //!   go, a free one that ends past its plane taken, until nothing changes.
 
 use crate::integrate::contact::push_only;
-use crate::math::{Real, Vec3};
+use crate::math::{Real, Vec3, unflatten, unflatten_mut};
 
 use super::common::Core;
 
@@ -31,19 +31,10 @@ pub(super) struct PushContact {
     pub trial: Real,
 }
 
-/// Node `i`'s displacement in flat per-dof `u`.
-pub(super) fn node_vec(u: &[Real], i: usize) -> Vec3 {
-    Vec3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2])
-}
-
-fn set_node(u: &mut [Real], i: usize, v: Vec3) {
-    u[3 * i..3 * i + 3].copy_from_slice(&v.to_array());
-}
-
 impl PushContact {
     /// How far the node at `u` is out of the plane (negative: past it).
     pub fn gap(&self, u: &[Real]) -> Real {
-        self.normal.dot(node_vec(u, self.node) - self.target)
+        self.normal.dot(unflatten(u)[self.node] - self.target)
     }
 }
 
@@ -59,13 +50,13 @@ impl Core {
         let scale = 1.0 + 0.5 * self.material.damping * h;
         for k in &mut self.contacts {
             k.trial = 0.0;
-            let (x, u0) = (node_vec(&self.u_next, k.node), node_vec(&self.u, k.node));
+            let (x, u0) = (unflatten(&self.u_next)[k.node], unflatten(&self.u)[k.node]);
             let Some(p) = push_only(x, (x - u0) / h, k.target, k.normal, h) else {
                 continue;
             };
             undo.push((k.node, u0));
-            set_node(&mut self.u_next, k.node, p.position);
-            set_node(&mut self.u, k.node, p.position - p.velocity * h);
+            unflatten_mut(&mut self.u_next)[k.node] = p.position;
+            unflatten_mut(&mut self.u)[k.node] = p.position - p.velocity * h;
             k.trial = self.mass[3 * k.node] * scale * p.dv;
         }
     }
@@ -73,7 +64,7 @@ impl Core {
     /// Restores the nodes `push_contacts` moved in a refused (sub)step.
     pub fn undo_pushes(&mut self, undo: &[(usize, Vec3)]) {
         for &(i, u0) in undo {
-            set_node(&mut self.u, i, u0);
+            unflatten_mut(&mut self.u)[i] = u0;
         }
     }
 
@@ -94,7 +85,7 @@ impl Core {
     /// The contacts' reactions into the per-dof reactions: −push·n on each contact node.
     pub fn write_contact_reactions(&mut self) {
         for k in &self.contacts {
-            set_node(&mut self.r, k.node, -k.normal * k.push);
+            unflatten_mut(&mut self.r)[k.node] = -k.normal * k.push;
         }
     }
 
@@ -111,7 +102,7 @@ impl Core {
             e += 0.5 * self.k[diag[d]] * (self.problem.targets[d] - self.u[d]).powi(2);
         }
         for a in &self.problem.along {
-            let moved = a.value - a.normal.dot(node_vec(&self.u, a.node));
+            let moved = a.value - a.normal.dot(unflatten(&self.u)[a.node]);
             e += 0.5 * stiffest(a.node) * moved * moved;
         }
         for k in &self.contacts {

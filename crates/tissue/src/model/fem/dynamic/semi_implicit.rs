@@ -213,7 +213,7 @@ impl FemSemiImplicit {
             // Pulls and penetrations below roundoff of the pushes and of the motion are none.
             let push = |k: &contacts::PushContact| {
                 -k.normal
-                    .dot(contacts::node_vec(&self.reactions_scratch, k.node))
+                    .dot(crate::math::unflatten(&self.reactions_scratch)[k.node])
             };
             let scale: Real = c.contacts.iter().map(|k| push(k).abs()).sum();
             let depth = 1e-12 * self.length;
@@ -235,7 +235,7 @@ impl FemSemiImplicit {
         for (i, k) in c.contacts.iter_mut().enumerate() {
             let pushed = if self.active[i] {
                 (-k.normal
-                    .dot(contacts::node_vec(&self.reactions_scratch, k.node)))
+                    .dot(crate::math::unflatten(&self.reactions_scratch)[k.node]))
                 .max(0.0)
             } else {
                 0.0
