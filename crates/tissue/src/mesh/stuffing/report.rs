@@ -100,6 +100,10 @@ pub struct JunctionCount {
     /// Cut points kept α·length from a vertex that could not be warped (next to a third
     /// material).
     pub clamped_cuts: usize,
+    /// The smallest dihedral angle (degrees) of every other tetrahedron: the two-material
+    /// stencils, which keep the single-surface stencils' bound (`stencil_bounds`), before
+    /// the manifold repair.
+    pub stencil_min_dihedral_deg: Option<Real>,
 }
 
 impl MeshingReport {

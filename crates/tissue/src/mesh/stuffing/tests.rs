@@ -133,7 +133,7 @@ pub(super) fn nested_balls(n: usize, r_in: Real, r_out: Real) -> crate::image::V
 /// Two labels of one image (a ball of label 2 inside a ball of label 1) give one conforming
 /// mesh whose tetrahedra carry the label they lie in, and whose volume is the voxel volume.
 /// At h = 2 voxels the inner ball (radius 3.5 h) is the chordal polyhedron of a coarse
-/// sphere: −3.2 % of its voxels (the sphere of `sphere_keeps_every_guarantee` loses 5.6 %
+/// sphere: −2.7 % of its voxels (−3.2 % before session 13's α and warp rule) (the sphere of `sphere_keeps_every_guarantee` loses 5.6 %
 /// at r = 2.5 h), the one guarantee broken; every other holds.
 #[test]
 fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
@@ -170,7 +170,7 @@ fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
     let r = &s.report;
     let v = r.violations();
     assert!(
-        v.len() == 1 && v[0].starts_with("label 2: volume -3."),
+        v.len() == 1 && v[0].starts_with("label 2: volume -2."),
         "{r}"
     );
     let centre = c * sp;
@@ -238,7 +238,7 @@ fn a_crack_thinner_than_h_is_reported_and_the_border_closes_the_mesh() {
     assert!(r.input_beyond_half_size > 0.01, "{r}");
     let far = Vec3::from_array(r.farthest_input_sample) / sp;
     assert!(
-        (16.0..19.0).contains(&far.y) && far.x > c.x,
+        (16.0..19.0).contains(&far.y) && far.x >= c.x,
         "farthest at {far} voxels: {r}"
     );
     let resolved = r.resolved_input_to_mesh.unwrap_or(Real::INFINITY);
@@ -282,7 +282,7 @@ mod blobs {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(8))]
         /// Random blobby shapes (sums of up to five Gaussian bumps): no inverted or degenerate
-        /// tetrahedron, every dihedral angle within the proven bounds' neighbourhood.
+        /// tetrahedron, every dihedral angle at least 10° (the stencils keep 10.7° sampled).
         #[test]
         fn random_blobs_give_valid_meshes(
             centres in proptest::collection::vec((-0.5f64..0.5, -0.5f64..0.5, -0.5f64..0.5, 0.15f64..0.35), 1..6),
@@ -301,7 +301,7 @@ mod blobs {
             let r = &s.report;
             prop_assert!(r.tets > 0);
             prop_assert_eq!((r.inverted, r.degenerate), (0, 0), "{}", r);
-            prop_assert!(r.min_dihedral_deg > 0.0, "{}", r);
+            prop_assert!(r.min_dihedral_deg >= 10.0, "{}", r);
             s.mesh.validate_for_simulation().unwrap_or_else(|e| panic!("{e}"));
         }
     }
