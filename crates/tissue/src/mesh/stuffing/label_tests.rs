@@ -317,7 +317,10 @@ fn random_two_label_blobs(seeds: std::ops::RangeInclusive<u64>) {
             .junctions
             .and_then(|j| j.stencil_min_dihedral_deg)
             .unwrap_or(r.min_dihedral_deg);
-        assert!(stencil >= 10.0, "seed {seed}: stencils at {stencil:.2}°: {r}");
+        assert!(
+            stencil >= 10.0,
+            "seed {seed}: stencils at {stencil:.2}°: {r}"
+        );
         worst_stencil = worst_stencil.min(stencil);
         s.mesh
             .validate_for_simulation()
@@ -596,4 +599,3 @@ fn exact_layers_under_compression_give_the_series_stiffness() {
         "{errors:?}"
     );
 }
-

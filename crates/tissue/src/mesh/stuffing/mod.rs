@@ -575,13 +575,8 @@ fn flat_all_zero(
             }
             for &(c, cc) in &moved[j + 1..] {
                 if joined(ca, cc) && joined(cb, cc) {
-                    let p = [v, a, b, c].map(|u| {
-                        if u == v {
-                            at
-                        } else {
-                            cut_at(onto[u as usize])
-                        }
-                    });
+                    let p =
+                        [v, a, b, c].map(|u| if u == v { at } else { cut_at(onto[u as usize]) });
                     if !stencil::keep_all_zero(p) {
                         return true;
                     }

@@ -40,7 +40,8 @@ pub(crate) fn is_red(d: [i64; 3]) -> bool {
     d[0] & 1 == 1
 }
 
-/// The axis along which a long edge (u, v) runs.
+/// The axis along which a long edge (u, v) runs (the sampling study's rules use it).
+#[cfg(test)]
 pub(crate) fn axis(u: [i64; 3], v: [i64; 3]) -> usize {
     (0..3).find(|&i| u[i] != v[i]).unwrap_or(0)
 }

@@ -49,6 +49,9 @@ const NEIGHBOURS: [[i64; 3]; 14] = [
     [-1, -1, -1],
 ];
 
+/// A sign pattern: how many corners are inside, outside, on the boundary.
+pub(crate) type Case = (usize, usize, usize);
+
 /// The worst angles found and the configuration that gave the smallest.
 #[derive(Debug)]
 pub(crate) struct Worst {
@@ -58,7 +61,7 @@ pub(crate) struct Worst {
     pub steiner: usize,
     pub worst_case: String,
     /// Smallest and largest angle per (inside, outside, zero) count.
-    pub per_case: Vec<((usize, usize, usize), (Real, Real))>,
+    pub per_case: Vec<(Case, (Real, Real))>,
 }
 
 /// A fraction in [lo, hi), at either end a third of the time each.
@@ -102,7 +105,7 @@ pub(crate) fn worst(
         worst_case: String::new(),
         per_case: Vec::new(),
     };
-    let mut per_case: FxHashMap<(usize, usize, usize), (Real, Real)> = FxHashMap::default();
+    let mut per_case: FxHashMap<Case, (Real, Real)> = FxHashMap::default();
     let (mut pieces, mut steiner) = (Vec::new(), Vec::new());
     for _ in 0..trials {
         let t = tets[rng.below(tets.len())];
@@ -370,7 +373,10 @@ mod study {
             if only_b.is_some_and(|o| o != b || ab != only_a || ar != only_a) {
                 continue;
             }
-            let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(7);
+            let seed: u64 = std::env::var("SEED")
+                .ok()
+                .and_then(|s| s.parse().ok())
+                .unwrap_or(7);
             let any_order = std::env::var("ANY_ORDER").is_ok();
             let w = worst(configured, n, seed, alpha, any_order);
             let name = format!("black {} red {} B {}", A_NAMES[ab], A_NAMES[ar], B_NAMES[b]);
