@@ -331,11 +331,13 @@ impl fmt::Display for MeshingReport {
                 f,
                 "junctions:       {} lattice tetrahedra where three labels (or two and the \
                  outside) meet, filled by {} cones (min dihedral {:.2}°, no proven bound); {} \
-                 cut points held α·length from a vertex that could not be warped",
+                 cut points held α·length from a vertex that could not be warped; the other \
+                 tetrahedra (two-material stencils, sampled bound 10.7°) min {:.2}°",
                 j.tets,
                 j.pieces,
                 j.min_dihedral_deg.unwrap_or(0.0),
-                j.clamped_cuts
+                j.clamped_cuts,
+                j.stencil_min_dihedral_deg.unwrap_or(0.0)
             )?;
         }
         let v = self.violations();
