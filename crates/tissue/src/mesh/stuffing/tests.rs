@@ -305,6 +305,50 @@ mod blobs {
             s.mesh.validate_for_simulation().unwrap_or_else(|e| panic!("{e}"));
         }
     }
+
+    /// `random_blobs_give_valid_meshes` on many more shapes (`SEEDS=n`, default 200), drawn
+    /// by a fixed generator: the smallest and largest dihedral angle found, printed.
+    /// `cargo test --release -p tissue --lib random_blobs_study -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn random_blobs_study() {
+        use crate::mesh::stuffing::stencil_bounds::Rng;
+        let n: u64 = std::env::var("SEEDS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(200);
+        let (mut lo, mut hi, mut tets): (Real, Real, usize) = (180.0, 0.0, 0);
+        for seed in 1..=n {
+            let mut rng = Rng(seed);
+            let count = 1 + rng.below(5);
+            let bumps: Vec<(Vec3, Real)> = (0..count)
+                .map(|_| {
+                    let c = Vec3::new(rng.unit(), rng.unit(), rng.unit()) - Vec3::splat(0.5);
+                    (c, 0.15 + 0.2 * rng.unit())
+                })
+                .collect();
+            let h = 0.08 + 0.06 * rng.unit();
+            let d = Implicit {
+                f: move |p: Vec3| {
+                    0.5 - bumps
+                        .iter()
+                        .map(|&(c, r)| (-(p - c).length_squared() / (r * r)).exp())
+                        .sum::<Real>()
+                },
+                lo: Vec3::splat(-1.0),
+                hi: Vec3::splat(1.0),
+                volume: None,
+            };
+            let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+            let r = &s.report;
+            assert_eq!((r.inverted, r.degenerate), (0, 0), "seed {seed}: {r}");
+            assert!(r.min_dihedral_deg >= 10.0, "seed {seed}: {r}");
+            lo = lo.min(r.min_dihedral_deg);
+            hi = hi.max(r.max_dihedral_deg);
+            tets += r.tets;
+        }
+        println!("{n} blobs, {tets} tetrahedra: dihedral angles {lo:.2}° .. {hi:.2}°");
+    }
 }
 
 /// Both BCC tetrahedra sharing a lattice face split its quadrilateral the same way: the
