@@ -1,7 +1,8 @@
 //! Isosurface stuffing (Labelle & Shewchuk, "Isosurface stuffing: fast tetrahedral meshes
 //! with good dihedral angles", SIGGRAPH 2007), uniform sizing: a tetrahedral mesh of the
 //! inside of a `Domain` (an implicit shape, a closed surface, a thresholded or labelled
-//! image) whose dihedral angles the paper proves lie in [10.7°, 164.8°].
+//! image) whose dihedral angles lie in the paper's [10.7°, 164.8°]: proven by the paper for
+//! its α, sampled on every stencil case for ours (`stencil_bounds`: 10.73°–164.4°).
 //!
 //! 1. Fill the domain's box with the BCC lattice of spacing h (`lattice`), one cube of
 //!    margin, and take the sign of the domain at every lattice vertex.
@@ -9,8 +10,9 @@
 //!    boundary crosses it.
 //! 3. Warp: a lattice vertex closer to a cut point on one of its edges than α times that
 //!    edge's length (α = `ALPHA_LONG` for the edges of length h, `ALPHA_SHORT` for the
-//!    black–red edges of length h√3/2) moves onto that cut point and takes sign zero; the cut
-//!    points of its edges are dropped.
+//!    black–red edges of length h√3/2) is violated; violated vertices move onto one of their
+//!    violating cut points, in the order of `warping` (a target never moves), and take sign
+//!    zero; the cut points of their edges are dropped.
 //! 4. Fill every BCC tetrahedron by the stencil its signs select (`stencil`).
 //!
 //! A domain with several materials (`Domain::material_tags`: labels of one image) is

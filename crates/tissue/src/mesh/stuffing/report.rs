@@ -13,7 +13,8 @@ use crate::mesh::boundary::boundary_surface;
 use super::domain::Domain;
 use super::triangle_index::TriangleIndex;
 
-/// The guarantee checked on every uniform-size output (Labelle & Shewchuk prove 10.7°).
+/// The guarantee checked on every uniform-size output (the stencils keep 10.7°: proven by
+/// Labelle & Shewchuk for their α, sampled for ours in `stencil_bounds`).
 pub const MIN_DIHEDRAL_DEG: Real = 10.0;
 /// Largest allowed relative volume error.
 pub const MAX_VOLUME_ERROR: Real = 0.01;
