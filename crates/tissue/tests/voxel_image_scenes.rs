@@ -251,8 +251,8 @@ fn selections_that_find_nothing_name_their_key_when_the_image_is_read() {
 }
 
 /// The brain image meshed into tetrahedra when `brain-fem-image.toml` is built: a closed
-/// 2-manifold boundary (the stuffed lattice touched itself along 3 edges and vertices at
-/// 7 mm; those tetrahedra are removed), the volume within 1 % of the cleaned voxels', the
+/// 2-manifold boundary (where the stuffed lattice touches itself along edges or at
+/// vertices, those tetrahedra are removed: a few with the earlier mesher, none now), the volume within 1 % of the cleaned voxels', the
 /// report's one broken promise said (boundary 0.54 h), and a surface kind (`bem`, which
 /// refuses a non-manifold surface) builds on it and pushes the probe up.
 #[test]
@@ -279,7 +279,9 @@ fn the_brain_image_becomes_a_manifold_tet_organ_a_surface_kind_builds_on() {
     let report = s.meshing_report().expect("the scene meshes its image");
     let volume_error = report.volume_error.unwrap();
     assert!(volume_error.abs() < 0.01, "{volume_error}");
-    assert!(report.manifold.removed > 0 && report.manifold.removed < 20);
+    // Session 13's mesher (MESHER_VERSION 5) leaves none there; the earlier one removed a
+    // few: either way the repair stays local.
+    assert!(report.manifold.removed < 20, "{}", report.manifold.removed);
     assert_eq!(
         (report.manifold.edges_left, report.manifold.vertices_left),
         (0, 0)
