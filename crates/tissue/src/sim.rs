@@ -707,7 +707,9 @@ fn keep_and_find(
         // while it pushed let it spring into the probe and be taken again, every other step
         // (a 4 mm probe descending 8 µm a step on the brain scene at dt = 1 ms: the force
         // halved and doubled each step, and the warp factor was refactorised at each change).
-        let moved = c.distance(old.position);
+        // Only a step's motion, not a jump (the viewer parks its probe far away and brings it
+        // back): a contact carried across a jump dragged its vertex along, 1.8 m.
+        let moved = c.distance(old.position).min(CONTACT_MARGIN * r);
         let scale = force_scale(&old.reactions);
         let mut contacts: Vec<Contact> = old
             .contacts
