@@ -98,15 +98,25 @@ impl Scenario {
         Vec3::from(self.probe_point)
     }
 
-    /// The fixed surface vertices of a model (the bottom slab), at least one.
+    /// The fixed surface vertices of a model: the bottom slab, or, where the slab holds
+    /// fewer than three vertices that span a plane (a coarse or stuffed surface can put just
+    /// one or two there, and a static model is then free to move rigidly), the lowest
+    /// vertices up to the first three that do.
     pub fn fixed(&self, rest: &[Vec3]) -> Vec<u32> {
         let mut v: Vec<u32> = (0..rest.len() as u32)
             .filter(|&i| rest[i as usize].y <= self.fixed_below)
             .collect();
-        if v.is_empty()
-            && let Some(i) = lowest(rest)
-        {
+        if spans_a_plane(rest, &v) {
+            return v;
+        }
+        let mut by_height: Vec<u32> = (0..rest.len() as u32).collect();
+        by_height.sort_by(|&a, &b| rest[a as usize].y.total_cmp(&rest[b as usize].y));
+        v.clear();
+        for i in by_height {
             v.push(i);
+            if spans_a_plane(rest, &v) {
+                break;
+            }
         }
         v
     }
@@ -133,8 +143,24 @@ impl Scenario {
     }
 }
 
-fn lowest(rest: &[Vec3]) -> Option<u32> {
-    (0..rest.len() as u32).min_by(|&a, &b| rest[a as usize].y.total_cmp(&rest[b as usize].y))
+/// Whether some three of the listed vertices are not collinear (a body held there cannot
+/// move rigidly).
+fn spans_a_plane(rest: &[Vec3], v: &[u32]) -> bool {
+    let p = |i: u32| rest[i as usize];
+    let Some((&a, others)) = v.split_first() else {
+        return false;
+    };
+    let Some(&b) = others
+        .iter()
+        .max_by(|&&x, &&y| p(x).distance(p(a)).total_cmp(&p(y).distance(p(a))))
+    else {
+        return false;
+    };
+    let (pa, pb) = (p(a), p(b));
+    let scale = pa.distance(pb);
+    scale > 0.0
+        && v.iter()
+            .any(|&c| (pb - pa).cross(p(c) - pa).length() > 1e-6 * scale * scale)
 }
 
 /// The vertex of `points` nearest to `p`.
