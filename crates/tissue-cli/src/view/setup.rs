@@ -106,6 +106,7 @@ impl Setup {
         model.set_real_time(true);
         model.set_progress(progress);
         let mut sim = self.scene.build_with_model(model, &self.body.mesh)?;
+        // Frictionless sliding, `Instrument::new`'s default for a probe (docs/contact.md).
         let probe = Instrument::new(
             PROBE,
             InstrumentKind::Probe,

@@ -215,7 +215,7 @@ pub fn probe_instrument(
     })?;
     let probe = Instrument::new("probe", InstrumentKind::Probe, radius, path)?;
     Ok(match law {
-        ContactLaw::Sticking => probe,
+        ContactLaw::Sticking => probe.sticking(),
         ContactLaw::Frictionless => probe.with_friction(0.0)?,
     })
 }

@@ -80,7 +80,7 @@ fn sim_with(kind: &str, mesh: &MeshData, path: &[(Real, Vec3)], frictionless: bo
     let probe = if frictionless {
         probe.with_friction(0.0).unwrap()
     } else {
-        probe
+        probe.sticking()
     };
     sim.add_instrument(probe);
     sim
