@@ -30,7 +30,9 @@
 //! linearised implicit solve (k min(0, gap)) is not what the solve sees: a vertex free at
 //! the step's start crossed its plane unopposed and was thrown back at the next step (the
 //! sheet's energy grew tenfold in one step as the probe began to slide, and the growth
-//! watch refused it).
+//! watch refused it). Only under implicit Euler (`SplineModel::set_constraints_along`): with
+//! the explicit schemes the penalty contact bounced and the force read at a step's end was
+//! mostly 0, so they keep the relaxation of full holds.
 use crate::error::SimError;
 use crate::integrate::ParticleSystem;
 use crate::math::{Real, Vec3};
