@@ -106,14 +106,23 @@ impl Setup {
         model.set_real_time(true);
         model.set_progress(progress);
         let mut sim = self.scene.build_with_model(model, &self.body.mesh)?;
-        // Frictionless sliding, `Instrument::new`'s default for a probe (docs/contact.md).
+        // Frictionless sliding, `Instrument::new`'s default for a probe, unless the scene
+        // asks its pushing instrument to stick (a scene on a mesh too coarse for its probe
+        // to slide on: docs/contact.md, "Frictionless by default").
         let probe = Instrument::new(
             PROBE,
             InstrumentKind::Probe,
             self.probe_radius,
             Trajectory::fixed(self.park),
         )?;
-        sim.add_instrument(probe);
+        let sticking = self
+            .scene
+            .instruments
+            .iter()
+            .map(|i| &i.value)
+            .find(|i| matches!(i.kind.as_str(), "probe" | "capsule" | "plane" | "box"))
+            .is_some_and(|i| i.contact.as_deref() == Some("sticking"));
+        sim.add_instrument(if sticking { probe.sticking() } else { probe });
         Ok(sim)
     }
 }
