@@ -701,7 +701,15 @@ fn keep_and_find(
         // A sticking probe keeps the contact rule it had before sliding contact existed,
         // to the last rounding (explicit kinds' scenes are sensitive to it over thousands
         // of steps): the previous contacts still on the sphere that did not pull, their
-        // vertices projected radially onto it.
+        // vertices projected radially onto it. "On the sphere" allows for the probe's own
+        // motion since the last step: a vertex held on the old sphere above its equator is
+        // outside the new one by up to that much when the probe moves on, and dropping it
+        // while it pushed let it spring into the probe and be taken again, every other step
+        // (a 4 mm probe descending 8 µm a step on the brain scene at dt = 1 ms: the force
+        // halved and doubled each step, and the warp factor was refactorised at each change).
+        // Only a step's motion, not a jump (the viewer parks its probe far away and brings it
+        // back): a contact carried across a jump dragged its vertex along, 1.8 m.
+        let moved = c.distance(old.position).min(CONTACT_MARGIN * r);
         let scale = force_scale(&old.reactions);
         let mut contacts: Vec<Contact> = old
             .contacts
@@ -712,7 +720,7 @@ fn keep_and_find(
             })
             .filter_map(|(k, _)| {
                 let p = *positions.get(k.vertex as usize)?;
-                (p.distance(c) <= r * (1.0 + PENETRATION_TOLERANCE)).then(|| {
+                (p.distance(c) <= r * (1.0 + PENETRATION_TOLERANCE) + moved).then(|| {
                     Contact::on_surface(
                         k.vertex,
                         project_to_sphere(p, c, *r, k.target - old.position),

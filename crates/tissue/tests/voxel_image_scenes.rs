@@ -251,8 +251,8 @@ fn selections_that_find_nothing_name_their_key_when_the_image_is_read() {
 }
 
 /// The brain image meshed into tetrahedra when `brain-fem-image.toml` is built: a closed
-/// 2-manifold boundary (the stuffed lattice touched itself along 3 edges and vertices at
-/// 7 mm; those tetrahedra are removed), the volume within 1 % of the cleaned voxels', the
+/// 2-manifold boundary (where the stuffed lattice touches itself along edges or at
+/// vertices, those tetrahedra are removed: a few with the earlier mesher, none now), the volume within 1 % of the cleaned voxels', the
 /// report's one broken promise said (boundary 0.54 h), and a surface kind (`bem`, which
 /// refuses a non-manifold surface) builds on it and pushes the probe up.
 #[test]
@@ -279,7 +279,9 @@ fn the_brain_image_becomes_a_manifold_tet_organ_a_surface_kind_builds_on() {
     let report = s.meshing_report().expect("the scene meshes its image");
     let volume_error = report.volume_error.unwrap();
     assert!(volume_error.abs() < 0.01, "{volume_error}");
-    assert!(report.manifold.removed > 0 && report.manifold.removed < 20);
+    // Session 13's mesher (MESHER_VERSION 5) leaves none there; the earlier one removed a
+    // few: either way the repair stays local.
+    assert!(report.manifold.removed < 20, "{}", report.manifold.removed);
     assert_eq!(
         (report.manifold.edges_left, report.manifold.vertices_left),
         (0, 0)
@@ -336,4 +338,50 @@ fn the_hip_muscle_becomes_one_manifold_tet_organ_that_pushes_the_probe_back() {
         peak.y > 0.1 && peak.y > peak.x.abs().max(peak.z.abs()),
         "{peak}"
     );
+}
+
+/// A sticking probe pressing 8 mm into the brain organ meshed at 7 mm (`brain-fem-image.toml`,
+/// here with `fem-semi-implicit`) feels the same force at the end whatever the step, and a
+/// force that changes smoothly from step to step. A contact held on the probe's flank, above
+/// its equator, used to be dropped while it pushed whenever the probe moved on (it was then
+/// outside the moved sphere), sprang into the probe and was taken again a step later: the
+/// force halved and doubled every step at dt = 2 ms (jumps of 160 %) and the end force was
+/// 0.10 N at 2 ms against 0.16 N at 10 ms.
+#[test]
+fn a_sticking_probe_on_the_brain_organ_feels_the_same_force_at_any_step() {
+    let mut s = scene("brain-fem-image.toml");
+    s.model_kind = "fem-semi-implicit".into();
+    for inst in &mut s.instruments {
+        inst.value.contact = Some("sticking".into());
+        inst.value.friction = None;
+    }
+    let run = |dt: f64| {
+        let mut sim = s.build().unwrap();
+        let steps = (s.run.duration / dt).round() as usize;
+        let mut forces = Vec::with_capacity(steps);
+        for _ in 0..steps {
+            sim.step(dt).unwrap();
+            forces.push(sim.instrument_forces().iter().copied().sum::<Vec3>());
+        }
+        forces
+    };
+    let (fine, coarse) = (run(0.002), run(0.01));
+    let (a, b) = (fine[fine.len() - 1], coarse[coarse.len() - 1]);
+    let gap = (a - b).length() / b.length();
+    println!(
+        "end force at 2 ms {a}, at 10 ms {b}: {:.2} % apart",
+        100.0 * gap
+    );
+    assert!(b.z > 0.03 && gap < 0.03, "2 ms {a}, 10 ms {b}");
+    // From 0.3 s (the probe well in) no step changes the force by more than 3 %.
+    let from = fine.len() * 3 / 10;
+    let worst = fine[from..]
+        .windows(2)
+        .map(|w| (w[1] - w[0]).length() / w[0].length())
+        .fold(0.0, f64::max);
+    println!(
+        "largest change of the force in one 2 ms step after 0.3 s: {:.2} %",
+        100.0 * worst
+    );
+    assert!(worst < 0.03, "{worst}");
 }

@@ -175,7 +175,7 @@ fn check(s: &Stuffed, d: &ImageDomain, h: Real) -> Found {
 fn nested_balls_give_a_conforming_closed_interface() {
     let d = ImageDomain::from_labels(&super::tests::nested_balls(40, 7.0, 16.0), &[1.0, 2.0])
         .unwrap_or_else(|e| panic!("{e}"));
-    for (h, inner) in [(0.002, 0.035), (0.0015, 0.03)] {
+    for (h, inner) in [(0.002, 0.035), (0.0015, 0.04)] {
         let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
         let r = &s.report;
         println!("h = {h}:\n{r}");
@@ -231,11 +231,31 @@ impl Lcg {
 /// voxels'. Nearer (the junction tetrahedra, where the interface is coned to one point per
 /// tetrahedron and cut points are held α·length from unwarped vertices) no bound is
 /// claimed: measured up to 0.53 h on these seeds, printed.
+/// Every two-material stencil tetrahedron keeps 10° (the stencils' sampled bound is
+/// 10.7°, `stencil_bounds`); the junction tetrahedra have no proven bound and are printed.
 #[test]
 fn random_two_label_blobs_conform() {
+    random_two_label_blobs(1..=6);
+}
+
+/// `random_two_label_blobs_conform` on more seeds (`SEEDS=n`, default 60): the smallest
+/// angle of the two-material stencils and of the junction tetrahedra found.
+/// `cargo test --release -p tissue --lib random_two_label_blobs_study -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn random_two_label_blobs_study() {
+    let n: u64 = std::env::var("SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(60);
+    random_two_label_blobs(1..=n);
+}
+
+fn random_two_label_blobs(seeds: std::ops::RangeInclusive<u64>) {
     let mut worst_junction: Real = 180.0;
+    let mut worst_stencil: Real = 180.0;
     let (mut near_straddle, mut near_interface): (Real, Real) = (0.0, 0.0);
-    for seed in 1..=6u64 {
+    for seed in seeds {
         let mut rng = Lcg(seed);
         let n = 32;
         let bumps = |rng: &mut Lcg, count: usize, scale: Real| -> Vec<(Vec3, Real)> {
@@ -293,12 +313,22 @@ fn random_two_label_blobs_conform() {
         if let Some(j) = r.junctions.and_then(|j| j.min_dihedral_deg) {
             worst_junction = worst_junction.min(j);
         }
+        let stencil = r
+            .junctions
+            .and_then(|j| j.stencil_min_dihedral_deg)
+            .unwrap_or(r.min_dihedral_deg);
+        assert!(
+            stencil >= 10.0,
+            "seed {seed}: stencils at {stencil:.2}°: {r}"
+        );
+        worst_stencil = worst_stencil.min(stencil);
         s.mesh
             .validate_for_simulation()
             .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
     }
     println!(
-        "over the seeds: smallest junction angle {worst_junction:.2}°, near the outer \
+        "over the seeds: smallest two-material stencil angle {worst_stencil:.2}°, smallest \
+         junction angle {worst_junction:.2}°, near the outer \
          boundary tetrahedra across the interface by up to {near_straddle:.3} h, interface up \
          to {near_interface:.3} h from the voxels'"
     );

@@ -1,7 +1,8 @@
 //! Isosurface stuffing (Labelle & Shewchuk, "Isosurface stuffing: fast tetrahedral meshes
 //! with good dihedral angles", SIGGRAPH 2007), uniform sizing: a tetrahedral mesh of the
 //! inside of a `Domain` (an implicit shape, a closed surface, a thresholded or labelled
-//! image) whose dihedral angles the paper proves lie in [10.7°, 164.8°].
+//! image) whose dihedral angles lie in the paper's [10.7°, 164.8°]: proven by the paper for
+//! its α, sampled on every stencil case for ours (`stencil_bounds`: 10.73°–164.4°).
 //!
 //! 1. Fill the domain's box with the BCC lattice of spacing h (`lattice`), one cube of
 //!    margin, and take the sign of the domain at every lattice vertex.
@@ -9,8 +10,9 @@
 //!    boundary crosses it.
 //! 3. Warp: a lattice vertex closer to a cut point on one of its edges than α times that
 //!    edge's length (α = `ALPHA_LONG` for the edges of length h, `ALPHA_SHORT` for the
-//!    black–red edges of length h√3/2) moves onto that cut point and takes sign zero; the cut
-//!    points of its edges are dropped.
+//!    black–red edges of length h√3/2) is violated; violated vertices move onto one of their
+//!    violating cut points, in the order of `warping` (a target never moves), and take sign
+//!    zero; the cut points of their edges are dropped.
 //! 4. Fill every BCC tetrahedron by the stencil its signs select (`stencil`).
 //!
 //! A domain with several materials (`Domain::material_tags`: labels of one image) is
@@ -35,6 +37,7 @@ mod stencil;
 mod stencil_bounds;
 pub mod surface_domain;
 pub mod triangle_index;
+mod warping;
 
 use std::time::Instant;
 
@@ -56,11 +59,20 @@ use stencil::{Fill, Key};
 pub use surface_domain::SurfaceDomain;
 pub use triangle_index::TriangleIndex;
 
-/// Warping threshold on the long (length h) edges, from the paper's uniform-sizing proof.
-pub const ALPHA_LONG: Real = 0.24999;
-/// Warping threshold on the short (length h·√3/2) edges.
-pub const ALPHA_SHORT: Real = 0.41189;
-/// The paper's proven dihedral bounds for uniform sizing with these α, in degrees.
+/// Warping threshold on the long (length h) edges. Not the paper's 0.24999: with the paper's
+/// pair our construction (the paper's stencils and parity rule, `warping`'s rule) is sampled
+/// at 9.3°, below its proven 10.7°; this pair was chosen by scanning the three stencil
+/// cases that bound the angle (a whole tetrahedron with three warped corners, which gets
+/// worse as α grows; the pyramid with a warped apex, which gets better; one inside, one
+/// outside and two warped corners) where they meet, and is sampled at 10.73°–164.3°
+/// (`stencil_bounds`; docs/meshing.md, "Quadrilateral splits and the angle bound").
+pub const ALPHA_LONG: Real = 0.2835;
+/// Warping threshold on the short (length h·√3/2) edges (the paper's: 0.41189).
+pub const ALPHA_SHORT: Real = 0.401;
+/// The dihedral bounds (degrees) that stuffing keeps at uniform sizing: the paper's proven
+/// [10.7°, 164.8°], held by our construction with these α by sampling every stencil case
+/// (`stencil_bounds::every_stencil_keeps_the_dihedral_bounds`); a tetrahedron with all four
+/// corners warped onto the boundary is kept only within them (`stencil::keep_all_zero`).
 pub const PROVEN_DIHEDRAL_DEG: (Real, Real) = (10.7, 164.8);
 /// Lattices beyond this many vertices are refused (memory: ~30 bytes each).
 pub const MAX_LATTICE_VERTICES: usize = 16_000_000;
@@ -198,9 +210,11 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
         cuts.push(Cut { a, b, at });
     });
 
-    // 3. Warping. A cut point violates at most one end (both α < 1/2).
+    // 3. Warping. A cut point violates at most one end (both α < 1/2). Which violated
+    // vertices move, and onto which cut point: `warping` (a vertex moves only onto a cut
+    // point whose other end never moves, which the stencils' angle bound needs).
     progress.report("warping", 0.0);
-    let mut candidates: Vec<(u32, Real, u32)> = Vec::new();
+    let mut violations: Vec<warping::Violation> = Vec::new();
     let alpha_of = |a: u32, b: u32| {
         if lattice.is_long(a, b) {
             ALPHA_LONG
@@ -213,48 +227,65 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
         let len = (pb - pa).length();
         let alpha = alpha_of(cut.a, cut.b);
         let (da, db) = ((cut.at - pa).length(), (cut.at - pb).length());
-        if da < alpha * len {
-            candidates.push((cut.a, da, c as u32));
+        let (v, other, dist) = if da < alpha * len {
+            (cut.a, cut.b, da)
         } else if db < alpha * len {
-            candidates.push((cut.b, db, c as u32));
-        }
+            (cut.b, cut.a, db)
+        } else {
+            continue;
+        };
+        violations.push(warping::Violation {
+            v,
+            other,
+            cut: c as u32,
+            dist,
+        });
     }
-    candidates.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
-    let mut warped = 0;
-    for &(v, _, c) in &candidates {
+    let warps = if multi {
+        // The rank is the material (0 outside); a vertex next to a third material stays,
+        // and so does one that would complete a tetrahedron of four warped corners outside
+        // the angle bounds (α_long > 1/4 lets a plane a quarter of the way along the long
+        // edges take all four corners of a tetrahedron: flat). Such a tetrahedron is dropped
+        // on the outer boundary, but between two labels it must be kept (see below).
+        let cut_at = |c: u32| cuts[c as usize].at;
+        warping::plan(
+            nl,
+            &mut violations,
+            |v| material[v as usize],
+            |v, other| may_warp(&lattice, &material, v, material[other as usize]),
+            |v, c, onto| flat_all_zero(&lattice, v, cut_at(c), onto, &cut_at),
+        )
+    } else {
+        warping::plan(
+            nl,
+            &mut violations,
+            |v| u16::from(sign[v as usize] < 0),
+            |_, _| true,
+            |_, _, _| false,
+        )
+    };
+    let warped = warps.len();
+    for &(v, c) in &warps {
         let cut = &cuts[c as usize];
         let other = if cut.a == v { cut.b } else { cut.a };
+        pos[v as usize] = cut.at;
+        sign[v as usize] = 0;
         if multi {
-            // Both ends still inside one material, and v next to no third material.
-            let (sv, so) = (side[v as usize], side[other as usize]);
-            let to = material[other as usize];
-            if sv.is_single() && so.is_single() && may_warp(&lattice, &material, v, to) {
-                pos[v as usize] = cut.at;
-                side[v as usize] = Side {
-                    a: material[v as usize],
-                    b: to,
-                };
-                sign[v as usize] = 0;
-                warped += 1;
-            }
-        } else if sign[v as usize] != 0 && sign[other as usize] != 0 {
-            // The nearest cut point still alive: neither end already warped.
-            pos[v as usize] = cut.at;
-            sign[v as usize] = 0;
-            warped += 1;
+            side[v as usize] = Side {
+                a: material[v as usize],
+                b: material[other as usize],
+            };
         }
     }
     // A vertex refused a warp (next to a third material) keeps its cut points at least
-    // α·length away, as warping would have left them.
+    // α·length away, as warping would have left them. With one region nothing is left
+    // violated (`warping`), so nothing is clamped.
     let mut clamped = 0;
     if multi {
-        for &(v, _, c) in &candidates {
-            let cut = &cuts[c as usize];
-            let other = if cut.a == v { cut.b } else { cut.a };
-            if side[v as usize].is_single() && side[other as usize].is_single() {
-                let (pv, po) = (pos[v as usize], pos[other as usize]);
-                let at = pv + alpha_of(v, other) * (po - pv);
-                cuts[c as usize].at = at;
+        for w in &violations {
+            if side[w.v as usize].is_single() && side[w.other as usize].is_single() {
+                let (pv, po) = (pos[w.v as usize], pos[w.other as usize]);
+                cuts[w.cut as usize].at = pv + alpha_of(w.v, w.other) * (po - pv);
                 clamped += 1;
             }
         }
@@ -313,6 +344,8 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     let mut steiner: Vec<[Key; 6]> = Vec::new();
     let mut steiner_points = 0;
     let mut junctions = Junctions::default();
+    // The smallest angle (radians) of the two-material stencils' tetrahedra.
+    let mut stencil_min = Real::INFINITY;
     let tag_of = |m: u16| material_tags[usize::from(m) - 1];
     lattice.for_each_tet(|t| {
         if !multi {
@@ -431,7 +464,8 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
         if zero {
             all_zero.push(t);
         }
-        if let Some((_, parts, all_steiner)) = best {
+        if let Some((worst, parts, all_steiner)) = best {
+            stencil_min = stencil_min.min(worst);
             steiner_points += all_steiner.len();
             out.add_tagged(&parts, &all_steiner, cut_base, &actual, &reference, tag_of);
         }
@@ -471,6 +505,10 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
                 c => c[0],
             }
         };
+        stencil_min = dihedral_angles(keys.map(actual))
+            .iter()
+            .copied()
+            .fold(stencil_min, Real::min);
         out.add_tagged(&[(keys, m)], &[], cut_base, &actual, &reference, tag_of);
     }
     if missing_cut.get() {
@@ -503,10 +541,52 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
             pieces: junctions.pieces,
             min_dihedral_deg: junctions.min_dihedral_deg,
             clamped_cuts: clamped,
+            stencil_min_dihedral_deg: stencil_min.is_finite().then(|| stencil_min.to_degrees()),
         });
     }
     progress.report("report", 1.0);
     Ok(Stuffed { mesh, tags, report })
+}
+
+/// Whether moving lattice vertex `v` to `at` would complete a tetrahedron of the lattice
+/// whose four corners have all moved (`onto`: the cut point each moved onto, or
+/// `warping::STAYS`) with a dihedral angle outside the bounds (`stencil::keep_all_zero`).
+fn flat_all_zero(
+    lattice: &Lattice,
+    v: u32,
+    at: Vec3,
+    onto: &[u32],
+    cut_at: &dyn Fn(u32) -> Vec3,
+) -> bool {
+    let mut moved: Vec<(u32, [i64; 3])> = Vec::new();
+    lattice.for_each_neighbour(v, |u| {
+        if onto[u as usize] != warping::STAYS {
+            moved.push((u, lattice.coords(u)));
+        }
+    });
+    // Two lattice vertices are joined by an edge when they differ by a long edge (2 along
+    // one axis, same colour) or a short one (1 along every axis).
+    let joined = |a: [i64; 3], b: [i64; 3]| {
+        let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]].map(i64::abs);
+        d.iter().all(|&x| x == 1) || (d.iter().sum::<i64>() == 2 && d.contains(&2))
+    };
+    for (i, &(a, ca)) in moved.iter().enumerate() {
+        for (j, &(b, cb)) in moved.iter().enumerate().skip(i + 1) {
+            if !joined(ca, cb) {
+                continue;
+            }
+            for &(c, cc) in &moved[j + 1..] {
+                if joined(ca, cc) && joined(cb, cc) {
+                    let p =
+                        [v, a, b, c].map(|u| if u == v { at } else { cut_at(onto[u as usize]) });
+                    if !stencil::keep_all_zero(p) {
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+    false
 }
 
 /// The exact-distance index of a surface domain, if `domain` is one.

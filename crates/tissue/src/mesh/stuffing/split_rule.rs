@@ -40,25 +40,42 @@ pub(crate) fn is_red(d: [i64; 3]) -> bool {
     d[0] & 1 == 1
 }
 
-/// The axis along which a long edge (u, v) runs.
+/// The axis along which a long edge (u, v) runs (the sampling study's rules use it).
+#[cfg(test)]
 pub(crate) fn axis(u: [i64; 3], v: [i64; 3]) -> usize {
     (0..3).find(|&i| u[i] != v[i]).unwrap_or(0)
 }
 
-/// The rule stuffing uses.
-/// - u, v joined by a long edge (two black or two red vertices; the face is symmetric
-///   about the plane half way between them): the diagonal ends at the one whose cube index
-///   along the edge is even, a parity that alternates along every lattice line, so
-///   neighbouring faces of a BCC tetrahedron never all turn the same way.
+/// The rule stuffing uses: Labelle & Shewchuk's (2007, section 3.3).
+/// - u, v joined by a long edge (two black or two red vertices): the paper's parity rule.
+///   Of the two diagonals exactly one, lattice vertex X to cut point C, has an odd number
+///   of coordinates in which X > C (the other differs from it in the edge's coordinate
+///   only); a black edge takes that one, a red edge the other. The choice depends on the
+///   face's shape, not on where it lies, and it turns the two faces that share a long edge
+///   opposite ways (their outside vertices differ in one coordinate's side), so the prism
+///   of a two-in two-out tetrahedron has its diagonals at different ends of the edge.
 /// - u, v joined by a short edge (one of them, the "base", shares the face's long edge with
 ///   w): the diagonal ends at the other one, the apex, and so meets the cut point on the
-///   long edge. The sampling in `stencil_bounds` measured this choice against the three
-///   others (the base, always black, always red): it alone keeps the three-inside prisms
-///   and the pyramids above 9.3° (the base choice falls to 6.2°).
+///   long edge (the paper's stencils draw it so).
+///
+/// Before session 13 a long edge took the end whose cube index along the edge is even (the
+/// same end for both faces sharing the edge). The sampling in `stencil_bounds` measured
+/// both rules at the same worst angle (the worst cases are a pyramid with a short inside
+/// edge and tetrahedra without quadrilaterals); the paper's is kept as the one its proof
+/// is about.
 pub(crate) const PARITY: Touch = |u, v, w| {
     if is_red(u) == is_red(v) {
-        u[axis(u, v)].div_euclid(2).rem_euclid(2) == 0
+        paper_parity(u, v, w)
     } else {
         is_red(u) != is_red(w)
     }
 };
+
+/// Whether the diagonal of a face with inside long edge (u, v) and outside vertex w ends
+/// at u, by the parity rule: `odd` counts the coordinates in which u exceeds the cut point
+/// on (v, w) (any point strictly inside that edge compares as its midpoint does, as the
+/// lattice coordinates are integers: doubled, 2·u > v + w).
+pub(crate) fn paper_parity(u: [i64; 3], v: [i64; 3], w: [i64; 3]) -> bool {
+    let odd = (0..3).filter(|&i| 2 * u[i] > v[i] + w[i]).count() % 2 == 1;
+    odd != is_red(u)
+}

@@ -113,14 +113,17 @@ pub(crate) fn fill(
 }
 
 /// Whether a tetrahedron whose four (warped) corners are all on the boundary is kept
-/// (when its centre is inside). Warping may squash it into a sliver: the sampling in
-/// `stencil_bounds` found 4.7° with the paper's α. Such a tetrahedron has all its faces on the
-/// boundary side, so leaving it out keeps the mesh conforming (its faces become boundary
-/// faces, their corners on the surface) and loses only its small volume.
+/// (when its centre is inside). Warping may squash it into a sliver (the sampling in
+/// `stencil_bounds` found 4.7° with the paper's α) or open it past the largest bound. Such a
+/// tetrahedron has all its faces on the boundary side, so leaving it out keeps the mesh
+/// conforming (its faces become boundary faces, their corners on the surface) and loses
+/// only its small volume.
 pub(crate) fn keep_all_zero(p: [crate::math::Vec3; 4]) -> bool {
-    super::report::dihedral_angles(p)
-        .iter()
-        .all(|a| a.to_degrees() >= super::PROVEN_DIHEDRAL_DEG.0)
+    let (lo, hi) = super::PROVEN_DIHEDRAL_DEG;
+    super::report::dihedral_angles(p).iter().all(|a| {
+        let a = a.to_degrees();
+        (lo..=hi).contains(&a)
+    })
 }
 
 /// Where Steiner points' keys start: above every lattice vertex and cut point key.

@@ -133,7 +133,7 @@ pub(super) fn nested_balls(n: usize, r_in: Real, r_out: Real) -> crate::image::V
 /// Two labels of one image (a ball of label 2 inside a ball of label 1) give one conforming
 /// mesh whose tetrahedra carry the label they lie in, and whose volume is the voxel volume.
 /// At h = 2 voxels the inner ball (radius 3.5 h) is the chordal polyhedron of a coarse
-/// sphere: −3.2 % of its voxels (the sphere of `sphere_keeps_every_guarantee` loses 5.6 %
+/// sphere: −2.7 % of its voxels (−3.2 % before session 13's α and warp rule) (the sphere of `sphere_keeps_every_guarantee` loses 5.6 %
 /// at r = 2.5 h), the one guarantee broken; every other holds.
 #[test]
 fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
@@ -170,7 +170,7 @@ fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
     let r = &s.report;
     let v = r.violations();
     assert!(
-        v.len() == 1 && v[0].starts_with("label 2: volume -3."),
+        v.len() == 1 && v[0].starts_with("label 2: volume -2."),
         "{r}"
     );
     let centre = c * sp;
@@ -238,7 +238,7 @@ fn a_crack_thinner_than_h_is_reported_and_the_border_closes_the_mesh() {
     assert!(r.input_beyond_half_size > 0.01, "{r}");
     let far = Vec3::from_array(r.farthest_input_sample) / sp;
     assert!(
-        (16.0..19.0).contains(&far.y) && far.x > c.x,
+        (16.0..19.0).contains(&far.y) && far.x >= c.x,
         "farthest at {far} voxels: {r}"
     );
     let resolved = r.resolved_input_to_mesh.unwrap_or(Real::INFINITY);
@@ -282,7 +282,7 @@ mod blobs {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(8))]
         /// Random blobby shapes (sums of up to five Gaussian bumps): no inverted or degenerate
-        /// tetrahedron, every dihedral angle within the proven bounds' neighbourhood.
+        /// tetrahedron, every dihedral angle at least 10° (the stencils keep 10.7° sampled).
         #[test]
         fn random_blobs_give_valid_meshes(
             centres in proptest::collection::vec((-0.5f64..0.5, -0.5f64..0.5, -0.5f64..0.5, 0.15f64..0.35), 1..6),
@@ -301,9 +301,53 @@ mod blobs {
             let r = &s.report;
             prop_assert!(r.tets > 0);
             prop_assert_eq!((r.inverted, r.degenerate), (0, 0), "{}", r);
-            prop_assert!(r.min_dihedral_deg > 0.0, "{}", r);
+            prop_assert!(r.min_dihedral_deg >= 10.0, "{}", r);
             s.mesh.validate_for_simulation().unwrap_or_else(|e| panic!("{e}"));
         }
+    }
+
+    /// `random_blobs_give_valid_meshes` on many more shapes (`SEEDS=n`, default 200), drawn
+    /// by a fixed generator: the smallest and largest dihedral angle found, printed.
+    /// `cargo test --release -p tissue --lib random_blobs_study -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn random_blobs_study() {
+        use crate::mesh::stuffing::stencil_bounds::Rng;
+        let n: u64 = std::env::var("SEEDS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(200);
+        let (mut lo, mut hi, mut tets): (Real, Real, usize) = (180.0, 0.0, 0);
+        for seed in 1..=n {
+            let mut rng = Rng(seed);
+            let count = 1 + rng.below(5);
+            let bumps: Vec<(Vec3, Real)> = (0..count)
+                .map(|_| {
+                    let c = Vec3::new(rng.unit(), rng.unit(), rng.unit()) - Vec3::splat(0.5);
+                    (c, 0.15 + 0.2 * rng.unit())
+                })
+                .collect();
+            let h = 0.08 + 0.06 * rng.unit();
+            let d = Implicit {
+                f: move |p: Vec3| {
+                    0.5 - bumps
+                        .iter()
+                        .map(|&(c, r)| (-(p - c).length_squared() / (r * r)).exp())
+                        .sum::<Real>()
+                },
+                lo: Vec3::splat(-1.0),
+                hi: Vec3::splat(1.0),
+                volume: None,
+            };
+            let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+            let r = &s.report;
+            assert_eq!((r.inverted, r.degenerate), (0, 0), "seed {seed}: {r}");
+            assert!(r.min_dihedral_deg >= 10.0, "seed {seed}: {r}");
+            lo = lo.min(r.min_dihedral_deg);
+            hi = hi.max(r.max_dihedral_deg);
+            tets += r.tets;
+        }
+        println!("{n} blobs, {tets} tetrahedra: dihedral angles {lo:.2}° .. {hi:.2}°");
     }
 }
 
