@@ -40,7 +40,7 @@ fn unknown_key_in_a_scene_fails_naming_it() {
         err.contains("step_size") && err.contains("bad.toml"),
         "{err}"
     );
-    assert!(err.contains("line 30"), "{err}");
+    assert!(err.contains("line 31"), "{err}");
 }
 
 #[test]
@@ -143,6 +143,8 @@ fn failing_step_names_step_and_keeps_outputs() {
             "kind = \"probe\"",
             "kind = \"scalpel\"\ndirection = [0.0, 1.0, 0.0]\nlength = 0.01",
         )
+        // A scalpel takes no `contact` (the probe's line; its comment stays a comment).
+        .replace("contact = \"sticking\"", "")
         .replace("radius = 0.005                # m", "");
     let scene = dir.join("cut.toml");
     std::fs::write(&scene, text).unwrap();

@@ -755,7 +755,7 @@ fn keep_and_find(
             let touching = shape.closest(c, p, fallback).depth <= margin.unwrap_or(slack);
             (touching || frictional).then(|| {
                 let base = match inst.friction() {
-                    // Sticking contact (the default): the vertex, where it is, onto the
+                    // Sticking contact: the vertex, where it is, onto the
                     // instrument (the contact rule from before sliding contact existed).
                     None => p,
                     // Frictional: the target, where the last solve (or sliding) left it,

@@ -198,8 +198,12 @@ fn path(keys: &[(Real, Vec3)]) -> Trajectory {
     .unwrap()
 }
 
+/// A sticking probe (what these checks were written for; frictionless sliding, the
+/// default, is checked in `sliding_contact.rs`, `normal_holds.rs`, `push_only_kinds.rs`).
 fn probe(r: Real, keys: &[(Real, Vec3)]) -> Instrument {
-    Instrument::new("probe", InstrumentKind::Probe, r, path(keys)).unwrap()
+    Instrument::new("probe", InstrumentKind::Probe, r, path(keys))
+        .unwrap()
+        .sticking()
 }
 
 const H: Real = 0.01;

@@ -24,6 +24,9 @@ pub struct Setup {
     pub bounds: Bounds,
     pub park: Vec3,
     pub probe_radius: Real,
+    /// The scene's pushing instrument asks for sticking contact (read before the scripted
+    /// instruments are taken out): the viewer's probe then sticks too.
+    pub probe_sticks: bool,
     pub grasp_radius: Real,
     pub scalpel_depth: Real,
 }
@@ -51,6 +54,12 @@ impl Setup {
             .find(|i| i.value.kind == "probe")
             .and_then(|i| i.value.radius)
             .unwrap_or(0.04 * diag);
+        let probe_sticks = scene
+            .instruments
+            .iter()
+            .map(|i| &i.value)
+            .find(|i| matches!(i.kind.as_str(), "probe" | "capsule" | "plane" | "box"))
+            .is_some_and(|i| i.contact.as_deref() == Some("sticking"));
         let mut bare = scene.clone();
         bare.instruments.clear();
         Ok((
@@ -63,6 +72,7 @@ impl Setup {
                 },
                 park: center + Vec3::new(0.0, 20.0 * diag, 0.0),
                 probe_radius,
+                probe_sticks,
                 grasp_radius: 1.5 * probe_radius,
                 scalpel_depth: 0.15 * diag,
             },
@@ -106,13 +116,21 @@ impl Setup {
         model.set_real_time(true);
         model.set_progress(progress);
         let mut sim = self.scene.build_with_model(model, &self.body.mesh)?;
+        // Frictionless sliding, `Instrument::new`'s default for a probe, unless the scene
+        // asks its pushing instrument to stick (a scene on a mesh too coarse for its probe
+        // to slide on: docs/contact.md, "Frictionless by default").
         let probe = Instrument::new(
             PROBE,
             InstrumentKind::Probe,
             self.probe_radius,
             Trajectory::fixed(self.park),
         )?;
-        sim.add_instrument(probe);
+        // (The bare scene has no instruments left to ask: `probe_sticks` was read before.)
+        sim.add_instrument(if self.probe_sticks {
+            probe.sticking()
+        } else {
+            probe
+        });
         Ok(sim)
     }
 }

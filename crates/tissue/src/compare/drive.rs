@@ -17,7 +17,7 @@ use super::Settings;
 /// How the comparison's probe touches the organ.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ContactLaw {
-    /// A touched vertex is held at its point of the probe (the project's default contact).
+    /// A touched vertex is held at its point of the probe (`Instrument::sticking`).
     #[default]
     Sticking,
     /// Frictionless (`contact = "sliding"`): a touched vertex is held along the probe's normal
@@ -215,7 +215,7 @@ pub fn probe_instrument(
     })?;
     let probe = Instrument::new("probe", InstrumentKind::Probe, radius, path)?;
     Ok(match law {
-        ContactLaw::Sticking => probe,
+        ContactLaw::Sticking => probe.sticking(),
         ContactLaw::Frictionless => probe.with_friction(0.0)?,
     })
 }

@@ -780,9 +780,10 @@ fn run_random_path(
             reason: e.to_string(),
         }
     })?;
+    // Each kind keeps the contact its scenario was validated with (a grasper holds).
     let mut inst = Instrument::new("random", kindi, sc.probe_radius, path)?;
-    if !rp.grasp && ContactLaw::of(kind) == ContactLaw::Frictionless {
-        inst = inst.with_friction(0.0)?;
+    if !rp.grasp && ContactLaw::of(kind) == ContactLaw::Sticking {
+        inst = inst.sticking();
     }
     sim.add_instrument(inst);
     let dt = if st.is_static { duration / 8.0 } else { st.dt };

@@ -64,10 +64,10 @@ pub struct Instrument {
     pub(crate) grasped: Vec<(u32, Vec3)>,
     pub(crate) grasp_done: bool,
     pub(crate) force: Vec3,
-    /// `None`: sticking contact (a touched vertex is held at its point of the instrument
-    /// within a step, the default); `Some(μ)`: sliding contact with Coulomb friction μ (0:
-    /// frictionless), opted into with `with_friction` (scene keys `contact = "sliding"`,
-    /// `friction`).
+    /// `Some(μ)`: sliding contact with Coulomb friction μ (0: frictionless, the default of
+    /// the pushing kinds; `with_friction`, scene key `friction`); `None`: sticking contact
+    /// (a touched vertex is held at its point of the instrument within a step: `sticking`,
+    /// scene key `contact = "sticking"`; graspers and scalpels).
     friction: Option<Real>,
     pub(crate) slider: Slider,
 }
@@ -180,13 +180,32 @@ impl Instrument {
             force: Vec3::ZERO,
             friction: None,
             slider: Slider::default(),
-        })
+        }
+        .frictionless())
+    }
+
+    /// The default contact of a pushing instrument (probe, capsule, plane, box): sliding
+    /// and frictionless (issue 20). Graspers hold what they grasp and scalpels cut.
+    fn frictionless(mut self) -> Self {
+        if self.shape().is_some() {
+            self.friction = Some(0.0);
+        }
+        self
+    }
+
+    /// Makes a pushing instrument's contact sticking: a touched vertex is held at its point
+    /// of the instrument within a step and moves with it (the default before frictionless
+    /// sliding was; `tissue compare`'s sticking scenarios). Graspers and scalpels are left
+    /// as they are.
+    pub fn sticking(mut self) -> Self {
+        self.friction = None;
+        self
     }
 
     /// Makes a pushing instrument's contact sliding, with Coulomb friction coefficient μ
     /// (finite, ≥ 0; 0 is frictionless): its contacts stick while their tangential force is
     /// below μ times the normal one and slide at that bound. Graspers hold what they grasp
-    /// and scalpels cut: refused there. Without it contacts stick (the default).
+    /// and scalpels cut: refused there. Without it a pushing instrument is frictionless.
     pub fn with_friction(mut self, friction: Real) -> Result<Self, SimError> {
         let bad = |reason: &str| SimError::BadParameter {
             name: "friction",
@@ -206,8 +225,8 @@ impl Instrument {
         Ok(self)
     }
 
-    /// The Coulomb friction coefficient of a sliding contact (0: frictionless); `None` for
-    /// sticking contact (the default) and for graspers and scalpels.
+    /// The Coulomb friction coefficient of a sliding contact (0: frictionless, the default);
+    /// `None` for sticking contact (`sticking`) and for graspers and scalpels.
     pub fn friction(&self) -> Option<Real> {
         self.friction
     }

@@ -59,7 +59,7 @@ fn sim(kind: &str, mesh: &MeshData, path: &[(Real, Vec3)]) -> Simulation {
     sim_with(kind, mesh, path, true)
 }
 
-/// `sim` with a frictionless probe or a sticking one (the default contact).
+/// `sim` with a frictionless probe or a sticking one.
 fn sim_with(kind: &str, mesh: &MeshData, path: &[(Real, Vec3)], frictionless: bool) -> Simulation {
     let model = model(kind, mesh);
     let fixed: Vec<u32> = (0..model.rest_surface().len() as u32)
@@ -80,7 +80,7 @@ fn sim_with(kind: &str, mesh: &MeshData, path: &[(Real, Vec3)], frictionless: bo
     let probe = if frictionless {
         probe.with_friction(0.0).unwrap()
     } else {
-        probe
+        probe.sticking()
     };
     sim.add_instrument(probe);
     sim
@@ -117,7 +117,7 @@ struct Solver {
 
 /// (time, force, contacts) at every step, and what the solver did.
 fn run(kind: &str, mesh: &MeshData, dt: Real) -> (Vec<(Real, Vec3, usize)>, Solver) {
-    // `DYNAMIC_SLIDE_STICKING`: the default sticking contact instead, for comparison.
+    // `DYNAMIC_SLIDE_STICKING`: sticking contact instead, for comparison.
     let sticking = std::env::var("DYNAMIC_SLIDE_STICKING").is_ok();
     let mut sim = sim_with(kind, mesh, &path(), !sticking);
     let mut out = Vec::new();
@@ -234,7 +234,7 @@ fn report(kind: &str, dt: Real, cells: usize, h: &[(Real, Vec3, usize)], referen
 /// The study: every dynamic kind at 1 ms (tensor-mass also at 0.2 ms) on 8- and 16-cell
 /// blocks. `DYNAMIC_SLIDE_KINDS=kind,kind` and `DYNAMIC_SLIDE_CELLS=8,16` narrow it;
 /// `DYNAMIC_SLIDE_TRACE` prints the force early in the hold and every step the model
-/// reported capped; `DYNAMIC_SLIDE_STICKING` runs the default sticking contact instead.
+/// reported capped; `DYNAMIC_SLIDE_STICKING` runs sticking contact instead.
 #[test]
 #[ignore = "study, a minute or more: cargo test --release -p tissue --lib dynamic_sliding_study -- --ignored --nocapture"]
 fn dynamic_sliding_study() {

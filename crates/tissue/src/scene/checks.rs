@@ -291,11 +291,12 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
         .clone()
         .unwrap_or_else(|| format!("{}{}", i.kind, k + 1));
     let inst = Instrument::new(name, kind, radius, trajectory).map_err(|e| e.to_string())?;
-    // Sliding contact is opted into (`contact = "sliding"`, or a `friction`); sticking
-    // contact stays the default until every kind holds a contact along its normal only
-    // (docs/contact.md).
+    // A pushing instrument slides, frictionless unless `friction` is given (the default,
+    // docs/contact.md); `contact = "sticking"` opts into sticking contact. A grasper or
+    // scalpel takes neither key (`only` above).
     match (i.contact.as_deref(), i.friction) {
-        (None | Some("sticking"), None) => Ok(inst),
+        (None, None) => Ok(inst),
+        (Some("sticking"), None) => Ok(inst.sticking()),
         (None | Some("sliding"), mu) => inst
             .with_friction(mu.unwrap_or(0.0))
             .map_err(|e| e.to_string()),
@@ -304,7 +305,7 @@ pub(super) fn make_instrument(i: &InstrumentSpec, k: usize) -> Result<Instrument
                 .into(),
         ),
         (Some(other), _) => Err(format!(
-            "unknown contact `{other}`; known: sticking (the default), sliding"
+            "unknown contact `{other}`; known: sliding (the default), sticking"
         )),
     }
 }
@@ -327,8 +328,9 @@ mod run_tests {
         assert!(run(0.999, 1e-9).is_ok());
     }
 
-    /// Sticking is the default; `contact = "sliding"` and `friction` opt into sliding; a
-    /// contradiction or an unknown mode is refused by name.
+    /// Frictionless sliding is the default; `friction` gives Coulomb friction and
+    /// `contact = "sticking"` sticking contact; a contradiction, an unknown mode or a contact
+    /// mode on a grasper is refused by name, and a grasper still holds (no friction).
     #[test]
     fn contact_mode_keys() {
         let spec = |extra: &str| -> InstrumentSpec {
@@ -338,7 +340,7 @@ mod run_tests {
             .unwrap()
         };
         let friction = |extra: &str| make_instrument(&spec(extra), 0).map(|i| i.friction());
-        assert_eq!(friction(""), Ok(None));
+        assert_eq!(friction(""), Ok(Some(0.0)));
         assert_eq!(friction("contact = \"sticking\""), Ok(None));
         assert_eq!(friction("contact = \"sliding\""), Ok(Some(0.0)));
         assert_eq!(friction("friction = 0.3"), Ok(Some(0.3)));
@@ -352,5 +354,15 @@ mod run_tests {
         assert!(e.contains("unknown contact `glued`"), "{e}");
         let e = friction("friction = -1.0").unwrap_err();
         assert!(e.contains("friction"), "{e}");
+        let grasper = |extra: &str| -> Result<Option<Real>, String> {
+            let spec: InstrumentSpec = toml::from_str(&format!(
+                "kind = \"grasper\"\nradius = 0.005\ngrasp_at = 0.1\n{extra}\npath = [ {{ t = 0.0, position = [0.0, 0.0, 0.0] }} ]"
+            ))
+            .unwrap();
+            make_instrument(&spec, 0).map(|i| i.friction())
+        };
+        assert_eq!(grasper(""), Ok(None));
+        let e = grasper("contact = \"sticking\"").unwrap_err();
+        assert!(e.contains("contact"), "{e}");
     }
 }

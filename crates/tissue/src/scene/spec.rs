@@ -145,8 +145,9 @@ pub struct InstrumentSpec {
     pub name: Option<String>,
     /// Tip radius (probe), shaft radius (capsule), grasp radius (grasper), in m.
     pub radius: Option<Real>,
-    /// Contact of a probe, capsule, plane or box: "sticking" (the default: a touched vertex
-    /// is held at its point of the instrument) or "sliding" (unilateral, Coulomb `friction`).
+    /// Contact of a probe, capsule, plane or box: "sliding" (the default: unilateral, Coulomb
+    /// `friction`, frictionless without it) or "sticking" (a touched vertex is held at its
+    /// point of the instrument).
     pub contact: Option<String>,
     /// Coulomb friction coefficient of a sliding contact (default 0: frictionless); implies
     /// `contact = "sliding"`.

@@ -358,7 +358,11 @@ fn a_simulation_in_real_time_steps_on_while_the_incision_is_computed() {
             },
         ])
         .unwrap();
-        sim.add_instrument(Instrument::new("probe", InstrumentKind::Probe, 0.01, probe).unwrap());
+        sim.add_instrument(
+            Instrument::new("probe", InstrumentKind::Probe, 0.01, probe)
+                .unwrap()
+                .sticking(),
+        );
         sim
     };
     let mut sync = run(false);

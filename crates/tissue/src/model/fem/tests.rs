@@ -687,7 +687,9 @@ fn probe_sliding_over_the_liver_schur_study() {
                 .collect();
             let mut sim = Simulation::new(Box::new(model), fixed, Loads::default()).unwrap();
             sim.add_instrument(
-                Instrument::new("probe", InstrumentKind::Probe, r, path.clone()).unwrap(),
+                Instrument::new("probe", InstrumentKind::Probe, r, path.clone())
+                    .unwrap()
+                    .sticking(),
             );
             sim.step(1e-3).unwrap();
             let t = std::time::Instant::now();

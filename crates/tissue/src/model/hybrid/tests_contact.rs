@@ -118,7 +118,11 @@ fn simulation(model: Box<dyn Deformable>) -> Simulation {
         key(0.21, [0.1, 0.01, down]),
     ])
     .unwrap();
-    sim.add_instrument(Instrument::new("top", InstrumentKind::Probe, r, top).unwrap());
+    sim.add_instrument(
+        Instrument::new("top", InstrumentKind::Probe, r, top)
+            .unwrap()
+            .sticking(),
+    );
     let front = Trajectory::new(vec![
         key(0.0, [0.1, -r - 0.001, 0.02]),
         key(0.1, [0.1, -r + 0.003, 0.02]),

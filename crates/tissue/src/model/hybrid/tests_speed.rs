@@ -359,7 +359,8 @@ fn probe_run_steps(
             radius,
             Trajectory::new(keys).unwrap(),
         )
-        .unwrap(),
+        .unwrap()
+        .sticking(),
     );
     let dt = 1e-3;
     let wall = Instant::now();

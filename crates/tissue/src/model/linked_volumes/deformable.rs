@@ -11,6 +11,42 @@ use crate::model::{CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo,
 
 use super::LinkedVolumes;
 
+/// The frictionless contacts of the surface vertices an element carries: (unit normal, the
+/// vertex's gap to its target, its weight on the element).
+#[derive(Default)]
+struct Touch {
+    claims: Vec<(Vec3, Vec3, Real)>,
+}
+
+impl Touch {
+    /// The element's plane, as its offset from where the element starts the step, and its
+    /// normal. An element carries several surface vertices, each with its own plane; it is
+    /// held along their weighted mean normal n̄ (as `fem-static` holds a mid-edge node
+    /// between two contacts), as far as the most demanding of them asks: moved by s along
+    /// n̄, the element meets vertex i's plane when s·(n̄·nᵢ) ≥ nᵢ·gᵢ. The largest such s
+    /// keeps the touching vertex (the one deepest in) out of the instrument: a mean of the
+    /// gaps would let the vertices near the instrument but not touching it (handed over as
+    /// contacts too, `sim::CONTACT_MARGIN`) draw the plane back into it.
+    fn plane(&self) -> (Vec3, Option<Vec3>) {
+        let sum: Vec3 = self.claims.iter().map(|(n, _, w)| *n * *w).sum();
+        let total: Real = self.claims.iter().map(|c| c.2).sum();
+        // Normals that cancel (two sides of a thin part under one instrument): no plane
+        // to hold it on; the element is held in full at the mean target.
+        if sum.length() <= 1e-3 * total || !sum.is_finite() {
+            let mean: Vec3 = self.claims.iter().map(|(_, g, w)| *g * *w).sum();
+            return (mean / total, None);
+        }
+        let n = sum.normalize();
+        let s = self
+            .claims
+            .iter()
+            .filter(|(ni, _, _)| ni.dot(n) > 1e-6)
+            .map(|(ni, g, _)| ni.dot(*g) / ni.dot(n))
+            .fold(Real::NEG_INFINITY, Real::max);
+        (n * s, Some(n))
+    }
+}
+
 impl LinkedVolumes {
     /// The elements (with weights) a surface vertex follows.
     fn corners(&self, v: usize) -> impl Iterator<Item = (u32, Real)> + '_ {
@@ -82,6 +118,28 @@ impl LinkedVolumes {
         self.fixed_reactions = fixed;
         self.prescribed_reactions = prescribed;
     }
+
+    /// The fixed elements and the bookkeeping of a new constraint set.
+    fn hold_elements(&mut self, c: &Constraints) -> Result<(), SimError> {
+        c.surface_displacements(&self.embedding.rest)?;
+        let mut is_fixed = vec![false; self.surface.len()];
+        for &v in &c.fixed {
+            is_fixed[v as usize] = true;
+        }
+        let mut fixed: Vec<u32> = c
+            .fixed
+            .iter()
+            .flat_map(|&v| self.corners(v as usize).map(|(e, _)| e))
+            .collect();
+        fixed.sort_unstable();
+        fixed.dedup();
+        self.fixed_elements = fixed;
+        self.fixed_vertex = is_fixed;
+        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
+        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
+        self.constraints = c.clone();
+        Ok(())
+    }
 }
 
 impl Deformable for LinkedVolumes {
@@ -101,24 +159,34 @@ impl Deformable for LinkedVolumes {
     }
 
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        c.surface_displacements(&self.embedding.rest)?;
-        let mut is_fixed = vec![false; self.surface.len()];
-        for &v in &c.fixed {
-            is_fixed[v as usize] = true;
-        }
-        let mut fixed: Vec<u32> = c
-            .fixed
-            .iter()
-            .flat_map(|&v| self.corners(v as usize).map(|(e, _)| e))
+        self.normals.clear();
+        self.hold_elements(c)
+    }
+
+    /// Entries with a direction are frictionless contacts that only push: each element a
+    /// contact vertex follows is held by the integrator's projection
+    /// (`integrate::Hold::contact`) on the plane `Touch::plane` gives it.
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.hold_elements(c)?;
+        self.normals = (0..c.prescribed.len())
+            .map(|k| {
+                normals
+                    .get(k)
+                    .copied()
+                    .flatten()
+                    .map(Vec3::normalize_or_zero)
+                    .filter(|n| *n != Vec3::ZERO && is_finite_vec(*n))
+            })
             .collect();
-        fixed.sort_unstable();
-        fixed.dedup();
-        self.fixed_elements = fixed;
-        self.fixed_vertex = is_fixed;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
-        Ok(())
+        Ok(true)
+    }
+
+    fn contacts_push_only(&self) -> bool {
+        true
     }
 
     /// Gravity acts on every element mass; point loads reach the elements of their cell.
@@ -165,32 +233,49 @@ impl Deformable for LinkedVolumes {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(SimError::BadTimeStep { dt });
         }
-        let mut targets: Vec<(u32, Vec3)> = self
+        // (element, target, the normal of a contact that only pushes).
+        let mut targets: Vec<(u32, Vec3, Option<Vec3>)> = self
             .fixed_elements
             .iter()
-            .map(|&e| (e, self.rest[e as usize]))
+            .map(|&e| (e, self.rest[e as usize], None))
             .collect();
         let mut wanted: HashMap<u32, (Vec3, Real)> = HashMap::new();
-        for p in &self.constraints.prescribed {
+        let mut touching: HashMap<u32, Touch> = HashMap::new();
+        for (k, p) in self.constraints.prescribed.iter().enumerate() {
             let v = p.vertex as usize;
             if self.fixed_vertex[v] {
                 continue;
             }
             let missing = p.position - self.surface[v];
+            let normal = self.normals.get(k).copied().flatten();
             for (e, w) in self.corners(v) {
-                if self.fixed_elements.binary_search(&e).is_err() {
-                    let s = wanted.entry(e).or_insert((Vec3::ZERO, 0.0));
-                    s.0 += w * missing;
-                    s.1 += w;
+                if self.fixed_elements.binary_search(&e).is_ok() {
+                    continue;
+                }
+                match normal {
+                    None => {
+                        let s = wanted.entry(e).or_insert((Vec3::ZERO, 0.0));
+                        s.0 += w * missing;
+                        s.1 += w;
+                    }
+                    Some(n) => touching.entry(e).or_default().claims.push((n, missing, w)),
                 }
             }
         }
         let x0 = &self.state.x;
         targets.extend(
             wanted
-                .into_iter()
-                .map(|(e, (d, w))| (e, x0[e as usize] + d / w)),
+                .iter()
+                .map(|(&e, &(d, w))| (e, x0[e as usize] + d / w, None)),
         );
+        // An element held in full by another entry stays held in full.
+        targets.extend(touching.iter().filter_map(|(&e, t)| {
+            if wanted.contains_key(&e) {
+                return None;
+            }
+            let (plane, n) = t.plane();
+            Some((e, x0[e as usize] + plane, n))
+        }));
         targets.sort_unstable_by_key(|t| t.0);
         let start: Vec<Vec3> = targets.iter().map(|t| self.state.x[t.0 as usize]).collect();
         let n = match self.params.substeps {
@@ -205,11 +290,10 @@ impl Deformable for LinkedVolumes {
             self.holds = targets
                 .iter()
                 .zip(&start)
-                .map(|(t, x0)| Hold {
-                    particle: t.0 as usize,
-                    target: *x0 + (t.1 - *x0) * f,
-                    along: None,
-                    unilateral: false,
+                .map(|(t, x0)| match t.2 {
+                    // A contact's plane stays at its end-of-step place (`Hold::contact`).
+                    Some(n) => Hold::contact(t.0 as usize, t.1, n),
+                    None => Hold::new(t.0 as usize, *x0 + (t.1 - *x0) * f),
                 })
                 .collect();
             match self

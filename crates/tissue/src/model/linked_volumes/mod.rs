@@ -143,6 +143,9 @@ pub struct LinkedVolumes {
     surface: Vec<Vec3>,
     spacing: Vec3,
     constraints: Constraints,
+    /// Per prescribed entry: the unit normal of a frictionless contact that only pushes
+    /// (`Deformable::set_constraints_along`), or `None`: held in full.
+    normals: Vec<Option<Vec3>>,
     fixed_vertex: Vec<bool>,
     fixed_elements: Vec<u32>,
     gravity: Vec3,
@@ -242,6 +245,7 @@ impl LinkedVolumes {
             surface: surface.vertices,
             spacing: s,
             constraints: Constraints::default(),
+            normals: Vec::new(),
             fixed_vertex: vec![false; nv],
             fixed_elements: Vec::new(),
             gravity: Vec3::ZERO,

@@ -26,6 +26,9 @@ use super::surface::SplineSurface;
 use super::system::{ControlNet, Spring};
 use super::tessellation::Tessellation;
 
+/// Most solves of one step while its frictionless contacts settle (`SplineModel::advance`).
+const MAX_CONTACT_SOLVES: usize = 12;
+
 /// The deformable spline model (see the module docs).
 #[derive(Debug)]
 pub struct SplineModel {
@@ -246,10 +249,66 @@ impl SplineModel {
     }
 
     /// Advances by `dt` with the configured scheme; on error the state is kept.
+    ///
+    /// Frictionless contacts (`system::Spring::normal`, implicit Euler only) are settled
+    /// within the step: those whose vertex, moving on at its velocity, would end past its plane are engaged;
+    /// after each solve an engaged one that pulls is let go for the rest of the step and a
+    /// free one past its plane is taken, and the step is solved again from its start until
+    /// nothing changes (each contact changes at most twice, so at most 2m + 1 solves for m
+    /// contacts; `MAX_CONTACT_SOLVES` caps it and the step then says `capped`).
     pub fn advance(&mut self, dt: Real) -> Result<StepInfo, SimError> {
-        let info = self
-            .integrator
-            .step(&mut self.net, &mut self.state, &self.holds, dt)?;
+        if !self.net.springs.iter().any(|s| s.normal.is_some()) {
+            let info = self
+                .integrator
+                .step(&mut self.net, &mut self.state, &self.holds, dt)?;
+            self.update_surface();
+            self.collect_reactions();
+            return Ok(info);
+        }
+        let (x, v) = (&self.state.x, &self.state.v);
+        let ahead: Vec<Vec3> = x.iter().zip(v).map(|(x, v)| *x + *v * dt).collect();
+        for s in &mut self.net.springs {
+            s.engaged = s.gap(&ahead).is_some_and(|g| g < 0.0) || s.gap(x).is_some_and(|g| g < 0.0);
+        }
+        let start = (self.state.clone(), self.integrator.clone());
+        let mut released = vec![false; self.net.springs.len()];
+        let mut info = StepInfo::default();
+        for solve in 1..=MAX_CONTACT_SOLVES {
+            if solve > 1 {
+                self.state.clone_from(&start.0);
+                self.integrator.clone_from(&start.1);
+            }
+            // The engaged set changed the forces the integrator kept from the last step.
+            self.integrator.forget_forces();
+            let i = self
+                .integrator
+                .step(&mut self.net, &mut self.state, &self.holds, dt)
+                .inspect_err(|_| {
+                    self.state.clone_from(&start.0);
+                    self.integrator.clone_from(&start.1);
+                })?;
+            info.iterations += i.iterations;
+            info.residual = info.residual.max(i.residual);
+            info.capped |= i.capped;
+            info.substeps = i.substeps;
+            let mut changed = false;
+            for (s, gone) in self.net.springs.iter_mut().zip(&mut released) {
+                let Some(gap) = s.gap(&self.state.x) else {
+                    continue;
+                };
+                if s.engaged && gap > 0.0 {
+                    (s.engaged, *gone, changed) = (false, true, true);
+                } else if !s.engaged && !*gone && gap < 0.0 {
+                    (s.engaged, changed) = (true, true);
+                }
+            }
+            if !changed {
+                break;
+            }
+            if solve == MAX_CONTACT_SOLVES {
+                info.capped = true;
+            }
+        }
         self.update_surface();
         self.collect_reactions();
         Ok(info)
@@ -257,6 +316,88 @@ impl SplineModel {
 
     fn update_surface(&mut self) {
         self.tess.apply(&self.state.x, &mut self.surface_positions);
+    }
+
+    /// One penalty spring per held vertex (see `set_constraints`); a vertex whose entry
+    /// (the last prescribed one, unless the vertex is fixed) has a direction in `normals`
+    /// gets a contact spring along it.
+    fn hold_vertices(&mut self, c: &Constraints, normals: &[Option<Vec3>]) -> Result<(), SimError> {
+        let disp = c.surface_displacements(&self.rest_surface)?;
+        let mut normal_of: Vec<Option<Vec3>> = vec![None; self.rest_surface.len()];
+        for (k, p) in c.prescribed.iter().enumerate() {
+            if let Some(slot) = normal_of.get_mut(p.vertex as usize) {
+                *slot = normals
+                    .get(k)
+                    .copied()
+                    .flatten()
+                    .map(Vec3::normalize_or_zero)
+                    .filter(|n| *n != Vec3::ZERO && is_finite_vec(*n));
+            }
+        }
+        for &v in &c.fixed {
+            if let Some(slot) = normal_of.get_mut(v as usize) {
+                *slot = None;
+            }
+        }
+        let mut springs = Vec::new();
+        let mut new_of = vec![u32::MAX; self.spring_of.len()];
+        for (v, d) in disp.iter().enumerate() {
+            if let (Some(d), Some((nodes, weights))) = (d, self.tess.weights(v)) {
+                // The target moves over the step from the spring's last one, or from the
+                // vertex itself when the spring is new (module `system`).
+                let from = match self.spring_of.get(v) {
+                    Some(&s) if s != u32::MAX => self.net.springs.get(s as usize),
+                    _ => None,
+                }
+                .filter(|s| s.vertex as usize == v)
+                .map(|s| s.target)
+                .or_else(|| self.surface_positions.get(v).copied())
+                .unwrap_or(self.rest_surface[v] + *d);
+                new_of[v] = springs.len() as u32;
+                springs.push(Spring {
+                    vertex: v as u32,
+                    nodes,
+                    weights,
+                    target: self.rest_surface[v] + *d,
+                    from,
+                    normal: normal_of[v],
+                    engaged: false,
+                });
+            }
+        }
+        self.spring_of = new_of;
+        // The springs' stiffness depends on which vertices they hold, not on their
+        // targets: a probe moving its held vertices (every step of a press) keeps the
+        // measured stability limit, and only the kept forces and the energy ledger (whose
+        // zero moved with the targets) are dropped. Re-measuring on every step cost 60 force
+        // passes a step under an explicit scheme.
+        let same_vertices = springs.len() == self.net.springs.len()
+            && springs
+                .iter()
+                .zip(&self.net.springs)
+                .all(|(a, b)| a.vertex == b.vertex);
+        self.net.springs = springs;
+        let mut taken = vec![false; self.rest_surface.len()];
+        self.fixed_owner = c
+            .fixed
+            .iter()
+            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
+            .collect();
+        let mut owner = vec![false; c.prescribed.len()];
+        for (k, p) in c.prescribed.iter().enumerate().rev() {
+            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
+        }
+        self.prescribed_owner = owner;
+        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
+        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
+        self.constraints = c.clone();
+        if same_vertices {
+            self.integrator.forget_forces();
+        } else {
+            self.integrator.invalidate();
+        }
+        self.collect_reactions();
+        Ok(())
     }
 
     fn collect_reactions(&mut self) {
@@ -317,64 +458,29 @@ impl Deformable for SplineModel {
     /// One penalty spring per held vertex: fixed ones to their rest position, prescribed
     /// ones to their target (fixed wins; the last prescribed entry of a vertex wins).
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = c.surface_displacements(&self.rest_surface)?;
-        let mut springs = Vec::new();
-        let mut new_of = vec![u32::MAX; self.spring_of.len()];
-        for (v, d) in disp.iter().enumerate() {
-            if let (Some(d), Some((nodes, weights))) = (d, self.tess.weights(v)) {
-                // The target moves over the step from the spring's last one, or from the
-                // vertex itself when the spring is new (module `system`).
-                let from = match self.spring_of.get(v) {
-                    Some(&s) if s != u32::MAX => self.net.springs.get(s as usize),
-                    _ => None,
-                }
-                .filter(|s| s.vertex as usize == v)
-                .map(|s| s.target)
-                .or_else(|| self.surface_positions.get(v).copied())
-                .unwrap_or(self.rest_surface[v] + *d);
-                new_of[v] = springs.len() as u32;
-                springs.push(Spring {
-                    vertex: v as u32,
-                    nodes,
-                    weights,
-                    target: self.rest_surface[v] + *d,
-                    from,
-                });
-            }
-        }
-        self.spring_of = new_of;
-        // The springs' stiffness depends on which vertices they hold, not on their
-        // targets: a probe moving its held vertices (every step of a press) keeps the
-        // measured stability limit, and only the kept forces and the energy ledger (whose
-        // zero moved with the targets) are dropped. Re-measuring on every step cost 60 force
-        // passes a step under an explicit scheme.
-        let same_vertices = springs.len() == self.net.springs.len()
-            && springs
-                .iter()
-                .zip(&self.net.springs)
-                .all(|(a, b)| a.vertex == b.vertex);
-        self.net.springs = springs;
-        let mut taken = vec![false; self.rest_surface.len()];
-        self.fixed_owner = c
-            .fixed
-            .iter()
-            .map(|&v| !std::mem::replace(&mut taken[v as usize], true))
-            .collect();
-        let mut owner = vec![false; c.prescribed.len()];
-        for (k, p) in c.prescribed.iter().enumerate().rev() {
-            owner[k] = !std::mem::replace(&mut taken[p.vertex as usize], true);
-        }
-        self.prescribed_owner = owner;
-        self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
-        self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
-        self.constraints = c.clone();
-        if same_vertices {
-            self.integrator.forget_forces();
+        self.hold_vertices(c, &[])
+    }
+
+    /// Entries with a direction are frictionless contacts: their springs act along the
+    /// normal only and only push (`system::Spring::normal`), under implicit Euler. The
+    /// explicit schemes hold them in full and leave the sliding to the relaxation (false):
+    /// a penalty contact switched by the state at every substep bounced (no damping along
+    /// n), and the force read at the step's end was that of a vertex mostly off its plane
+    /// (the tube at 1 ms under symplectic Euler read 0 N with the probe 1 mm into it).
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        if self.contacts_push_only() {
+            self.hold_vertices(c, normals).map(|()| true)
         } else {
-            self.integrator.invalidate();
+            self.hold_vertices(c, &[]).map(|()| false)
         }
-        self.collect_reactions();
-        Ok(())
+    }
+
+    fn contacts_push_only(&self) -> bool {
+        self.integrator.scheme == crate::integrate::Scheme::ImplicitEuler
     }
 
     /// Gravity as the lumped share m_i g; point loads through the tessellation's transpose.

@@ -19,7 +19,20 @@
 //! explicit schemes reported the reaction at one phase of the ringing, biased by ~k·δ/2 per
 //! vertex (δ the target's motion in one step) against the probe: −0.029 N, pulling the probe
 //! in, where the tube pushes back with +0.003 N at 1 ms steps.
-
+//!
+//! A frictionless contact (`Spring::normal`, from `Deformable::set_constraints_along`) is the
+//! same spring acting along the instrument's normal n only (free across it: it slides), and
+//! only while it is engaged (`Spring::engaged`): energy ½ k (n·(S_s − t))², force
+//! −k (n·(S_s − t)) n. The model settles which contacts are engaged within its step, as
+//! `fem-semi-implicit` settles its active set (`SplineModel::advance`): one that pulls after
+//! the solve is let go for the rest of the step, one that ends past its plane is taken, and
+//! the step is solved again. A penalty force switched on and off by the state inside one
+//! linearised implicit solve (k min(0, gap)) is not what the solve sees: a vertex free at
+//! the step's start crossed its plane unopposed and was thrown back at the next step (the
+//! sheet's energy grew tenfold in one step as the probe began to slide, and the growth
+//! watch refused it). Only under implicit Euler (`SplineModel::set_constraints_along`): with
+//! the explicit schemes the penalty contact bounced and the force read at a step's end was
+//! mostly 0, so they keep the relaxation of full holds.
 use crate::error::SimError;
 use crate::integrate::ParticleSystem;
 use crate::math::{Real, Vec3};
@@ -36,6 +49,11 @@ pub struct Spring {
     pub target: Vec3,
     /// Where it pulled at the start of the step.
     pub from: Vec3,
+    /// A frictionless contact: the unit normal of the plane through the target it keeps the
+    /// vertex out of; `None`, held in all three directions.
+    pub normal: Option<Vec3>,
+    /// A contact acts only while engaged (decided by the model within each step).
+    pub engaged: bool,
 }
 
 impl Spring {
@@ -55,6 +73,27 @@ impl Spring {
         } else {
             self.from + (self.target - self.from) * t
         }
+    }
+
+    /// The spring's pull on its vertex, k (t − S) (N per unit weight): all of it, or for a
+    /// contact its part along n while engaged, else 0.
+    pub fn pull(&self, stiffness: Real, position: Vec3, target: Vec3) -> Vec3 {
+        let d = position - target;
+        match self.normal {
+            None => -stiffness * d,
+            Some(n) if self.engaged => -stiffness * n.dot(d) * n,
+            Some(_) => Vec3::ZERO,
+        }
+    }
+
+    /// Whether the spring acts at all: a full hold always, a contact while engaged.
+    pub fn acts(&self) -> bool {
+        self.normal.is_none() || self.engaged
+    }
+
+    /// A contact's gap to its plane at the end of the step (negative: past it).
+    pub fn gap(&self, x: &[Vec3]) -> Option<Real> {
+        self.normal.map(|n| n.dot(self.position(x) - self.target))
     }
 }
 
@@ -113,8 +152,9 @@ impl ControlNet {
     }
 
     /// Force the tissue exerts on the holder of spring `s` at positions `x`: k (S_s − t).
+    /// For a contact, its component along n while the vertex is past the plane, else 0.
     pub fn spring_reaction(&self, s: &Spring, x: &[Vec3]) -> Vec3 {
-        self.stiffness * (s.position(x) - s.target)
+        -s.pull(self.stiffness, s.position(x), s.target)
     }
 }
 
@@ -129,7 +169,7 @@ impl ParticleSystem for ControlNet {
             *fi += self.external[i] - self.damping * self.masses[i] * v[i];
         }
         for s in &self.springs {
-            let pull = -self.stiffness * (s.position(x) - s.target_at(self.time));
+            let pull = s.pull(self.stiffness, s.position(x), s.target_at(self.time));
             for k in 0..16 {
                 f[s.nodes[k] as usize] += s.weights[k] * pull;
             }
@@ -141,7 +181,8 @@ impl ParticleSystem for ControlNet {
             .springs
             .iter()
             .map(|s| {
-                0.5 * self.stiffness * (s.position(x) - s.target_at(self.time)).length_squared()
+                let pull = s.pull(self.stiffness, s.position(x), s.target_at(self.time));
+                0.5 * pull.length_squared() / self.stiffness
             })
             .sum();
         let loads: Real = self.external.iter().zip(x).map(|(f, p)| f.dot(*p)).sum();
@@ -156,8 +197,13 @@ impl ParticleSystem for ControlNet {
     fn stiffness_product(&self, dx: &[Vec3], out: &mut [Vec3]) {
         out.fill(Vec3::ZERO);
         self.energy.product(dx, out);
-        for s in &self.springs {
-            let d = self.stiffness * s.position(dx);
+        for s in self.springs.iter().filter(|s| s.acts()) {
+            let d = s.position(dx);
+            let d = self.stiffness
+                * match s.normal {
+                    None => d,
+                    Some(n) => n * n.dot(d),
+                };
             for k in 0..16 {
                 out[s.nodes[k] as usize] += s.weights[k] * d;
             }
@@ -177,10 +223,11 @@ impl ParticleSystem for ControlNet {
     fn jacobian_diagonal(&self, stiffness: &mut [Vec3], damping: &mut [Vec3]) {
         stiffness.fill(Vec3::ZERO);
         self.energy.diagonal(stiffness);
-        for s in &self.springs {
+        for s in self.springs.iter().filter(|s| s.acts()) {
+            let axes = s.normal.map_or(Vec3::ONE, |n| n * n);
             for k in 0..16 {
                 stiffness[s.nodes[k] as usize] +=
-                    Vec3::splat(self.stiffness * s.weights[k] * s.weights[k]);
+                    axes * (self.stiffness * s.weights[k] * s.weights[k]);
             }
         }
         for (d, m) in damping.iter_mut().zip(&self.masses) {

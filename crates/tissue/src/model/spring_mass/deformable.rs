@@ -147,24 +147,54 @@ impl Deformable for SpringModel {
         Ok(())
     }
 
-    /// Held along a direction by the integrator's projection (`integrate::Hold::along`): a
-    /// particle whose claims are all prescribed entries with one direction; the others in
-    /// full.
+    /// Frictionless contacts held by the integrator's push-only projection
+    /// (`integrate::Hold::contact`). A particle claimed by contacts only (a simplex vertex's
+    /// ring shares its particles with the neighbouring vertices, each with its own normal)
+    /// is held along their mean normal n̄, as far along it as the most demanding claim asks
+    /// (moved by s along n̄ it meets claim i's plane when s·(n̄·nᵢ) ≥ nᵢ·gᵢ, gᵢ the claim's
+    /// target less the particle), as `linked-volumes` holds its elements. Any fixed or
+    /// full claim, or normals that cancel, hold it in full. (Particles with claims of
+    /// differing normals used to be held in full both ways, and with the vertices near the
+    /// instrument handed over too they were pulled onto it: the viewer's frictionless probe
+    /// blew `simplex-spring-mass` up on the coarse liver.)
     fn set_constraints_along(
         &mut self,
         c: &Constraints,
         normals: &[Option<Vec3>],
     ) -> Result<bool, SimError> {
         self.set_constraints(c)?;
+        let (x, surface, link) = (&self.state.x, &self.surface_positions, &self.link);
         for (hold, claims) in self.holds.iter_mut().zip(&self.constraints.claims) {
-            let mut dirs = claims
+            let p = hold.particle;
+            let planes: Option<Vec<(Vec3, Vec3)>> = claims
                 .iter()
-                .map(|&(fixed, k)| (!fixed).then(|| normals.get(k as usize).copied().flatten()));
-            let first = dirs.next().flatten().flatten().map(Vec3::normalize_or_zero);
-            let same = dirs.all(|d| matches!((d.flatten(), first), (Some(d), Some(f)) if d.normalize_or_zero() == f));
-            hold.along = first.filter(|n| same && *n != Vec3::ZERO);
-            // The directions are frictionless contacts: pushes only, settled per substep.
-            hold.unilateral = hold.along.is_some();
+                .map(|&(fixed, k)| {
+                    let n = normals.get(k as usize).copied().flatten()?;
+                    let n = n.normalize_or_zero();
+                    let pr = c.prescribed.get(k as usize)?;
+                    let target = match link {
+                        SurfaceLink::Nodes(_) => pr.position,
+                        SurfaceLink::Dual(_) => {
+                            x[p] + (pr.position - *surface.get(pr.vertex as usize)?)
+                        }
+                    };
+                    (!fixed && n != Vec3::ZERO && is_finite_vec(n)).then_some((n, target - x[p]))
+                })
+                .collect();
+            let Some(planes) = planes.filter(|p| !p.is_empty()) else {
+                continue;
+            };
+            let sum: Vec3 = planes.iter().map(|(n, _)| *n).sum();
+            if sum.length() <= 1e-3 * planes.len() as Real {
+                continue;
+            }
+            let n = sum.normalize();
+            let s = planes
+                .iter()
+                .filter(|(ni, _)| ni.dot(n) > 1e-6)
+                .map(|(ni, g)| ni.dot(*g) / ni.dot(n))
+                .fold(Real::NEG_INFINITY, Real::max);
+            *hold = Hold::contact(p, x[p] + n * s, n);
         }
         Ok(true)
     }
