@@ -458,10 +458,14 @@ impl Simulation {
                         rest: self.model.rest_surface(),
                         fine: self.fine.as_ref().map(|(m, _)| m),
                     };
-                    let margin = self.pushes_only(inst).then(|| {
+                    // Near vertices are handed over free; a fine surface's faces near the
+                    // instrument are held by their resting points instead.
+                    let margin = (self.pushes_only(inst) && self.fine.is_none()).then(|| {
                         CONTACT_MARGIN * shape.size() + 2.0 * inst.position.distance(old.position)
                     });
-                    inst.contacts = keep_and_find(&surface, inst, old, &shape, taken, margin);
+                    let carry = self.carries_faces(inst, old, &shape);
+                    inst.contacts =
+                        keep_and_find(&surface, inst, old, &shape, taken, margin, carry);
                 }
                 InstrumentKind::Grasper {
                     grasp_at,
@@ -497,13 +501,22 @@ impl Simulation {
 
     /// Whether the model holds this instrument's contacts as pushes only, settled within its
     /// step (`Deformable::contacts_push_only`, the dynamic kinds on the shared integrator):
-    /// it held the last constraints' directions, the instrument is frictionless, and there
-    /// is no fine surface (its face contacts are held in full).
+    /// it held the last constraints' directions and the instrument is frictionless.
     fn pushes_only(&self, inst: &Instrument) -> bool {
-        self.along
-            && self.model.contacts_push_only()
-            && inst.friction() == Some(0.0)
-            && self.fine.is_none()
+        self.along && self.model.contacts_push_only() && inst.friction() == Some(0.0)
+    }
+
+    /// Whether a fine surface's face contacts that did not pull are carried into the next
+    /// step, their targets moved with the instrument along their normals, rather than found
+    /// again from where the faces are: where the contact is then settled by force (a static
+    /// model's active set, which lets go of a face that pulls) and the instrument moved by
+    /// less than its size. Found again, a face pressed by a retreating probe was let go at
+    /// once, sprang back in one static solve past the probe's centre, and was then pushed out
+    /// over its top (the liver pulled the retreating probe down, 0.085 N at the end).
+    fn carries_faces(&self, inst: &Instrument, old: &Instrument, shape: &Shape) -> bool {
+        self.fine.is_some()
+            && self.is_static
+            && inst.position.distance(old.position) <= shape.size()
     }
 
     /// The vertices an instrument holds: its contacts, less those a push-only hold left
@@ -526,6 +539,11 @@ impl Simulation {
             let shape = inst.shape().filter(|_| inst.friction() == Some(0.0));
             normals.extend(inst.contacts.iter().map(|k| match (&shape, k.face) {
                 (Some(shape), None) => Some(k.normal(shape, inst.position)),
+                // A face contact holds its vertex where it keeps the fine surface's points
+                // on the instrument; frictionless, only along their normal, so the face
+                // slides across (held in full, the coarse vertex dragged the fine surface
+                // sideways: a tangential force 38 % of the push on the liver).
+                (Some(_), Some(n)) => Some(n),
                 _ => None,
             }));
         }
@@ -694,6 +712,7 @@ fn keep_and_find(
     shape: &Shape,
     taken: &mut [bool],
     margin: Option<Real>,
+    carry_faces: bool,
 ) -> Vec<Contact> {
     let positions = surface.positions;
     let c = inst.position;
@@ -768,8 +787,31 @@ fn keep_and_find(
             })
         })
         .collect();
-    // Face contacts are found again from the faces, where they are now; those that did not
-    // pull keep their faces held while they rest on the instrument.
+    // Face contacts that did not pull are carried along with the instrument where the caller
+    // settles them by force (`Simulation::carries_faces`); else found again from the faces,
+    // where they are now, those that did not pull keeping their faces held while they rest
+    // on the instrument.
+    if carry_faces {
+        let carried: Vec<Contact> = old
+            .contacts
+            .iter()
+            .zip(&old.reactions)
+            .filter(|(k, f)| {
+                !is_taken(taken, k.vertex) && !pulls(**f, k.normal(shape, old.position), scale)
+            })
+            .filter_map(|(k, _)| {
+                let n = k.face?;
+                Some(Contact {
+                    vertex: k.vertex,
+                    target: k.target + n * n.dot(shift),
+                    face: Some(n),
+                })
+            })
+            .collect();
+        contacts.extend(carried);
+        contacts.sort_unstable_by_key(|k| k.vertex);
+        mark(taken, &contacts);
+    }
     let mut resting: Vec<u32> = old
         .contacts
         .iter()

@@ -167,6 +167,12 @@ fn liver_press_on(file: &str, kind: &str, relaxed: bool) -> LiverPress {
         .replace("radius = 0.005", "radius = 0.02")
         .replace("0.0555, 0.0067", "0.0705, 0.0067")
         .replace("0.0455, 0.0067", "0.0625, 0.0067");
+    // The mesh's own vertices: a fine surface the scene gives (`visual`) is left out.
+    let text: String = text
+        .lines()
+        .filter(|l| !l.starts_with("visual"))
+        .map(|l| format!("{l}\n"))
+        .collect();
     // Three point supports have no fully fixed triangle for the BEM's discontinuous rule,
     // and with it a contact released for pulling leaves its neighbours' tractions on fewer
     // triangles: the continuous rule where the scene does not choose (see the bem test).

@@ -87,7 +87,7 @@ fn push_face(
         match index[i] {
             Some(j) => {
                 let k = &mut contacts[j];
-                k.target += delta;
+                k.target = y[i] + delta;
                 k.face = Some(match k.face {
                     Some(m) => (m + n).normalize_or(n),
                     None => n,
@@ -155,9 +155,20 @@ pub fn hold_points(
             if !movable.iter().any(|&m| m) {
                 continue;
             }
-            let y = [0, 1, 2].map(|i| match index[i] {
-                Some(k) => contacts[k].target,
-                None => positions[tri[i] as usize],
+            // Where each vertex is held: a held one on its target's plane across its face
+            // normal, where the last solve let it slide (a vertex held in full is at its
+            // target, so this is its target); a free one where it is.
+            let y = [0, 1, 2].map(|i| {
+                let p = positions[tri[i] as usize];
+                match index[i].map(|k| &contacts[k]) {
+                    Some(Contact {
+                        target,
+                        face: Some(n),
+                        ..
+                    }) => p + *n * n.dot(*target - p),
+                    Some(k) => k.target,
+                    None => p,
+                }
             });
             let p = fine.rest[j]
                 + (0..3)
