@@ -11,7 +11,7 @@ use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
     Contact, PENETRATION_TOLERANCE, hold_points, is_adhesive, project_to_sphere, pulls,
-    vertices_in_ball, vertices_in_shape, vertices_near_shape,
+    settle_carried_faces, vertices_in_ball, vertices_in_shape, vertices_near_shape,
 };
 use crate::interact::fine_surface::MappedSurface;
 use crate::interact::instrument::{Instrument, InstrumentKind};
@@ -458,9 +458,8 @@ impl Simulation {
                         rest: self.model.rest_surface(),
                         fine: self.fine.as_ref().map(|(m, _)| m),
                     };
-                    // Near vertices are handed over free; a fine surface's faces near the
-                    // instrument are held by their resting points instead.
-                    let margin = (self.pushes_only(inst) && self.fine.is_none()).then(|| {
+                    // Near vertices (or a fine surface's near faces) are handed over free.
+                    let margin = self.pushes_only(inst).then(|| {
                         CONTACT_MARGIN * shape.size() + 2.0 * inst.position.distance(old.position)
                     });
                     let carry = self.carries_faces(inst, old, &shape);
@@ -515,7 +514,7 @@ impl Simulation {
     /// over its top (the liver pulled the retreating probe down, 0.085 N at the end).
     fn carries_faces(&self, inst: &Instrument, old: &Instrument, shape: &Shape) -> bool {
         self.fine.is_some()
-            && self.is_static
+            && (self.is_static || self.pushes_only(inst))
             && inst.position.distance(old.position) <= shape.size()
     }
 
@@ -677,7 +676,7 @@ impl Simulation {
                 .collect();
             let held: Vec<u32> = kept.iter().map(|k| k.vertex).collect();
             let released = kept.len() != before;
-            let moved = surface.find(&shape, c, &mut kept, taken, &resting);
+            let moved = surface.find(&shape, c, &mut kept, taken, &resting, 0.0);
             for k in &kept {
                 if held.binary_search(&k.vertex).is_err() {
                     returned.take(k.vertex);
@@ -748,7 +747,7 @@ fn keep_and_find(
             })
             .collect();
         mark(taken, &contacts);
-        surface.find(shape, c, &mut contacts, taken, &[]);
+        surface.find(shape, c, &mut contacts, taken, &[], 0.0);
         return contacts;
     }
     let slack = PENETRATION_TOLERANCE * shape.size();
@@ -799,6 +798,10 @@ fn keep_and_find(
             .filter(|(k, f)| {
                 !is_taken(taken, k.vertex) && !pulls(**f, k.normal(shape, old.position), scale)
             })
+            // Where contacts only push, those that held nothing (planes the vertex never
+            // reached) are not carried on into the tissue: the margin hands them over again
+            // from where their faces are.
+            .filter(|(_, f)| margin.is_none() || **f != Vec3::ZERO)
             .filter_map(|(k, _)| {
                 let n = k.face?;
                 Some(Contact {
@@ -810,6 +813,11 @@ fn keep_and_find(
             .collect();
         contacts.extend(carried);
         contacts.sort_unstable_by_key(|k| k.vertex);
+        // A static model's active set lets go of a face that then pulls; for a model whose
+        // contacts only push, a plane carried on past its fine points is drawn back.
+        if let (Some(fine), Some(_)) = (surface.fine, margin) {
+            settle_carried_faces(fine, surface.rest, positions, shape, c, &mut contacts);
+        }
         mark(taken, &contacts);
     }
     let mut resting: Vec<u32> = old
@@ -821,8 +829,15 @@ fn keep_and_find(
         .collect();
     resting.sort_unstable();
     mark(taken, &contacts);
-    surface.find(shape, c, &mut contacts, taken, &resting);
-    if let Some(margin) = margin {
+    surface.find(
+        shape,
+        c,
+        &mut contacts,
+        taken,
+        &resting,
+        margin.unwrap_or(0.0),
+    );
+    if let (Some(margin), None) = (margin, surface.fine) {
         let near = vertices_near_shape(
             surface.bvh,
             positions,
@@ -851,8 +866,10 @@ struct Surface<'a> {
 
 impl Surface<'_> {
     /// Adds to `contacts` (this instrument's) what newly touches `shape` at `at`: the fine
-    /// surface's vertices when there is one, else the model's vertices. `resting`: sorted face-contact vertices of the
-    /// last solve that did not pull. Returns the largest move of a face target, in m.
+    /// surface's vertices when there is one, else the model's vertices. `resting`: sorted
+    /// face-contact vertices of the last solve that did not pull; `margin`: on a fine
+    /// surface, how far outside the instrument its faces are handed over free
+    /// (`contact::hold_points`; 0 for none). Returns the largest move of a face target, in m.
     fn find(
         &self,
         shape: &Shape,
@@ -860,6 +877,7 @@ impl Surface<'_> {
         contacts: &mut Vec<Contact>,
         taken: &mut [bool],
         resting: &[u32],
+        margin: Real,
     ) -> Real {
         let kept = |v: u32| resting.binary_search(&v).is_ok();
         let moved = if let Some(fine) = self.fine {
@@ -872,6 +890,7 @@ impl Surface<'_> {
                 contacts,
                 &|v| is_taken(taken, v),
                 &kept,
+                margin,
             )
         } else {
             let fresh =

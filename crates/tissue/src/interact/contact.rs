@@ -126,6 +126,7 @@ pub fn hold_points(
     contacts: &mut Vec<Contact>,
     skip: &dyn Fn(u32) -> bool,
     kept: &dyn Fn(u32) -> bool,
+    margin: Real,
 ) -> Real {
     let tolerance = PENETRATION_TOLERANCE * shape.size();
     let mut now = Vec::new();
@@ -197,8 +198,150 @@ pub fn hold_points(
             break;
         }
     }
+    if margin > 0.0 {
+        hand_over_near_faces(
+            fine,
+            coarse_rest,
+            positions,
+            shape,
+            at,
+            contacts,
+            skip,
+            margin,
+        );
+    }
     contacts.sort_unstable_by_key(|k| k.vertex);
     largest
+}
+
+/// For a model whose contacts only push (`Deformable::contacts_push_only`): the free coarse
+/// vertices of the fine points outside the instrument by less than `margin` become face
+/// contacts whose planes lie where the point would touch (behind the vertex: free until it
+/// gets there), so the model settles them within its step instead of finding them a step
+/// late and deep (the vertex contacts' `sim::CONTACT_MARGIN`). The nearest points go first,
+/// and a vertex already held keeps its plane (the more demanding one).
+#[allow(clippy::too_many_arguments)]
+fn hand_over_near_faces(
+    fine: &crate::interact::fine_surface::MappedSurface,
+    coarse_rest: &[Vec3],
+    positions: &[Vec3],
+    shape: &Shape,
+    at: Vec3,
+    contacts: &mut Vec<Contact>,
+    skip: &dyn Fn(u32) -> bool,
+    margin: Real,
+) {
+    let mut now = Vec::new();
+    fine.positions(coarse_rest, positions, &mut now);
+    let reach = shape.bounds(at);
+    let mut near: Vec<(Real, usize, Vec3)> = now
+        .iter()
+        .enumerate()
+        .filter(|(_, q)| reach.is_none_or(|(c, r)| q.distance(c) <= r + margin))
+        .filter_map(|(j, q)| {
+            let closest = shape.closest(at, *q, Vec3::ZERO);
+            (closest.depth >= 0.0 && closest.depth <= margin).then_some((
+                closest.depth,
+                j,
+                closest.normal,
+            ))
+        })
+        .collect();
+    near.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (gap, j, n) in near {
+        let Some((tri, w)) = fine.tie(j) else {
+            continue;
+        };
+        if tri.iter().any(|&v| positions.get(v as usize).is_none()) {
+            continue;
+        }
+        let free = [0, 1, 2].map(|i| !skip(tri[i]) && !contacts.iter().any(|k| k.vertex == tri[i]));
+        let norm: Real = (0..3).filter(|&i| free[i]).map(|i| w[i] * w[i]).sum();
+        if norm <= 1e-12 {
+            continue;
+        }
+        for i in (0..3).filter(|&i| free[i]) {
+            if contacts.iter().any(|k| k.vertex == tri[i]) {
+                continue;
+            }
+            contacts.push(Contact {
+                vertex: tri[i],
+                target: positions[tri[i] as usize] - (w[i] * gap / norm) * n,
+                face: Some(n),
+            });
+        }
+    }
+}
+
+/// Fine vertices tied to a coarse vertex by less than this weight do not decide how far
+/// `settle_carried_faces` draws it back (they hang on the other vertices of their face).
+const SETTLE_WEIGHT: Real = 0.1;
+
+/// Face contacts carried into a new step with their instrument (`contacts`, this
+/// instrument's, sorted by vertex; targets moved along their normals) for a model whose
+/// contacts only push: each plane is drawn back along its normal by the least gap between
+/// the instrument and the fine vertices tied to it (by a weight above `SETTLE_WEIGHT`), so
+/// that the nearest of them would touch again if its face moved back whole; never pushed
+/// forward here (`hold_points` pushes out what penetrates). A plane behind its vertex holds
+/// nothing until the vertex gets there, so drawing back never pulls. A carried contact none
+/// of whose fine points is near the instrument is dropped. Without this the planes of faces
+/// that slid off the probe's flank were carried on into the tissue (the dynamic liver
+/// pushed back 0.119–0.125 N where the static one pushes 0.096 N); drawn back by gap / w
+/// instead of the gap, the faces overshot and chattered (0.30 N jumps on fem-explicit).
+pub fn settle_carried_faces(
+    fine: &crate::interact::fine_surface::MappedSurface,
+    coarse_rest: &[Vec3],
+    positions: &[Vec3],
+    shape: &Shape,
+    at: Vec3,
+    contacts: &mut Vec<Contact>,
+) {
+    // The fine surface with every carried vertex on its plane.
+    let mut held = positions.to_vec();
+    for k in contacts.iter() {
+        if let (Some(n), Some(p)) = (k.face, held.get_mut(k.vertex as usize)) {
+            *p += n * n.dot(k.target - *p);
+        }
+    }
+    let mut now = Vec::new();
+    fine.positions(coarse_rest, &held, &mut now);
+    let reach = shape.bounds(at);
+    let mut draw: Vec<Option<Real>> = vec![None; contacts.len()];
+    for (j, q) in now.iter().enumerate() {
+        if reach.is_some_and(|(c, r)| q.distance(c) > 2.0 * r) {
+            continue;
+        }
+        let Some((tri, w)) = fine.tie(j) else {
+            continue;
+        };
+        let gap = shape.closest(at, *q, Vec3::ZERO).depth;
+        for i in 0..3 {
+            if w[i] <= SETTLE_WEIGHT {
+                continue;
+            }
+            let Ok(k) = contacts.binary_search_by_key(&tri[i], |k| k.vertex) else {
+                continue;
+            };
+            if contacts[k].face.is_some() {
+                let d = gap;
+                draw[k] = Some(draw[k].map_or(d, |m: Real| m.min(d)));
+            }
+        }
+    }
+    let size = shape.size();
+    let mut k = 0;
+    contacts.retain_mut(|c| {
+        let d = draw.get(k).copied().flatten();
+        k += 1;
+        match (c.face, d) {
+            (None, _) => true,
+            (Some(_), None) => false,
+            (Some(n), Some(d)) => {
+                c.target -= n * d.clamp(0.0, size);
+                true
+            }
+        }
+    });
 }
 
 /// The point of the sphere (center, radius) radially outward from `p`; a vertex at the
