@@ -24,7 +24,7 @@ use std::cell::RefCell;
 use std::collections::HashMap;
 use std::time::Instant;
 
-use faer::linalg::solvers::DenseSolveCore;
+use faer::linalg::solvers::{DenseSolveCore, Solve};
 use faer::{Accum, Mat, MatRef, Par, Side};
 
 use crate::error::{Error, SimError};
@@ -73,9 +73,30 @@ struct Contacts {
     /// evaluation takes: a few short dot products and axpys, which faer's general
     /// product dispatch costs more than.
     g_rows: Vec<Real>,
-    /// W_cc and its inverse (3m × 3m).
+    /// Per contact: the direction it is held along (a frictionless contact), or `None`
+    /// (held in all three directions).
+    normals: Vec<Option<Vec3>>,
+    /// W_cc (3m × 3m) and the map from the contacts' free gaps to their forces,
+    /// P = B(BᵀW_ccB)⁻¹Bᵀ with B the held directions (3 unit columns per contact held in
+    /// full, its normal for one held along a direction): W_cc⁻¹ when every contact is held
+    /// in full. P is symmetric, so every coupling formula written with W_cc⁻¹ holds with P
+    /// (λᵀW_ccλ = yᵀPy for λ = Py).
     w: Mat<Real>,
     w_inv: Mat<Real>,
+}
+
+impl Contacts {
+    fn empty(ni: usize) -> Self {
+        Self {
+            slots: Vec::new(),
+            normals: Vec::new(),
+            rhs: Mat::zeros(0, 1),
+            g: Mat::zeros(0, ni),
+            g_rows: Vec::new(),
+            w: Mat::zeros(0, 0),
+            w_inv: Mat::zeros(0, 0),
+        }
+    }
 }
 
 /// The pre-computed rest (see the module doc).
@@ -209,14 +230,7 @@ impl RestPart {
             u0: Mat::zeros(no, 1),
             columns: HashMap::new(),
             column_norms: HashMap::new(),
-            contacts: Contacts {
-                slots: Vec::new(),
-                rhs: Mat::zeros(0, 1),
-                g: Mat::zeros(0, ni),
-                g_rows: Vec::new(),
-                w: Mat::zeros(0, 0),
-                w_inv: Mat::zeros(0, 0),
-            },
+            contacts: Contacts::empty(ni),
             forces: vec![0.0; 3 * nodes],
             build_seconds: 0.0,
             column_solves: 0,
@@ -243,14 +257,7 @@ impl RestPart {
             u0: Mat::zeros(0, 1),
             columns: HashMap::new(),
             column_norms: HashMap::new(),
-            contacts: Contacts {
-                slots: Vec::new(),
-                rhs: Mat::zeros(0, 1),
-                g: Mat::zeros(0, 0),
-                g_rows: Vec::new(),
-                w: Mat::zeros(0, 0),
-                w_inv: Mat::zeros(0, 0),
-            },
+            contacts: Contacts::empty(0),
             forces: Vec::new(),
             build_seconds: 0.0,
             column_solves: 0,
@@ -301,6 +308,8 @@ impl RestPart {
         let mut dp = held(&self.iface, self.outer_slot.len())?;
         dp.forces.copy_from_slice(&f);
         let sol = self.fem()?.borrow_mut().solve_dofs(&dp)?;
+        // The contacts' right-hand sides hold u₀: their targets, read before u₀ changes.
+        let targets = self.contact_targets();
         for (b, &m) in self.iface.iter().enumerate() {
             for l in 0..3 {
                 self.r0[(3 * b + l, 0)] = sol.reactions[m as usize][l];
@@ -312,10 +321,9 @@ impl RestPart {
             }
         }
         self.forces = f;
-        // The contacts' right-hand sides hold u₀.
-        let targets = self.contact_targets();
         let slots = self.contacts.slots.clone();
-        self.set_contacts(&slots, &targets)
+        let normals = self.contacts.normals.clone();
+        self.set_contacts(&slots, &targets, &normals)
     }
 
     /// The target displacements of the current contacts (3 per contact).
@@ -367,17 +375,43 @@ impl RestPart {
         &self.contacts.slots
     }
 
-    /// Are these the contacts and targets already set?
-    pub fn same_contacts(&self, slots: &[u32], targets: &[Real]) -> bool {
-        self.contacts.slots == slots && self.contact_targets() == targets
+    /// Are these the contacts, directions and targets already set?
+    pub fn same_contacts(&self, slots: &[u32], targets: &[Real], normals: &[Option<Vec3>]) -> bool {
+        self.contacts.slots == slots
+            && self.contacts.normals == normals
+            && self.contact_targets() == targets
     }
 
-    /// Sets the contacts: outer slots and their target displacements (3 each; a support is
-    /// a contact with target zero). Nothing changes on error.
-    pub fn set_contacts(&mut self, slots: &[u32], targets: &[Real]) -> Result<(), SimError> {
-        if slots == self.contacts.slots.as_slice() && targets.len() == self.contacts.rhs.nrows() {
-            // The same contact set (an instrument moving its targets): only the right-hand
-            // side changes, W_cc and its inverse stay.
+    /// The directions the contacts set are held along (`None`: in full).
+    pub fn contact_normals(&self) -> &[Option<Vec3>] {
+        &self.contacts.normals
+    }
+
+    /// Sets the contacts: outer slots, their target displacements (3 each; a support is a
+    /// contact with target zero) and the direction each is held along (`None`: all three;
+    /// a unit n: along n only, free across it, its force along n). Nothing changes on
+    /// error.
+    pub fn set_contacts(
+        &mut self,
+        slots: &[u32],
+        targets: &[Real],
+        normals: &[Option<Vec3>],
+    ) -> Result<(), SimError> {
+        if normals.len() != slots.len() || targets.len() != 3 * slots.len() {
+            return Err(SimError::BadParameter {
+                name: "contacts",
+                value: format!(
+                    "{} slots, {} targets, {} directions",
+                    slots.len(),
+                    targets.len(),
+                    normals.len()
+                ),
+                reason: "needs 3 targets and one direction (or none) per contact".into(),
+            });
+        }
+        if slots == self.contacts.slots.as_slice() && normals == self.contacts.normals.as_slice() {
+            // The same contact set held the same ways (an instrument moving its targets):
+            // only the right-hand side changes, W_cc and P stay.
             for (k, &s) in slots.iter().enumerate() {
                 for l in 0..3 {
                     self.contacts.rhs[(3 * k + l, 0)] =
@@ -393,6 +427,7 @@ impl RestPart {
         let ni = self.panels.dim();
         let mut c = Contacts {
             slots: slots.to_vec(),
+            normals: normals.to_vec(),
             rhs: Mat::zeros(m3, 1),
             g: Mat::zeros(m3, ni),
             g_rows: Vec::new(),
@@ -422,15 +457,7 @@ impl RestPart {
                     c.w[(j, i)] = m;
                 }
             }
-            let llt =
-                c.w.llt(Side::Lower)
-                    .map_err(|_| SimError::NotPositiveDefinite {
-                        row: 0,
-                        hint: "the compliance of the rest's contact nodes is singular: two \
-                           contacts on the same node?"
-                            .into(),
-                    })?;
-            c.w_inv = llt.inverse();
+            c.w_inv = held_inverse(&c.w, normals)?;
         }
         c.g_rows = (0..m3)
             .flat_map(|i| (0..ni).map(move |j| (i, j)))
@@ -755,6 +782,91 @@ impl RestPart {
             }),
         }
     }
+}
+
+/// P = B(BᵀWB)⁻¹Bᵀ for the held directions B of `normals` (3 unit columns for `None`,
+/// the direction otherwise): W⁻¹ when every contact is held in full. One Cholesky
+/// factorisation of the r × r block, r the held directions.
+fn held_inverse(w: &Mat<Real>, normals: &[Option<Vec3>]) -> Result<Mat<Real>, SimError> {
+    let singular = |_| SimError::NotPositiveDefinite {
+        row: 0,
+        hint: "the compliance of the rest's contact nodes is singular: two contacts on the \
+               same node?"
+            .into(),
+    };
+    let m3 = w.nrows();
+    if normals.iter().all(Option::is_none) {
+        return Ok(w.llt(Side::Lower).map_err(singular)?.inverse());
+    }
+    let r: usize = normals
+        .iter()
+        .map(|n| if n.is_some() { 1 } else { 3 })
+        .sum();
+    let mut b = Mat::<Real>::zeros(m3, r);
+    let mut col = 0;
+    for (k, n) in normals.iter().enumerate() {
+        match n {
+            Some(n) => {
+                for l in 0..3 {
+                    b[(3 * k + l, col)] = n[l];
+                }
+                col += 1;
+            }
+            None => {
+                for l in 0..3 {
+                    b[(3 * k + l, col)] = 1.0;
+                    col += 1;
+                }
+            }
+        }
+    }
+    let mut wb = Mat::<Real>::zeros(m3, r);
+    faer::linalg::matmul::matmul(
+        wb.as_mut(),
+        Accum::Replace,
+        w.as_ref(),
+        b.as_ref(),
+        1.0,
+        Par::Seq,
+    );
+    let mut m = Mat::<Real>::zeros(r, r);
+    faer::linalg::matmul::matmul(
+        m.as_mut(),
+        Accum::Replace,
+        b.as_ref().transpose(),
+        wb.as_ref(),
+        1.0,
+        Par::Seq,
+    );
+    for j in 0..r {
+        for i in 0..j {
+            let s = 0.5 * (m[(i, j)] + m[(j, i)]);
+            m[(i, j)] = s;
+            m[(j, i)] = s;
+        }
+    }
+    let x = m
+        .llt(Side::Lower)
+        .map_err(singular)?
+        .solve(b.as_ref().transpose());
+    let mut p = Mat::<Real>::zeros(m3, m3);
+    faer::linalg::matmul::matmul(
+        p.as_mut(),
+        Accum::Replace,
+        b.as_ref(),
+        x.as_ref(),
+        1.0,
+        Par::Seq,
+    );
+    // Symmetric in exact arithmetic; kept so to roundoff, for a conservative coupling.
+    for j in 0..m3 {
+        for i in 0..j {
+            let s = 0.5 * (p[(i, j)] + p[(j, i)]);
+            p[(i, j)] = s;
+            p[(j, i)] = s;
+        }
+    }
+    Ok(p)
 }
 
 /// The problem with the interface nodes held at zero (targets and forces to be filled).
