@@ -24,7 +24,7 @@ use std::cell::RefCell;
 use std::collections::HashMap;
 use std::time::Instant;
 
-use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::linalg::solvers::DenseSolveCore;
 use faer::{Accum, Mat, MatRef, Par, Side};
 
 use crate::error::{Error, SimError};
@@ -134,6 +134,8 @@ pub(super) struct RestPart {
     forces: Vec<Real>,
     pub build_seconds: Real,
     pub column_solves: usize,
+    /// W_FF⁻¹ of the contacts held in full (`held_inverse`).
+    full_inverse: FullInverse,
 }
 
 impl std::fmt::Debug for RestPart {
@@ -234,6 +236,7 @@ impl RestPart {
             forces: vec![0.0; 3 * nodes],
             build_seconds: 0.0,
             column_solves: 0,
+            full_inverse: FullInverse::default(),
             fem: Some(RefCell::new(fem)),
         };
         Ok(Self {
@@ -261,6 +264,7 @@ impl RestPart {
             forces: Vec::new(),
             build_seconds: 0.0,
             column_solves: 0,
+            full_inverse: FullInverse::default(),
         }
     }
 
@@ -457,7 +461,7 @@ impl RestPart {
                     c.w[(j, i)] = m;
                 }
             }
-            c.w_inv = held_inverse(&c.w, normals)?;
+            c.w_inv = held_inverse(&c.w, slots, normals, &mut self.full_inverse)?;
         }
         c.g_rows = (0..m3)
             .flat_map(|i| (0..ni).map(move |j| (i, j)))
@@ -784,86 +788,184 @@ impl RestPart {
     }
 }
 
-/// P = B(BᵀWB)⁻¹Bᵀ for the held directions B of `normals` (3 unit columns for `None`,
-/// the direction otherwise): W⁻¹ when every contact is held in full. One Cholesky
-/// factorisation of the r × r block, r the held directions.
-fn held_inverse(w: &Mat<Real>, normals: &[Option<Vec3>]) -> Result<Mat<Real>, SimError> {
-    let singular = |_| SimError::NotPositiveDefinite {
+/// The inverse of the compliance block of the contacts held in full, kept while they stay
+/// the same (the supports and sticking contacts; the frictionless ones change every step).
+#[derive(Clone, Debug)]
+struct FullInverse {
+    slots: Vec<u32>,
+    inv: Mat<Real>,
+}
+
+impl Default for FullInverse {
+    fn default() -> Self {
+        Self {
+            slots: Vec::new(),
+            inv: Mat::zeros(0, 0),
+        }
+    }
+}
+
+fn singular<E>(_: E) -> SimError {
+    SimError::NotPositiveDefinite {
         row: 0,
         hint: "the compliance of the rest's contact nodes is singular: two contacts on the \
                same node?"
             .into(),
-    };
-    let m3 = w.nrows();
-    if normals.iter().all(Option::is_none) {
-        return Ok(w.llt(Side::Lower).map_err(singular)?.inverse());
     }
-    let r: usize = normals
-        .iter()
-        .map(|n| if n.is_some() { 1 } else { 3 })
-        .sum();
-    let mut b = Mat::<Real>::zeros(m3, r);
-    let mut col = 0;
-    for (k, n) in normals.iter().enumerate() {
-        match n {
-            Some(n) => {
-                for l in 0..3 {
-                    b[(3 * k + l, col)] = n[l];
-                }
-                col += 1;
-            }
-            None => {
-                for l in 0..3 {
-                    b[(3 * k + l, col)] = 1.0;
-                    col += 1;
-                }
-            }
-        }
-    }
-    let mut wb = Mat::<Real>::zeros(m3, r);
-    faer::linalg::matmul::matmul(
-        wb.as_mut(),
-        Accum::Replace,
-        w.as_ref(),
-        b.as_ref(),
-        1.0,
-        Par::Seq,
-    );
-    let mut m = Mat::<Real>::zeros(r, r);
-    faer::linalg::matmul::matmul(
-        m.as_mut(),
-        Accum::Replace,
-        b.as_ref().transpose(),
-        wb.as_ref(),
-        1.0,
-        Par::Seq,
-    );
-    for j in 0..r {
+}
+
+fn symmetrise(m: &mut Mat<Real>) {
+    for j in 0..m.ncols() {
         for i in 0..j {
             let s = 0.5 * (m[(i, j)] + m[(j, i)]);
             m[(i, j)] = s;
             m[(j, i)] = s;
         }
     }
-    let x = m
-        .llt(Side::Lower)
-        .map_err(singular)?
-        .solve(b.as_ref().transpose());
+}
+
+/// P = B(BᵀWB)⁻¹Bᵀ for the held directions B of `normals` (3 unit columns for `None`, the
+/// direction otherwise): W⁻¹ when every contact is held in full. With F the contacts held
+/// in full (A = W_FF, its inverse kept in `cache` while F stays) and N those held along
+/// n (C = W_FN n, D = nᵀW_NN n), BᵀWB = [[A, C], [Cᵀ, D]] is eliminated by its Schur
+/// complement S = D − CᵀA⁻¹C (k × k, k the normal holds), E = A⁻¹C:
+/// P_FF = A⁻¹ + E S⁻¹ Eᵀ, P_FN = −E S⁻¹ nᵀ, P_NN = n S⁻¹ nᵀ. A new direction then costs
+/// O(f²k) for f full contacts, not a factorisation of the whole block (the supports on
+/// the rest are contacts held in full: hundreds of rows).
+fn held_inverse(
+    w: &Mat<Real>,
+    slots: &[u32],
+    normals: &[Option<Vec3>],
+    cache: &mut FullInverse,
+) -> Result<Mat<Real>, SimError> {
+    let full: Vec<usize> = (0..slots.len()).filter(|&k| normals[k].is_none()).collect();
+    let along: Vec<(usize, Vec3)> = (0..slots.len())
+        .filter_map(|k| normals[k].map(|n| (k, n)))
+        .collect();
+    let (nf, nk) = (3 * full.len(), along.len());
+    let full_slots: Vec<u32> = full.iter().map(|&k| slots[k]).collect();
+    if cache.slots != full_slots || cache.inv.nrows() != nf {
+        let mut a = Mat::<Real>::zeros(nf, nf);
+        for (i, &ki) in full.iter().enumerate() {
+            for (j, &kj) in full.iter().enumerate() {
+                for l in 0..3 {
+                    for m in 0..3 {
+                        a[(3 * i + l, 3 * j + m)] = w[(3 * ki + l, 3 * kj + m)];
+                    }
+                }
+            }
+        }
+        let mut inv = if nf > 0 {
+            a.llt(Side::Lower).map_err(singular)?.inverse()
+        } else {
+            Mat::zeros(0, 0)
+        };
+        symmetrise(&mut inv);
+        *cache = FullInverse {
+            slots: full_slots,
+            inv,
+        };
+    }
+    let a_inv = &cache.inv;
+    let m3 = w.nrows();
     let mut p = Mat::<Real>::zeros(m3, m3);
-    faer::linalg::matmul::matmul(
-        p.as_mut(),
-        Accum::Replace,
-        b.as_ref(),
-        x.as_ref(),
-        1.0,
-        Par::Seq,
-    );
-    // Symmetric in exact arithmetic; kept so to roundoff, for a conservative coupling.
-    for j in 0..m3 {
-        for i in 0..j {
-            let s = 0.5 * (p[(i, j)] + p[(j, i)]);
-            p[(i, j)] = s;
-            p[(j, i)] = s;
+    // Row of the full block for row r of a full contact, by contact.
+    let scatter_full = |p: &mut Mat<Real>, i: usize, j: usize, v: Real| {
+        let (ki, kj) = (full[i / 3], full[j / 3]);
+        p[(3 * ki + i % 3, 3 * kj + j % 3)] += v;
+    };
+    for j in 0..nf {
+        for i in 0..nf {
+            scatter_full(&mut p, i, j, a_inv[(i, j)]);
+        }
+    }
+    if nk == 0 {
+        return Ok(p);
+    }
+    // C = W_FN n (nf × k), D = nᵀ W_NN n (k × k).
+    let mut c = Mat::<Real>::zeros(nf, nk);
+    for (j, &(kj, n)) in along.iter().enumerate() {
+        for (i, &ki) in full.iter().enumerate() {
+            for l in 0..3 {
+                c[(3 * i + l, j)] = (0..3).map(|m| w[(3 * ki + l, 3 * kj + m)] * n[m]).sum();
+            }
+        }
+    }
+    let mut s_mat = Mat::<Real>::zeros(nk, nk);
+    for (i, &(ki, ni)) in along.iter().enumerate() {
+        for (j, &(kj, nj)) in along.iter().enumerate() {
+            let mut v = 0.0;
+            for l in 0..3 {
+                for m in 0..3 {
+                    v += ni[l] * w[(3 * ki + l, 3 * kj + m)] * nj[m];
+                }
+            }
+            s_mat[(i, j)] = v;
+        }
+    }
+    let mut e = Mat::<Real>::zeros(nf, nk);
+    if nf > 0 {
+        faer::linalg::matmul::matmul(
+            e.as_mut(),
+            Accum::Replace,
+            a_inv.as_ref(),
+            c.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        faer::linalg::matmul::matmul(
+            s_mat.as_mut(),
+            Accum::Add,
+            c.as_ref().transpose(),
+            e.as_ref(),
+            -1.0,
+            Par::Seq,
+        );
+    }
+    symmetrise(&mut s_mat);
+    let mut s_inv = s_mat.llt(Side::Lower).map_err(singular)?.inverse();
+    symmetrise(&mut s_inv);
+    // E S⁻¹ (nf × k).
+    let mut es = Mat::<Real>::zeros(nf, nk);
+    if nf > 0 {
+        faer::linalg::matmul::matmul(
+            es.as_mut(),
+            Accum::Replace,
+            e.as_ref(),
+            s_inv.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        let mut ese = Mat::<Real>::zeros(nf, nf);
+        faer::linalg::matmul::matmul(
+            ese.as_mut(),
+            Accum::Replace,
+            es.as_ref(),
+            e.as_ref().transpose(),
+            1.0,
+            Par::Seq,
+        );
+        for j in 0..nf {
+            for i in 0..nf {
+                scatter_full(&mut p, i, j, ese[(i, j)]);
+            }
+        }
+    }
+    for (j, &(kj, nj)) in along.iter().enumerate() {
+        for i in 0..nf {
+            let v = -es[(i, j)];
+            let (ki, l) = (full[i / 3], i % 3);
+            for m in 0..3 {
+                p[(3 * ki + l, 3 * kj + m)] = v * nj[m];
+                p[(3 * kj + m, 3 * ki + l)] = v * nj[m];
+            }
+        }
+        for (i, &(ki, ni)) in along.iter().enumerate() {
+            for l in 0..3 {
+                for m in 0..3 {
+                    p[(3 * ki + l, 3 * kj + m)] = ni[l] * s_inv[(i, j)] * nj[m];
+                }
+            }
         }
     }
     Ok(p)
