@@ -233,3 +233,90 @@ fn hybrid_contact_across_the_interface_pushes_only_on_both_parts() {
         "{held} against {reference}"
     );
 }
+
+/// The shipped hybrid scenes (`liver-hybrid.toml`, `liver-hybrid-auto.toml`) with the probe
+/// frictionless (the scene's `contact = "sticking"` line dropped) or as shipped: per run,
+/// the steps touching, the steps where a contact pulls along its normal (a real pull), the
+/// steps whose force points along the probe's motion, the force at the end and the largest,
+/// and the most contacts on the rest and on the region at once. A study (prints only):
+/// `cargo test --release -p tissue --test hybrid_sliding -- --ignored --nocapture`.
+#[test]
+#[ignore = "study of the shipped scenes: prints a table"]
+fn hybrid_shipped_scenes_study() {
+    for name in ["liver-hybrid", "liver-hybrid-auto"] {
+        for sticking in [true, false] {
+            let dir = format!("{}/../../scenes", env!("CARGO_MANIFEST_DIR"));
+            let text = std::fs::read_to_string(format!("{dir}/{name}.toml")).unwrap();
+            let text: String = text
+                .lines()
+                .filter(|l| sticking || !l.trim_start().starts_with("contact = \"sticking\""))
+                .map(|l| format!("{l}\n"))
+                .collect();
+            let scene = tissue::scene::Scene::from_toml(
+                &text,
+                std::path::Path::new(&dir),
+                std::path::Path::new(&format!("{name}.toml")),
+            )
+            .unwrap();
+            let mut sim = scene.build().unwrap();
+            let p = sim
+                .instruments()
+                .iter()
+                .position(|i| matches!(i.kind(), InstrumentKind::Probe))
+                .unwrap();
+            let motion = {
+                let i = &sim.instruments()[p];
+                (i.position_at(scene.run.duration) - i.position_at(0.0)).normalize_or_zero()
+            };
+            let (mut touching, mut pulling, mut along, mut rest, mut region) = (0, 0, 0, 0, 0);
+            let mut largest: Real = 0.0;
+            let mut last = Vec3::ZERO;
+            let cpu = std::time::Instant::now();
+            while sim.time() < scene.run.duration - 1e-9 {
+                let r = sim.step(scene.run.dt).unwrap();
+                let probe = &sim.instruments()[p];
+                let f = r.forces[p];
+                let size = f.length().max(1e-300);
+                if f != Vec3::ZERO {
+                    touching += 1;
+                }
+                let (mut on_rest, mut on_region) = (0, 0);
+                let labels = sim.model().vertex_labels();
+                let mut pulls = false;
+                if let Some(shape) = probe.shape() {
+                    for (k, g) in probe.contacts().iter().zip(probe.contact_reactions()) {
+                        pulls |= g.dot(k.normal(&shape, probe.position())) / size > 1e-9;
+                        if *g != Vec3::ZERO {
+                            match labels.as_ref().map(|l| l[k.vertex as usize]) {
+                                Some(0) => on_rest += 1,
+                                Some(_) => on_region += 1,
+                                None => {}
+                            }
+                        }
+                    }
+                }
+                pulling += usize::from(pulls);
+                along += usize::from(f.dot(motion) > 0.0);
+                rest = rest.max(on_rest);
+                region = region.max(on_region);
+                largest = largest.max(f.length());
+                last = f;
+            }
+            let info = sim.model().info();
+            let detail = |k: &str| {
+                info.details
+                    .iter()
+                    .find(|(n, _)| n == k)
+                    .map(|(_, v)| v.clone())
+                    .unwrap_or_default()
+            };
+            println!(
+                "{name}, {}: {touching} steps touching, {pulling} with a contact pulling, {along} with the force along the motion; at the end {last} N, largest {largest:.4} N; contacts at once: {rest} on the rest, {region} on the region; rest contact solves {}, capped steps {}; {:.1} s",
+                if sticking { "sticking" } else { "frictionless" },
+                detail("rest_contact_solves"),
+                detail("rest_contact_capped_steps"),
+                cpu.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
