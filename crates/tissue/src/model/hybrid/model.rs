@@ -903,16 +903,21 @@ impl Hybrid {
             }
         }
         // The first guess of the active set: the contacts held in full, those that pushed
-        // at the end of the last step, and those whose node is past its plane now.
-        let positions = self.surface_positions();
-        let active: Vec<bool> = cands
-            .iter()
-            .map(|k| {
-                k.normal.is_none()
-                    || self.rest_pushed.binary_search(&k.slot).is_ok()
-                    || k.gap(positions[k.vertex as usize] - self.surf_rest[k.vertex as usize]) < 0.0
-            })
-            .collect();
+        // at the end of the last step, and those whose node is past its plane now (its
+        // three rows of the rest's surface, not the whole surface).
+        let mut now = None;
+        let mut active = Vec::with_capacity(cands.len());
+        for k in &cands {
+            let on = k.normal.is_none() || self.rest_pushed.binary_search(&k.slot).is_ok() || {
+                let (u, z) = now.get_or_insert_with(|| {
+                    let u = self.interface_u();
+                    let z = self.rest.contact_forces(&u);
+                    (u, z)
+                });
+                k.gap(self.rest.outer_displacement(k.slot, u, z)) < 0.0
+            };
+            active.push(on);
+        }
         let before = (
             std::mem::replace(&mut self.rest_cands, cands),
             std::mem::replace(&mut self.rest_active, active),
