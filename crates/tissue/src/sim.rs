@@ -411,14 +411,26 @@ impl Simulation {
     fn set_reach(&mut self, next: &[Instrument]) {
         let mut balls = Vec::with_capacity(next.len());
         let mut everywhere = self.fine.is_some();
-        for inst in next {
+        for (k, inst) in next.iter().enumerate() {
             let ball = match *inst.kind() {
                 InstrumentKind::Scalpel { .. } => continue,
                 InstrumentKind::Grasper { .. } => Some((inst.position, inst.radius())),
                 _ => inst.shape().and_then(|s| s.bounds(inst.position)),
             };
+            // A push-only model is also handed the vertices within the contact margin
+            // (`place_contacts`): the search must see their exact positions too.
+            let margin = match (self.pushes_only(inst), inst.shape()) {
+                (true, Some(shape)) => {
+                    let moved = self
+                        .instruments
+                        .get(k)
+                        .map_or(0.0, |o| inst.position.distance(o.position));
+                    CONTACT_MARGIN * shape.size() + 2.0 * moved
+                }
+                _ => 0.0,
+            };
             match ball {
-                Some((c, r)) => balls.push((c, r * (1.0 + 4.0 * PENETRATION_TOLERANCE))),
+                Some((c, r)) => balls.push((c, r * (1.0 + 4.0 * PENETRATION_TOLERANCE) + margin)),
                 None => everywhere = true,
             }
         }

@@ -580,6 +580,14 @@ struct Saved {
     watch: GrowthWatch,
 }
 
+/// An integrator's step counters and held forces at a step's start (`Integrator::checkpoint`).
+#[derive(Clone, Debug, Default)]
+pub struct Checkpoint {
+    steps: u64,
+    last_substeps: u32,
+    held_forces: Vec<Vec3>,
+}
+
 /// Steps a particle system in time with one scheme; see the module documentation.
 #[derive(Clone, Debug, Default)]
 pub struct Integrator {
@@ -685,6 +693,25 @@ impl Integrator {
         self.implicit.forget_warm_start();
         self.measured = false;
         self.watch = GrowthWatch::default();
+    }
+
+    /// What a step changes besides the state and its kept forces: to take it again from
+    /// its start (`roll_back`).
+    pub fn checkpoint(&self) -> Checkpoint {
+        Checkpoint {
+            steps: self.steps,
+            last_substeps: self.last_substeps,
+            held_forces: self.held_forces.clone(),
+        }
+    }
+
+    /// Back to `checkpoint` (the state is the caller's); the kept forces and energy are
+    /// forgotten (`forget_forces`): the step is taken again under other forces.
+    pub fn roll_back(&mut self, checkpoint: &Checkpoint) {
+        self.steps = checkpoint.steps;
+        self.last_substeps = checkpoint.last_substeps;
+        self.held_forces.clone_from(&checkpoint.held_forces);
+        self.forget_forces();
     }
 
     /// Forgets the forces and energy kept from the last step but keeps the measured

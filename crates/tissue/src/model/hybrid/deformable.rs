@@ -64,7 +64,23 @@ impl Deformable for Hybrid {
     /// Contacts and supports on either part; on the rest they are contacts of its
     /// condensed response (a new node costs three sparse solves, once).
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        self.apply_constraints(c)
+        self.apply_constraints(c, &[])
+    }
+
+    /// Entries with a direction are frictionless contacts that only push: on the region
+    /// the tensor-mass integrator's projection (`integrate::Hold::contact`), on the rest a
+    /// row of its condensed response held along the normal, in an active set settled
+    /// within the step (`Hybrid::advance`).
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.apply_constraints(c, normals).map(|()| true)
+    }
+
+    fn contacts_push_only(&self) -> bool {
+        true
     }
 
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
@@ -144,6 +160,17 @@ impl Deformable for Hybrid {
                 self.rest.column_solves.to_string(),
             ),
             ("border_removals".into(), self.border_removals.to_string()),
+            (
+                "rest_contact_solves".into(),
+                format!(
+                    "{} last step, {} at most",
+                    self.contact_stats.last_solves, self.contact_stats.max_solves
+                ),
+            ),
+            (
+                "rest_contact_capped_steps".into(),
+                self.contact_stats.capped_steps.to_string(),
+            ),
         ];
         if self.is_whole_organ() {
             details.push(("whole_organ".into(), WHOLE_ORGAN_NOTICE.into()));

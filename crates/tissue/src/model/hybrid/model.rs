@@ -97,8 +97,20 @@ pub struct Hybrid {
     pub(super) reactions: ConstraintReactions,
     /// Per surface vertex: the prescribed entry of the region model holding it, or `NONE`.
     tm_entry: Vec<u32>,
-    /// Surface vertex of each contact of the rest.
+    /// Surface vertex of each contact of the rest (the active ones, in the rest's order).
     rest_contact: Vec<u32>,
+    /// The directions given with the constraints (`set_constraints_along`), kept to apply
+    /// them again after a cut, growth or reset.
+    normals: Vec<Option<Vec3>>,
+    /// Every entry on the rest's outer surface, active or not (`contact_set`).
+    rest_cands: Vec<RestCandidate>,
+    /// Per candidate: held in the step being taken.
+    rest_active: Vec<bool>,
+    /// Outer slots whose contact pushed at the end of the last step (sorted).
+    rest_pushed: Vec<u32>,
+    /// Steps the rest's active set settled in, their solves, and the steps stopped at
+    /// `MAX_CONTACT_SOLVES`.
+    pub(super) contact_stats: ContactStats,
     /// Forces applied to the rest at its contacts after the last step (3 per contact).
     pub(super) contact_forces: Mat<Real>,
     pub(super) topology_version: u32,
@@ -168,6 +180,42 @@ fn fresh_reference_number() -> u64 {
     static NEXT: AtomicU64 = AtomicU64::new(1);
     NEXT.fetch_add(1, Ordering::Relaxed)
 }
+
+/// An entry of the constraints on the rest's outer surface: a support or grasp (held in
+/// full, always active) or an instrument's frictionless contact (held along its normal
+/// while active: it only pushes, `Hybrid::advance`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct RestCandidate {
+    vertex: u32,
+    slot: u32,
+    /// Target displacement.
+    target: Vec3,
+    /// Outward from the instrument (toward the tissue); `None`: held in full.
+    normal: Option<Vec3>,
+}
+
+impl RestCandidate {
+    /// How far a node displaced by `u` is out of the contact's plane (negative: past it).
+    fn gap(&self, u: Vec3) -> Real {
+        self.normal.map_or(0.0, |n| n.dot(u - self.target))
+    }
+}
+
+/// How the rest's contacts settled (`ModelInfo::details`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct ContactStats {
+    /// Region steps taken for the last step (1: the first guess was right).
+    pub last_solves: usize,
+    /// The most any step took.
+    pub max_solves: usize,
+    /// Steps that stopped at `MAX_CONTACT_SOLVES` with the set still changing.
+    pub capped_steps: u64,
+}
+
+/// At most this many tries of a step while the rest's active set changes (each is a whole
+/// step of the region); a step stopped here says `capped` in its `StepInfo`. A contact let
+/// go is not taken again within the step, so a set of m contacts settles in at most 2m + 1.
+pub(super) const MAX_CONTACT_SOLVES: usize = 12;
 
 /// A contact search that needs more than this fraction of the rest's outer vertices gets
 /// the whole surface (which becomes the new reference): the rows cost what the whole
@@ -246,6 +294,11 @@ impl Hybrid {
             reactions: ConstraintReactions::default(),
             tm_entry: Vec::new(),
             rest_contact: Vec::new(),
+            normals: Vec::new(),
+            rest_cands: Vec::new(),
+            rest_active: Vec::new(),
+            rest_pushed: Vec::new(),
+            contact_stats: ContactStats::default(),
             contact_forces: Mat::zeros(0, 1),
             topology_version: 0,
             real_time: false,
@@ -810,14 +863,23 @@ impl Hybrid {
     }
 
     /// Checks and splits the constraints between the two parts; nothing changes on error.
-    pub(super) fn apply_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        let disp = c.surface_displacements(&self.surf_rest)?;
+    /// An entry with a direction in `normals` is a frictionless contact that only pushes:
+    /// on the region, the tensor-mass integrator's projection (`integrate::Hold::contact`);
+    /// on the rest, a row of its condensed response held along the normal while active
+    /// (`advance` settles which are).
+    pub(super) fn apply_constraints(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<(), SimError> {
+        let holds = c.surface_holds(&self.surf_rest, normals)?;
         let tm_rest = self.tm.rest_surface().to_vec();
         let mut tm_c = Constraints::default();
+        let mut tm_normals = Vec::new();
         let mut tm_entry = vec![NONE; self.surf_nodes.len()];
-        let (mut slots, mut targets, mut rest_contact) = (Vec::new(), Vec::new(), Vec::new());
-        for (v, d) in disp.iter().enumerate() {
-            let Some(d) = d else { continue };
+        let mut cands = Vec::new();
+        for (v, h) in holds.iter().enumerate() {
+            let Some(h) = h else { continue };
             let g = self.surf_nodes[v] as usize;
             let r = self.split.region.local[g];
             if r != NONE {
@@ -828,39 +890,89 @@ impl Hybrid {
                 tm_entry[v] = tm_c.prescribed.len() as u32;
                 tm_c.prescribed.push(Prescribed {
                     vertex: sv,
-                    position: tm_rest[sv as usize] + *d,
+                    position: tm_rest[sv as usize] + h.displacement,
                 });
+                tm_normals.push(h.along);
             } else if let Some(slot) = self.rest.outer_slot(self.split.rest.local[g]) {
-                slots.push(slot);
-                targets.extend_from_slice(&d.to_array());
-                rest_contact.push(v as u32);
+                cands.push(RestCandidate {
+                    vertex: v as u32,
+                    slot,
+                    target: h.displacement,
+                    normal: h.along,
+                });
             }
         }
-        let mut new_set = false;
-        if !self.rest.same_contacts(&slots, &targets) {
-            new_set = self.rest.contact_slots() != slots.as_slice();
-            self.rest.set_contacts(&slots, &targets)?;
-            // The coupling's forces and energy changed under the integrator's feet; its
-            // stiffness (S + G_cᵀ W_cc⁻¹ G_c) only when the contact set did.
-            self.tm.forget_forces();
+        // The first guess of the active set: the contacts held in full, those that pushed
+        // at the end of the last step, and those whose node is past its plane now (its
+        // three rows of the rest's surface, not the whole surface).
+        let mut now = None;
+        let mut active = Vec::with_capacity(cands.len());
+        for k in &cands {
+            let on = k.normal.is_none() || self.rest_pushed.binary_search(&k.slot).is_ok() || {
+                let (u, z) = now.get_or_insert_with(|| {
+                    let u = self.interface_u();
+                    let z = self.rest.contact_forces(&u);
+                    (u, z)
+                });
+                k.gap(self.rest.outer_displacement(k.slot, u, z)) < 0.0
+            };
+            active.push(on);
         }
-        self.tm.set_constraints(&tm_c)?;
-        if new_set {
-            // A new contact set changes the interface stiffness by a low-rank term (the
-            // contacts' G_cᵀ W_cc⁻¹ G_c): the stability limit is re-measured from the last
-            // dominant vector in a few iterations, never below the last full measure (which
-            // the build and every growth or cut take), instead of 30 cold ones.
-            let coupling = self
-                .rest
-                .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-            self.tm
-                .recheck_stability(&coupling, CONTACT_RECHECK_ITERATIONS);
+        let before = (
+            std::mem::replace(&mut self.rest_cands, cands),
+            std::mem::replace(&mut self.rest_active, active),
+        );
+        if let Err(e) = self.install_rest_set() {
+            (self.rest_cands, self.rest_active) = before;
+            return Err(e);
         }
+        self.tm.set_constraints_along(&tm_c, &tm_normals)?;
         self.tm_entry = tm_entry;
-        self.rest_contact = rest_contact;
         self.drop_near();
         self.constraints = c.clone();
+        self.normals = normals.to_vec();
         self.reactions.set(c);
+        Ok(())
+    }
+
+    /// Hands the active candidates to the rest (nothing new when the set, its directions
+    /// and targets are those already held).
+    fn install_rest_set(&mut self) -> Result<(), SimError> {
+        let (mut slots, mut targets, mut normals, mut vertices) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (k, _) in self
+            .rest_cands
+            .iter()
+            .zip(&self.rest_active)
+            .filter(|(_, a)| **a)
+        {
+            slots.push(k.slot);
+            targets.extend_from_slice(&k.target.to_array());
+            normals.push(k.normal);
+            vertices.push(k.vertex);
+        }
+        if !self.rest.same_contacts(&slots, &targets, &normals) {
+            let new_set = self.rest.contact_slots() != slots.as_slice()
+                || self.rest.contact_normals() != normals.as_slice();
+            self.rest.set_contacts(&slots, &targets, &normals)?;
+            // The coupling's forces and energy changed under the integrator's feet; its
+            // stiffness (S + G_cᵀ P G_c) only when the contact set or its directions did.
+            self.tm.forget_forces();
+            if new_set {
+                // A new contact set changes the interface stiffness by a low-rank term (the
+                // contacts' G_cᵀ P G_c): the stability limit is re-measured from the last
+                // dominant vector in a few iterations, never below the last full measure
+                // (which the build and every growth or cut take), instead of 30 cold ones.
+                let coupling = self
+                    .rest
+                    .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+                self.tm
+                    .recheck_stability(&coupling, CONTACT_RECHECK_ITERATIONS);
+            }
+        }
+        self.rest_contact = vertices;
+        self.surf_pos.take();
+        self.drop_near();
         Ok(())
     }
 
@@ -917,22 +1029,103 @@ impl Hybrid {
         if self.real_time {
             self.poll_growth()?;
         }
-        let coupling = self
-            .rest
-            .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-        // A region that covers the organ is whole-organ tensor-mass: nothing to couple.
-        let coupled: Option<&dyn NodeCoupling> = if self.rest.exists() {
-            Some(&coupling)
+        let info = if self.rest_cands.iter().any(|k| k.normal.is_some()) {
+            self.advance_settling(dt)?
         } else {
-            None
+            let coupling = self
+                .rest
+                .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+            // A region that covers the organ is whole-organ tensor-mass: nothing to couple.
+            let coupled: Option<&dyn NodeCoupling> = if self.rest.exists() {
+                Some(&coupling)
+            } else {
+                None
+            };
+            self.tm.advance_coupled(dt, coupled)?
         };
-        let info = self.tm.advance_coupled(dt, coupled)?;
         self.steps += 1;
         if let Some(g) = self.growth.as_mut() {
             g.steps_waited += 1;
         }
         self.update_state()?;
         Ok(info)
+    }
+
+    /// A step with contacts on the rest that only push: the region steps with the active
+    /// set held along their normals (fixed for the whole step: every stage and substep of
+    /// the scheme sees one smooth force law); then a held contact whose force pulls is let
+    /// go (for the rest of the step, so that the loop ends), a free one whose node ended
+    /// past its plane is taken, and the step is taken again from its start until nothing
+    /// changes, at most `MAX_CONTACT_SOLVES` times (then `capped`). The rest has no inertia
+    /// of its own, so its contacts are decided at the step's resolution, the resolution at
+    /// which the instrument moves them.
+    fn advance_settling(&mut self, dt: Real) -> Result<StepInfo, SimError> {
+        let start = self.tm.step_checkpoint();
+        let mut released = vec![false; self.rest_cands.len()];
+        let mut solves = 0;
+        loop {
+            solves += 1;
+            let mut info = {
+                let coupling = self
+                    .rest
+                    .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+                self.tm.advance_coupled(dt, Some(&coupling))?
+            };
+            let u = self.interface_u();
+            let z = self.rest.contact_forces(&u);
+            // Pulls and penetrations below roundoff of the pushes and of the motion are none.
+            let mut pushes = Vec::with_capacity(self.rest_cands.len());
+            let mut row = 0;
+            for (k, &a) in self.rest_cands.iter().zip(&self.rest_active) {
+                let push = if a {
+                    let f = Vec3::new(z[(3 * row, 0)], z[(3 * row + 1, 0)], z[(3 * row + 2, 0)]);
+                    row += 1;
+                    k.normal.map_or(Real::INFINITY, |n| n.dot(f))
+                } else {
+                    0.0
+                };
+                pushes.push(push);
+            }
+            let scale: Real = pushes
+                .iter()
+                .filter(|p| p.is_finite())
+                .map(|p| p.abs())
+                .sum();
+            let depth = 1e-12 * self.edge;
+            let mut next = self.rest_active.clone();
+            for (i, k) in self.rest_cands.iter().enumerate() {
+                if k.normal.is_none() {
+                    continue;
+                }
+                if next[i] && pushes[i] < -1e-9 * scale {
+                    next[i] = false;
+                    released[i] = true;
+                } else if !next[i] && !released[i] {
+                    let d = self.rest.outer_displacement(k.slot, &u, &z);
+                    next[i] = k.gap(d) < -depth;
+                }
+            }
+            let changed = next != self.rest_active;
+            if !changed || solves >= MAX_CONTACT_SOLVES {
+                info.capped |= changed;
+                let st = &mut self.contact_stats;
+                st.last_solves = solves;
+                st.max_solves = st.max_solves.max(solves);
+                st.capped_steps += u64::from(changed);
+                self.rest_pushed = self
+                    .rest_cands
+                    .iter()
+                    .zip(&pushes)
+                    .filter(|(k, p)| k.normal.is_some() && **p > 0.0)
+                    .map(|(k, _)| k.slot)
+                    .collect();
+                self.rest_pushed.sort_unstable();
+                return Ok(info);
+            }
+            self.rest_active = next;
+            self.tm.roll_back(&start);
+            self.install_rest_set()?;
+        }
     }
 
     /// Surface positions and reactions from the region's state.
@@ -1065,7 +1258,8 @@ impl Hybrid {
         // Constraints name surface vertices, which keep their numbers; the region model's
         // surface grew, so its entries are re-derived.
         let c = self.constraints.clone();
-        let _ = self.apply_constraints(&c);
+        let normals = self.normals.clone();
+        let _ = self.apply_constraints(&c, &normals);
         let _ = self.update_state();
         CutInfo {
             removed_elements: removed.len(),
@@ -1208,7 +1402,8 @@ impl Hybrid {
         let loads = self.loads.clone();
         self.set_loads_checked(&loads)?;
         let c = self.constraints.clone();
-        self.apply_constraints(&c)?;
+        let normals = self.normals.clone();
+        self.apply_constraints(&c, &normals)?;
         self.update_state()?;
         self.measure_stability();
         self.notice_whole();
@@ -1247,7 +1442,8 @@ impl Hybrid {
         self.rebuild_triangles();
         self.topology_version += 1;
         let c = self.constraints.clone();
-        let _ = self.apply_constraints(&c);
+        let normals = self.normals.clone();
+        let _ = self.apply_constraints(&c, &normals);
         let _ = self.update_state();
     }
 

@@ -73,9 +73,30 @@ struct Contacts {
     /// evaluation takes: a few short dot products and axpys, which faer's general
     /// product dispatch costs more than.
     g_rows: Vec<Real>,
-    /// W_cc and its inverse (3m × 3m).
+    /// Per contact: the direction it is held along (a frictionless contact), or `None`
+    /// (held in all three directions).
+    normals: Vec<Option<Vec3>>,
+    /// W_cc (3m × 3m) and the map from the contacts' free gaps to their forces,
+    /// P = B(BᵀW_ccB)⁻¹Bᵀ with B the held directions (3 unit columns per contact held in
+    /// full, its normal for one held along a direction): W_cc⁻¹ when every contact is held
+    /// in full. P is symmetric, so every coupling formula written with W_cc⁻¹ holds with P
+    /// (λᵀW_ccλ = yᵀPy for λ = Py).
     w: Mat<Real>,
     w_inv: Mat<Real>,
+}
+
+impl Contacts {
+    fn empty(ni: usize) -> Self {
+        Self {
+            slots: Vec::new(),
+            normals: Vec::new(),
+            rhs: Mat::zeros(0, 1),
+            g: Mat::zeros(0, ni),
+            g_rows: Vec::new(),
+            w: Mat::zeros(0, 0),
+            w_inv: Mat::zeros(0, 0),
+        }
+    }
 }
 
 /// The pre-computed rest (see the module doc).
@@ -113,6 +134,8 @@ pub(super) struct RestPart {
     forces: Vec<Real>,
     pub build_seconds: Real,
     pub column_solves: usize,
+    /// W_FF⁻¹ of the contacts held in full (`held_inverse`).
+    full_inverse: FullInverse,
 }
 
 impl std::fmt::Debug for RestPart {
@@ -209,17 +232,11 @@ impl RestPart {
             u0: Mat::zeros(no, 1),
             columns: HashMap::new(),
             column_norms: HashMap::new(),
-            contacts: Contacts {
-                slots: Vec::new(),
-                rhs: Mat::zeros(0, 1),
-                g: Mat::zeros(0, ni),
-                g_rows: Vec::new(),
-                w: Mat::zeros(0, 0),
-                w_inv: Mat::zeros(0, 0),
-            },
+            contacts: Contacts::empty(ni),
             forces: vec![0.0; 3 * nodes],
             build_seconds: 0.0,
             column_solves: 0,
+            full_inverse: FullInverse::default(),
             fem: Some(RefCell::new(fem)),
         };
         Ok(Self {
@@ -243,17 +260,11 @@ impl RestPart {
             u0: Mat::zeros(0, 1),
             columns: HashMap::new(),
             column_norms: HashMap::new(),
-            contacts: Contacts {
-                slots: Vec::new(),
-                rhs: Mat::zeros(0, 1),
-                g: Mat::zeros(0, 0),
-                g_rows: Vec::new(),
-                w: Mat::zeros(0, 0),
-                w_inv: Mat::zeros(0, 0),
-            },
+            contacts: Contacts::empty(0),
             forces: Vec::new(),
             build_seconds: 0.0,
             column_solves: 0,
+            full_inverse: FullInverse::default(),
         }
     }
 
@@ -301,6 +312,8 @@ impl RestPart {
         let mut dp = held(&self.iface, self.outer_slot.len())?;
         dp.forces.copy_from_slice(&f);
         let sol = self.fem()?.borrow_mut().solve_dofs(&dp)?;
+        // The contacts' right-hand sides hold u₀: their targets, read before u₀ changes.
+        let targets = self.contact_targets();
         for (b, &m) in self.iface.iter().enumerate() {
             for l in 0..3 {
                 self.r0[(3 * b + l, 0)] = sol.reactions[m as usize][l];
@@ -312,10 +325,9 @@ impl RestPart {
             }
         }
         self.forces = f;
-        // The contacts' right-hand sides hold u₀.
-        let targets = self.contact_targets();
         let slots = self.contacts.slots.clone();
-        self.set_contacts(&slots, &targets)
+        let normals = self.contacts.normals.clone();
+        self.set_contacts(&slots, &targets, &normals)
     }
 
     /// The target displacements of the current contacts (3 per contact).
@@ -367,17 +379,43 @@ impl RestPart {
         &self.contacts.slots
     }
 
-    /// Are these the contacts and targets already set?
-    pub fn same_contacts(&self, slots: &[u32], targets: &[Real]) -> bool {
-        self.contacts.slots == slots && self.contact_targets() == targets
+    /// Are these the contacts, directions and targets already set?
+    pub fn same_contacts(&self, slots: &[u32], targets: &[Real], normals: &[Option<Vec3>]) -> bool {
+        self.contacts.slots == slots
+            && self.contacts.normals == normals
+            && self.contact_targets() == targets
     }
 
-    /// Sets the contacts: outer slots and their target displacements (3 each; a support is
-    /// a contact with target zero). Nothing changes on error.
-    pub fn set_contacts(&mut self, slots: &[u32], targets: &[Real]) -> Result<(), SimError> {
-        if slots == self.contacts.slots.as_slice() && targets.len() == self.contacts.rhs.nrows() {
-            // The same contact set (an instrument moving its targets): only the right-hand
-            // side changes, W_cc and its inverse stay.
+    /// The directions the contacts set are held along (`None`: in full).
+    pub fn contact_normals(&self) -> &[Option<Vec3>] {
+        &self.contacts.normals
+    }
+
+    /// Sets the contacts: outer slots, their target displacements (3 each; a support is a
+    /// contact with target zero) and the direction each is held along (`None`: all three;
+    /// a unit n: along n only, free across it, its force along n). Nothing changes on
+    /// error.
+    pub fn set_contacts(
+        &mut self,
+        slots: &[u32],
+        targets: &[Real],
+        normals: &[Option<Vec3>],
+    ) -> Result<(), SimError> {
+        if normals.len() != slots.len() || targets.len() != 3 * slots.len() {
+            return Err(SimError::BadParameter {
+                name: "contacts",
+                value: format!(
+                    "{} slots, {} targets, {} directions",
+                    slots.len(),
+                    targets.len(),
+                    normals.len()
+                ),
+                reason: "needs 3 targets and one direction (or none) per contact".into(),
+            });
+        }
+        if slots == self.contacts.slots.as_slice() && normals == self.contacts.normals.as_slice() {
+            // The same contact set held the same ways (an instrument moving its targets):
+            // only the right-hand side changes, W_cc and P stay.
             for (k, &s) in slots.iter().enumerate() {
                 for l in 0..3 {
                     self.contacts.rhs[(3 * k + l, 0)] =
@@ -393,6 +431,7 @@ impl RestPart {
         let ni = self.panels.dim();
         let mut c = Contacts {
             slots: slots.to_vec(),
+            normals: normals.to_vec(),
             rhs: Mat::zeros(m3, 1),
             g: Mat::zeros(m3, ni),
             g_rows: Vec::new(),
@@ -422,15 +461,7 @@ impl RestPart {
                     c.w[(j, i)] = m;
                 }
             }
-            let llt =
-                c.w.llt(Side::Lower)
-                    .map_err(|_| SimError::NotPositiveDefinite {
-                        row: 0,
-                        hint: "the compliance of the rest's contact nodes is singular: two \
-                           contacts on the same node?"
-                            .into(),
-                    })?;
-            c.w_inv = llt.inverse();
+            c.w_inv = held_inverse(&c.w, slots, normals, &mut self.full_inverse)?;
         }
         c.g_rows = (0..m3)
             .flat_map(|i| (0..ni).map(move |j| (i, j)))
@@ -755,6 +786,189 @@ impl RestPart {
             }),
         }
     }
+}
+
+/// The inverse of the compliance block of the contacts held in full, kept while they stay
+/// the same (the supports and sticking contacts; the frictionless ones change every step).
+#[derive(Clone, Debug)]
+struct FullInverse {
+    slots: Vec<u32>,
+    inv: Mat<Real>,
+}
+
+impl Default for FullInverse {
+    fn default() -> Self {
+        Self {
+            slots: Vec::new(),
+            inv: Mat::zeros(0, 0),
+        }
+    }
+}
+
+fn singular<E>(_: E) -> SimError {
+    SimError::NotPositiveDefinite {
+        row: 0,
+        hint: "the compliance of the rest's contact nodes is singular: two contacts on the \
+               same node?"
+            .into(),
+    }
+}
+
+fn symmetrise(m: &mut Mat<Real>) {
+    for j in 0..m.ncols() {
+        for i in 0..j {
+            let s = 0.5 * (m[(i, j)] + m[(j, i)]);
+            m[(i, j)] = s;
+            m[(j, i)] = s;
+        }
+    }
+}
+
+/// P = B(BᵀWB)⁻¹Bᵀ for the held directions B of `normals` (3 unit columns for `None`, the
+/// direction otherwise): W⁻¹ when every contact is held in full. With F the contacts held
+/// in full (A = W_FF, its inverse kept in `cache` while F stays) and N those held along
+/// n (C = W_FN n, D = nᵀW_NN n), BᵀWB = [[A, C], [Cᵀ, D]] is eliminated by its Schur
+/// complement S = D − CᵀA⁻¹C (k × k, k the normal holds), E = A⁻¹C:
+/// P_FF = A⁻¹ + E S⁻¹ Eᵀ, P_FN = −E S⁻¹ nᵀ, P_NN = n S⁻¹ nᵀ. A new direction then costs
+/// O(f²k) for f full contacts, not a factorisation of the whole block (the supports on
+/// the rest are contacts held in full: hundreds of rows).
+fn held_inverse(
+    w: &Mat<Real>,
+    slots: &[u32],
+    normals: &[Option<Vec3>],
+    cache: &mut FullInverse,
+) -> Result<Mat<Real>, SimError> {
+    let full: Vec<usize> = (0..slots.len()).filter(|&k| normals[k].is_none()).collect();
+    let along: Vec<(usize, Vec3)> = (0..slots.len())
+        .filter_map(|k| normals[k].map(|n| (k, n)))
+        .collect();
+    let (nf, nk) = (3 * full.len(), along.len());
+    let full_slots: Vec<u32> = full.iter().map(|&k| slots[k]).collect();
+    if cache.slots != full_slots || cache.inv.nrows() != nf {
+        let mut a = Mat::<Real>::zeros(nf, nf);
+        for (i, &ki) in full.iter().enumerate() {
+            for (j, &kj) in full.iter().enumerate() {
+                for l in 0..3 {
+                    for m in 0..3 {
+                        a[(3 * i + l, 3 * j + m)] = w[(3 * ki + l, 3 * kj + m)];
+                    }
+                }
+            }
+        }
+        let mut inv = if nf > 0 {
+            a.llt(Side::Lower).map_err(singular)?.inverse()
+        } else {
+            Mat::zeros(0, 0)
+        };
+        symmetrise(&mut inv);
+        *cache = FullInverse {
+            slots: full_slots,
+            inv,
+        };
+    }
+    let a_inv = &cache.inv;
+    let m3 = w.nrows();
+    let mut p = Mat::<Real>::zeros(m3, m3);
+    // Row of the full block for row r of a full contact, by contact.
+    let scatter_full = |p: &mut Mat<Real>, i: usize, j: usize, v: Real| {
+        let (ki, kj) = (full[i / 3], full[j / 3]);
+        p[(3 * ki + i % 3, 3 * kj + j % 3)] += v;
+    };
+    for j in 0..nf {
+        for i in 0..nf {
+            scatter_full(&mut p, i, j, a_inv[(i, j)]);
+        }
+    }
+    if nk == 0 {
+        return Ok(p);
+    }
+    // C = W_FN n (nf × k), D = nᵀ W_NN n (k × k).
+    let mut c = Mat::<Real>::zeros(nf, nk);
+    for (j, &(kj, n)) in along.iter().enumerate() {
+        for (i, &ki) in full.iter().enumerate() {
+            for l in 0..3 {
+                c[(3 * i + l, j)] = (0..3).map(|m| w[(3 * ki + l, 3 * kj + m)] * n[m]).sum();
+            }
+        }
+    }
+    let mut s_mat = Mat::<Real>::zeros(nk, nk);
+    for (i, &(ki, ni)) in along.iter().enumerate() {
+        for (j, &(kj, nj)) in along.iter().enumerate() {
+            let mut v = 0.0;
+            for l in 0..3 {
+                for m in 0..3 {
+                    v += ni[l] * w[(3 * ki + l, 3 * kj + m)] * nj[m];
+                }
+            }
+            s_mat[(i, j)] = v;
+        }
+    }
+    let mut e = Mat::<Real>::zeros(nf, nk);
+    if nf > 0 {
+        faer::linalg::matmul::matmul(
+            e.as_mut(),
+            Accum::Replace,
+            a_inv.as_ref(),
+            c.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        faer::linalg::matmul::matmul(
+            s_mat.as_mut(),
+            Accum::Add,
+            c.as_ref().transpose(),
+            e.as_ref(),
+            -1.0,
+            Par::Seq,
+        );
+    }
+    symmetrise(&mut s_mat);
+    let mut s_inv = s_mat.llt(Side::Lower).map_err(singular)?.inverse();
+    symmetrise(&mut s_inv);
+    // E S⁻¹ (nf × k).
+    let mut es = Mat::<Real>::zeros(nf, nk);
+    if nf > 0 {
+        faer::linalg::matmul::matmul(
+            es.as_mut(),
+            Accum::Replace,
+            e.as_ref(),
+            s_inv.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        let mut ese = Mat::<Real>::zeros(nf, nf);
+        faer::linalg::matmul::matmul(
+            ese.as_mut(),
+            Accum::Replace,
+            es.as_ref(),
+            e.as_ref().transpose(),
+            1.0,
+            Par::Seq,
+        );
+        for j in 0..nf {
+            for i in 0..nf {
+                scatter_full(&mut p, i, j, ese[(i, j)]);
+            }
+        }
+    }
+    for (j, &(kj, nj)) in along.iter().enumerate() {
+        for i in 0..nf {
+            let v = -es[(i, j)];
+            let (ki, l) = (full[i / 3], i % 3);
+            for m in 0..3 {
+                p[(3 * ki + l, 3 * kj + m)] = v * nj[m];
+                p[(3 * kj + m, 3 * ki + l)] = v * nj[m];
+            }
+        }
+        for (i, &(ki, ni)) in along.iter().enumerate() {
+            for l in 0..3 {
+                for m in 0..3 {
+                    p[(3 * ki + l, 3 * kj + m)] = ni[l] * s_inv[(i, j)] * nj[m];
+                }
+            }
+        }
+    }
+    Ok(p)
 }
 
 /// The problem with the interface nodes held at zero (targets and forces to be filled).

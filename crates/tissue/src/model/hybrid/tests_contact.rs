@@ -35,6 +35,16 @@ impl Deformable for WholeSurface {
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
         self.0.set_constraints(c)
     }
+    fn set_constraints_along(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.0.set_constraints_along(c, normals)
+    }
+    fn contacts_push_only(&self) -> bool {
+        self.0.contacts_push_only()
+    }
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
         self.0.set_loads(loads)
     }

@@ -19,6 +19,13 @@ use super::cut::{CutReport, Cutter};
 use super::cut_surface::CutSurface;
 use super::{TensorMassParams, TensorSystem, build_system};
 
+/// A step's start (`TensorMass::step_checkpoint`).
+#[derive(Clone, Debug)]
+pub struct StepCheckpoint {
+    state: ParticleState,
+    integrator: crate::integrate::Checkpoint,
+}
+
 /// A tensor-mass model (see the module doc of `tensor_mass`).
 #[derive(Debug)]
 pub struct TensorMass {
@@ -226,6 +233,24 @@ impl TensorMass {
     pub fn forget_forces(&mut self) {
         self.integrator.forget_forces();
     }
+    /// The state at the start of a step, to take it again (`roll_back`): a coupled model
+    /// that settles its own contacts within the step (`hybrid`'s rest).
+    pub fn step_checkpoint(&self) -> StepCheckpoint {
+        StepCheckpoint {
+            state: self.state.clone(),
+            integrator: self.integrator.checkpoint(),
+        }
+    }
+
+    /// Back to `checkpoint`'s state, to take the step again under other coupling forces
+    /// (the integrator forgets the forces and energy it kept, as after `forget_forces`).
+    pub fn roll_back(&mut self, checkpoint: &StepCheckpoint) {
+        self.state.clone_from(&checkpoint.state);
+        self.integrator.roll_back(&checkpoint.integrator);
+        self.surface.update_positions(&self.state.x);
+        self.distribute_reactions();
+    }
+
     /// Chooses the integration scheme.
     pub fn set_scheme(&mut self, scheme: Scheme) {
         self.integrator = Integrator::with_settings(scheme, self.integrator.settings);

@@ -1,0 +1,350 @@
+//! Frictionless contact on `hybrid` (issue 20): the pre-computed rest holds a contact along
+//! its normal only while it pushes (an active set of rows of its condensed response,
+//! settled within the step), the tensor-mass region by the integrator's push-only
+//! projection. Checked against physics on the graded block of `sliding/` (4 × 4 × 2 cm,
+//! E = 3 kPa, ν = 0.3, α = 20/s, floor fixed; a 20 mm probe pressed 0.3 mm):
+//!
+//! - pressed on the rest and held: no contact pulls at any step, and the settled force is
+//!   `fem-static`'s on the same mesh (the rest is linear FEM, the region linear
+//!   tensor-mass: one linear elastic model, so one equilibrium); the supports balance it;
+//! - slid sideways and held: the sideways force stays what the discrete surface gives
+//!   (`fem-static`'s own share while sliding) and the slid state is that of a straight press
+//!   at the end point (a frictionless contact keeps no memory of its path);
+//! - the probe across the interface: contacts on both parts at once, both only pushing.
+
+mod sliding;
+
+use sliding::*;
+use tissue::interact::{Instrument, InstrumentKind};
+use tissue::math::{Real, Vec3};
+use tissue::sim::Simulation;
+
+/// What a run gave at each step: time, force on the probe, the worst pull of a contact
+/// (its reaction along the instrument's outward normal, relative to |F|; positive pulls),
+/// and the probe's contacts on the rest (label 0) and on the region.
+struct Step {
+    t: Real,
+    force: Vec3,
+    pull: Real,
+    on_rest: usize,
+    on_region: usize,
+}
+
+fn run(sim: &mut Simulation, end: Real, dt: Real) -> Vec<Step> {
+    let mut out = Vec::new();
+    while sim.time() < end - 1e-9 {
+        let r = sim.step(dt).unwrap();
+        let probe = &sim.instruments()[0];
+        let shape = probe.shape().unwrap();
+        let size = r.forces[0].length().max(1e-300);
+        let labels = sim.model().vertex_labels();
+        let (mut on_rest, mut on_region) = (0, 0);
+        let mut pull: Real = 0.0;
+        for (k, g) in probe.contacts().iter().zip(probe.contact_reactions()) {
+            pull = pull.max(g.dot(k.normal(&shape, probe.position())) / size);
+            if *g == Vec3::ZERO {
+                continue; // handed over near the probe, not touching
+            }
+            match labels.as_ref().map(|l| l[k.vertex as usize]) {
+                Some(0) => on_rest += 1,
+                Some(_) => on_region += 1,
+                None => {}
+            }
+        }
+        out.push(Step {
+            t: r.time,
+            force: r.forces[0],
+            pull,
+            on_rest,
+            on_region,
+        });
+    }
+    out
+}
+
+fn force_at(h: &[Step], t: Real) -> Vec3 {
+    h.iter().rfind(|s| s.t <= t + 1e-9).unwrap().force
+}
+
+fn top(x: Real) -> Vec3 {
+    Vec3::new(x, 0.0, H + SLIDE_R)
+}
+
+const CELLS: usize = 8;
+const DT: Real = 1e-3;
+
+/// The hybrid on the block with the region `region` (a `cut_region` table), linear
+/// tensor-mass in it (the rest is linear FEM: together one linear elastic model).
+fn hybrid_sim(region: &str) -> Simulation {
+    hybrid_sim_on(region, CELLS)
+}
+
+/// `hybrid_sim` on a block of `cells` cells across.
+fn hybrid_sim_on(region: &str, cells: usize) -> Simulation {
+    let mesh = block(L, H, cells, &|_| 0.0);
+    let params: toml::Table =
+        toml::from_str(&format!("cut_region = {region}\nnonlinear = false")).unwrap();
+    sim_on_floor(model_with("hybrid", &mesh, 0.3, params))
+}
+
+/// A small region in a top corner, away from the probe: the probe presses the rest.
+const CORNER: &str = "{ sphere = { center = [0.02, 0.02, 0.02], radius = 0.008 } }";
+/// The half x > 0: the interface is the plane x = 0, under the probe.
+const HALF: &str = "{ box = { min = [0.0, -1.0, -1.0], max = [1.0, 1.0, 1.0] } }";
+
+/// A frictionless probe along `keys` on `sim`.
+fn press(mut sim: Simulation, keys: &[(Real, Vec3)]) -> (Vec<Step>, Simulation) {
+    let end = keys.last().unwrap().0;
+    let probe = Instrument::new("probe", InstrumentKind::Probe, SLIDE_R, path(keys)).unwrap();
+    sim.add_instrument(probe);
+    let h = run(&mut sim, end, DT);
+    (h, sim)
+}
+
+/// `fem-static`'s force on the same mesh, the probe pressed 0.3 mm at `x`.
+fn fem_static_at(x: Real) -> Vec3 {
+    let mesh = block(L, H, CELLS, &|_| 0.0);
+    let sim = sim_on_floor(model("fem-static", &mesh, 0.3));
+    let down = top(x) - Vec3::Z * SLIDE_DEPTH;
+    let (h, _) = press(sim, &[(0.0, top(x)), (0.1, down), (0.2, down)]);
+    h.last().unwrap().force
+}
+
+/// Pressed 0.3 mm at x = −0.5 mm on the rest over 0.3 s and held to 1 s: no contact pulls at
+/// any step, the held force is `fem-static`'s within 1 % (the slowest mode left after the
+/// 0.7 s hold decays as e^(−α t / 2) = e^(−7) ≈ 1e-3 with α = 20/s; the region's lumped
+/// masses and tensor-mass stiffness change the path to it, not the equilibrium), and the
+/// supports hold what the probe pushes, within 1 % of it.
+#[test]
+fn hybrid_press_on_the_rest_pushes_only_and_settles_on_fem_static() {
+    let b = top(-0.5e-3);
+    let down = b - Vec3::Z * SLIDE_DEPTH;
+    let (h, sim) = press(hybrid_sim(CORNER), &[(0.0, b), (0.3, down), (1.0, down)]);
+    let reference = fem_static_at(-0.5e-3);
+    let held = h.last().unwrap().force;
+    let balance = (held + sim.fixed_reaction_total()).length() / held.length();
+    let worst_pull = h.iter().map(|s| s.pull).fold(0.0, Real::max);
+    let pulls = h.iter().filter(|s| s.force.z < 0.0).count();
+    let on_rest = h.iter().map(|s| s.on_rest).max().unwrap();
+    let on_region = h.iter().map(|s| s.on_region).max().unwrap();
+    let info = sim.model().info();
+    let detail = |k: &str| {
+        info.details
+            .iter()
+            .find(|(n, _)| n == k)
+            .map(|(_, v)| v.clone())
+            .unwrap_or_default()
+    };
+    eprintln!(
+        "hybrid press on the rest: held {held} against fem-static {reference} ({:+.2e}), supports + probe {balance:.1e} of |F|, worst contact pull {worst_pull:.1e}, steps pulling {pulls}, contacts on the rest {on_rest}, on the region {on_region}, solves {}, capped steps {}",
+        (held.z - reference.z) / reference.z,
+        detail("rest_contact_solves"),
+        detail("rest_contact_capped_steps"),
+    );
+    assert!(on_rest > 0 && on_region == 0, "{on_rest} {on_region}");
+    assert!(worst_pull <= 1e-12, "{worst_pull}");
+    assert_eq!(pulls, 0);
+    assert!(
+        (held - reference).length() < 0.01 * reference.z,
+        "{held} against {reference}"
+    );
+    assert!(balance < 0.01, "{balance}");
+    assert_eq!(detail("rest_contact_capped_steps"), "0");
+}
+
+/// The sideways share |F_t|/F_n over `(from, to]`, at most.
+fn sideways(h: &[Step], from: Real, to: Real) -> Real {
+    h.iter()
+        .filter(|s| s.t > from && s.t <= to + 1e-9)
+        .map(|s| tangential(s.force) / s.force.z)
+        .fold(0.0, Real::max)
+}
+
+/// The slide: pressed 0.3 mm at x = −1.5 mm over 0.3 s, held to 0.6 s, slid 1 mm along x to
+/// x = −0.5 mm by 0.9 s (3.3 mm/s), held to 1.5 s.
+fn slide_keys() -> Vec<(Real, Vec3)> {
+    let down = -Vec3::Z * SLIDE_DEPTH;
+    let (a, b) = (top(-1.5e-3), top(-0.5e-3));
+    vec![
+        (0.0, a),
+        (0.3, a + down),
+        (0.6, a + down),
+        (0.9, b + down),
+        (1.5, b + down),
+    ]
+}
+
+/// Slid frictionless on the rest: no contact pulls at any step; while sliding the sideways
+/// force is no more than the discrete surface gives with `fem-static`'s exact normal holds
+/// along the same path (its share, plus 0.2 % of the normal force for the motion: the
+/// mass damping drags the moving dimple); slid and held, the force is that of the straight
+/// press at the end point (`fem-static`'s there, which the straight hybrid press meets to
+/// 3e-8 above) within 0.5 %: a frictionless contact keeps no memory of its path.
+#[test]
+fn hybrid_slide_on_the_rest_is_frictionless_and_forgets_its_path() {
+    let (h, _) = press(hybrid_sim(CORNER), &slide_keys());
+    let mesh = block(L, H, CELLS, &|_| 0.0);
+    let (fs, _) = press(sim_on_floor(model("fem-static", &mesh, 0.3)), &slide_keys());
+    let straight = fem_static_at(-0.5e-3);
+    let held = force_at(&h, 1.5);
+    let memory = (held - straight).length() / straight.z;
+    let share = sideways(&h, 0.65, 0.9);
+    let share_static = sideways(&fs, 0.65, 0.9);
+    let worst_pull = h.iter().map(|s| s.pull).fold(0.0, Real::max);
+    let pulls = h.iter().filter(|s| s.force.z < 0.0).count();
+    eprintln!(
+        "hybrid slide on the rest: |Ft|/Fn sliding {share:.4} (fem-static {share_static:.4}), slid and held {held} against a straight press {straight} ({memory:.1e}), worst contact pull {worst_pull:.1e}, steps pulling {pulls}"
+    );
+    assert!(worst_pull <= 1e-12, "{worst_pull}");
+    assert_eq!(pulls, 0);
+    assert!(
+        share <= share_static + 2e-3,
+        "{share} against {share_static}"
+    );
+    assert!(memory < 5e-3, "{held} against {straight}");
+}
+
+/// The probe across the interface (the region is the half x > 0, the probe pressed at
+/// x = 0 and held): contacts on both parts at once, on the rest rows of its condensed
+/// response held along their normals, on the region the integrator's projections; none
+/// pulls at any step, and the held force is `fem-static`'s (one linear elastic model across
+/// the interface) within 1 %, as on the rest alone.
+#[test]
+fn hybrid_contact_across_the_interface_pushes_only_on_both_parts() {
+    let b = top(0.0);
+    let down = b - Vec3::Z * SLIDE_DEPTH;
+    let (h, _) = press(hybrid_sim(HALF), &[(0.0, b), (0.3, down), (1.0, down)]);
+    let reference = fem_static_at(0.0);
+    let held = h.last().unwrap().force;
+    let both = h
+        .iter()
+        .filter(|s| s.on_rest > 0 && s.on_region > 0)
+        .count();
+    let worst_pull = h.iter().map(|s| s.pull).fold(0.0, Real::max);
+    let pulls = h.iter().filter(|s| s.force.z < 0.0).count();
+    let last = h.last().unwrap();
+    eprintln!(
+        "hybrid across the interface: held {held} against fem-static {reference} ({:+.2e}), steps with contacts on both parts {both} of {}, at the end {} on the rest and {} on the region, worst contact pull {worst_pull:.1e}, steps pulling {pulls}",
+        (held.z - reference.z) / reference.z,
+        h.len(),
+        last.on_rest,
+        last.on_region
+    );
+    assert!(last.on_rest > 0 && last.on_region > 0);
+    assert!(worst_pull <= 1e-12, "{worst_pull}");
+    assert_eq!(pulls, 0);
+    assert!(
+        (held - reference).length() < 0.01 * reference.z,
+        "{held} against {reference}"
+    );
+}
+
+/// The shipped hybrid scenes (`liver-hybrid.toml`, `liver-hybrid-auto.toml`) with the probe
+/// frictionless (the scene's `contact = "sticking"` line dropped) or as shipped: per run,
+/// the steps touching, the steps where a contact pulls along its normal (a real pull), the
+/// steps whose force points along the probe's motion, the force at the end and the largest,
+/// and the most contacts on the rest and on the region at once. A study (prints only):
+/// `cargo test --release -p tissue --test hybrid_sliding -- --ignored --nocapture`.
+#[test]
+#[ignore = "study of the shipped scenes: prints a table"]
+fn hybrid_shipped_scenes_study() {
+    for name in ["liver-hybrid", "liver-hybrid-auto"] {
+        for sticking in [true, false] {
+            let dir = format!("{}/../../scenes", env!("CARGO_MANIFEST_DIR"));
+            let text = std::fs::read_to_string(format!("{dir}/{name}.toml")).unwrap();
+            let text: String = text
+                .lines()
+                .filter(|l| sticking || !l.trim_start().starts_with("contact = \"sticking\""))
+                .map(|l| format!("{l}\n"))
+                .collect();
+            let scene = tissue::scene::Scene::from_toml(
+                &text,
+                std::path::Path::new(&dir),
+                std::path::Path::new(&format!("{name}.toml")),
+            )
+            .unwrap();
+            let mut sim = scene.build().unwrap();
+            let p = sim
+                .instruments()
+                .iter()
+                .position(|i| matches!(i.kind(), InstrumentKind::Probe))
+                .unwrap();
+            let motion = {
+                let i = &sim.instruments()[p];
+                (i.position_at(scene.run.duration) - i.position_at(0.0)).normalize_or_zero()
+            };
+            let (mut touching, mut pulling, mut along, mut rest, mut region) = (0, 0, 0, 0, 0);
+            let mut largest: Real = 0.0;
+            let mut last = Vec3::ZERO;
+            let cpu = std::time::Instant::now();
+            while sim.time() < scene.run.duration - 1e-9 {
+                let r = sim.step(scene.run.dt).unwrap();
+                let probe = &sim.instruments()[p];
+                let f = r.forces[p];
+                let size = f.length().max(1e-300);
+                if f != Vec3::ZERO {
+                    touching += 1;
+                }
+                let (mut on_rest, mut on_region) = (0, 0);
+                let labels = sim.model().vertex_labels();
+                let mut pulls = false;
+                if let Some(shape) = probe.shape() {
+                    for (k, g) in probe.contacts().iter().zip(probe.contact_reactions()) {
+                        pulls |= g.dot(k.normal(&shape, probe.position())) / size > 1e-9;
+                        if *g != Vec3::ZERO {
+                            match labels.as_ref().map(|l| l[k.vertex as usize]) {
+                                Some(0) => on_rest += 1,
+                                Some(_) => on_region += 1,
+                                None => {}
+                            }
+                        }
+                    }
+                }
+                pulling += usize::from(pulls);
+                along += usize::from(f.dot(motion) > 0.0);
+                rest = rest.max(on_rest);
+                region = region.max(on_region);
+                largest = largest.max(f.length());
+                last = f;
+            }
+            let info = sim.model().info();
+            let detail = |k: &str| {
+                info.details
+                    .iter()
+                    .find(|(n, _)| n == k)
+                    .map(|(_, v)| v.clone())
+                    .unwrap_or_default()
+            };
+            println!(
+                "{name}, {}: {touching} steps touching, {pulling} with a contact pulling, {along} with the force along the motion; at the end {last} N, largest {largest:.4} N; contacts at once: {rest} on the rest, {region} on the region; rest contact solves {}, capped steps {}; {:.1} s",
+                if sticking { "sticking" } else { "frictionless" },
+                detail("rest_contact_solves"),
+                detail("rest_contact_capped_steps"),
+                cpu.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
+
+/// The slide of `hybrid_slide_on_the_rest_is_frictionless_and_forgets_its_path` on the
+/// 16-cell block, where `fem-static`'s sideways share while sliding is 0.4 % (the 8-cell
+/// surface's facets give 1.7 %): the hybrid's share, beside `fem-static`'s on the same mesh.
+/// A study (prints only; about a minute).
+#[test]
+#[ignore = "study: the slide on the 16-cell block"]
+fn hybrid_slide_on_the_finer_block_study() {
+    let cpu = std::time::Instant::now();
+    let (h, _) = press(hybrid_sim_on(CORNER, 16), &slide_keys());
+    let hybrid_s = cpu.elapsed().as_secs_f64();
+    let mesh = block(L, H, 16, &|_| 0.0);
+    let (fs, _) = press(sim_on_floor(model("fem-static", &mesh, 0.3)), &slide_keys());
+    let pulls = h.iter().filter(|s| s.force.z < 0.0).count();
+    let worst_pull = h.iter().map(|s| s.pull).fold(0.0, Real::max);
+    println!(
+        "16 cells: |Ft|/Fn sliding {:.4} (fem-static {:.4}); held after the slide {} (fem-static {}); worst contact pull {worst_pull:.1e}, steps pulling {pulls}; hybrid {hybrid_s:.1} s",
+        sideways(&h, 0.65, 0.9),
+        sideways(&fs, 0.65, 0.9),
+        force_at(&h, 1.5),
+        force_at(&fs, 1.5),
+    );
+}
