@@ -42,6 +42,7 @@ fn model_damped(
         source: "liver",
         material,
         params: &params,
+        regions: &[],
     };
     build(kind, &input).expect("model builds")
 }

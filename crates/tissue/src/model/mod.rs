@@ -27,4 +27,6 @@ pub use deformable::{
 };
 pub use progress::Progress;
 pub use reactions::ConstraintReactions;
-pub use registry::{BodyNeed, BodyShape, BuildInput, KINDS, KindInfo, build};
+pub use registry::{
+    BodyNeed, BodyShape, BuildInput, KINDS, KindInfo, REGION_KINDS, build, regions_refusal,
+};
