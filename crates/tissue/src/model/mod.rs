@@ -14,6 +14,8 @@ pub mod hybrid;
 pub mod linked_volumes;
 mod progress;
 mod reactions;
+#[cfg(test)]
+mod region_tests;
 pub mod registry;
 pub mod spline;
 pub mod spring_mass;
