@@ -101,7 +101,7 @@ fn regions_a_body_or_kind_cannot_honour_are_refused_by_line() {
         "{e}"
     );
     // A kind that takes one material: refused when the scene is read.
-    for kind in ["spring-mass", "tensor-mass", "fem-condensed", "hybrid"] {
+    for kind in ["spring-mass", "tensor-mass", "bem", "hybrid"] {
         let e = parse(&text.replace("kind = \"fem-static\"", &format!("kind = \"{kind}\"")))
             .unwrap_err();
         assert!(

@@ -68,12 +68,12 @@ fn press(
     (force.z.abs(), m.surface().positions.to_vec())
 }
 
-/// Steps (and step length) that settle each kind's response to a pressed face: static
-/// kinds solve once; the dynamic ones, damped (α = 30/s), settle to 1e-7 of it (explicit:
+/// Steps (and step length) that settle each kind's response to a pressed face: the static
+/// kinds (and the two condensed from `fem-static`) solve once; the dynamic ones, damped (α = 30/s), settle to 1e-7 of it (explicit:
 /// central differences at its own stable substeps).
 fn settling(kind: &str) -> (usize, Real) {
     match kind {
-        "fem-static" => (1, 0.01),
+        "fem-static" | "fem-condensed" | "fem-precomputed-tensors" => (1, 0.01),
         "fem-explicit" => (1500, 1e-3),
         _ => (300, 0.01),
     }
@@ -120,8 +120,8 @@ fn two_layers_under_compression_are_two_springs_in_series() {
              would give {one:.4e}",
             f / delta
         );
-        // Round-off for the direct solves; the explicit kind settles as e^(−αt/2) over
-        // 1.5 s (measured 3.5e-10).
+        // Round-off for the direct solves (measured 2e-14 at most); the explicit kind
+        // settles as e^(−αt/2) over 1.5 s (measured 3.5e-10).
         let tolerance = if *kind == "fem-explicit" { 1e-8 } else { 1e-12 };
         assert!(error.abs() < tolerance, "{kind}: {error:e}");
     }
@@ -177,5 +177,58 @@ fn a_stiff_inclusion_stiffens_the_probe_above_it_and_a_same_material_one_changes
             stiff_far >= plain_far && stiff_far < 1.02 * plain_far,
             "{kind}"
         );
+    }
+}
+
+/// Each element's density: a block whose upper half (a region) is three times denser,
+/// bottom held, under gravity: the held face carries the weight of both halves,
+/// g (ρ₁ V₁ + ρ₂ V₂), on every kind once settled (the static kinds through each element's
+/// body load, the dynamic ones through each element's share of the lumped masses).
+#[test]
+fn the_held_face_carries_each_regions_weight() {
+    use crate::interact::Loads;
+    let (side, height) = (0.02, 0.04);
+    let mesh = tagged_box(Vec3::new(side, side, height), [2, 2, 4], |c| {
+        1 + i32::from(c.z > 0.5 * height)
+    });
+    let light = Material {
+        damping: 30.0,
+        ..Material::new(3000.0, 0.3).unwrap()
+    };
+    let heavy = RegionMaterial {
+        name: "2".into(),
+        tag: 2,
+        material: Material {
+            density: 3000.0,
+            ..light
+        },
+    };
+    let g = 9.81;
+    let weight = g * 0.5 * side * side * height * (1000.0 + 3000.0);
+    for kind in REGION_KINDS {
+        let (steps, dt) = settling(kind);
+        let mut m = model(kind, &mesh, light, std::slice::from_ref(&heavy));
+        let rest = m.rest_surface().to_vec();
+        let fixed = (0..rest.len() as u32)
+            .filter(|&v| rest[v as usize].z <= 1e-12)
+            .collect();
+        m.set_constraints(&Constraints::fixed(fixed))
+            .unwrap_or_else(|e| panic!("{e}"));
+        m.set_loads(&Loads {
+            gravity: Vec3::new(0.0, 0.0, -g),
+            point_loads: Vec::new(),
+        })
+        .unwrap_or_else(|e| panic!("{e}"));
+        for _ in 0..steps {
+            m.step(dt).unwrap_or_else(|e| panic!("{e}"));
+        }
+        let held: Vec3 = m.reactions().fixed.iter().copied().sum();
+        let error = held.z.abs() / weight - 1.0;
+        println!(
+            "{kind}: held {:.9e} N, weight {weight:.9e} N ({error:+.1e})",
+            held.z.abs()
+        );
+        let tolerance = if *kind == "fem-explicit" { 1e-8 } else { 1e-12 };
+        assert!(error.abs() < tolerance, "{kind}: {error:e}");
     }
 }

@@ -114,6 +114,8 @@ impl BuildInput<'_> {
 /// other kind refuses a body with per-region materials rather than use one material.
 pub const REGION_KINDS: &[&str] = &[
     "fem-static",
+    "fem-condensed",
+    "fem-precomputed-tensors",
     "fem-explicit",
     "fem-semi-implicit",
     "fem-corotational",
