@@ -411,7 +411,7 @@ impl Scene {
                     // regions by label value or segment name.
                     if !regions.tags.is_empty() {
                         for t in &mut mesh.tet_tags {
-                            let class = usize::try_from(*t - 1).ok();
+                            let class = t.checked_sub(1).and_then(|c| usize::try_from(c).ok());
                             if let Some(tag) = class.and_then(|c| regions.tags.get(c)) {
                                 *t = *tag;
                             }
