@@ -92,6 +92,7 @@ impl Model {
                         source: &mesh.source,
                         material,
                         params: &params,
+                        regions: &[],
                     },
                 )
             })

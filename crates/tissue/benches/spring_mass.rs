@@ -36,6 +36,7 @@ fn build(kind: Kind, mesh: &MeshData, e: Real, table: &str) -> SpringModel {
             ..Material::new(e, 0.3).expect("material")
         },
         params: &params,
+        regions: &[],
     };
     SpringModel::from_input(kind, &input).expect("model")
 }

@@ -127,6 +127,9 @@ pub enum MaterialError {
         value: Real,
         reason: &'static str,
     },
+    /// A per-region material (scene `[material.regions.<name>]`) the mesh cannot carry.
+    #[error("material region {region}: {reason}")]
+    Region { region: String, reason: String },
 }
 
 /// A failure while building or stepping a model.

@@ -5,6 +5,10 @@ use serde::{Deserialize, Serialize};
 use crate::error::MaterialError;
 use crate::math::Real;
 
+pub mod regions;
+
+pub use regions::{ElementMaterials, RegionMaterial};
+
 /// An isotropic, linear elastic material with mass and Rayleigh damping.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

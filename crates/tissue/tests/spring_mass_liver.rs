@@ -42,6 +42,7 @@ fn model_damped(
         source: "liver",
         material,
         params: &params,
+        regions: &[],
     };
     build(kind, &input).expect("model builds")
 }
@@ -270,6 +271,7 @@ fn table_steps_per_cpu_second() {
                 ..Material::new(3000.0, 0.3).expect("material")
             },
             params: &table,
+            regions: &[],
         };
         let mut m = SpringModel::from_input(Kind::Surface, &input).expect("model");
         m.set_constraints(&Constraints::fixed(vec![0, 700, 1400]))

@@ -4,7 +4,7 @@
 //! for another kind or material starts from here.
 
 use tissue::interact::{Instrument, InstrumentKind, Trajectory};
-use tissue::model::{BodyNeed, BodyShape, KINDS, Progress};
+use tissue::model::{BodyNeed, BodyShape, KINDS, Progress, REGION_KINDS};
 use tissue::scene::{Body, IMAGE_KINDS, Scene};
 use tissue::sim::Simulation;
 use tissue::{Error, Material, Real, Vec3};
@@ -83,8 +83,10 @@ impl Setup {
     /// The kinds this body can be built as: the voxel kinds on an image; on a mesh, the kinds
     /// whose need (`BodyNeed`: tetrahedra, a closed or an open surface) the mesh meets. A
     /// surface liver lists the 5 surface and voxel kinds, not the 11 that would only refuse.
+    /// A scene with per-region materials lists only the kinds that honour them.
     pub fn buildable_kinds(&self) -> Vec<&'static str> {
         let shape = BodyShape::of(&self.body.mesh);
+        let regions = !self.scene.material_regions.is_empty();
         KINDS
             .iter()
             .map(|k| k.name)
@@ -92,6 +94,7 @@ impl Setup {
                 Some(_) => IMAGE_KINDS.contains(k),
                 None => BodyNeed::of(k).is_some_and(|need| shape.allows(need)),
             })
+            .filter(|k| !regions || REGION_KINDS.contains(k))
             .collect()
     }
 
@@ -194,5 +197,7 @@ mod tests {
         let tetrahedral = listed("liver-probe.toml");
         assert_eq!(tetrahedral.len(), KINDS.len() - 1);
         assert!(!tetrahedral.contains(&"spline"));
+        // Per-region materials: only the kinds that give each region its own.
+        assert_eq!(listed("organ-fem-tumour.toml"), REGION_KINDS);
     }
 }

@@ -175,6 +175,7 @@ fn build_clamped(
         source: "beam benchmark",
         material: spec.material()?,
         params,
+        regions: &[],
     };
     let mut model = build(kind, &input)?;
     let (clamp, tip) = ends(model.rest_surface());

@@ -319,6 +319,7 @@ pub fn build_on(
         source,
         material,
         params,
+        regions: &[],
     };
     guarded(|| build(kind, &input)).and_then(|r| r)
 }

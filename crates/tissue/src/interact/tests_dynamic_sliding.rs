@@ -51,6 +51,7 @@ fn model(kind: &str, mesh: &MeshData) -> Box<dyn Deformable> {
         source: "graded block",
         material,
         params: &params,
+        regions: &[],
     };
     build(kind, &input).unwrap()
 }

@@ -14,6 +14,8 @@ pub mod hybrid;
 pub mod linked_volumes;
 mod progress;
 mod reactions;
+#[cfg(test)]
+mod region_tests;
 pub mod registry;
 pub mod spline;
 pub mod spring_mass;
@@ -27,4 +29,6 @@ pub use deformable::{
 };
 pub use progress::Progress;
 pub use reactions::ConstraintReactions;
-pub use registry::{BodyNeed, BodyShape, BuildInput, KINDS, KindInfo, build};
+pub use registry::{
+    BodyNeed, BodyShape, BuildInput, KINDS, KindInfo, REGION_KINDS, build, regions_refusal,
+};

@@ -1,7 +1,8 @@
 //! The model kinds built in, by name: the names are a contract kept across the project.
 
+use crate::error::MaterialError;
 use crate::error::{Error, SimError};
-use crate::material::Material;
+use crate::material::{ElementMaterials, Material, RegionMaterial};
 use crate::mesh::MeshData;
 use crate::model::Deformable;
 use crate::model::bem;
@@ -96,6 +97,40 @@ pub struct BuildInput<'a> {
     pub material: Material,
     /// The model's own settings (the scene's `[model]` table without `kind`).
     pub params: &'a toml::Table,
+    /// Materials of tagged regions (scene `[material.regions.*]`), overriding `material`
+    /// on the tetrahedra of their tag; empty for one material. Only `REGION_KINDS` take it.
+    pub regions: &'a [RegionMaterial],
+}
+
+impl BuildInput<'_> {
+    /// The material of each of `elements` tetrahedra (the mesh's tetrahedra in order, the
+    /// tags from `mesh.tet_tags`): `Uniform(material)` without regions.
+    pub fn element_materials(&self, elements: usize) -> Result<ElementMaterials, MaterialError> {
+        ElementMaterials::new(self.material, self.regions, &self.mesh.tet_tags, elements)
+    }
+}
+
+/// The kinds that give each tagged region its own material (`BuildInput::regions`); every
+/// other kind refuses a body with per-region materials rather than use one material.
+pub const REGION_KINDS: &[&str] = &[
+    "fem-static",
+    "fem-condensed",
+    "fem-precomputed-tensors",
+    "fem-explicit",
+    "fem-semi-implicit",
+    "fem-corotational",
+];
+
+/// Why `kind` cannot take per-region materials, naming the kinds that can.
+pub fn regions_refusal(kind: &str) -> Option<String> {
+    (!REGION_KINDS.contains(&kind)).then(|| {
+        format!(
+            "`{kind}` takes one material for the whole body; per-region materials \
+             ([material.regions]) are honoured by {} (or remove the regions to use the \
+             default material everywhere)",
+            REGION_KINDS.join(", ")
+        )
+    })
 }
 
 /// What a kind needs of the body it is built on: the refusal its build would give, judged
@@ -168,6 +203,17 @@ impl BodyShape {
 
 /// Builds a model by kind name.
 pub fn build(kind: &str, input: &BuildInput<'_>) -> Result<Box<dyn Deformable>, Error> {
+    if !input.regions.is_empty()
+        && let Some(reason) = regions_refusal(kind)
+        && let Some(info) = KINDS.iter().find(|k| k.name == kind)
+    {
+        return Err(SimError::Unsupported {
+            model: info.name,
+            operation: "per-region materials",
+            reason,
+        }
+        .into());
+    }
     match kind {
         "fem-static" => Ok(Box::new(fem::FemStatic::from_input(input)?)),
         "fem-condensed" => Ok(Box::new(fem::FemCondensed::from_input(input)?)),
@@ -255,6 +301,7 @@ mod tests {
                     source: name,
                     material,
                     params: &params,
+                    regions: &[],
                 };
                 let built = build(kind.name, &input);
                 assert_eq!(

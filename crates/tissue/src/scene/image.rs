@@ -113,8 +113,53 @@ pub(super) fn check_model(kind: &str, params: &toml::Table) -> Result<(), String
     Ok(())
 }
 
-/// Reads the image at `path` and selects the voxels of the part to keep.
-pub(super) fn image_grid(spec: &ImageSpec, path: &Path) -> Result<VoxelGrid, Failure> {
+/// The regions of an image selected by two labels or more and meshed (`tet_size`): voxel
+/// class k (1-based, the grid's label) is the k-th label of `labels`, and its tetrahedra
+/// are tagged `tags[k - 1]`: the label's value where every value is a whole number (as
+/// `tissue mesh --labels` tags them), else k. `names`: the segments naming those tags.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(super) struct LabelRegions {
+    pub tags: Vec<i32>,
+    pub names: Vec<(String, i32)>,
+}
+
+impl LabelRegions {
+    fn of(image: &VoxelImage, labels: &[LabelRef], values: &[f32]) -> Self {
+        let whole = values
+            .iter()
+            .all(|v| v.fract() == 0.0 && v.abs() < i32::MAX as f32);
+        let tags: Vec<i32> = values
+            .iter()
+            .enumerate()
+            .map(|(k, v)| if whole { *v as i32 } else { k as i32 + 1 })
+            .collect();
+        let mut names = Vec::new();
+        for (k, l) in labels.iter().enumerate() {
+            if let LabelRef::Name(n) = l {
+                names.push((n.clone(), tags[k]));
+            }
+        }
+        for seg in &image.segments {
+            if let Some(k) = values.iter().position(|v| *v == seg.label) {
+                for n in [&seg.name, &seg.id] {
+                    if !names.iter().any(|(m, _)| m == n) {
+                        names.push((n.clone(), tags[k]));
+                    }
+                }
+            }
+        }
+        Self { tags, names }
+    }
+}
+
+/// Reads the image at `path` and selects the voxels of the part to keep. With `regions`
+/// (the body is meshed) and two labels or more, each voxel's grid label is its label's
+/// class (`LabelRegions`), so that each label is meshed as a region of its own.
+pub(super) fn image_grid(
+    spec: &ImageSpec,
+    path: &Path,
+    regions: bool,
+) -> Result<(VoxelGrid, LabelRegions), Failure> {
     let mut image = read_image(path, spec.scale.unwrap_or(DEFAULT_SCALE))
         .map_err(|e| Failure::File(e.into()))?;
     if let Some(s) = spec.spacing {
@@ -128,6 +173,7 @@ pub(super) fn image_grid(spec: &ImageSpec, path: &Path) -> Result<VoxelGrid, Fai
         MeshError::Empty { .. } => format!("selects no voxel; the image's values span {range}"),
         other => format!("{other}; the image's values span {range}"),
     };
+    let mut regions_out = LabelRegions::default();
     let mut grid = match (&spec.threshold, &spec.labels) {
         (Some([lo, hi]), _) => from_image_threshold(&image, *lo, *hi, spec.stride)
             .map_err(|e| key_error("threshold", why(e)))?,
@@ -135,8 +181,14 @@ pub(super) fn image_grid(spec: &ImageSpec, path: &Path) -> Result<VoxelGrid, Fai
             let values = image
                 .label_values(labels)
                 .map_err(|e| key_error("labels", e))?;
-            from_image_labels(&image, &values, spec.stride)
-                .map_err(|e| key_error("labels", why(e)))?
+            let mut grid = from_image_labels(&image, &values, spec.stride)
+                .map_err(|e| key_error("labels", why(e)))?;
+            if regions && values.len() >= 2 {
+                label_classes(&mut grid, &image, &values, spec.stride)
+                    .map_err(|m| key_error("labels", m))?;
+                regions_out = LabelRegions::of(&image, labels, &values);
+            }
+            grid
         }
         (None, None) => return Err(key_error("threshold", "needs threshold or labels".into())),
     };
@@ -176,7 +228,35 @@ pub(super) fn image_grid(spec: &ImageSpec, path: &Path) -> Result<VoxelGrid, Fai
             }
         }
     }
-    Ok(grid)
+    Ok((grid, regions_out))
+}
+
+/// Sets each selected voxel's grid label to its label's class: 1 + its position in
+/// `values` (a `u8`, so at most 255 labels).
+fn label_classes(
+    grid: &mut VoxelGrid,
+    image: &VoxelImage,
+    values: &[f32],
+    stride: usize,
+) -> Result<(), String> {
+    if values.len() > usize::from(u8::MAX) {
+        return Err(format!(
+            "{} labels: at most {} can be meshed as regions",
+            values.len(),
+            u8::MAX
+        ));
+    }
+    for idx in 0..grid.len() {
+        if !grid.is_occupied(idx) {
+            continue;
+        }
+        let [i, j, k] = grid.coords(idx);
+        let value = image.value(i * stride, j * stride, k * stride);
+        if let Some(c) = value.and_then(|v| values.iter().position(|x| *x == v)) {
+            grid.labels[idx] = c as u8 + 1;
+        }
+    }
+    Ok(())
 }
 
 /// Why an image gave no grid: a key of `[image]` (the caller names the scene file and line)

@@ -20,7 +20,7 @@ use toml::Spanned;
 use crate::error::{Error, IoError, SceneError};
 use crate::interact::plausibility::check_instrument_size;
 use crate::interact::{Loads, MappedSurface};
-use crate::material::Material;
+use crate::material::{Material, RegionMaterial};
 use crate::math::{Real, Vec3};
 use crate::mesh::MeshData;
 use crate::model::{self, BuildInput, Deformable, KINDS, Progress};
@@ -31,8 +31,8 @@ use checks::{check_region, check_run, known_kinds, make_instrument, region_label
 pub use image::IMAGE_KINDS;
 use image::{Failure, check_image, check_model, image_grid, voxel_model};
 pub use spec::{
-    BoxSpec, ContactSpec, GravitySpec, ImageSpec, InstrumentSpec, MeshSpec, OutputSpec, PlaneSpec,
-    RegionSpec, RunSpec, SphereSpec,
+    BoxSpec, ContactSpec, GravitySpec, ImageSpec, InstrumentSpec, MaterialSpec, MeshSpec,
+    OutputSpec, PlaneSpec, RegionMaterialSpec, RegionSpec, RunSpec, SphereSpec,
 };
 
 #[derive(Deserialize)]
@@ -40,7 +40,7 @@ pub use spec::{
 struct RawScene {
     mesh: Option<MeshSpec>,
     image: Option<Spanned<ImageSpec>>,
-    material: Option<Material>,
+    material: Option<MaterialSpec>,
     model: Spanned<toml::Table>,
     #[serde(default)]
     fixed: Vec<Spanned<RegionSpec>>,
@@ -80,6 +80,19 @@ pub struct Body {
     pub grid: Option<VoxelGrid>,
     /// The file it came from, for messages.
     pub source: String,
+    /// Names of the mesh's tetrahedron tags (`mesh.tet_tags`): an image's segments by their
+    /// label's tag, for `[material.regions.<name>]`. Empty for a mesh file (its tags are
+    /// named by number).
+    pub tag_names: Vec<(String, i32)>,
+}
+
+/// `[material.regions.<name>]`: a tagged region's constants, resolved to a tag when the
+/// body is built.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialRegion {
+    /// The key as written: a segment's name or a tag's number.
+    pub name: String,
+    pub spec: RegionMaterialSpec,
 }
 
 /// A checked scene.
@@ -92,6 +105,9 @@ pub struct Scene {
     pub body: BodySpec,
     /// `None`: take the material the mesh file carries (PLY `material`).
     pub material: Option<Material>,
+    /// Per-region materials (`[material.regions.<name>]`), in name order; empty for one
+    /// material.
+    pub material_regions: Vec<Located<MaterialRegion>>,
     pub model_kind: String,
     /// `[model]` without `kind`, for the model's own settings.
     pub model_params: toml::Table,
@@ -199,9 +215,37 @@ impl Scene {
         let run_line = line(raw.run.span());
         let run = raw.run.into_inner();
         check_run(&run).map_err(|m| invalid(format!("line {run_line}: [run] {m}")))?;
-        if let Some(m) = raw.material {
-            m.validated()
+        let mut material = None;
+        let mut material_regions = Vec::new();
+        if let Some(spec) = raw.material {
+            let m = spec
+                .material()
+                .validated()
                 .map_err(|e| invalid(format!("[material] {e}")))?;
+            for (name, r) in spec.regions {
+                let l = line(r.span());
+                let r = r.into_inner();
+                let key = format!("line {l}: [material.regions.{name}]");
+                r.over(m)
+                    .validated()
+                    .map_err(|e| invalid(format!("{key} {e}")))?;
+                if let Some(why) = model::regions_refusal(&model_kind) {
+                    return Err(invalid(format!("{key}: {why}")));
+                }
+                if let BodySpec::Image(i) = &body
+                    && i.value.labels.is_none()
+                {
+                    return Err(invalid(format!(
+                        "{key}: the [image] is selected by `threshold`, which makes one region; \
+                         select it by `labels = [...]` to mesh each label as a region of its own"
+                    )));
+                }
+                material_regions.push(Located {
+                    line: l,
+                    value: MaterialRegion { name, spec: r },
+                });
+            }
+            material = Some(m);
         }
         let gravity = raw.gravity.map_or(Vec3::ZERO, |g| Vec3::from(g.g));
         if !crate::math::is_finite_vec(gravity) {
@@ -237,7 +281,8 @@ impl Scene {
             path: name.to_path_buf(),
             base_dir: base_dir.to_path_buf(),
             body,
-            material: raw.material,
+            material,
+            material_regions,
             model_kind,
             model_params: params,
             fixed,
@@ -338,6 +383,7 @@ impl Scene {
                         mesh,
                         grid: None,
                         source,
+                        tag_names: Vec::new(),
                     });
                 }
                 let mut mesh = crate::io::read(&resolved)?;
@@ -348,26 +394,41 @@ impl Scene {
                     mesh,
                     grid: None,
                     source,
+                    tag_names: Vec::new(),
                 })
             }
             BodySpec::Image(i) => {
-                let grid = image_grid(&i.value, &resolved).map_err(|f| match f {
-                    Failure::Key(m) => self.invalid(format!("{table} {m} (image {source})")),
-                    Failure::File(e) => e,
-                })?;
+                let meshed = i.value.tet_size.is_some();
+                let (grid, regions) =
+                    image_grid(&i.value, &resolved, meshed).map_err(|f| match f {
+                        Failure::Key(m) => self.invalid(format!("{table} {m} (image {source})")),
+                        Failure::File(e) => e,
+                    })?;
                 if let Some(size) = i.value.tet_size {
-                    let mesh = tets::image_tets(&resolved, &i.value, &grid, size)
+                    let mut mesh = tets::image_tets(&resolved, &i.value, &grid, size)
                         .map_err(|f| self.tet_failure(f, &table, size))?;
+                    // The mesher tags each tetrahedron by its voxel class; the scene names
+                    // regions by label value or segment name.
+                    if !regions.tags.is_empty() {
+                        for t in &mut mesh.tet_tags {
+                            let class = t.checked_sub(1).and_then(|c| usize::try_from(c).ok());
+                            if let Some(tag) = class.and_then(|c| regions.tags.get(c)) {
+                                *t = *tag;
+                            }
+                        }
+                    }
                     return Ok(Body {
                         mesh,
                         grid: None,
                         source,
+                        tag_names: regions.names,
                     });
                 }
                 Ok(Body {
                     mesh: MeshData::from_surface(&marching_surface(&grid)),
                     grid: Some(grid),
                     source,
+                    tag_names: Vec::new(),
                 })
             }
         }
@@ -401,6 +462,7 @@ impl Scene {
         material: Material,
         params: &toml::Table,
     ) -> Result<Box<dyn Deformable>, Error> {
+        let regions = self.region_materials(body, material, kind)?;
         match &body.grid {
             Some(grid) => {
                 check_model(kind, params).map_err(|m| self.invalid(format!("[model] {m}")))?;
@@ -419,10 +481,66 @@ impl Scene {
                         source: &body.source,
                         material,
                         params: &params,
+                        regions: &regions,
                     },
                 )
             }
         }
+    }
+
+    /// The scene's `[material.regions.*]` on the loaded body: each name resolved to a tag
+    /// of its tetrahedra (a segment's name, else a number), the constants over `default`.
+    /// Refused, naming the table's line: a name the body does not have, a tag no
+    /// tetrahedron carries, a kind that takes one material.
+    pub fn region_materials(
+        &self,
+        body: &Body,
+        default: Material,
+        kind: &str,
+    ) -> Result<Vec<RegionMaterial>, Error> {
+        let mut out = Vec::new();
+        for r in &self.material_regions {
+            let key = format!("line {}: [material.regions.{}]", r.line, r.value.name);
+            if let Some(why) = model::regions_refusal(kind) {
+                return Err(self.invalid(format!("{key}: {why}")));
+            }
+            let mut tags = body.mesh.tet_tags.clone();
+            tags.sort_unstable();
+            tags.dedup();
+            let known = || {
+                let mut list: Vec<String> = tags.iter().map(i32::to_string).collect();
+                list.extend(body.tag_names.iter().map(|(n, t)| format!("{n} (= {t})")));
+                if list.is_empty() {
+                    "none: its tetrahedra carry no tags".to_string()
+                } else {
+                    list.join(", ")
+                }
+            };
+            let name = r.value.name.trim();
+            let tag = match body.tag_names.iter().find(|(n, _)| n == name) {
+                Some((_, t)) => *t,
+                None => name.parse::<i32>().map_err(|_| {
+                    self.invalid(format!(
+                        "{key}: {} has no region named `{name}`; its regions are {}",
+                        body.source,
+                        known()
+                    ))
+                })?,
+            };
+            if tags.binary_search(&tag).is_err() {
+                return Err(self.invalid(format!(
+                    "{key}: no tetrahedron of {} is tagged {tag}; its regions are {}",
+                    body.source,
+                    known()
+                )));
+            }
+            out.push(RegionMaterial {
+                name: r.value.name.clone(),
+                tag,
+                material: r.value.spec.over(default),
+            });
+        }
+        Ok(out)
     }
 
     /// `hybrid`'s automatic region starts around the scalpels: their blades at the first
@@ -471,6 +589,7 @@ impl Scene {
             mesh,
             grid: None,
             source: source.to_string(),
+            tag_names: Vec::new(),
         };
         let material = self.material_for(&body)?;
         let model = self.build_model(&self.model_kind, &body, material, &self.model_params)?;
@@ -520,8 +639,15 @@ impl Scene {
         };
         let mut sim = Simulation::new(model, fixed, loads)?;
         sim.set_max_contact_iterations(self.contact.max_iterations);
-        let young =
-            (self.material.map(|m| m.young_modulus)).or(mesh.material.map(|m| m.young_modulus));
+        // The stiffest region bounds the plausible forces.
+        let stiffest = self
+            .material_regions
+            .iter()
+            .filter_map(|r| r.value.spec.young_modulus)
+            .fold(None, |a: Option<Real>, e| Some(a.map_or(e, |a| a.max(e))));
+        let young = (self.material.map(|m| m.young_modulus))
+            .or(mesh.material.map(|m| m.young_modulus))
+            .map(|e| stiffest.map_or(e, |s| s.max(e)));
         if let Some(e) = young {
             let bounds = sim.plausibility().clone().with_young_modulus(e);
             sim.set_plausibility(bounds);

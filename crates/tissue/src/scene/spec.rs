@@ -218,3 +218,62 @@ impl Default for ContactSpec {
 fn default_iterations() -> usize {
     DEFAULT_CONTACT_ITERATIONS
 }
+
+/// `[material]`: the body's material, and per region (`[material.regions.<name>]`) the
+/// constants that differ from it. Damping stays whole-body (only `[material]` sets it).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    pub young_modulus: Real,
+    pub poisson_ratio: Real,
+    #[serde(default = "default_density")]
+    pub density: Real,
+    #[serde(default)]
+    pub damping: Real,
+    #[serde(default)]
+    pub stiffness_damping: Real,
+    /// Regions by name: a segment's name from the image's `labels`, or a tag's number (a
+    /// label value of the image, a volume file's physical tag / cell tag / region
+    /// attribute). Each takes the default material with the keys it gives replaced.
+    #[serde(default)]
+    pub regions: std::collections::BTreeMap<String, toml::Spanned<RegionMaterialSpec>>,
+}
+
+fn default_density() -> Real {
+    1000.0
+}
+
+impl MaterialSpec {
+    /// The default material (the regions' keys aside), unchecked.
+    pub fn material(&self) -> crate::material::Material {
+        crate::material::Material {
+            young_modulus: self.young_modulus,
+            poisson_ratio: self.poisson_ratio,
+            density: self.density,
+            damping: self.damping,
+            stiffness_damping: self.stiffness_damping,
+        }
+    }
+}
+
+/// `[material.regions.<name>]`: the constants of one tagged region; those left out are the
+/// default material's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionMaterialSpec {
+    pub young_modulus: Option<Real>,
+    pub poisson_ratio: Option<Real>,
+    pub density: Option<Real>,
+}
+
+impl RegionMaterialSpec {
+    /// `default` with this region's keys replaced, unchecked.
+    pub fn over(&self, default: crate::material::Material) -> crate::material::Material {
+        crate::material::Material {
+            young_modulus: self.young_modulus.unwrap_or(default.young_modulus),
+            poisson_ratio: self.poisson_ratio.unwrap_or(default.poisson_ratio),
+            density: self.density.unwrap_or(default.density),
+            ..default
+        }
+    }
+}

@@ -55,6 +55,7 @@ pub fn model_with(
         source: "graded block",
         material,
         params: &params,
+        regions: &[],
     };
     build(kind, &input).unwrap()
 }

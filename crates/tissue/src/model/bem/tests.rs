@@ -398,6 +398,7 @@ fn bad_input_is_refused_with_its_reason() {
         source: "sphere",
         material: material(),
         params: &params,
+        regions: &[],
     };
     let e = Bem::from_input(&input).unwrap_err().to_string();
     assert!(e.contains("viscosity"), "{e}");
@@ -443,6 +444,7 @@ fn builds_by_kind_from_a_tet_mesh_boundary() {
         source: "box",
         material: material(),
         params: &params,
+        regions: &[],
     };
     let m = crate::model::build("bem", &input).unwrap();
     assert_eq!(m.kind(), "bem");
@@ -544,6 +546,7 @@ fn a_scene_built_model_assembles_on_first_constraints_and_reports_progress() {
         source: "sphere",
         material: material(),
         params: &params,
+        regions: &[],
     };
     let mut deferred = crate::model::build("bem", &input).unwrap();
     let seen = Arc::new(Mutex::new(Vec::new()));

@@ -289,6 +289,7 @@ fn the_liver_is_pressed_released_and_returns() {
         source: path,
         material: Material::new(3000.0, 0.3).unwrap(),
         params: &params,
+        regions: &[],
     };
     let mut m = ChainMail::from_input(&input).unwrap();
     let rest = m.rest_surface().to_vec();

@@ -104,9 +104,7 @@ impl Deformable for FemStatic {
     /// Gravity becomes the consistent body load ρ g over every element; point loads act on
     /// the node of their surface vertex.
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        let density = self.material.density;
-        self.problem.forces =
-            nodal_forces(loads, &self.boundary.nodes, |g| self.body_load(g * density))?;
+        self.problem.forces = nodal_forces(loads, &self.boundary.nodes, |g| self.gravity_load(g))?;
         self.loads = loads.clone();
         Ok(())
     }

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, SimError};
 use crate::interact::Loads;
-use crate::material::Material;
+use crate::material::{ElementMaterials, Material};
 use crate::math::{Real, Vec3, is_finite_vec, triangle_area_vector};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
 use crate::model::registry::parse_params;
@@ -101,7 +101,10 @@ pub struct NodalSolution {
 
 /// Linear elastostatics on 4- or 10-node tetrahedra: the reference model.
 pub struct FemStatic {
+    /// The default material (the only one without regions).
     pub(super) material: Material,
+    /// Each element's material (`Uniform(material)` without regions).
+    pub(super) materials: ElementMaterials,
     pub(super) order: Order,
     /// The compacted linear mesh at rest (corner nodes 0..n).
     pub(super) mesh: TetMesh,
@@ -140,7 +143,8 @@ impl FemStatic {
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
         let params: FemStaticParams = parse_params("fem-static", input.params)?;
         let mesh = input.mesh.tet_mesh(input.source)?;
-        let model = Self::new(&mesh, input.material, params.order)?;
+        let materials = input.element_materials(mesh.tets.len())?;
+        let model = Self::with_materials(&mesh, materials, params.order)?;
         Ok(match params.surface_nodes {
             SurfaceNodes::Corners => model,
             SurfaceNodes::All => model.with_mid_edge_surface(),
@@ -190,7 +194,17 @@ impl FemStatic {
 
     /// Validates mesh and material, assembles K and analyses it.
     pub fn new(mesh: &TetMesh, material: Material, order: Order) -> Result<Self, Error> {
-        let material = material.validated()?;
+        Self::with_materials(mesh, ElementMaterials::Uniform(material), order)
+    }
+
+    /// Like `new`, each element with its own material (`materials.of(e)`, e in the order
+    /// of `mesh.tets`).
+    pub fn with_materials(
+        mesh: &TetMesh,
+        materials: ElementMaterials,
+        order: Order,
+    ) -> Result<Self, Error> {
+        let material = materials.default_material().validated()?;
         mesh.validate_for_simulation()?;
         let start = Instant::now();
         let mesh = mesh.compacted();
@@ -202,11 +216,12 @@ impl FemStatic {
         let assembler = Assembler::new(rest.len(), elements, m)?;
         let k = assembler.assemble(|e, ke| {
             let corners = mesh.corners(e);
+            let material = materials.of(e);
             match order {
-                Order::Linear => element_linear::stiffness(&corners, &material)
+                Order::Linear => element_linear::stiffness(&corners, material)
                     .map(|k| ke.copy_from_slice(k.as_flattened()))
                     .is_some(),
-                Order::Quadratic => element_quadratic::stiffness(&corners, &material)
+                Order::Quadratic => element_quadratic::stiffness(&corners, material)
                     .map(|k| ke.copy_from_slice(k.as_flattened()))
                     .is_some(),
             }
@@ -220,6 +235,7 @@ impl FemStatic {
         let dofs = system.dofs();
         Ok(Self {
             material,
+            materials,
             order,
             positions: rest.clone(),
             rest,
@@ -246,6 +262,10 @@ impl FemStatic {
     }
     pub fn material(&self) -> &Material {
         &self.material
+    }
+    /// Each element's material (`Uniform` without regions).
+    pub fn element_materials(&self) -> &ElementMaterials {
+        &self.materials
     }
     /// The (compacted) linear mesh at rest; its vertices are nodes 0..n of every order.
     pub fn linear_mesh(&self) -> &TetMesh {
@@ -298,9 +318,23 @@ impl FemStatic {
     /// Nodal forces (flat, per dof) of a uniform body force density `b` (N/m³), consistent
     /// with the element order.
     pub fn body_load(&self, b: Vec3) -> Vec<Real> {
+        self.element_body_loads(|_| b)
+    }
+
+    /// Nodal forces (flat, per dof) of gravity `g` (m/s²) on each element's density.
+    pub fn gravity_load(&self, g: Vec3) -> Vec<Real> {
+        match self.materials.uniform() {
+            Some(m) => self.body_load(g * m.density),
+            None => self.element_body_loads(|e| g * self.materials.of(e).density),
+        }
+    }
+
+    /// Nodal forces of the body force density `b(e)` (N/m³) on each element e.
+    fn element_body_loads(&self, b_of: impl Fn(usize) -> Vec3) -> Vec<Real> {
         let mut f = vec![0.0; self.system.dofs()];
         let asm = &self.system.assembler;
         for e in 0..asm.element_count() {
+            let b = b_of(e);
             let v = self.mesh.tet_volume(e);
             let nodes = asm.element(e);
             let add = |f: &mut [Real], n: u32, x: Vec3| {

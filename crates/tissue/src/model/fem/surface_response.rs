@@ -434,9 +434,8 @@ impl SurfaceCore {
 
     /// Sets the loads (checked, condensed); nothing changes on error.
     pub fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
-        let density = self.fem.material().density;
         let f = nodal_forces(loads, self.fem.surface_nodes(), |g| {
-            self.fem.body_load(g * density)
+            self.fem.gravity_load(g)
         })?;
         let old = std::mem::replace(&mut self.forces, f);
         if self.ready()

@@ -526,6 +526,7 @@ fn registry_builds_with_order_and_rejects_unknown_keys() {
         source: "cube.msh",
         material: material(),
         params: &params,
+        regions: &[],
     };
     let m = crate::model::build("fem-static", &input).unwrap();
     assert_eq!(m.info().nodes, 8 + 19);

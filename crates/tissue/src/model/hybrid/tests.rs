@@ -41,6 +41,7 @@ fn hybrid(mesh: &TetMesh, m: Material, params: &str) -> Hybrid {
         source: "test",
         material: m,
         params: &params,
+        regions: &[],
     })
     .unwrap()
 }
@@ -540,6 +541,7 @@ fn bad_settings_are_refused_with_the_key() {
             source: "test",
             material: material(0.0),
             params: &table,
+            regions: &[],
         };
         let e = build("hybrid", &input).err().unwrap().to_string();
         assert!(e.contains(key), "{params}: {e}");
@@ -744,6 +746,7 @@ fn a_bare_mesh_and_material_get_the_automatic_region_at_the_top() {
             source: "test",
             material: material(5.0),
             params: &toml::Table::new(),
+            regions: &[],
         },
     )
     .unwrap();

@@ -95,6 +95,7 @@ fn beam_hybrid(damping: Real, params: &str) -> Hybrid {
         source: "test",
         material: m,
         params: &params,
+        regions: &[],
     })
     .unwrap()
 }

@@ -219,6 +219,7 @@ fn hybrid_speed_against_whole_organ_tensor_mass() {
                 source: "refined liver",
                 material: material(),
                 params: &params,
+                regions: &[],
             })
             .unwrap();
             let surf = h.surf_nodes.clone();
@@ -278,6 +279,7 @@ fn hybrid_speed_against_whole_organ_tensor_mass() {
         source: "refined liver",
         material: material(),
         params: &params,
+        regions: &[],
     })
     .unwrap();
     // The ligaments held.
@@ -492,6 +494,7 @@ fn hybrid_speed_through_simulation() {
                 source: "refined liver",
                 material: material(),
                 params: &params,
+                regions: &[],
             })
             .unwrap()
         };
@@ -580,6 +583,7 @@ fn hybrid_probe_profile() {
                 source: "refined liver",
                 material: material(),
                 params: &params,
+                regions: &[],
             })
             .unwrap(),
         )

@@ -221,6 +221,7 @@ fn a_pressed_liver_comes_to_equilibrium_with_balanced_reactions() {
         source: path,
         material,
         params: &params,
+        regions: &[],
     };
     let mut m = LinkedVolumes::from_input(&input).unwrap();
     let rest = m.rest_surface().to_vec();

@@ -161,6 +161,7 @@ fn cut_closed_organs_and_bad_settings_are_refused_by_name() {
         source: "liver.obj",
         material,
         params: &params,
+        regions: &[],
     };
     let e = crate::model::build("spline", &input)
         .err()
@@ -177,6 +178,7 @@ fn cut_closed_organs_and_bad_settings_are_refused_by_name() {
         source: "tube",
         material,
         params: &params,
+        regions: &[],
     };
     let m = crate::model::build("spline", &input).unwrap();
     let info = m.info();
@@ -195,6 +197,7 @@ fn cut_closed_organs_and_bad_settings_are_refused_by_name() {
             source: "tube",
             material,
             params: &bad,
+            regions: &[],
         };
         let e = crate::model::build("spline", &input)
             .err()
@@ -208,6 +211,7 @@ fn cut_closed_organs_and_bad_settings_are_refused_by_name() {
         source: "tube",
         material,
         params: &bad,
+        regions: &[],
     };
     let e = crate::model::build("spline", &input)
         .err()

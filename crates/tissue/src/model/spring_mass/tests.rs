@@ -27,6 +27,7 @@ fn build(kind: Kind, mesh: &MeshData, m: Material, table: &str) -> SpringModel {
         source: "test",
         material: m,
         params: &params,
+        regions: &[],
     };
     SpringModel::from_input(kind, &input).unwrap()
 }
@@ -232,6 +233,7 @@ fn bad_settings_are_named() {
         source: "test",
         material: material(3000.0),
         params: &table,
+        regions: &[],
     };
     let e = SpringModel::from_input(Kind::Surface, &input)
         .unwrap_err()

@@ -55,7 +55,12 @@ impl FemCondensed {
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
         let _: Params = parse_params("fem-condensed", input.params)?;
         let mesh = input.mesh.tet_mesh(input.source)?;
-        Self::new(&mesh, input.material, &[])
+        let materials = input.element_materials(mesh.tets.len())?;
+        Self::from_static(
+            FemStatic::with_materials(&mesh, materials, Order::Linear)?,
+            &[],
+            &|_| {},
+        )
     }
 
     /// Builds the model with `fixed` surface vertices (condensed now unless empty).
@@ -70,7 +75,16 @@ impl FemCondensed {
         fixed: &[u32],
         progress: &dyn Fn(f64),
     ) -> Result<Self, Error> {
-        let fem = FemStatic::new(mesh, material, Order::Linear)?;
+        Self::from_static(
+            FemStatic::new(mesh, material, Order::Linear)?,
+            fixed,
+            progress,
+        )
+    }
+
+    /// Around a built `fem-static` (its elements' materials, per region or one): the
+    /// surface response is condensed from its stiffness, gravity from its body load.
+    fn from_static(fem: FemStatic, fixed: &[u32], progress: &dyn Fn(f64)) -> Result<Self, Error> {
         let mut model = Self {
             core: SurfaceCore::new(fem),
             w: Mat::zeros(0, 0),

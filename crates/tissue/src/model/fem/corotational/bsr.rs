@@ -12,7 +12,7 @@
 use crate::math::{Mat3, Real};
 use crate::solve::BlockPattern;
 
-use super::force::{ElementRest, Lame};
+use super::force::{ElementRest, Lames};
 
 /// The slot of a block below the diagonal (not stored).
 const SKIP: u32 = u32::MAX;
@@ -131,7 +131,7 @@ impl BlockStiffness {
     /// K = Σ R K_e Rᵀ for the given element rotations. On large meshes (and the `parallel`
     /// feature) each block gathers its terms on rayon's threads, in element order, with the
     /// arithmetic of the serial scatter: the same bits on any number of threads.
-    pub fn assemble(&mut self, elements: &[ElementRest], lame: Lame, rotations: &[Mat3]) {
+    pub fn assemble(&mut self, elements: &[ElementRest], lame: &Lames, rotations: &[Mat3]) {
         #[cfg(feature = "parallel")]
         if elements.len() >= super::force::PARALLEL_MIN_ELEMENTS
             && rayon::current_num_threads() > 1
@@ -152,7 +152,8 @@ impl BlockStiffness {
                         let r = rotations[e];
                         let (a, b) = (k / 4, k % 4);
                         let (ga, gb) = ((r * g[a]).to_array(), (r * g[b]).to_array());
-                        let (l, m) = (lame.lambda * el.volume, lame.mu * el.volume);
+                        let pair = lame.at(e);
+                        let (l, m) = (pair.lambda * el.volume, pair.mu * el.volume);
                         add_term(blk, &ga, &gb, l, m, m * g[a].dot(g[b]));
                     }
                 });
@@ -160,10 +161,11 @@ impl BlockStiffness {
         }
         self.blocks.iter_mut().for_each(|b| *b = [0.0; 9]);
         let blocks = &mut self.blocks;
-        for ((e, r), slots) in elements.iter().zip(rotations).zip(&self.slots) {
+        for (i, ((e, r), slots)) in elements.iter().zip(rotations).zip(&self.slots).enumerate() {
             let g = e.shape_gradients();
             let rg = g.map(|ga| (*r * ga).to_array());
-            let (l, m) = (lame.lambda * e.volume, lame.mu * e.volume);
+            let pair = lame.at(i);
+            let (l, m) = (pair.lambda * e.volume, pair.mu * e.volume);
             for (k, &s) in slots.iter().enumerate() {
                 if s == SKIP {
                     continue;

@@ -85,6 +85,48 @@ pub struct Lame {
     pub mu: Real,
 }
 
+/// The Lamé parameters of every element: one pair for the whole body (one material: the
+/// same arithmetic as before per-region materials), or one pair per element.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lames {
+    uniform: Lame,
+    per_element: Vec<Lame>,
+}
+
+impl Lames {
+    /// The same pair for every element.
+    pub fn uniform(lame: Lame) -> Self {
+        Self {
+            uniform: lame,
+            per_element: Vec::new(),
+        }
+    }
+
+    /// Each element's pair from its material (`Uniform` gives `uniform`).
+    pub fn of_materials(materials: &crate::material::ElementMaterials, elements: usize) -> Self {
+        let pair = |m: &crate::material::Material| Lame {
+            lambda: m.lambda(),
+            mu: m.mu(),
+        };
+        match materials.uniform() {
+            Some(m) => Self::uniform(pair(m)),
+            None => Self {
+                uniform: pair(materials.default_material()),
+                per_element: (0..elements).map(|e| pair(materials.of(e))).collect(),
+            },
+        }
+    }
+
+    /// Element `e`'s pair.
+    #[inline]
+    pub fn at(&self, e: usize) -> Lame {
+        match self.per_element.get(e) {
+            Some(l) => *l,
+            None => self.uniform,
+        }
+    }
+}
+
 impl Lame {
     /// σ(sym(h)) = λ tr(h) I + μ (h + hᵀ).
     #[inline]
@@ -133,7 +175,7 @@ fn element_stress(e: &ElementRest, lame: Lame, x: &[Real], r: &mut Mat3) -> (usi
 /// depend on the number of threads.
 pub fn elastic_forces(
     elements: &[ElementRest],
-    lame: Lame,
+    lame: &Lames,
     x: &[Real],
     rotations: &mut [Mat3],
     forces: &mut [Real],
@@ -147,9 +189,10 @@ pub fn elastic_forces(
             .par_iter()
             .zip(rotations.par_iter_mut())
             .zip(scratch.par_iter_mut())
+            .enumerate()
             .with_min_len(256)
-            .map(|((e, r), out)| {
-                let (kept, p) = element_stress(e, lame, x, r);
+            .map(|(i, ((e, r), out))| {
+                let (kept, p) = element_stress(e, lame.at(i), x, r);
                 *out = per_node(p * e.dm_inv.transpose() * -1.0);
                 kept
             })
@@ -166,8 +209,8 @@ pub fn elastic_forces(
     }
     let _ = scratch;
     let mut kept = 0;
-    for (e, r) in elements.iter().zip(rotations.iter_mut()) {
-        let (k, p) = element_stress(e, lame, x, r);
+    for (i, (e, r)) in elements.iter().zip(rotations.iter_mut()).enumerate() {
+        let (k, p) = element_stress(e, lame.at(i), x, r);
         kept += k;
         scatter(e, &p, -1.0, forces);
     }
@@ -177,7 +220,7 @@ pub fn elastic_forces(
 /// y += K dx with the stiffness corotated by the given element rotations (flat slices).
 pub fn add_stiffness_product(
     elements: &[ElementRest],
-    lame: Lame,
+    lame: &Lames,
     rotations: &[Mat3],
     dx: &[Real],
     y: &mut [Real],
@@ -189,18 +232,18 @@ pub fn add_stiffness_product(
 /// each kept element adds the same terms in the same order as the full product).
 pub fn add_stiffness_product_where(
     elements: &[ElementRest],
-    lame: Lame,
+    lame: &Lames,
     rotations: &[Mat3],
     dx: &[Real],
     y: &mut [Real],
     keep: impl Fn(&ElementRest) -> bool,
 ) {
-    for (e, r) in elements.iter().zip(rotations) {
+    for (i, (e, r)) in elements.iter().zip(rotations).enumerate() {
         if !keep(e) {
             continue;
         }
         let h = r.transpose() * e.gradient_flat(dx);
-        let p = *r * lame.stress(&h) * e.volume;
+        let p = *r * lame.at(i).stress(&h) * e.volume;
         scatter(e, &p, 1.0, y);
     }
 }
@@ -209,11 +252,12 @@ pub fn add_stiffness_product_where(
 /// V R ((λ+μ) g gᵀ + μ |g|² I) Rᵀ with g = g_a.
 pub fn add_stiffness_diagonal(
     elements: &[ElementRest],
-    lame: Lame,
+    lame: &Lames,
     rotations: &[Mat3],
     diag: &mut [Real],
 ) {
-    for (e, r) in elements.iter().zip(rotations) {
+    for (i, (e, r)) in elements.iter().zip(rotations).enumerate() {
+        let lame = lame.at(i);
         for (n, ga) in e.nodes.iter().zip(e.shape_gradients()) {
             let rg = *r * ga;
             let d =
@@ -227,10 +271,12 @@ pub fn add_stiffness_diagonal(
 }
 
 /// The corotational elastic energy at positions `x`, in J (polar rotations recomputed).
-pub fn energy(elements: &[ElementRest], lame: Lame, x: &[Vec3]) -> Real {
+pub fn energy(elements: &[ElementRest], lame: &Lames, x: &[Vec3]) -> Real {
     elements
         .iter()
-        .map(|e| {
+        .enumerate()
+        .map(|(i, e)| {
+            let lame = lame.at(i);
             let f = e.gradient(x);
             let r = polar_rotation(&f).unwrap_or(Mat3::IDENTITY);
             let s = r.transpose() * f;

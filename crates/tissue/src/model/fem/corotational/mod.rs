@@ -59,15 +59,15 @@ use serde::Deserialize;
 
 use crate::error::{Error, SimError};
 use crate::interact::Loads;
-use crate::material::Material;
+use crate::material::{ElementMaterials, Material};
 use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
 use crate::model::registry::parse_params;
 use crate::model::{BuildInput, ConstraintReactions};
 use crate::solve::CgWorkspace;
 
-use super::mass::lumped_masses;
-use force::{ElementRest, Lame};
+use super::mass::lumped_masses_of;
+use force::{ElementRest, Lames};
 
 /// How `fem-corotational` solves (M + hD + h²K) Δv = b each step (`[model] solver`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
@@ -165,8 +165,10 @@ struct Workspace {
 /// The corotational implicit model (see the module doc).
 #[derive(Debug)]
 pub struct FemCorotational {
+    /// The default material (damping, and everything without per-region materials).
     material: Material,
-    lame: Lame,
+    /// Each element's Lamé parameters (one pair without per-region materials).
+    lame: Lames,
     params: CorotationalParams,
     mesh: TetMesh,
     rest: Vec<Vec3>,
@@ -214,7 +216,8 @@ impl FemCorotational {
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
         let params: CorotationalParams = parse_params("fem-corotational", input.params)?;
         let mesh = input.mesh.tet_mesh(input.source)?;
-        Self::new(&mesh, input.material, params)
+        let materials = input.element_materials(mesh.tets.len())?;
+        Self::with_materials(&mesh, &materials, params)
     }
 
     /// Validates mesh, material and settings; computes rest data and lumped masses.
@@ -223,7 +226,17 @@ impl FemCorotational {
         material: Material,
         params: CorotationalParams,
     ) -> Result<Self, Error> {
-        let material = material.validated()?;
+        Self::with_materials(mesh, &ElementMaterials::Uniform(material), params)
+    }
+
+    /// Like `new`, each element with its own material (e in the order of `mesh.tets`):
+    /// its Lamé parameters and its share of the lumped masses.
+    pub fn with_materials(
+        mesh: &TetMesh,
+        materials: &ElementMaterials,
+        params: CorotationalParams,
+    ) -> Result<Self, Error> {
+        let material = materials.default_material().validated()?;
         if !(params.cg_tolerance.is_finite() && params.cg_tolerance >= 0.0) {
             return Err(SimError::BadParameter {
                 name: "cg_tolerance",
@@ -246,16 +259,13 @@ impl FemCorotational {
             )?;
             elements.push(e);
         }
-        let masses = lumped_masses(&mesh, material.density);
+        let masses = lumped_masses_of(&mesh, materials);
         let boundary = boundary_surface(&mesh);
         let rest = mesh.vertices.clone();
         let (n, ne) = (rest.len(), elements.len());
         let length = mesh.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length());
         let mut model = Self {
-            lame: Lame {
-                lambda: material.lambda(),
-                mu: material.mu(),
-            },
+            lame: Lames::of_materials(materials, ne),
             material,
             params,
             surface_positions: boundary.surface.vertices.clone(),
@@ -318,7 +328,7 @@ impl FemCorotational {
             CorotationalSolver::WarpPcg | CorotationalSolver::Auto => true,
         };
         if want_warp && self.warp.is_none() {
-            match warp::WarpPreconditioner::new(&self.elements, self.lame, &self.rest) {
+            match warp::WarpPreconditioner::new(&self.elements, &self.lame, &self.rest) {
                 Ok(w) => self.warp = Some(w),
                 Err(e) if self.params.solver == CorotationalSolver::Auto => {
                     self.fallback_reason = Some(e.to_string());
@@ -375,8 +385,8 @@ impl FemCorotational {
     pub fn elements(&self) -> &[ElementRest] {
         &self.elements
     }
-    pub fn lame(&self) -> Lame {
-        self.lame
+    pub fn lame(&self) -> &Lames {
+        &self.lame
     }
     /// The mechanical node of each surface vertex.
     pub fn surface_nodes(&self) -> &[u32] {
@@ -491,7 +501,7 @@ impl FemCorotational {
             self.elastic.iter_mut().for_each(|f| *f = 0.0);
             force::elastic_forces(
                 &self.elements,
-                self.lame,
+                &self.lame,
                 crate::math::flatten(&self.x),
                 &mut self.rotations,
                 &mut self.elastic,

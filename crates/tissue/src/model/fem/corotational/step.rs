@@ -70,7 +70,7 @@ impl FemCorotational {
         }
         let h = dt;
         let (alpha, beta) = (self.material.damping, self.material.stiffness_damping);
-        let (elements, lame, rotations) = (&self.elements, self.lame, &self.rotations);
+        let (elements, lame, rotations) = (&self.elements, &self.lame, &self.rotations);
         let ws = &mut self.ws;
         let v = flatten(&self.v);
         let x = flatten(&self.x);
@@ -315,7 +315,7 @@ impl FemCorotational {
             let holds = &self.holds;
             force::add_stiffness_product_where(
                 &self.elements,
-                self.lame,
+                &self.lame,
                 &self.rotations,
                 flatten(&self.v),
                 kv,

@@ -18,7 +18,7 @@ use crate::math::{Mat3, Real, Vec3};
 use crate::solve::{BlockPattern, SparseCholesky};
 
 use super::bsr::BlockStiffness;
-use super::force::{ElementRest, Lame};
+use super::force::{ElementRest, Lames};
 use super::rotation::polar_rotation_near;
 
 /// Nodes from which their rotations are computed on rayon's threads (a polar factor is
@@ -55,7 +55,7 @@ impl WarpPreconditioner {
     /// factorisation yet). The ordering is AMD or nested dissection by the rest positions,
     /// whichever gives the smaller factor (`SparseCholesky::with_positions`). Solved with
     /// at every CG iteration, the factor is read from an f32 copy.
-    pub fn new(elements: &[ElementRest], lame: Lame, rest: &[Vec3]) -> Result<Self, SimError> {
+    pub fn new(elements: &[ElementRest], lame: &Lames, rest: &[Vec3]) -> Result<Self, SimError> {
         let nodes = rest.len();
         let flat: Vec<u32> = elements.iter().flat_map(|e| e.nodes).collect();
         let pattern = BlockPattern::from_elements(nodes, 3, &flat, 4);

@@ -9,14 +9,14 @@
 use std::time::Instant;
 
 use crate::error::{Error, SimError};
-use crate::material::Material;
+use crate::material::{ElementMaterials, Material};
 use crate::math::{Real, Vec3};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
 use crate::model::ConstraintReactions;
 
 use super::super::assembly::Assembler;
 use super::super::element_linear;
-use super::super::mass::lumped_masses;
+use super::super::mass::lumped_masses_of;
 use super::super::system::DofProblem;
 use super::contacts::PushContact;
 pub(super) use super::forward::forward_deformable;
@@ -25,7 +25,10 @@ pub(super) use super::forward::forward_deformable;
 const POWER_ITERATIONS: usize = 60;
 
 pub(super) struct Core {
+    /// The default material (damping, and everything without per-region materials).
     pub material: Material,
+    /// Each element's material (`Uniform(material)` without regions).
+    pub materials: ElementMaterials,
     pub mesh: TetMesh,
     pub rest: Vec<Vec3>,
     pub positions: Vec<Vec3>,
@@ -73,19 +76,21 @@ pub(super) struct Core {
 }
 
 impl Core {
-    pub fn new(mesh: &TetMesh, material: Material) -> Result<Self, Error> {
-        let material = material.validated()?;
+    /// Validates, assembles K (each element with its material) and the lumped masses (each
+    /// element's density). `material` keeps the default: damping applies to the whole body.
+    pub fn new(mesh: &TetMesh, materials: &ElementMaterials) -> Result<Self, Error> {
+        let material = materials.default_material().validated()?;
         mesh.validate_for_simulation()?;
         let start = Instant::now();
         let mesh = mesh.compacted();
         let rest = mesh.vertices.clone();
         let assembler = Assembler::new(rest.len(), mesh.tets.concat(), 4)?;
         let k = assembler.assemble(|e, ke| {
-            element_linear::stiffness(&mesh.corners(e), &material)
+            element_linear::stiffness(&mesh.corners(e), materials.of(e))
                 .map(|k| ke.copy_from_slice(k.as_flattened()))
                 .is_some()
         })?;
-        let mass: Vec<Real> = lumped_masses(&mesh, material.density)
+        let mass: Vec<Real> = lumped_masses_of(&mesh, materials)
             .into_iter()
             .flat_map(|m| [m; 3])
             .collect();
@@ -93,6 +98,7 @@ impl Core {
         let dofs = 3 * rest.len();
         let mut core = Self {
             material,
+            materials: materials.clone(),
             positions: rest.clone(),
             rest,
             k,

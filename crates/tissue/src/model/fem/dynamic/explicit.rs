@@ -23,7 +23,7 @@ use crate::error::{Error, SimError};
 use crate::integrate::Substeps;
 use crate::integrate::split_damping::SplitDamping;
 use crate::integrate::stable_step::{MAX_SUBSTEPS, substeps_for};
-use crate::material::Material;
+use crate::material::{ElementMaterials, Material};
 use crate::math::{Mat3, Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
@@ -86,21 +86,28 @@ impl FemExplicit {
     /// Builds from the registry's input (no model settings).
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
         let p: Params = parse_params("fem-explicit", input.params)?;
-        let mut m = Self::new(&input.mesh.tet_mesh(input.source)?, input.material)?;
+        let mesh = input.mesh.tet_mesh(input.source)?;
+        let materials = input.element_materials(mesh.tets.len())?;
+        let mut m = Self::with_materials(&mesh, &materials)?;
         m.substeps = p.substeps;
         Ok(m)
     }
 
     /// Validates, assembles K and the lumped masses, estimates ω_max.
     pub fn new(mesh: &TetMesh, material: Material) -> Result<Self, Error> {
-        let core = Core::new(mesh, material)?;
+        Self::with_materials(mesh, &ElementMaterials::Uniform(material))
+    }
+
+    /// Like `new`, each element with its own material (e in the order of `mesh.tets`).
+    pub fn with_materials(mesh: &TetMesh, materials: &ElementMaterials) -> Result<Self, Error> {
+        let core = Core::new(mesh, materials)?;
         let beta = core.material.stiffness_damping;
         let split = (beta > 0.0).then(|| {
             let m = &core.mesh;
             let mut split =
                 SplitDamping::new(core.rest.len(), &m.tets, beta).with_positions(&core.rest);
             split.assemble((0..m.tets.len()).filter_map(|e| {
-                let k = element_linear::stiffness(&m.corners(e), &core.material)?;
+                let k = element_linear::stiffness(&m.corners(e), core.materials.of(e))?;
                 let block = |a: usize, b: usize| {
                     let col = |j: usize| {
                         Vec3::new(

@@ -9,7 +9,7 @@
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
-use crate::material::Material;
+use crate::material::{ElementMaterials, Material};
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::model::registry::parse_params;
@@ -58,13 +58,20 @@ impl FemSemiImplicit {
     /// Builds from the registry's input (no model settings).
     pub fn from_input(input: &BuildInput<'_>) -> Result<Self, Error> {
         let _: NoParams = parse_params("fem-semi-implicit", input.params)?;
-        Self::new(&input.mesh.tet_mesh(input.source)?, input.material)
+        let mesh = input.mesh.tet_mesh(input.source)?;
+        let materials = input.element_materials(mesh.tets.len())?;
+        Self::with_materials(&mesh, &materials)
     }
 
     /// Validates, assembles K and M and analyses K̂'s pattern (factorised at the first step).
     pub fn new(mesh: &TetMesh, material: Material) -> Result<Self, Error> {
+        Self::with_materials(mesh, &ElementMaterials::Uniform(material))
+    }
+
+    /// Like `new`, each element with its own material (e in the order of `mesh.tets`).
+    pub fn with_materials(mesh: &TetMesh, materials: &ElementMaterials) -> Result<Self, Error> {
         let start = std::time::Instant::now();
-        let mut core = Core::new(mesh, material)?;
+        let mut core = Core::new(mesh, materials)?;
         let mut system = System::new(core.assembler.clone(), core.k.clone(), core.rest.clone())?;
         system.allow_free_body = true;
         let dofs = core.dofs();
