@@ -300,6 +300,11 @@ mod tests {
         for _ in 0..400 {
             sim.step(1e-3).unwrap_or_else(|e| panic!("{e}"));
         }
+        // The liver pushes the probe back up. The probe arrives 5 mm deep in one move;
+        // before fine points were pushed out along the tissue's inward normal on the wrong
+        // side of the probe's centre, the liver wrapped over it and pushed it down (−0.014 N).
+        let pushed = sim.instruments()[probe].force();
+        assert!(pushed.y > 0.0, "{pushed}");
         let figures = test_figures(None);
         let names = [super::super::setup::PROBE, "grasper", "scalpel"];
         let frame: Value = serde_json::from_str(&frame_message(&sim, &figures, names))

@@ -5,7 +5,7 @@
 //! becomes a prescribed vertex, and the model returns the force it needs there.
 
 use crate::interact::bvh::Bvh;
-use crate::interact::shape::Shape;
+use crate::interact::shape::{Closest, Shape};
 use crate::math::{Real, Vec3, triangle_area_vector};
 
 /// Relative slack of "inside": a vertex counts as penetrating when it is deeper than
@@ -139,6 +139,7 @@ pub fn hold_points(
             .collect(),
         None => (0..now.len()).collect(),
     };
+    let outward = outward_normals(&now, &fine.triangles);
     let mut largest: Real = 0.0;
     for _sweep in 0..4 {
         let mut moved = false;
@@ -175,11 +176,21 @@ pub fn hold_points(
                 + (0..3)
                     .map(|i| w[i] * (y[i] - coarse_rest[tri[i] as usize]))
                     .sum::<Vec3>();
-            let closest = shape.closest(at, p, Vec3::ZERO);
+            let mut closest = shape.closest(at, p, Vec3::ZERO);
             let resting = (0..3).all(|i| !movable[i] || kept(tri[i]));
             let limit = if resting { tolerance } else { -tolerance };
             if closest.depth >= limit {
                 continue;
+            }
+            // A point the instrument's nearest surface would push out of the tissue (its
+            // normal along the tissue's outward one: the instrument arrived deeper than its
+            // centre, a jump of the viewer's probe) leaves along the tissue's inward
+            // normal instead. Pushed out over the top, the liver wrapped round the probe and
+            // pushed it down.
+            if let Some(&outward) = outward.get(j)
+                && closest.normal.dot(outward) > 0.0
+            {
+                closest = exit_along(shape, at, p, -outward);
             }
             let m = push_face(
                 contacts,
@@ -212,6 +223,65 @@ pub fn hold_points(
     }
     contacts.sort_unstable_by_key(|k| k.vertex);
     largest
+}
+
+/// Per vertex of a closed triangle surface, its unit normal pointing out of the enclosed
+/// volume (area-weighted over its triangles; the file's orientation is read from the sign of
+/// the enclosed volume). Zero for an unused vertex.
+fn outward_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    let mut volume: Real = 0.0;
+    for t in triangles {
+        let Some(x) = corners(positions, t) else {
+            continue;
+        };
+        volume += x[0].dot(x[1].cross(x[2]));
+        let area = triangle_area_vector(x[0], x[1], x[2]);
+        for &v in t {
+            normals[v as usize] += area;
+        }
+    }
+    let sign = if volume < 0.0 { -1.0 } else { 1.0 };
+    normals
+        .iter()
+        .map(|n| sign * n.normalize_or_zero())
+        .collect()
+}
+
+/// The three corners of triangle `t`, if its indices are in range.
+fn corners(positions: &[Vec3], t: &[u32; 3]) -> Option<[Vec3; 3]> {
+    Some([
+        *positions.get(t[0] as usize)?,
+        *positions.get(t[1] as usize)?,
+        *positions.get(t[2] as usize)?,
+    ])
+}
+
+/// Where a point `p` inside `shape` (at `at`) leaves it moving along the unit direction
+/// `d`: the contact there as `Shape::closest` gives one (depth minus the way to go, normal
+/// `d`), found by bisection on the signed distance (any shape).
+fn exit_along(shape: &Shape, at: Vec3, p: Vec3, d: Vec3) -> Closest {
+    let mut hi = 2.0 * shape.size() - shape.closest(at, p, Vec3::ZERO).depth;
+    for _ in 0..8 {
+        if shape.closest(at, p + hi * d, Vec3::ZERO).depth >= 0.0 {
+            break;
+        }
+        hi *= 2.0;
+    }
+    let mut lo = 0.0;
+    for _ in 0..48 {
+        let mid = 0.5 * (lo + hi);
+        if shape.closest(at, p + mid * d, Vec3::ZERO).depth >= 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Closest {
+        depth: -hi,
+        normal: d,
+        point: p + hi * d,
+    }
 }
 
 /// For a model whose contacts only push (`Deformable::contacts_push_only`): the free coarse
