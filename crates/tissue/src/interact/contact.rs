@@ -115,7 +115,9 @@ fn push_face(
 /// move, in a few Gauss–Seidel sweeps. `contacts` are this instrument's; their vertices move
 /// with the fine points and become face contacts, free coarse vertices (`skip(v)` false)
 /// are added. A fine vertex all of whose movable coarse vertices satisfy `kept` is held at
-/// any depth up to the tolerance (resting on the instrument). Returns the largest move, m.
+/// any depth up to the tolerance (resting on the instrument). With a `margin` (m, a model
+/// whose contacts only push), the free vertices of the fine points outside the instrument
+/// by less than it are handed over too (`hand_over_near_faces`). Returns the largest move, m.
 #[allow(clippy::too_many_arguments)]
 pub fn hold_points(
     fine: &crate::interact::fine_surface::MappedSurface,
