@@ -40,3 +40,36 @@ fn tube_scene_runs_and_pushes_back() {
     let lateral: Real = (f.y * f.y + f.z * f.z).sqrt();
     assert!(f.x > 0.0 && lateral < 1e-3 * f.x, "{f}");
 }
+
+/// A user's spline scene that names no integrator, with the default frictionless probe, at a
+/// haptic step: the tube pushes the probe back (implicit Euler is the default; under the old
+/// default, symplectic Euler, a frictionless probe read 0 N here with the probe 1 mm into the
+/// wall), along the probe's axis, as hard as the scene's own implicit Euler at 5 ms to a
+/// few per cent (the probe moves 6 mm/s: both quasi-static).
+#[test]
+fn a_default_spline_pushes_a_frictionless_probe_back_at_1ms() {
+    let path = repo("scenes/tube-spline.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let base = std::path::Path::new(&path);
+    let run = |text: &str, dt: Real| {
+        let s = Scene::from_toml(text, base.parent().unwrap(), base).unwrap();
+        let mut sim = s.build().unwrap();
+        assert_eq!(sim.instruments()[0].friction(), Some(0.0));
+        for _ in 0..(0.3 / dt).round() as usize {
+            sim.step(dt).unwrap();
+        }
+        sim.instrument_forces()[0]
+    };
+    let default = text
+        .lines()
+        .filter(|l| !l.starts_with("integrator"))
+        .map(|l| format!("{l}\n"))
+        .collect::<String>();
+    let f = run(&default, 1e-3);
+    let reference = run(&text, 5e-3);
+    eprintln!("default spline at 1 ms: {f}; the scene's implicit Euler at 5 ms: {reference}");
+    assert!(f.x > 0.0, "{f}");
+    let lateral: Real = (f.y * f.y + f.z * f.z).sqrt();
+    assert!(lateral <= 1e-2 * f.x, "{f}");
+    assert!((f.x / reference.x - 1.0).abs() < 0.05, "{f} {reference}");
+}
