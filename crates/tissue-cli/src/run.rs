@@ -62,6 +62,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             }
         }
     }
+    if !args.quiet {
+        for w in sim.contact_warnings() {
+            eprintln!("warning: {w}");
+        }
+    }
     let outcome = execute(&scene, sim, Some(&args.out), args.quiet)?;
     if !args.quiet {
         eprintln!(
@@ -364,7 +369,12 @@ impl Writer {
         });
         // What the model said during the run that changes how to read it (`hybrid`: its
         // region came to cover the organ, so it is whole-organ tensor-mass).
-        let notices: Vec<Value> = info.notices().map(|v| Value::String(v.into())).collect();
+        let notices: Vec<Value> = info
+            .notices()
+            .map(String::from)
+            .chain(sim.contact_warnings())
+            .map(Value::String)
+            .collect();
         if let Some(map) = summary.as_object_mut() {
             map.insert("notices".into(), Value::Array(notices));
         }

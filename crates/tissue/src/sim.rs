@@ -155,6 +155,23 @@ impl Simulation {
         Ok(())
     }
 
+    /// What the scene should be told about its instruments' contact (`interact::slip`): a
+    /// frictionless probe or capsule small against the surface edges near its path, where
+    /// there is no fine contact surface. Empty when nothing is to be said.
+    pub fn contact_warnings(&self) -> Vec<String> {
+        if self.fine.is_some() {
+            return Vec::new();
+        }
+        let s = self.model.contact_surface();
+        self.instruments
+            .iter()
+            .enumerate()
+            .filter_map(|(i, inst)| {
+                crate::interact::slip::slip_warning(i, inst, s.positions, s.triangles)
+            })
+            .collect()
+    }
+
     /// The fine contact surface and where its vertices are now, if the scene gives one.
     pub fn fine_surface(&self) -> Option<(&MappedSurface, &[Vec3])> {
         self.fine.as_ref().map(|(m, p)| (m, p.as_slice()))

@@ -10,6 +10,7 @@ pub mod plausibility;
 pub mod region;
 pub mod shape;
 pub mod sliding;
+pub mod slip;
 pub mod trajectory;
 
 pub use bvh::Bvh;
