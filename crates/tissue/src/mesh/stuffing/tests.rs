@@ -1008,7 +1008,28 @@ fn image_boundary_direction_study() {
             a_res / h,
             a_exactish / h
         );
-        for (d, p) in distinct(a, 4) {
+        // Boundary faces whose corners all lie inside the input (value < −0.25: a mask
+        // over 3/4): faces left where tetrahedra were removed (manifold repair, dropped
+        // pieces), not made on the surface.
+        let exposed = |t: usize| boundary.corners(t).iter().all(|&c| raw.value(c) < -0.25);
+        println!(
+            "  boundary faces with every corner inside the input: {} of {}",
+            (0..boundary.triangles.len())
+                .filter(|&t| exposed(t))
+                .count(),
+            boundary.triangles.len()
+        );
+        for (d, p) in distinct(a.clone(), 4) {
+            let t = (0..boundary.triangles.len())
+                .min_by(|&x, &y| {
+                    let c = |t: usize| {
+                        let [a, b, c] = boundary.corners(t);
+                        ((a + b + c) / 3.0 - p).length()
+                    };
+                    c(x).total_cmp(&c(y))
+                })
+                .unwrap_or(0);
+            let corners = boundary.corners(t).map(|c| raw.value(c));
             let u = ((p - image.origin) / image.spacing).round();
             println!(
                 "  a {:.3} h at {:.4?} voxel {:?}: |f|/|∇f| {:.3} h, nearest raw sample {:.3} h, \
@@ -1025,6 +1046,7 @@ fn image_boundary_direction_study() {
                 raw.value(p),
                 resolved.value(p)
             );
+            println!("    its face's corners' raw values {corners:.3?}");
         }
         let b: Vec<(Real, Vec3)> = res_samples
             .iter()
