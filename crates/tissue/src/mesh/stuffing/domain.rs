@@ -187,6 +187,17 @@ pub(crate) fn walk_grid_lines(lo: Vec3, hi: Vec3, spacing: Real, mut f: impl FnM
 /// lines along x, y and z through a grid of `spacing` over the domain's box.
 pub(crate) fn line_crossings<D: Domain + ?Sized>(d: &D, spacing: Real) -> Vec<Vec3> {
     let (lo, hi) = d.bounds();
+    crossings_in_box(d, lo, hi, spacing)
+}
+
+/// Boundary points where the sign of `d.value` changes along lines along x, y and z through
+/// a grid of `spacing` over the box `lo`..`hi`.
+pub(crate) fn crossings_in_box<D: Domain + ?Sized>(
+    d: &D,
+    lo: Vec3,
+    hi: Vec3,
+    spacing: Real,
+) -> Vec<Vec3> {
     let mut out = Vec::new();
     let mut prev: Option<(Vec3, Real)> = None;
     walk_grid_lines(lo, hi, spacing, |p, starts_line| {
