@@ -253,7 +253,7 @@ fn selections_that_find_nothing_name_their_key_when_the_image_is_read() {
 /// The brain image meshed into tetrahedra when `brain-fem-image.toml` is built: a closed
 /// 2-manifold boundary (where the stuffed lattice touches itself along edges or at
 /// vertices, those tetrahedra are removed: a few with the earlier mesher, none now), the volume within 1 % of the cleaned voxels', the
-/// report's one broken promise said (boundary 0.54 h), and a surface kind (`bem`, which
+/// report's one broken promise said (boundary 0.595 h since session 14), and a surface kind (`bem`, which
 /// refuses a non-manifold surface) builds on it and pushes the probe up.
 #[test]
 fn the_brain_image_becomes_a_manifold_tet_organ_a_surface_kind_builds_on() {
