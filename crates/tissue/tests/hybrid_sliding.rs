@@ -348,3 +348,35 @@ fn hybrid_slide_on_the_finer_block_study() {
         force_at(&fs, 1.5),
     );
 }
+
+/// `liver-hybrid-auto.toml` with the smooth liver as its contact surface (`visual`): the
+/// probe presses the liver toward the scalpel's path, and the region grown ahead of the blade
+/// must cover the tetrahedra the blade meets where they are now, not only where they were at
+/// rest: before, the cut was refused at 0.57 s ("within one element of the region's
+/// border"). The scene runs to its end and the blade cuts.
+#[test]
+fn the_auto_region_grows_over_what_the_pressed_liver_brings_under_the_blade() {
+    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(format!("{root}/scenes/liver-hybrid-auto.toml"))
+        .unwrap()
+        .replace("../assets", &format!("{root}/assets"));
+    let text = text.replacen(
+        "[mesh]\n",
+        &format!("[mesh]\nvisual = \"{root}/assets/meshes/liver-smooth.obj\"\n"),
+        1,
+    );
+    let base = std::path::Path::new(&root).join("scenes/liver-hybrid-auto.toml");
+    let scene = tissue::scene::Scene::from_toml(&text, base.parent().unwrap(), &base).unwrap();
+    let mut sim = scene.build().unwrap();
+    assert!(sim.fine_surface().is_some());
+    let triangles = sim.model().surface().triangles.len();
+    for k in 0..scene.run.step_count() {
+        sim.step(scene.run.dt)
+            .unwrap_or_else(|e| panic!("step {k}: {e}"));
+    }
+    assert_ne!(
+        sim.model().surface().triangles.len(),
+        triangles,
+        "the blade cut nothing"
+    );
+}

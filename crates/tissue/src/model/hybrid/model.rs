@@ -1178,18 +1178,32 @@ impl Hybrid {
             .collect()
     }
 
-    /// The tetrahedra whose rest centroid is within `radius` of the surface the blade swept.
-    /// The whole swept quad counts, not its edges: a fast blade sweeps a wide quad whose
-    /// middle is far from every edge, and `touched` finds the tetrahedra it crosses there.
+    /// The tetrahedra whose rest or current centroid is within `radius` of the surface the
+    /// blade swept. The whole swept quad counts, not its edges: a fast blade sweeps a wide
+    /// quad whose middle is far from every edge, and `touched` finds the tetrahedra it
+    /// crosses there. The current centroid too, because `touched` meets the blade with the
+    /// deformed tetrahedra: with the rest centroid alone, a liver pressed toward the blade by
+    /// a probe brought tetrahedra the region had not grown over under it, and the cut was
+    /// refused ("within one element of the region's border", `liver-hybrid-auto.toml` with
+    /// a fine contact surface, at 0.57 s).
     fn near_blade(&self, blade: &CutPath, radius: Real) -> Vec<usize> {
         let swept = blade.triangles();
+        let near = |c: Vec3| {
+            swept
+                .iter()
+                .any(|&tri| (closest_point_on_triangle(c, tri) - c).length() <= radius)
+        };
         (0..self.mesh.tets.len())
             .filter(|&t| {
-                let c = self.centroids[t];
                 self.alive[t]
-                    && swept
-                        .iter()
-                        .any(|&tri| (closest_point_on_triangle(c, tri) - c).length() <= radius)
+                    && (near(self.centroids[t]) || {
+                        let now = self.mesh.tets[t]
+                            .iter()
+                            .map(|&v| self.node_position(v))
+                            .sum::<Vec3>()
+                            / 4.0;
+                        near(now)
+                    })
             })
             .collect()
     }
