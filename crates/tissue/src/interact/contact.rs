@@ -141,7 +141,9 @@ pub fn hold_points(
             .collect(),
         None => (0..now.len()).collect(),
     };
-    let outward = outward_normals(&now, &fine.triangles);
+    // The tissue's outward normals, formed the first time a point penetrates (most steps
+    // have none, and they cost a pass over the whole fine surface).
+    let mut outward: Option<Vec<Vec3>> = None;
     let mut largest: Real = 0.0;
     for _sweep in 0..4 {
         let mut moved = false;
@@ -189,7 +191,9 @@ pub fn hold_points(
             // centre, a jump of the viewer's probe) leaves along the tissue's inward
             // normal instead. Pushed out over the top, the liver wrapped round the probe and
             // pushed it down.
-            if let Some(&outward) = outward.get(j)
+            if let Some(&outward) = outward
+                .get_or_insert_with(|| outward_normals(&now, &fine.triangles))
+                .get(j)
                 && closest.normal.dot(outward) > 0.0
             {
                 closest = exit_along(shape, at, p, -outward);
@@ -212,16 +216,7 @@ pub fn hold_points(
         }
     }
     if margin > 0.0 {
-        hand_over_near_faces(
-            fine,
-            coarse_rest,
-            positions,
-            shape,
-            at,
-            contacts,
-            skip,
-            margin,
-        );
+        hand_over_near_faces(fine, &now, positions, shape, at, contacts, skip, margin);
     }
     contacts.sort_unstable_by_key(|k| k.vertex);
     largest
@@ -291,11 +286,12 @@ fn exit_along(shape: &Shape, at: Vec3, p: Vec3, d: Vec3) -> Closest {
 /// contacts whose planes lie where the point would touch (behind the vertex: free until it
 /// gets there), so the model settles them within its step instead of finding them a step
 /// late and deep (the vertex contacts' `sim::CONTACT_MARGIN`). The nearest points go first,
-/// and a vertex already held keeps its plane (the more demanding one).
+/// and a vertex already held keeps its plane (the more demanding one). `now`: the fine
+/// vertices where the coarse `positions` put them (`hold_points` has them).
 #[allow(clippy::too_many_arguments)]
 fn hand_over_near_faces(
     fine: &crate::interact::fine_surface::MappedSurface,
-    coarse_rest: &[Vec3],
+    now: &[Vec3],
     positions: &[Vec3],
     shape: &Shape,
     at: Vec3,
@@ -303,8 +299,6 @@ fn hand_over_near_faces(
     skip: &dyn Fn(u32) -> bool,
     margin: Real,
 ) {
-    let mut now = Vec::new();
-    fine.positions(coarse_rest, positions, &mut now);
     let reach = shape.bounds(at);
     let mut near: Vec<(Real, usize, Vec3)> = now
         .iter()
