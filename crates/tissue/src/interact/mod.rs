@@ -14,7 +14,7 @@ pub mod slip;
 pub mod trajectory;
 
 pub use bvh::Bvh;
-pub use constraints::{Constraints, Loads, Prescribed, SurfaceHold};
+pub use constraints::{Constraints, Loads, PointContact, Prescribed, SurfaceHold};
 pub use contact::Contact;
 pub use fine_surface::MappedSurface;
 pub use instrument::{Instrument, InstrumentKind};
