@@ -335,7 +335,16 @@ impl Deformable for Bem {
         } else {
             self.positions.copy_from_slice(&self.target);
         }
-        Ok(StepInfo::default())
+        // With points, the pivoting rounds of their complementarity solve.
+        let iterations = if self.points.is_empty() {
+            0
+        } else {
+            self.point_rows.rounds
+        };
+        Ok(StepInfo {
+            iterations,
+            ..StepInfo::default()
+        })
     }
 
     /// The reactions are −P_c · area_c with P_C = W̃_CC⁻¹ (targets − u_L): linear in the

@@ -220,3 +220,13 @@ fn a_point_on_a_vertex_is_the_vertex_held_along_the_normal() {
         assert!(model.set_point_contacts(&[bad]).is_err());
     }
 }
+
+/// The cost of point contacts on a 642-vertex sphere against today's vertex path
+/// (`model::testing::point_contact_study`).
+#[test]
+#[ignore = "study, seconds: cargo test --release -p tissue --lib bem_point_contact_study -- --ignored --nocapture"]
+fn bem_point_contact_study() {
+    let mut model = Bem::new(&sphere(3), material(), BemParams::default()).unwrap();
+    let rest = model.rest_surface().to_vec();
+    crate::model::testing::point_contact_study(&mut model, &support(&rest), &[25, 100, 400]);
+}

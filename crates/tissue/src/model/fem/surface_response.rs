@@ -196,7 +196,7 @@ pub(crate) struct SurfaceCore {
     /// pushes after the last step, and the rows of their problem (`solve::points`).
     pub points: Vec<PointContact>,
     pub point_lambda: Vec<Real>,
-    point_rows: PointRows,
+    pub point_rows: PointRows,
     /// Per point, its row in `point_rows` (`None`: all its vertices are fixed).
     point_row: Vec<Option<usize>>,
     /// The forces of the last point solve per free vertex (scratch).
@@ -692,13 +692,15 @@ impl<T: SurfaceResponse> Deformable for T {
             });
         }
         // Without points, the contacts' own solve: the 1 kHz haptic path is unchanged.
+        let mut info = StepInfo::default();
         if self.core().points.is_empty() {
             self.solve_contacts()?;
         } else {
             self.solve_points()?;
+            info.iterations = self.core().point_rows.rounds;
         }
         self.core_mut().accept();
-        Ok(StepInfo::default())
+        Ok(info)
     }
 
     fn reactions(&self) -> Reactions<'_> {

@@ -285,3 +285,17 @@ fn a_point_on_a_vertex_is_the_vertex_held_along_the_normal() {
         assert!(model.set_point_contacts(&[bad]).is_err());
     }
 }
+
+/// The cost of point contacts on the liver (137 free surface vertices) against today's
+/// vertex path (`model::testing::point_contact_study`).
+#[test]
+#[ignore = "study, seconds: cargo test --release -p tissue --lib fem_point_contact_study -- --ignored --nocapture"]
+fn fem_point_contact_study() {
+    let (mesh, _, fixed) = super::tests::liver_static();
+    let material = super::tests::liver_material();
+    let counts = [25, 100, 400];
+    let mut condensed = FemCondensed::new(&mesh, material, &fixed).unwrap();
+    crate::model::testing::point_contact_study(&mut condensed, &fixed, &counts);
+    let mut tensors = FemPrecomputedTensors::new(&mesh, material, &fixed).unwrap();
+    crate::model::testing::point_contact_study(&mut tensors, &fixed, &counts);
+}
