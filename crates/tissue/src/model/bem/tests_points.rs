@@ -228,5 +228,8 @@ fn a_point_on_a_vertex_is_the_vertex_held_along_the_normal() {
 fn bem_point_contact_study() {
     let mut model = Bem::new(&sphere(3), material(), BemParams::default()).unwrap();
     let rest = model.rest_surface().to_vec();
-    crate::model::testing::point_contact_study(&mut model, &support(&rest), &[25, 100, 400]);
+    for bulge in [0.0, 0.005] {
+        let fixed = support(&rest);
+        crate::model::testing::point_contact_study(&mut model, &fixed, &[25, 100, 400], bulge);
+    }
 }

@@ -295,7 +295,9 @@ fn fem_point_contact_study() {
     let material = super::tests::liver_material();
     let counts = [25, 100, 400];
     let mut condensed = FemCondensed::new(&mesh, material, &fixed).unwrap();
-    crate::model::testing::point_contact_study(&mut condensed, &fixed, &counts);
     let mut tensors = FemPrecomputedTensors::new(&mesh, material, &fixed).unwrap();
-    crate::model::testing::point_contact_study(&mut tensors, &fixed, &counts);
+    for bulge in [0.0, 0.005] {
+        crate::model::testing::point_contact_study(&mut condensed, &fixed, &counts, bulge);
+        crate::model::testing::point_contact_study(&mut tensors, &fixed, &counts, bulge);
+    }
 }
