@@ -4,6 +4,7 @@
 pub mod bvh;
 pub mod constraints;
 pub mod contact;
+pub mod fine_points;
 pub mod fine_surface;
 pub mod instrument;
 pub mod plausibility;
