@@ -75,10 +75,13 @@ pub(crate) struct PointRows {
     pushing: Vec<bool>,
     /// Pivoting rounds of the last solve (the LCP's and `refine`'s).
     pub rounds: usize,
+    /// The last solve of an unsymmetric response kept its symmetric part's answer: `refine`
+    /// found no complementary set within its rounds (the model reports the step capped).
+    pub capped: bool,
 }
 
-/// Rounds of `refine` before giving up (each is one LU of the pushing rows).
-const REFINE_ROUNDS: usize = 50;
+/// Block swaps `refine` tries without fewer wrong rows before swapping one at a time.
+const REFINE_BLOCK_TRIES: usize = 3;
 
 impl PointRows {
     /// Starts a new problem (keeps the last pushing set as the next guess).
@@ -153,8 +156,14 @@ impl PointRows {
         };
         self.rounds = guess.rounds;
         self.lambda = guess.lambda;
+        self.capped = false;
         if !R::SYMMETRIC {
-            self.refine(&m, &b)?;
+            let symmetric = self.lambda.clone();
+            if !self.refine(&m, &b)? {
+                // Not silent: the step says it is capped (`StepInfo::capped`).
+                self.lambda = symmetric;
+                self.capped = true;
+            }
         }
         self.pushing.clear();
         self.pushing
@@ -259,9 +268,12 @@ impl PointRows {
 
     /// From the symmetric part's answer, the rows solved with the (not symmetric) M itself:
     /// the pushing rows' equalities by LU (the unilateral diagonal raised as `solve_mixed`
-    /// does, for more points than directions), every row whose sign is then wrong swapped,
-    /// until none is.
-    fn refine(&mut self, m: &Mat<Real>, b: &[Real]) -> Result<(), SimError> {
+    /// does, for more points than directions), every row whose sign is then wrong swapped
+    /// (one at a time, the last, once block swaps stop reducing them: Murty's rule, as
+    /// `solve_mixed` does), until none is. False when none is found within 10 n + 50
+    /// rounds (an unsymmetric M need not be a P-matrix: the liver's BEM with a fine surface
+    /// cycled on 9 points under a block-only rule).
+    fn refine(&mut self, m: &Mat<Real>, b: &[Real]) -> Result<bool, SimError> {
         let n = b.len();
         let max_diag = (0..n).map(|i| m[(i, i)].abs()).fold(0.0, Real::max);
         let eps = REGULARISATION * max_diag.max(Real::MIN_POSITIVE);
@@ -272,7 +284,8 @@ impl PointRows {
             .iter()
             .fold(0.0, |a: Real, v| a.max(v.abs()))
             .max(Real::MIN_POSITIVE);
-        for round in 1..=REFINE_ROUNDS {
+        let (mut best, mut tries) = (usize::MAX, REFINE_BLOCK_TRIES);
+        for round in 1..=10 * n + 50 {
             let rows: Vec<usize> = (0..n).filter(|&i| active[i]).collect();
             let k = rows.len();
             let a = Mat::<Real>::from_fn(k, k, |p, q| {
@@ -302,36 +315,37 @@ impl PointRows {
                 .iter()
                 .fold(0.0, |a: Real, v| a.max(v.abs()))
                 .max(Real::MIN_POSITIVE);
-            let mut wrong = false;
-            for i in self.bilateral..n {
-                let bad = if active[i] {
-                    self.lambda[i] < -1e-12 * scale_l
-                } else {
-                    let w: Real = b[i] + (0..n).map(|j| m[(i, j)] * self.lambda[j]).sum::<Real>();
-                    w < -1e-12 * scale_w
-                };
-                if bad {
-                    active[i] = !active[i];
-                    wrong = true;
-                }
+            let wrong: Vec<usize> = (self.bilateral..n)
+                .filter(|&i| {
+                    if active[i] {
+                        self.lambda[i] < -1e-12 * scale_l
+                    } else {
+                        let w: Real =
+                            b[i] + (0..n).map(|j| m[(i, j)] * self.lambda[j]).sum::<Real>();
+                        w < -1e-12 * scale_w
+                    }
+                })
+                .collect();
+            if wrong.len() < best {
+                (best, tries) = (wrong.len(), REFINE_BLOCK_TRIES);
+                wrong.iter().for_each(|&i| active[i] = !active[i]);
+            } else if tries > 0 {
+                tries -= 1;
+                wrong.iter().for_each(|&i| active[i] = !active[i]);
+            } else if let Some(&i) = wrong.last() {
+                active[i] = !active[i];
             }
-            if !wrong {
+            if wrong.is_empty() {
                 // Within the tolerance above, a pushing row's λ may be a roundoff below 0.
                 self.lambda[self.bilateral..]
                     .iter_mut()
                     .for_each(|l| *l = l.max(0.0));
                 self.rounds += round;
-                return Ok(());
+                return Ok(true);
             }
         }
-        Err(SimError::BadParameter {
-            name: "contact problem",
-            value: format!("{n} rows"),
-            reason: format!(
-                "no complementary solution of the unsymmetric response after {REFINE_ROUNDS} \
-                 rounds"
-            ),
-        })
+        self.rounds += 10 * n + 50;
+        Ok(false)
     }
 }
 

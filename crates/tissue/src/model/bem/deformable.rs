@@ -336,13 +336,14 @@ impl Deformable for Bem {
             self.positions.copy_from_slice(&self.target);
         }
         // With points, the pivoting rounds of their complementarity solve.
-        let iterations = if self.points.is_empty() {
-            0
+        let (iterations, capped) = if self.points.is_empty() {
+            (0, false)
         } else {
-            self.point_rows.rounds
+            (self.point_rows.rounds, self.point_rows.capped)
         };
         Ok(StepInfo {
             iterations,
+            capped,
             ..StepInfo::default()
         })
     }
