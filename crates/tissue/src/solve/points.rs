@@ -29,7 +29,7 @@ use faer::linalg::solvers::Solve;
 use crate::error::SimError;
 use crate::math::{Mat3, Real, Vec3};
 
-use super::lcp::{REGULARISATION, solve_mixed};
+use super::lcp::{REGULARISATION, first_guess, solve_mixed};
 
 /// A force's origin: a vertex, and whether it is a held contact's multiplier (else a load).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -171,26 +171,12 @@ impl PointRows {
         Ok(&self.lambda)
     }
 
-    /// A first guess of the pushing points when no last solve fits: the penetrating ones,
-    /// deepest first, each only if it names a vertex no point taken before names. Several
-    /// points on one coarse triangle are tied by its three vertices' motions, so at most
-    /// about one per vertex can push independently; guessing every penetrating point (the
-    /// LCP's default) starts from a block so nearly singular (400 points on the liver's
-    /// 160 top triangles: 58 guessed, 4 push) that the pivoting does not recover from the
-    /// roundoff of multipliers a million times the true ones.
+    /// A first guess of the pushing points when no last solve fits (`lcp::first_guess`).
     fn guess_pushing(&mut self, b: &[Real]) {
-        let mut order: Vec<usize> = (self.bilateral..b.len()).filter(|&i| b[i] < 0.0).collect();
-        order.sort_by(|&i, &j| b[i].total_cmp(&b[j]));
-        let mut taken: Vec<usize> = Vec::new();
-        self.pushing.clear();
-        self.pushing.resize(b.len() - self.bilateral, false);
-        for i in order {
-            let terms = self.rows[i].terms();
-            if terms.iter().any(|t| !taken.contains(&t.0)) {
-                taken.extend(terms.iter().map(|t| t.0));
-                self.pushing[i - self.bilateral] = true;
-            }
-        }
+        let rows = &self.rows;
+        self.pushing = first_guess(b, self.bilateral, |i| {
+            rows[i].terms().iter().map(|t| t.0).collect::<Vec<usize>>()
+        });
     }
 
     /// The forces of the last solve on each source, summed per (vertex, kind): what the

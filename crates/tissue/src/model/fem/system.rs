@@ -598,7 +598,11 @@ impl System {
                 which.push(j);
             }
             let m = self.schur.rows_matrix(&rows)?;
-            let solution = lcp::solve_mixed(m.as_ref(), &b, bilateral, &[])?;
+            // Rows named by the same node are tied: guess one pushing row per node.
+            let guess = lcp::first_guess(&b, bilateral, |i| {
+                rows[i].iter().map(|&(c, _)| c / 3).collect::<Vec<usize>>()
+            });
+            let solution = lcp::solve_mixed(m.as_ref(), &b, bilateral, &guess)?;
             self.lcp_rounds = solution.rounds;
             for (&j, &l) in which.iter().zip(&solution.lambda[bilateral..]) {
                 self.point_pushes[j] = l;
