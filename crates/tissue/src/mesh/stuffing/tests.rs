@@ -857,12 +857,16 @@ fn image_boundary_direction_study() {
         let s = stuff(&raw, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
         let r = &s.report;
         println!(
-            "\n{file} h {h}: {} tets, a (mesh→input) {:.3} h, b raw {:.3} h, b resolved {:.3} h, \
+            "\n{file} h {h}: {} tets, a (mesh→input) {:.3} h, b raw {:.3} h, b resolved {:.3} h, split {}, bare moved {} ({} partly) left {}, \
              volume {:+.2} %, manifold removed {} ({:.2e} m³), pieces dropped {} ({} tets, {:.2e} m³)",
             r.tets,
             r.mesh_to_input / h,
             r.input_to_mesh / h,
             r.resolved_input_to_mesh.unwrap_or(0.0) / h,
+            r.manifold.split,
+            r.manifold.bare_moved,
+            r.manifold.bare_partly,
+            r.manifold.bare_left,
             100.0 * r.volume_error.unwrap_or(0.0),
             r.manifold.removed,
             r.manifold.removed_volume,
