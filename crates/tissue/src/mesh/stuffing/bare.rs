@@ -122,16 +122,16 @@ pub fn snap_bare_vertices(
         let lo_bound = PROVEN_DIHEDRAL_DEG.0.to_radians().min(lo0);
         let hi_bound = PROVEN_DIHEDRAL_DEG.1.to_radians().max(hi0);
         let mut moved = None;
-        for f in FRACTIONS {
+        for (i, f) in FRACTIONS.into_iter().enumerate() {
             mesh.vertices[v as usize] = p + f * (s - p);
             let (lo, hi, now) = range(mesh);
             if now == signs && lo >= lo_bound && hi <= hi_bound {
-                moved = Some(f);
+                moved = Some(i);
                 break;
             }
         }
         match moved {
-            Some(f) if f == 1.0 => done.onto += 1,
+            Some(0) => done.onto += 1,
             Some(_) => done.partly += 1,
             None => {
                 mesh.vertices[v as usize] = p;
@@ -140,4 +140,124 @@ pub fn snap_bare_vertices(
         }
     }
     done
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::stuffing::Implicit;
+
+    /// A 2 × 2 × 1 block of unit cubes, 6 tetrahedra each around the same diagonal.
+    fn block() -> TetMesh {
+        let mut ids: FxHashMap<[i32; 3], u32> = FxHashMap::default();
+        let mut vertices = Vec::new();
+        let mut tets = Vec::new();
+        for o in [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]] {
+            let mut id = |p: [i32; 3]| {
+                *ids.entry(p).or_insert_with(|| {
+                    vertices.push(Vec3::new(p[0] as Real, p[1] as Real, p[2] as Real));
+                    vertices.len() as u32 - 1
+                })
+            };
+            let c = |i: usize| {
+                [
+                    o[0] + (i & 1) as i32,
+                    o[1] + ((i >> 1) & 1) as i32,
+                    o[2] + ((i >> 2) & 1) as i32,
+                ]
+            };
+            for (a, b) in [(1, 3), (3, 2), (2, 6), (6, 4), (4, 5), (5, 1)] {
+                tets.push([id(c(0)), id(c(a)), id(c(b)), id(c(7))]);
+            }
+        }
+        let mut m = TetMesh::new(vertices, tets);
+        for t in &mut m.tets {
+            let p = t.map(|v| m.vertices[v as usize]);
+            if tet_signed_volume(p[0], p[1], p[2], p[3]) < 0.0 {
+                t.swap(0, 1);
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn a_vertex_laid_bare_goes_onto_the_boundary_and_the_rest_stay() {
+        // The shape is the slab z < 1.3; the block's top (z = 1) lies 0.3 inside it. Only
+        // the top's centre (1, 1, 1) is said to be bare: it moves up onto z = 1.3, along the
+        // normal of its boundary triangles, within the angle bounds; nothing else moves.
+        let slab = Implicit {
+            f: |p: Vec3| p.z - 1.3,
+            lo: Vec3::new(0.0, 0.0, -1.0),
+            hi: Vec3::new(2.0, 2.0, 1.3),
+            volume: None,
+        };
+        let mut m = block();
+        let before = m.vertices.clone();
+        let centre = Vec3::new(1.0, 1.0, 1.0);
+        let tags = vec![1; m.tets.len()];
+        let done = snap_bare_vertices(&mut m, &tags, &slab, 1.0, &|p| p == centre);
+        assert_eq!(
+            done,
+            Snapped {
+                onto: 1,
+                partly: 0,
+                left: 0
+            }
+        );
+        for (p, q) in before.iter().zip(&m.vertices) {
+            if *p == centre {
+                assert!((*q - Vec3::new(1.0, 1.0, 1.3)).length() < 1e-9, "{q}");
+            } else {
+                assert_eq!(p, q);
+            }
+        }
+        for t in &m.tets {
+            let p = t.map(|v| m.vertices[v as usize]);
+            assert!(tet_signed_volume(p[0], p[1], p[2], p[3]) > 0.0);
+            let lo = dihedral_angles(p)
+                .into_iter()
+                .fold(Real::INFINITY, Real::min);
+            assert!(
+                lo.to_degrees() >= PROVEN_DIHEDRAL_DEG.0,
+                "{}",
+                lo.to_degrees()
+            );
+        }
+        // Between two tags it stays (it would move the interface); so does a vertex with no
+        // boundary within h along its normal.
+        let mut m = block();
+        let corner = Vec3::new(0.0, 0.0, 1.0);
+        let first = (0..m.tets.len())
+            .find(|&t| m.tets[t].iter().any(|&v| m.vertices[v as usize] == centre));
+        let tags: Vec<i32> = (0..m.tets.len())
+            .map(|t| if Some(t) == first { 2 } else { 1 })
+            .collect();
+        let done = snap_bare_vertices(&mut m, &tags, &slab, 1.0, &|p| p == centre);
+        assert_eq!(
+            done,
+            Snapped {
+                onto: 0,
+                partly: 0,
+                left: 1
+            }
+        );
+        let deep = Implicit {
+            f: |p: Vec3| p.z - 3.0,
+            lo: Vec3::ZERO,
+            hi: Vec3::splat(3.0),
+            volume: None,
+        };
+        let mut m = block();
+        let tags = vec![1; m.tets.len()];
+        let done = snap_bare_vertices(&mut m, &tags, &deep, 1.0, &|p| p == corner);
+        assert_eq!(
+            done,
+            Snapped {
+                onto: 0,
+                partly: 0,
+                left: 1
+            }
+        );
+        assert_eq!(m.vertices, block().vertices);
+    }
 }

@@ -215,15 +215,33 @@ fn angle_range(
 
 /// Where the copy of `v` for `part` (tetrahedra around `v`) goes: moved towards the mean
 /// of the part's other corners by the first of `SPLIT_STEPS` that keeps the part's
-/// tetrahedra oriented and within `PROVEN_DIHEDRAL_DEG` (or within what they had). `None`
-/// when no step does.
+/// tetrahedra oriented and within `PROVEN_DIHEDRAL_DEG` (or within what they had), and
+/// does not put it inside a tetrahedron of the `rest` of the vertex's star. `None` when no
+/// step does.
 fn split_position(
     tets: &[[u32; 4]],
     vertices: &mut [Vec3],
     v: u32,
     part: &[usize],
+    rest: &[usize],
 ) -> Option<Vec3> {
     let at = vertices[v as usize];
+    // Whether `p` lies in (or on) one of the other fans' tetrahedra (`v` where it is): the
+    // copy must move into its own part, never into another's.
+    let rest: Vec<[Vec3; 4]> = rest
+        .iter()
+        .map(|&t| tets[t].map(|u| vertices[u as usize]))
+        .collect();
+    let in_rest = |p: Vec3| {
+        rest.iter().any(|q| {
+            let whole = tet_signed_volume(q[0], q[1], q[2], q[3]);
+            (0..4).all(|i| {
+                let mut r = *q;
+                r[i] = p;
+                tet_signed_volume(r[0], r[1], r[2], r[3]) / whole >= -1e-9
+            })
+        })
+    };
     let others: Vec<Vec3> = part
         .iter()
         .flat_map(|&t| tets[t])
@@ -254,6 +272,9 @@ fn split_position(
     let mut found = None;
     for step in SPLIT_STEPS {
         let to = at + step * shortest * direction;
+        if in_rest(to) {
+            continue;
+        }
         vertices[v as usize] = to;
         let (lo, hi, same) = angle_range(tets, vertices, part, Some(&signs));
         if same && lo >= lo_bound && hi <= hi_bound {
@@ -295,7 +316,8 @@ fn split_vertex(tets: &mut [[u32; 4]], vertices: &mut Vec<Vec3>, v: u32, star: &
         if i == largest {
             continue;
         }
-        let Some(to) = split_position(tets, vertices, v, fan) else {
+        let rest: Vec<usize> = star.iter().copied().filter(|t| !fan.contains(t)).collect();
+        let Some(to) = split_position(tets, vertices, v, fan, &rest) else {
             continue;
         };
         let copy = vertices.len() as u32;
