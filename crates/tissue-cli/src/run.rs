@@ -83,6 +83,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 outcome.capped_steps, outcome.worst_residual
             );
         }
+        if outcome.contact_capped_steps > 0 {
+            eprintln!(
+                "{} steps stopped their contact loop at its cap ([contact] max_iterations) with \
+                 the contact set still moving: raise max_iterations",
+                outcome.contact_capped_steps
+            );
+        }
         if outcome.substeps.1 > 1 {
             eprintln!(
                 "substeps per step: {} to {} (the model's stability limit)",
@@ -154,6 +161,9 @@ pub struct Outcome {
     /// (`StepInfo::capped`), and the largest residual any step reported.
     pub capped_steps: u64,
     pub worst_residual: Real,
+    /// Steps whose static contact loop stopped at its cap with the contact set still
+    /// changing (`StepReport::contact_converged` false).
+    pub contact_capped_steps: u64,
     pub error: Option<String>,
     /// Internal steps per step the model took (fewest, most; 0 when it does not say).
     pub substeps: (u32, u32),
@@ -193,12 +203,14 @@ pub fn execute(
     let mut max_force: Real = 0.0;
     let mut error = None;
     let (mut capped_steps, mut worst_residual) = (0u64, 0.0 as Real);
+    let mut contact_capped_steps = 0u64;
     let mut substeps = (u32::MAX, 0);
     for k in 1..=total {
         let t = sim.time();
         match sim.step(scene.run.dt) {
             Ok(report) => {
                 capped_steps += u64::from(report.info.capped);
+                contact_capped_steps += u64::from(!report.contact_converged);
                 worst_residual = worst_residual.max(report.info.residual);
                 let s = report.info.substeps;
                 substeps = (substeps.0.min(s), substeps.1.max(s));
@@ -239,6 +251,7 @@ pub fn execute(
         elements: info.elements,
         capped_steps,
         worst_residual,
+        contact_capped_steps,
         error,
         substeps: (substeps.0.min(substeps.1), substeps.1),
     };
@@ -352,6 +365,7 @@ impl Writer {
             "fixed_vertices": sim.fixed().len(),
             "capped_steps": o.capped_steps,
             "worst_residual": o.worst_residual,
+            "contact_capped_steps": o.contact_capped_steps,
             "frames": self.frames.len(),
             "substeps_min": o.substeps.0,
             "substeps_max": o.substeps.1,

@@ -13,12 +13,13 @@ use crate::interact::contact::{
     Contact, PENETRATION_TOLERANCE, hold_points, is_adhesive, project_to_sphere, pulls,
     settle_carried_faces, vertices_in_ball, vertices_in_shape, vertices_near_shape,
 };
+use crate::interact::fine_points;
 use crate::interact::fine_surface::MappedSurface;
 use crate::interact::instrument::{Instrument, InstrumentKind};
 use crate::interact::plausibility::Plausibility;
 use crate::interact::shape::Shape;
 use crate::interact::sliding::SlideResidual;
-use crate::interact::{Constraints, Loads, Prescribed};
+use crate::interact::{Constraints, Loads, PointContact, Prescribed};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{Deformable, StepInfo};
 
@@ -378,6 +379,17 @@ impl Simulation {
             iterations += 1;
             let (constraints, normals) = self.constraints_for(next);
             self.along = self.model.set_constraints_along(&constraints, &normals)?;
+            let points: Vec<PointContact> = next
+                .iter()
+                .flat_map(|i| i.points.iter().map(|p| p.contact))
+                .collect();
+            if !self.model.set_point_contacts(&points)? {
+                return Err(SimError::Unsupported {
+                    model: self.model.kind(),
+                    operation: "point contacts",
+                    reason: "it does not solve a fine surface's points (internal)".into(),
+                });
+            }
             let info = self.model.step(dt)?;
             self.constraints = constraints;
             self.normals = normals;
@@ -480,6 +492,19 @@ impl Simulation {
                 | InstrumentKind::Plane { .. }
                 | InstrumentKind::Box { .. } => {
                     let Some(shape) = inst.shape() else { continue };
+                    if self.exact_points(inst) {
+                        // The fine surface's points near the instrument, each on its plane
+                        // (`interact::fine_points`); the model solves which push.
+                        inst.contacts.clear();
+                        if let Some((fine, now)) = &self.fine {
+                            let margin = CONTACT_MARGIN * shape.size()
+                                + 2.0 * inst.position.distance(old.position);
+                            inst.points =
+                                fine_points::gather(fine, now, &shape, inst.position, margin);
+                        }
+                        inst.reactions.clear();
+                        continue;
+                    }
                     let surface = Surface {
                         bvh: &self.bvh,
                         positions,
@@ -527,6 +552,17 @@ impl Simulation {
         }
     }
 
+    /// Whether this instrument's contact with the fine surface is solved exactly on its
+    /// points (`interact::fine_points`): a static model that solves point contacts, a
+    /// frictionless pushing instrument. The others use the coarse vertices' planes.
+    fn exact_points(&self, inst: &Instrument) -> bool {
+        self.fine.is_some()
+            && self.is_static
+            && inst.friction() == Some(0.0)
+            && inst.shape().is_some()
+            && self.model.holds_point_contacts()
+    }
+
     /// Whether the model holds this instrument's contacts as pushes only, settled within its
     /// step (`Deformable::contacts_push_only`, the dynamic kinds on the shared integrator):
     /// it held the last constraints' directions and the instrument is frictionless.
@@ -550,7 +586,9 @@ impl Simulation {
     /// The vertices an instrument holds: its contacts, less those a push-only hold left
     /// free through the step (near the instrument, not touching it).
     fn held_count(&self, inst: &Instrument) -> usize {
-        if self.pushes_only(inst) {
+        if !inst.points.is_empty() {
+            inst.point_pushes.iter().filter(|&&l| l > 0.0).count()
+        } else if self.pushes_only(inst) {
             inst.reactions.iter().filter(|f| **f != Vec3::ZERO).count()
         } else {
             inst.contacts.len()
@@ -599,6 +637,19 @@ impl Simulation {
                 .map(|j| all.get(j).copied().unwrap_or(Vec3::ZERO))
                 .collect();
             inst.force = inst.reactions.iter().copied().sum();
+            at += n;
+        }
+        let pushes = self.model.point_reactions();
+        let mut at = 0;
+        for inst in next.iter_mut() {
+            let n = inst.points.len();
+            inst.point_pushes = (at..at + n)
+                .map(|j| pushes.get(j).copied().unwrap_or(0.0))
+                .collect();
+            // The tissue pushes the instrument back along −n at every point it rests on.
+            for (p, &l) in inst.points.iter().zip(&inst.point_pushes) {
+                inst.force -= l * p.contact.normal;
+            }
             at += n;
         }
     }
@@ -657,6 +708,41 @@ impl Simulation {
         worst
     }
 
+    /// The fine points' planes moved to where the last solve left the points, and the points
+    /// that came near added (`interact::fine_points`). Returns whether the solve must be
+    /// taken again: a plane moved by more than `POINT_MOVE` of the instrument's size, or a
+    /// point the model did not hold now penetrates.
+    fn update_points(&self, next: &mut [Instrument]) -> bool {
+        let Some((fine, _)) = &self.fine else {
+            return false;
+        };
+        if !next.iter().any(|i| self.exact_points(i)) {
+            return false;
+        }
+        let mut positions = Vec::new();
+        fine.positions(
+            self.model.rest_surface(),
+            self.model.surface().positions,
+            &mut positions,
+        );
+        let mut changed = false;
+        for inst in next.iter_mut() {
+            let Some(shape) = inst.shape() else { continue };
+            if !self.exact_points(inst) {
+                continue;
+            }
+            let margin = CONTACT_MARGIN * shape.size();
+            let new = fine_points::gather(fine, &positions, &shape, inst.position, margin);
+            let (moved, entered) = fine_points::change(&inst.points, &new, &positions);
+            if entered || moved > POINT_MOVE * shape.size() {
+                changed = true;
+                inst.points = new;
+                inst.point_pushes = vec![0.0; inst.points.len()];
+            }
+        }
+        changed
+    }
+
     /// One round of the static active set: release adhesive probe contacts, add vertices
     /// that now penetrate a probe. Returns whether anything changed.
     ///
@@ -672,10 +758,13 @@ impl Simulation {
         taken: &mut [bool],
         returned: &mut Returned,
     ) -> bool {
+        let mut changed = self.update_points(next);
         let s = self.model.contact_surface();
-        let mut changed = false;
         for inst in next.iter_mut() {
             let Some(shape) = inst.shape() else { continue };
+            if self.exact_points(inst) {
+                continue;
+            }
             let c = inst.position;
             let scale = force_scale(&inst.reactions);
             let before = inst.contacts.len();
@@ -940,6 +1029,15 @@ impl Surface<'_> {
 /// does not keep the static contact loop going (the sliding relaxation moves face targets a
 /// little each round; the face hold puts them back).
 const FACE_MOVE: Real = 1e-6;
+
+/// A fine point's plane that moves by less than this fraction of the instrument's size does
+/// not keep the static contact loop going. Moving each plane to where its point now is
+/// nearest a curved instrument converges linearly: a point that slid turns its plane, and
+/// the turned push moves it again (the instrument's curvature against the tissue's
+/// tangential stiffness; each round 0.2 to 0.45 times the last on the liver pressed by a
+/// 5 mm probe). At 1e-4 of the probe (0.5 µm) the three step sizes of the liver test agree
+/// to 1e-5 of the force, in 2.3 to 4.3 solves per step.
+const POINT_MOVE: Real = 1e-4;
 
 /// Per surface vertex, within one step's contact loop: released as adhesive, and taken
 /// again after that (then held to the end of the step).

@@ -1,7 +1,7 @@
 //! Constraints and loads on surface vertices: the model-facing side of every instrument.
 
 use crate::error::SimError;
-use crate::math::{Vec3, is_finite_vec};
+use crate::math::{Real, Vec3, is_finite_vec};
 
 /// A surface vertex held at a given position (contact with an instrument, grasping).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -9,6 +9,54 @@ pub struct Prescribed {
     pub vertex: u32,
     /// Target position, in m.
     pub position: Vec3,
+}
+
+/// A point tied to three surface vertices (a vertex of a fine contact surface,
+/// `interact::fine_surface`: x = rest + Σ wᵢ (xᵢ − Xᵢ)) that an instrument may push but not
+/// pull, frictionless: n·(x − target) ≥ 0 with a push λ n, λ ≥ 0, and λ = 0 where the point
+/// is off the instrument's plane (`Deformable::set_point_contacts`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointContact {
+    /// The surface vertices the point follows, and their weights (summing to 1).
+    pub vertices: [u32; 3],
+    pub weights: [Real; 3],
+    /// The point at rest, in m.
+    pub rest: Vec3,
+    /// The instrument's outward unit normal at the point (the plane's normal).
+    pub normal: Vec3,
+    /// A point of the instrument's plane, in m.
+    pub target: Vec3,
+}
+
+impl PointContact {
+    /// The displacement along the normal the point's vertices must give it to reach the
+    /// plane: Σ wᵢ n·uᵢ ≥ n·(target − rest).
+    pub fn reach(&self) -> Real {
+        self.normal.dot(self.target - self.rest)
+    }
+
+    /// Checks the vertices exist among `count` and every number is finite.
+    pub fn check(&self, count: usize) -> Result<(), SimError> {
+        if let Some(&v) = self.vertices.iter().find(|&&v| v as usize >= count) {
+            return Err(SimError::BadConstraint {
+                vertex: v as usize,
+                count,
+            });
+        }
+        let finite = self.weights.iter().all(|w| w.is_finite())
+            && is_finite_vec(self.rest)
+            && is_finite_vec(self.normal)
+            && is_finite_vec(self.target);
+        if !finite || (self.normal.length() - 1.0).abs() > 1e-6 {
+            return Err(SimError::BadParameter {
+                name: "point contact",
+                value: format!("on surface vertices {:?}", self.vertices),
+                reason: "its weights, rest, target must be finite and its normal a unit vector"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// Fixed and prescribed surface vertices.

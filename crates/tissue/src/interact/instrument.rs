@@ -6,6 +6,7 @@
 
 use crate::error::SimError;
 use crate::interact::contact::Contact;
+use crate::interact::fine_points::FinePoint;
 use crate::interact::shape::Shape;
 use crate::interact::sliding::Slider;
 use crate::interact::trajectory::Trajectory;
@@ -70,6 +71,10 @@ pub struct Instrument {
     /// scene key `contact = "sticking"`; graspers and scalpels).
     friction: Option<Real>,
     pub(crate) slider: Slider,
+    /// The fine surface's points held exactly against this instrument
+    /// (`interact::fine_points`), and the push on each after the last solve, in N.
+    pub(crate) points: Vec<FinePoint>,
+    pub(crate) point_pushes: Vec<Real>,
 }
 
 impl Instrument {
@@ -180,6 +185,8 @@ impl Instrument {
             force: Vec3::ZERO,
             friction: None,
             slider: Slider::default(),
+            points: Vec::new(),
+            point_pushes: Vec::new(),
         }
         .frictionless())
     }
@@ -279,6 +286,17 @@ impl Instrument {
     /// The force at each contact after the last step (same order as `contacts`), in N.
     pub fn contact_reactions(&self) -> &[Vec3] {
         &self.reactions
+    }
+
+    /// The fine surface's points held exactly against this instrument
+    /// (`interact::fine_points`; empty where its contacts are on vertices).
+    pub fn fine_points(&self) -> &[FinePoint] {
+        &self.points
+    }
+
+    /// The push on each of `fine_points` after the last step (along its normal), in N.
+    pub fn point_pushes(&self) -> &[Real] {
+        &self.point_pushes
     }
 
     /// The live position that overrides the path (viewer, haptic device), if any.

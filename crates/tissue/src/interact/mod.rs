@@ -4,6 +4,7 @@
 pub mod bvh;
 pub mod constraints;
 pub mod contact;
+pub mod fine_points;
 pub mod fine_surface;
 pub mod instrument;
 pub mod plausibility;
@@ -14,7 +15,7 @@ pub mod slip;
 pub mod trajectory;
 
 pub use bvh::Bvh;
-pub use constraints::{Constraints, Loads, Prescribed, SurfaceHold};
+pub use constraints::{Constraints, Loads, PointContact, Prescribed, SurfaceHold};
 pub use contact::Contact;
 pub use fine_surface::MappedSurface;
 pub use instrument::{Instrument, InstrumentKind};

@@ -1,7 +1,7 @@
 //! The one interface every model implements.
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::interact::{Constraints, Loads, PointContact};
 use crate::math::{Mat3, Real, Vec3, is_finite_vec, segment_triangle};
 
 use super::Progress;
@@ -207,6 +207,28 @@ pub trait Deformable: Send {
     ) -> Result<bool, SimError> {
         let _ = normals;
         self.set_constraints(constraints).map(|()| false)
+    }
+
+    /// Whether the model solves `set_point_contacts` (false by default).
+    fn holds_point_contacts(&self) -> bool {
+        false
+    }
+
+    /// Points tied to surface vertices (a fine contact surface's) that an instrument may push
+    /// but not pull, frictionless, solved exactly with the model's own response: a
+    /// complementarity problem in which each point either rests on its instrument's plane and
+    /// is pushed, or is off it and free (`solve::lcp`). Held from the next step on, beside the
+    /// constraints; `set_constraints` and `set_constraints_along` clear them. Returns false
+    /// (the default, and then nothing is held) when the model cannot: the caller then uses the
+    /// coarse vertices' planes (`interact::contact::hold_points`).
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        Ok(points.is_empty())
+    }
+
+    /// The push λ ≥ 0 along its normal on each point of the last `set_point_contacts`, in N,
+    /// after the last step (the instrument feels −λ n).
+    fn point_reactions(&self) -> &[Real] {
+        &[]
     }
 
     /// Whether the entries `set_constraints_along` holds along a direction are contacts that

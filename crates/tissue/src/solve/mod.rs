@@ -5,11 +5,13 @@
 //! (`tree_solve`, serial or parallel as `chooser` measures); a matrix-free Jacobi-
 //! preconditioned conjugate gradient for the implicit dynamic models; small dense contact
 //! blocks solved in place (`small_dense`), and contacts held along their normals on a dense
-//! response (`along`).
+//! response (`along`), and the mixed complementarity problem of points that may be pushed
+//! but not pulled (`lcp`).
 
 mod along;
 pub mod cg;
 pub mod chooser;
+pub mod lcp;
 pub mod ordering;
 pub mod schur;
 mod small_dense;

@@ -90,11 +90,14 @@ impl HeldSchur {
         n: usize,
         extra: &[usize],
     ) -> Result<usize, SimError> {
-        let new: Vec<usize> = extra
+        let mut new: Vec<usize> = extra
             .iter()
             .copied()
             .filter(|d| !self.slot.contains_key(d))
             .collect();
+        // An unknown named twice (a vertex under two points of a fine surface) gets one slot.
+        new.sort_unstable();
+        new.dedup();
         if new.is_empty() {
             return Ok(0);
         }
@@ -140,6 +143,35 @@ impl HeldSchur {
         self.multipliers_rows(&rows, d)
     }
 
+    /// Cᵀ S C for the held rows `rows` (each a combination of unknowns that all have a
+    /// column): the response of each row to the others' multipliers.
+    pub fn rows_matrix(&self, rows: &[HeldRow]) -> Result<Mat<Real>, SimError> {
+        let h = self.unknowns.len();
+        let mut idx: Vec<Vec<(usize, Real)>> = Vec::with_capacity(rows.len());
+        for row in rows {
+            let mut r = Vec::with_capacity(row.len());
+            for &(e, c) in row {
+                let slot = *self.slot.get(&e).ok_or_else(|| SimError::BadParameter {
+                    name: "held",
+                    value: format!("dof {e}"),
+                    reason: "no Schur column for it (internal)".into(),
+                })?;
+                r.push((slot, c));
+            }
+            idx.push(r);
+        }
+        let s = &self.s;
+        Ok(Mat::<Real>::from_fn(rows.len(), rows.len(), |i, j| {
+            let mut v = 0.0;
+            for &(a, ca) in &idx[i] {
+                for &(b, cb) in &idx[j] {
+                    v += ca * cb * s[b * h + a];
+                }
+            }
+            v
+        }))
+    }
+
     /// λ with (Cᵀ S C) λ = `d` for the held rows `rows` (each a combination of unknowns
     /// that all have a column).
     pub fn multipliers_rows(
@@ -149,30 +181,7 @@ impl HeldSchur {
     ) -> Result<Vec<Real>, SimError> {
         if self.active != rows || self.llt.is_none() {
             self.llt = None;
-            let h = self.unknowns.len();
-            let mut idx: Vec<Vec<(usize, Real)>> = Vec::with_capacity(rows.len());
-            for row in rows {
-                let mut r = Vec::with_capacity(row.len());
-                for &(e, c) in row {
-                    let slot = *self.slot.get(&e).ok_or_else(|| SimError::BadParameter {
-                        name: "held",
-                        value: format!("dof {e}"),
-                        reason: "no Schur column for it (internal)".into(),
-                    })?;
-                    r.push((slot, c));
-                }
-                idx.push(r);
-            }
-            let s = &self.s;
-            let m = Mat::<Real>::from_fn(rows.len(), rows.len(), |i, j| {
-                let mut v = 0.0;
-                for &(a, ca) in &idx[i] {
-                    for &(b, cb) in &idx[j] {
-                        v += ca * cb * s[b * h + a];
-                    }
-                }
-                v
-            });
+            let m = self.rows_matrix(rows)?;
             let first = rows.first().and_then(|r| r.first()).map_or(0, |r| r.0);
             let llt = m
                 .llt(Side::Lower)

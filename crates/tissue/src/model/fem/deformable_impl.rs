@@ -2,13 +2,13 @@
 //! problem, one direct solve per step, and reactions handed back per given constraint.
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::interact::{Constraints, Loads, PointContact};
 use crate::math::{Real, Vec3};
 use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
 
 use super::static_model::{FemStatic, Order};
 use super::surface_nodes::nodal_forces;
-use super::system::{ALONG_CAP, DofProblem, oblique_holds};
+use super::system::{ALONG_CAP, DofProblem, PointHold, oblique_holds};
 
 impl FemStatic {
     /// The constraints as a dof problem (see `set_constraints`), the prescribed entry k held
@@ -101,6 +101,40 @@ impl Deformable for FemStatic {
         self.hold(c, normals)
     }
 
+    /// Linear tetrahedra only: a quadratic surface bends between its corners, which a point
+    /// tied to the corners by flat weights does not follow.
+    fn holds_point_contacts(&self) -> bool {
+        self.order == Order::Linear
+    }
+
+    /// Each point a unilateral row Σ wᵢ n·uᵢ ≥ n·(target − rest) over its vertices' nodes,
+    /// solved with the other held dofs as one complementarity problem on the Schur
+    /// complement of the factorisation (`System`, `solve::lcp`).
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        if !self.holds_point_contacts() {
+            return Ok(points.is_empty());
+        }
+        let count = self.boundary.nodes.len();
+        let mut holds = Vec::with_capacity(points.len());
+        for pt in points {
+            pt.check(count)?;
+            holds.push(PointHold {
+                nodes: pt
+                    .vertices
+                    .map(|v| self.boundary.nodes[v as usize] as usize),
+                weights: pt.weights,
+                normal: pt.normal,
+                value: pt.reach(),
+            });
+        }
+        self.problem.points = holds;
+        Ok(true)
+    }
+
+    fn point_reactions(&self) -> &[Real] {
+        &self.point_pushes
+    }
+
     /// Gravity becomes the consistent body load ρ g over every element; point loads act on
     /// the node of their surface vertex.
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
@@ -115,6 +149,7 @@ impl Deformable for FemStatic {
             .solve(&self.problem, &mut self.u_trial, &mut self.r_trial)?;
         std::mem::swap(&mut self.u, &mut self.u_trial);
         std::mem::swap(&mut self.r, &mut self.r_trial);
+        self.point_pushes.clone_from(&self.system.point_pushes);
         self.update_positions();
         self.update_reactions();
         Ok(StepInfo::default())
@@ -125,6 +160,7 @@ impl Deformable for FemStatic {
     }
 
     fn reset(&mut self) {
+        self.point_pushes.iter_mut().for_each(|v| *v = 0.0);
         self.u.iter_mut().for_each(|v| *v = 0.0);
         self.r.iter_mut().for_each(|v| *v = 0.0);
         self.update_positions();

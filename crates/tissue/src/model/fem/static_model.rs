@@ -125,6 +125,8 @@ pub struct FemStatic {
     pub(super) u_trial: Vec<Real>,
     pub(super) r_trial: Vec<Real>,
     pub(super) surface_reaction: Vec<Vec3>,
+    /// The push on each point contact at the last step (`Deformable::point_reactions`).
+    pub(super) point_pushes: Vec<Real>,
     pub(super) precompute_seconds: Real,
 }
 
@@ -242,6 +244,7 @@ impl FemStatic {
             quadratic,
             surface_positions: boundary.surface.vertices.clone(),
             surface_reaction: vec![Vec3::ZERO; boundary.nodes.len()],
+            point_pushes: Vec::new(),
             boundary,
             surface_mids,
             problem: DofProblem::new(dofs),

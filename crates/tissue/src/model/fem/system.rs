@@ -34,7 +34,7 @@ use crate::error::SimError;
 use crate::interact::SurfaceHold;
 use crate::math::{Real, Vec3};
 use crate::solve::schur::HeldRow;
-use crate::solve::{HeldSchur, SparseCholesky};
+use crate::solve::{HeldSchur, SparseCholesky, lcp};
 
 use super::assembly::Assembler;
 
@@ -97,6 +97,20 @@ pub struct DofProblem {
     pub forces: Vec<Real>,
     /// Nodes held along one direction only (none of their dofs in `list`), by node.
     pub along: Vec<AlongHold>,
+    /// Points tied to three nodes that may be pushed along a normal but not pulled (a fine
+    /// contact surface's vertices against an instrument).
+    pub points: Vec<PointHold>,
+}
+
+/// A point following three nodes (x = rest + Σ wᵢ uᵢ) that may not pass a plane:
+/// Σ wᵢ n·uᵢ ≥ `value`, pushed along n (λ ≥ 0) only where it rests on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointHold {
+    pub nodes: [usize; 3],
+    pub weights: [Real; 3],
+    pub normal: Vec3,
+    /// The displacement along `normal` the point needs to reach the plane, in m.
+    pub value: Real,
 }
 
 /// A node held along a unit direction only: `normal · u_node = value`, free across it; its
@@ -117,6 +131,7 @@ impl DofProblem {
             targets: vec![0.0; dofs],
             forces: vec![0.0; dofs],
             along: Vec::new(),
+            points: Vec::new(),
         }
     }
 
@@ -260,6 +275,14 @@ pub struct System {
     /// Skips the rigid-mode check: for K + cM (dynamics), definite even for a free body.
     pub allow_free_body: bool,
     pub schur_rule: SchurRule,
+    /// The push λ ≥ 0 on each point of the last problem solved (0 for a point off its
+    /// plane), in N.
+    pub point_pushes: Vec<Real>,
+    /// The points' loads on dofs the problem holds (a point tied to a fixed vertex): they
+    /// go straight into those dofs' reactions.
+    point_loads_held: Vec<(usize, Real)>,
+    /// Pivoting rounds of the last contact problem with points (`solve::lcp`).
+    pub lcp_rounds: usize,
 }
 
 impl System {
@@ -292,6 +315,9 @@ impl System {
             solves: 0,
             allow_free_body: false,
             schur_rule: SchurRule::Timed,
+            point_pushes: Vec::new(),
+            point_loads_held: Vec::new(),
+            lcp_rounds: 0,
             assembler,
         })
     }
@@ -355,12 +381,29 @@ impl System {
                     .into(),
             });
         }
+        let nodes = n / 3;
+        if let Some(pt) = p.points.iter().find(|pt| {
+            pt.nodes.iter().any(|&v| v >= nodes)
+                || !(pt.value.is_finite()
+                    && pt.weights.iter().all(|w| w.is_finite())
+                    && pt.normal.is_finite())
+        }) {
+            return Err(SimError::BadParameter {
+                name: "point contact",
+                value: format!("on nodes {:?}", pt.nodes),
+                reason: format!("the model has {nodes} nodes; every number must be finite"),
+            });
+        }
         match &mut self.always_held {
             Some(a) => a.iter_mut().zip(&p.constrained).for_each(|(a, &h)| *a &= h),
             None => self.always_held = Some(p.constrained.clone()),
         }
         let extra = self.plan(p)?;
-        if extra.is_empty() && p.along.is_empty() {
+        self.point_pushes.clear();
+        self.point_pushes.resize(p.points.len(), 0.0);
+        self.point_loads_held.clear();
+        let schur_rows = !(p.along.is_empty() && p.points.is_empty());
+        if extra.is_empty() && !schur_rows {
             let t = Instant::now();
             self.solve_factored(p)?;
             self.solve_seconds = t.elapsed().as_secs_f64();
@@ -372,7 +415,7 @@ impl System {
                 return Err(e);
             }
             self.refactor(p.constrained.clone(), p)?;
-            if p.along.is_empty() {
+            if !schur_rows {
                 self.solve_factored(p)?;
             } else {
                 self.solve_schur(p, &[])?;
@@ -406,6 +449,9 @@ impl System {
                 .map(|(&row, &kv)| kv * u[row])
                 .sum();
             r[c] = p.forces[c] - ku;
+        }
+        for &(c, load) in &self.point_loads_held {
+            r[c] += load;
         }
         Ok(())
     }
@@ -498,6 +544,13 @@ impl System {
         let t = Instant::now();
         let mut unknowns = extra.to_vec();
         unknowns.extend(p.along.iter().flat_map(|a| 3 * a.node..3 * a.node + 3));
+        // A point's row over its nodes' free dofs; its held dofs are where they are held.
+        let point_rows: Vec<(HeldRow, Real)> = p.points.iter().map(|pt| point_row(pt, p)).collect();
+        unknowns.extend(
+            point_rows
+                .iter()
+                .flat_map(|(row, _)| row.iter().map(|&(c, _)| c)),
+        );
         let added = self.schur.add_columns(&self.chol, n, &unknowns)?;
         if added > 0 {
             self.column_seconds = Some(t.elapsed().as_secs_f64() / added as f64);
@@ -525,7 +578,42 @@ impl System {
                 .sum();
             d.push(a.value - now);
         }
-        let lambda = self.schur.multipliers_rows(&rows, &d)?;
+        let lambda = if p.points.is_empty() {
+            self.schur.multipliers_rows(&rows, &d)?
+        } else {
+            // The held rows (w = 0) and the points (w ≥ 0, λ ≥ 0) in one complementarity
+            // problem: w = (Cᵀ S C) λ + b with b = −d on held rows and the gap the loads
+            // alone leave on a point's.
+            let bilateral = rows.len();
+            let mut b: Vec<Real> = d.iter().map(|x| -x).collect();
+            let mut which = Vec::with_capacity(point_rows.len());
+            for (j, (row, held_part)) in point_rows.iter().enumerate() {
+                // A point on held nodes only cannot be moved: nothing to solve for it.
+                if row.is_empty() {
+                    continue;
+                }
+                let now: Real = row.iter().map(|&(c, k)| k * self.rhs[c]).sum();
+                b.push(now + held_part - p.points[j].value);
+                rows.push(row.clone());
+                which.push(j);
+            }
+            let m = self.schur.rows_matrix(&rows)?;
+            let solution = lcp::solve_mixed(m.as_ref(), &b, bilateral, &[])?;
+            self.lcp_rounds = solution.rounds;
+            for (&j, &l) in which.iter().zip(&solution.lambda[bilateral..]) {
+                self.point_pushes[j] = l;
+                let pt = &p.points[j];
+                for (&node, &w) in pt.nodes.iter().zip(&pt.weights) {
+                    for axis in 0..3 {
+                        let c = 3 * node + axis;
+                        if p.constrained[c] {
+                            self.point_loads_held.push((c, w * pt.normal[axis] * l));
+                        }
+                    }
+                }
+            }
+            solution.lambda
+        };
         self.rhs.copy_from_slice(&self.base_rhs);
         for (row, l) in rows.iter().zip(lambda) {
             for &(c, k) in row {
@@ -536,7 +624,7 @@ impl System {
         // The first solve is the extra one: the plain path would take the second only. Rows
         // along a direction need both whatever the factorisation: no refactorisation saves
         // them, so they do not count.
-        if p.along.is_empty() {
+        if p.along.is_empty() && p.points.is_empty() {
             self.schur_overhead += 0.5 * t.elapsed().as_secs_f64();
         }
         Ok(())
@@ -626,6 +714,29 @@ impl System {
         }
         Ok(())
     }
+}
+
+/// A point's row over the free dofs of its nodes (coefficients wᵢ nₐ, a dof named once),
+/// and the part of Σ wᵢ n·uᵢ its held dofs give (their targets).
+fn point_row(pt: &PointHold, p: &DofProblem) -> (HeldRow, Real) {
+    let mut row: HeldRow = Vec::with_capacity(9);
+    let mut held = 0.0;
+    for (&node, &w) in pt.nodes.iter().zip(&pt.weights) {
+        for axis in 0..3 {
+            let (c, k) = (3 * node + axis, w * pt.normal[axis]);
+            if k == 0.0 {
+                continue;
+            }
+            if p.constrained[c] {
+                held += k * p.targets[c];
+            } else if let Some(e) = row.iter_mut().find(|e| e.0 == c) {
+                e.1 += k;
+            } else {
+                row.push((c, k));
+            }
+        }
+    }
+    (row, held)
 }
 
 /// The right-hand side of `p` with the dofs of `list` (ascending, all held by `p`) eliminated:

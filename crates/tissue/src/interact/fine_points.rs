@@ -1,0 +1,146 @@
+//! A fine contact surface's points held exactly against an instrument, by the models that
+//! solve point contacts with their own response (`Deformable::set_point_contacts`).
+//!
+//! Each fine point near the instrument becomes a unilateral row on the instrument's tangent
+//! plane at the point's nearest surface point; the model solves all of them with its
+//! stiffness as one complementarity problem, so a point either rests on its plane and is
+//! pushed, or is off it and free, and none pulls. The planes are those of the current
+//! positions only, nothing is carried from one step to the next: a static model's loop
+//! solves, moves each plane to where its point now is nearest the instrument, and solves
+//! again until the planes stop moving, so the answer is the equilibrium of the position the
+//! instrument is at, whatever the path and the step that brought it there.
+
+use crate::interact::PointContact;
+use crate::interact::contact::{exit_along, outward_normals};
+use crate::interact::fine_surface::MappedSurface;
+use crate::interact::shape::Shape;
+use crate::math::{Real, Vec3};
+
+/// One fine point's contact: which fine vertex, and its row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FinePoint {
+    pub fine: u32,
+    pub contact: PointContact,
+}
+
+/// The fine points (at `positions`) inside `shape` placed at `at` or outside it by less
+/// than `margin` m, in fine-vertex order, each on the shape's tangent plane at its nearest
+/// surface point.
+pub fn gather(
+    fine: &MappedSurface,
+    positions: &[Vec3],
+    shape: &Shape,
+    at: Vec3,
+    margin: Real,
+) -> Vec<FinePoint> {
+    // A cheap test first: a point farther than the shape's bounding ball plus the margin
+    // cannot be near it (the half-space has no ball and is tested point by point).
+    let ball = shape.bounds(at);
+    let mut out = Vec::new();
+    let mut outward: Option<Vec<Vec3>> = None;
+    for (j, &p) in positions.iter().enumerate() {
+        if let Some((c, r)) = ball
+            && p.distance_squared(c) > (r + margin) * (r + margin)
+        {
+            continue;
+        }
+        let Some((vertices, weights)) = fine.tie(j) else {
+            continue;
+        };
+        let Some(&rest) = fine.rest.get(j) else {
+            continue;
+        };
+        let mut near = shape.closest(at, p, Vec3::ZERO);
+        if near.depth >= margin {
+            continue;
+        }
+        // A point the instrument's nearest surface would push out of the tissue (the
+        // instrument arrived past its centre in one move, as the viewer's probe does) leaves
+        // along the tissue's inward normal instead (`contact::exit_along`).
+        if near.depth < 0.0
+            && let Some(&outward) = outward
+                .get_or_insert_with(|| outward_normals(positions, &fine.triangles))
+                .get(j)
+            && near.normal.dot(outward) > 0.0
+        {
+            near = exit_along(shape, at, p, -outward);
+        }
+        out.push(FinePoint {
+            fine: j as u32,
+            contact: PointContact {
+                vertices,
+                weights,
+                rest,
+                normal: near.normal,
+                target: near.point,
+            },
+        });
+    }
+    out
+}
+
+/// How far the planes of `new` moved from those of `old` for the same fine points, along
+/// their normals (m), and whether `new` holds a penetrating point `old` did not have.
+pub fn change(old: &[FinePoint], new: &[FinePoint], positions: &[Vec3]) -> (Real, bool) {
+    let mut moved: Real = 0.0;
+    let mut entered = false;
+    let mut i = 0;
+    for q in new {
+        while i < old.len() && old[i].fine < q.fine {
+            i += 1;
+        }
+        match old.get(i).filter(|o| o.fine == q.fine) {
+            Some(o) => {
+                // The planes' offset at the point: how much the row's value changes.
+                let a = o.contact.normal.dot(o.contact.target - o.contact.rest);
+                let b = q.contact.normal.dot(q.contact.target - q.contact.rest);
+                moved = moved.max((a - b).abs()).max(
+                    (o.contact.normal - q.contact.normal).length()
+                        * (q.contact.target - q.contact.rest).length(),
+                );
+            }
+            None => {
+                let p = positions
+                    .get(q.fine as usize)
+                    .copied()
+                    .unwrap_or(Vec3::ZERO);
+                entered |= q.contact.normal.dot(p - q.contact.target) < 0.0;
+            }
+        }
+    }
+    (moved, entered)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_near_a_ball_are_gathered_on_its_tangent_planes() {
+        // Three fine points on one coarse triangle: one inside the ball, one just outside
+        // within the margin, one far.
+        let coarse = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let fine = vec![
+            Vec3::new(0.2, 0.2, 0.0),
+            Vec3::new(0.3, 0.1, 0.0),
+            Vec3::new(0.1, 0.8, 0.0),
+        ];
+        let m = MappedSurface::new(fine.clone(), vec![[0, 1, 2]], &coarse, &[[0, 1, 2]]).unwrap();
+        let ball = Shape::Sphere { radius: 0.1 };
+        let at = Vec3::new(0.2, 0.2, 0.09);
+        let got = gather(&m, &fine, &ball, at, 0.02);
+        let ids: Vec<u32> = got.iter().map(|p| p.fine).collect();
+        assert_eq!(ids, vec![0]);
+        let k = got[0].contact;
+        assert!((k.normal + Vec3::Z).length() < 1e-12, "{}", k.normal);
+        assert!((k.target - Vec3::new(0.2, 0.2, -0.01)).length() < 1e-12);
+        // The point must move 1 cm down to reach the plane.
+        assert!((k.reach() - 0.01).abs() < 1e-12);
+        let wider = gather(&m, &fine, &ball, at, 0.2);
+        assert_eq!(wider.len(), 2);
+        let (moved, entered) = change(&got, &wider, &fine);
+        assert_eq!(moved, 0.0);
+        // The added point is outside the ball: nothing new penetrates.
+        assert!(!entered);
+    }
+}
