@@ -26,6 +26,7 @@
 mod bare;
 pub mod domain;
 pub mod image_domain;
+mod interface_volume;
 pub mod interfaces;
 mod lattice;
 pub mod manifold;
@@ -541,6 +542,10 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     manifold.bare_moved = snapped.onto + snapped.partly;
     manifold.bare_partly = snapped.partly;
     manifold.bare_left = snapped.left;
+    // Interfaces between labels off their chords (each label keeps its volume).
+    if multi {
+        interface_volume::keep_label_volumes(&mut mesh, &tags, domain, size);
+    }
     let mut report = measure(&mesh, domain, domain_index(domain), size);
     report.manifold = manifold;
     report.pieces = pieces;
