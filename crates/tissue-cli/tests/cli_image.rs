@@ -114,8 +114,8 @@ fn a_segmentation_is_inspected_and_meshed_by_segment_names() {
             .args(["mesh", "tetrahedralize"])
             .arg(&seg)
             .arg(&mesh)
-            // --force: the tumour (radius 3.5 h) keeps −3 % of its voxel volume, over the
-            // 1 % a label is held to (docs/meshing.md, "Several labels"); names are tested here.
+            // --force: names are tested here, not the guarantees (docs/meshing.md, "Several
+            // labels" and "Labels keep their volume").
             .args([
                 "--labels", labels, "--size", "0.002", "--smooth", "0", "--force",
             ])

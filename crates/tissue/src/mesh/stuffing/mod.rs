@@ -23,8 +23,10 @@
 //! Every output is measured (`report::measure`): angles, validity, volume, and the distance
 //! between the boundaries; the caller refuses what breaks a guarantee.
 
+mod bare;
 pub mod domain;
 pub mod image_domain;
+mod interface_volume;
 pub mod interfaces;
 mod lattice;
 pub mod manifold;
@@ -525,8 +527,25 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
         ..
     } = out;
     let mut mesh = TetMesh::new(vertices, tets);
-    let manifold = manifold::make_boundary_manifold(&mut mesh, &mut tags);
+    let mut manifold = manifold::make_boundary_manifold(&mut mesh, &mut tags);
     let pieces = pieces::pieces(&mut mesh, &mut tags, domain.one_piece());
+    // Lattice vertices the removals laid bare inside the shape, back onto its boundary.
+    // A lattice vertex the stencils left inside (sign < 0, never warped: still at its
+    // lattice place) is never on the boundary as stuffed; one found there was laid bare.
+    let bare_at = |p: Vec3| -> bool {
+        let d = ((p - lattice.origin) * (2.0 / lattice.h)).round();
+        lattice
+            .id([d.x as i64, d.y as i64, d.z as i64])
+            .is_some_and(|v| sign[v as usize] < 0 && pos[v as usize] == p)
+    };
+    let snapped = bare::snap_bare_vertices(&mut mesh, &tags, domain, size, &bare_at);
+    manifold.bare_moved = snapped.onto + snapped.partly;
+    manifold.bare_partly = snapped.partly;
+    manifold.bare_left = snapped.left;
+    // Interfaces between labels off their chords (each label keeps its volume).
+    if multi {
+        interface_volume::keep_label_volumes(&mut mesh, &tags, domain, size);
+    }
     let mut report = measure(&mesh, domain, domain_index(domain), size);
     report.manifold = manifold;
     report.pieces = pieces;

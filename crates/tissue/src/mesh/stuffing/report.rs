@@ -77,8 +77,8 @@ pub struct MeshingReport {
     pub distance_method: &'static str,
     /// Wall time of the meshing itself, in s.
     pub seconds: Real,
-    /// Tetrahedra removed so that the boundary is a 2-manifold, and any defect left
-    /// (`manifold`).
+    /// Vertices split and tetrahedra removed so that the boundary is a 2-manifold, and any
+    /// defect left (`manifold`).
     pub manifold: super::manifold::ManifoldRepair,
     /// The mesh's pieces, and those dropped when the input is one piece (`pieces`).
     pub pieces: super::pieces::Pieces,
@@ -273,12 +273,30 @@ impl fmt::Display for MeshingReport {
                 }
             )?;
         }
+        if self.manifold.split > 0 {
+            writeln!(
+                f,
+                "manifold:        {} vertices split where parts of the mesh touched along an \
+                 edge or at a vertex (each part its own copy, moved at most a fifth of an edge \
+                 into it)",
+                self.manifold.split
+            )?;
+        }
         if self.manifold.removed > 0 {
             writeln!(
                 f,
                 "manifold:        {} tetrahedra ({:.3e} m³) removed where parts of the mesh \
-                 touched along an edge or at a vertex",
+                 touched and no split could part them",
                 self.manifold.removed, self.manifold.removed_volume
+            )?;
+        }
+        let m = &self.manifold;
+        if m.bare_moved + m.bare_left > 0 {
+            writeln!(
+                f,
+                "bare vertices:   {} boundary vertices inside the shape moved onto its boundary \
+                 ({} only part of the way), {} left inside",
+                m.bare_moved, m.bare_partly, m.bare_left
             )?;
         }
         let p = &self.pieces;

@@ -132,9 +132,11 @@ pub(super) fn nested_balls(n: usize, r_in: Real, r_out: Real) -> crate::image::V
 
 /// Two labels of one image (a ball of label 2 inside a ball of label 1) give one conforming
 /// mesh whose tetrahedra carry the label they lie in, and whose volume is the voxel volume.
-/// At h = 2 voxels the inner ball (radius 3.5 h) is the chordal polyhedron of a coarse
-/// sphere: −2.7 % of its voxels (−3.2 % before session 13's α and warp rule) (the sphere of `sphere_keeps_every_guarantee` loses 5.6 %
-/// at r = 2.5 h), the one guarantee broken; every other holds.
+/// At h = 2 voxels the inner ball (radius 3.5 h) keeps its volume within the 1 % promised
+/// (−0.96 %; its voxels' interpolated interface encloses 0.79 % less than they count): its
+/// interface vertices are moved off their chords (`interface_volume`; as the chordal
+/// polyhedron of a coarse sphere it lost 2.7 %, and broke that promise). Every guarantee
+/// holds.
 #[test]
 fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
     use crate::image::{ByteOrder, SourceType, VoxelImage};
@@ -168,11 +170,7 @@ fn image_labels_become_tags_and_the_voxel_volume_is_kept() {
     let d = ImageDomain::from_labels(&image, &[1.0, 2.0]).unwrap_or_else(|e| panic!("{e}"));
     let s = stuff(&d, 0.002, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
     let r = &s.report;
-    let v = r.violations();
-    assert!(
-        v.len() == 1 && v[0].starts_with("label 2: volume -2."),
-        "{r}"
-    );
+    assert!(r.violations().is_empty(), "{r}");
     let centre = c * sp;
     for (t, &tag) in s.tags.iter().enumerate() {
         let m = s.mesh.corners(t).iter().sum::<Vec3>() / 4.0;
@@ -857,12 +855,16 @@ fn image_boundary_direction_study() {
         let s = stuff(&raw, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
         let r = &s.report;
         println!(
-            "\n{file} h {h}: {} tets, a (mesh→input) {:.3} h, b raw {:.3} h, b resolved {:.3} h, \
+            "\n{file} h {h}: {} tets, a (mesh→input) {:.3} h, b raw {:.3} h, b resolved {:.3} h, split {}, bare moved {} ({} partly) left {}, \
              volume {:+.2} %, manifold removed {} ({:.2e} m³), pieces dropped {} ({} tets, {:.2e} m³)",
             r.tets,
             r.mesh_to_input / h,
             r.input_to_mesh / h,
             r.resolved_input_to_mesh.unwrap_or(0.0) / h,
+            r.manifold.split,
+            r.manifold.bare_moved,
+            r.manifold.bare_partly,
+            r.manifold.bare_left,
             100.0 * r.volume_error.unwrap_or(0.0),
             r.manifold.removed,
             r.manifold.removed_volume,
