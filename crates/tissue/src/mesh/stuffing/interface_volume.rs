@@ -24,10 +24,9 @@
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
-use super::PROVEN_DIHEDRAL_DEG;
+use super::vertex_move::move_within_bounds;
 use super::domain::{Domain, bisect};
-use super::report::dihedral_angles;
-use crate::math::{Real, Vec3, tet_signed_volume};
+use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 
 /// The mean gap between a chord and a quadratic surface through its corners, per gap at
@@ -148,39 +147,10 @@ pub fn keep_label_volumes(
             done.left += 1;
             continue;
         }
-        let range = |m: &TetMesh| {
-            let (mut lo, mut hi) = (Real::INFINITY, 0.0 as Real);
-            let mut positive = Vec::with_capacity(ts.len());
-            for &t in ts {
-                let q = m.tets[t].map(|u| m.vertices[u as usize]);
-                for a in dihedral_angles(q) {
-                    lo = lo.min(a);
-                    hi = hi.max(a);
-                }
-                positive.push(tet_signed_volume(q[0], q[1], q[2], q[3]) > 0.0);
-            }
-            (lo, hi, positive)
-        };
-        let p = mesh.vertices[v as usize];
-        let (lo0, hi0, signs) = range(mesh);
-        let lo_bound = PROVEN_DIHEDRAL_DEG.0.to_radians().min(lo0);
-        let hi_bound = PROVEN_DIHEDRAL_DEG.1.to_radians().max(hi0);
-        let mut moved = None;
-        for (i, f) in FRACTIONS.into_iter().enumerate() {
-            mesh.vertices[v as usize] = p + f * d;
-            let (lo, hi, now) = range(mesh);
-            if now == signs && lo >= lo_bound && hi <= hi_bound {
-                moved = Some(i);
-                break;
-            }
-        }
-        match moved {
+        match move_within_bounds(mesh, v, ts, d, &FRACTIONS) {
             Some(0) => done.full += 1,
             Some(_) => done.half += 1,
-            None => {
-                mesh.vertices[v as usize] = p;
-                done.left += 1;
-            }
+            None => done.left += 1,
         }
     }
     done

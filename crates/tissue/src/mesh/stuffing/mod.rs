@@ -39,6 +39,7 @@ mod stencil;
 mod stencil_bounds;
 pub mod surface_domain;
 pub mod triangle_index;
+mod vertex_move;
 mod warping;
 
 use std::time::Instant;
