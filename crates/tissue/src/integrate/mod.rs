@@ -467,6 +467,9 @@ pub(crate) struct Workspace {
     /// its projections gave along its normal since the step began, N·s.
     pub point_active: Vec<bool>,
     pub point_impulse: Vec<Real>,
+    /// Per point contact, within one projection: its velocity bound and its position and
+    /// velocity pushes (`points::project`).
+    pub point_lambda: Vec<[Real; 3]>,
 }
 
 impl Workspace {

@@ -49,7 +49,9 @@ pub fn gather(
             continue;
         };
         let near = shape.closest(at, p, Vec3::ZERO);
-        if near.depth >= margin {
+        // A point on an edge of a box (outside it by round-off) has no direction out: it
+        // touches without pushing, and the next gather finds it on one side.
+        if near.depth >= margin || (near.normal.length() - 1.0).abs() > 1e-6 {
             continue;
         }
         out.push(FinePoint {
