@@ -225,7 +225,7 @@ pub fn hold_points(
 /// Per vertex of a closed triangle surface, its unit normal pointing out of the enclosed
 /// volume (area-weighted over its triangles; the file's orientation is read from the sign of
 /// the enclosed volume). Zero for an unused vertex.
-fn outward_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+pub(crate) fn outward_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
     let mut normals = vec![Vec3::ZERO; positions.len()];
     let mut volume: Real = 0.0;
     for t in triangles {
@@ -257,7 +257,7 @@ fn corners(positions: &[Vec3], t: &[u32; 3]) -> Option<[Vec3; 3]> {
 /// Where a point `p` inside `shape` (at `at`) leaves it moving along the unit direction
 /// `d`: the contact there as `Shape::closest` gives one (depth minus the way to go, normal
 /// `d`), found by bisection on the signed distance (any shape).
-fn exit_along(shape: &Shape, at: Vec3, p: Vec3, d: Vec3) -> Closest {
+pub(crate) fn exit_along(shape: &Shape, at: Vec3, p: Vec3, d: Vec3) -> Closest {
     let mut hi = 2.0 * shape.size() - shape.closest(at, p, Vec3::ZERO).depth;
     for _ in 0..8 {
         if shape.closest(at, p + hi * d, Vec3::ZERO).depth >= 0.0 {

@@ -11,6 +11,7 @@
 //! instrument is at, whatever the path and the step that brought it there.
 
 use crate::interact::PointContact;
+use crate::interact::contact::{exit_along, outward_normals};
 use crate::interact::fine_surface::MappedSurface;
 use crate::interact::shape::Shape;
 use crate::math::{Real, Vec3};
@@ -36,6 +37,7 @@ pub fn gather(
     // cannot be near it (the half-space has no ball and is tested point by point).
     let ball = shape.bounds(at);
     let mut out = Vec::new();
+    let mut outward: Option<Vec<Vec3>> = None;
     for (j, &p) in positions.iter().enumerate() {
         if let Some((c, r)) = ball
             && p.distance_squared(c) > (r + margin) * (r + margin)
@@ -48,10 +50,25 @@ pub fn gather(
         let Some(&rest) = fine.rest.get(j) else {
             continue;
         };
-        let near = shape.closest(at, p, Vec3::ZERO);
+        let mut near = shape.closest(at, p, Vec3::ZERO);
+        if near.depth >= margin {
+            continue;
+        }
+        // A point the instrument's nearest surface would push out of the tissue (the
+        // instrument arrived past its centre in one move, as the viewer's probe does) leaves
+        // along the tissue's inward normal instead (`contact::exit_along`).
+        if near.depth < 0.0
+            && let Some(&outward) = outward
+                .get_or_insert_with(|| outward_normals(positions, &fine.triangles))
+                .get(j)
+            && near.normal.dot(outward) > 0.0
+        {
+            near = exit_along(shape, at, p, -outward);
+        }
         // A point on an edge of a box (outside it by round-off) has no direction out: it
-        // touches without pushing, and the next gather finds it on one side.
-        if near.depth >= margin || (near.normal.length() - 1.0).abs() > 1e-6 {
+        // touches without pushing, and the next gather finds it on one side
+        // (`PointContact::check` refuses a normal that is not a unit vector).
+        if (near.normal.length() - 1.0).abs() > 1e-6 {
             continue;
         }
         out.push(FinePoint {
