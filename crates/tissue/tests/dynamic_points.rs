@@ -50,8 +50,14 @@ fn subdivided(sim: &Simulation, n: usize) -> MappedSurface {
 fn a_block_pressed_through_a_fine_surface_settles_on_the_static_answer() {
     let (l, h, depth) = (0.02, 0.02, 1.5e-3);
     let mesh = block(l, h, 8, &|_| 0.0);
-    let probe = (InstrumentKind::Probe, Vec3::new(0.0007, -0.0004, h + R_PROBE));
-    let plane = (InstrumentKind::Plane { normal: -Vec3::Z }, Vec3::new(0.0, 0.0, h));
+    let probe = (
+        InstrumentKind::Probe,
+        Vec3::new(0.0007, -0.0004, h + R_PROBE),
+    );
+    let plane = (
+        InstrumentKind::Plane { normal: -Vec3::Z },
+        Vec3::new(0.0, 0.0, h),
+    );
     for (name, (shape, top)) in [("probe", probe), ("plane", plane)] {
         let mut ends = Vec::new();
         for (kind, dt, fine) in [
