@@ -110,9 +110,9 @@ fn a_point_on_three_particles_rests_on_its_plane_with_the_equilibrium_push() {
                 (got - expected).abs() < 0.03 * expected,
                 "{scheme}, third held {held_third}: {got} N, expected {expected} N"
             );
-            for i in 0..3 {
+            for (i, wi) in w.iter().enumerate() {
                 let free = !(held_third && i == 2);
-                let z = if free { got * w[i] / k - d } else { 0.0 };
+                let z = if free { got * wi / k - d } else { 0.0 };
                 assert!(
                     (state.x[i].z - z).abs() < 0.03 * d,
                     "{scheme}: particle {i} at {}, expected z = {z}",
