@@ -25,6 +25,8 @@ fn press(h: Real) -> (Vec3, usize) {
         let r = sim.step(scene.run.dt).unwrap();
         // The probe goes down (−y): the liver pushes it up, never pulls it in.
         pulls += usize::from(r.forces[0].y < 0.0);
+        // Every step's contact loop settled (the scene's cap is set for it).
+        assert!(r.contact_converged, "h = {h}, t = {}: the contact loop capped", r.time);
     }
     assert_eq!(pulls, 0, "h = {h}");
     let f = sim.instruments()[0].force();

@@ -133,3 +133,161 @@ pub fn check_held_along(
     assert!(surface < 1e-12, "{surface:e} m");
     (along, reached)
 }
+
+/// The cost and accuracy of `Deformable::set_point_contacts` on `model` (its supports
+/// `fixed`): seeded points on the surface triangles within a quarter of the body's extent of
+/// its highest vertex, pressed by the horizontal plane 3 % of the extent below that vertex;
+/// per point count, the wall and CPU time of a contact update and step (the mean of 20
+/// after one warm-up), the pushes and the complementarity on the surface the model reports.
+/// The first line is today's vertex path on the same patch: its vertices that start below
+/// the plane held along its normal at it (`set_constraints_along`). With `bulge` = 0 each
+/// point rests on its triangle (every point's gap is then the weighted mean of its
+/// vertices' gaps: a degenerate problem); else it rests off it along the triangle's normal
+/// by `bulge` of the extent times 27 w₀w₁w₂ (a smooth bump, zero on the edges), as a fine
+/// surface's vertices do. For the ignored studies (timings under load are noisy: compare
+/// ratios within one run).
+pub fn point_contact_study(
+    model: &mut dyn Deformable,
+    fixed: &[u32],
+    counts: &[usize],
+    bulge: Real,
+) {
+    use crate::benchmark::beam::process_cpu_seconds;
+    use crate::interact::PointContact;
+    use std::time::Instant;
+    let rest = model.rest_surface().to_vec();
+    let top = (0..rest.len())
+        .max_by(|&a, &b| rest[a].z.total_cmp(&rest[b].z))
+        .unwrap_or(0);
+    let (lo, hi) = rest
+        .iter()
+        .fold((rest[0], rest[0]), |(lo, hi), x| (lo.min(*x), hi.max(*x)));
+    let extent = (hi - lo).length();
+    let is_fixed = |v: u32| fixed.contains(&v);
+    let near: Vec<[u32; 3]> = model
+        .surface()
+        .triangles
+        .iter()
+        .copied()
+        .filter(|t| {
+            let c: Vec3 = t.iter().map(|&v| rest[v as usize]).sum::<Vec3>() / 3.0;
+            let d = c - rest[top];
+            d.x.hypot(d.y) < 0.25 * extent && !t.iter().all(|&v| is_fixed(v))
+        })
+        .collect();
+    let normal = -Vec3::Z;
+    let target = rest[top] - Vec3::Z * (0.03 * extent);
+    let c = Constraints::fixed(fixed.to_vec());
+    let mut state = 29u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as Real / (1u64 << 53) as Real
+    };
+    // Wall and CPU ms a step, and the step's inner iterations (the pivoting rounds).
+    let time = |model: &mut dyn Deformable,
+                update: &dyn Fn(&mut dyn Deformable)|
+     -> Result<(Real, Real, usize), crate::error::SimError> {
+        update(model);
+        let rounds = model.step(0.01)?.iterations;
+        let (t0, c0) = (Instant::now(), process_cpu_seconds());
+        for _ in 0..20 {
+            update(model);
+            model.step(0.01)?;
+        }
+        Ok((
+            t0.elapsed().as_secs_f64() / 20.0 * 1e3,
+            (process_cpu_seconds() - c0) / 20.0 * 1e3,
+            rounds,
+        ))
+    };
+    let mut patch: Vec<u32> = near.iter().flatten().copied().collect();
+    patch.sort_unstable();
+    patch.dedup();
+    let held: Vec<Prescribed> = patch
+        .iter()
+        .filter(|&&v| !is_fixed(v) && normal.dot(rest[v as usize] - target) < 0.0)
+        .map(|&v| Prescribed {
+            vertex: v,
+            position: target,
+        })
+        .collect();
+    let along = Constraints {
+        fixed: fixed.to_vec(),
+        prescribed: held.clone(),
+    };
+    let normals = vec![Some(normal); held.len()];
+    let (wall, cpu, _) = time(model, &|m| {
+        m.set_constraints_along(&along, &normals).unwrap();
+    })
+    .unwrap();
+    let force: Real = model.reactions().prescribed.iter().map(|r| -r.z).sum();
+    eprintln!(
+        "{}: bulge {bulge}: {} triangles in the patch; vertex contacts along n: {} held, Σ push {force:.4e} N, \
+         {wall:.3} ms wall, {cpu:.3} ms CPU a step",
+        model.kind(),
+        near.len(),
+        held.len()
+    );
+    for &count in counts {
+        let points: Vec<PointContact> = (0..count)
+            .map(|_| {
+                let t = near[(next() * near.len() as Real) as usize % near.len()];
+                let (a, b) = (next(), next());
+                let (a, b) = if a + b > 1.0 {
+                    (1.0 - a, 1.0 - b)
+                } else {
+                    (a, b)
+                };
+                let weights = [1.0 - a - b, a, b];
+                let [x0, x1, x2] = t.map(|v| rest[v as usize]);
+                let up = (x1 - x0).cross(x2 - x0).normalize_or_zero();
+                let bump = bulge * extent * 27.0 * weights[0] * weights[1] * weights[2];
+                PointContact {
+                    vertices: t,
+                    weights,
+                    rest: (0..3)
+                        .map(|i| rest[t[i] as usize] * weights[i])
+                        .sum::<Vec3>()
+                        + up * bump,
+                    normal,
+                    target,
+                }
+            })
+            .collect();
+        let timed = time(model, &|m| {
+            m.set_constraints(&c).unwrap();
+            m.set_point_contacts(&points).unwrap();
+        });
+        let (wall, cpu, rounds) = match timed {
+            Ok(t) => t,
+            Err(e) => {
+                eprintln!("{}: {count:>4} points: the step fails: {e}", model.kind());
+                continue;
+            }
+        };
+        let lambda = model.point_reactions().to_vec();
+        let x = model.surface().positions;
+        let (mut below, mut off, mut pulls): (Real, Real, usize) = (0.0, 0.0, 0);
+        for (p, &l) in points.iter().zip(&lambda) {
+            let moved: Vec3 = (0..3)
+                .map(|i| (x[p.vertices[i] as usize] - rest[p.vertices[i] as usize]) * p.weights[i])
+                .sum();
+            let g = p.normal.dot(p.rest + moved - p.target);
+            below = below.max(-g);
+            if l > 0.0 {
+                off = off.max(g.abs());
+            }
+            pulls += usize::from(l < 0.0);
+        }
+        let pushed = lambda.iter().filter(|&&l| l > 0.0).count();
+        eprintln!(
+            "{}: {count:>4} points, {pushed:>4} pushed, Σλ {:.4e} N, {wall:.3} ms wall, \
+             {cpu:.3} ms CPU a step, {rounds} pivoting rounds; below the plane {below:.1e} m, a pushed point off it \
+             {off:.1e} m, {pulls} pulling",
+            model.kind(),
+            lambda.iter().sum::<Real>()
+        );
+    }
+}

@@ -6,13 +6,15 @@
 //! preconditioned conjugate gradient for the implicit dynamic models; small dense contact
 //! blocks solved in place (`small_dense`), and contacts held along their normals on a dense
 //! response (`along`), and the mixed complementarity problem of points that may be pushed
-//! but not pulled (`lcp`).
+//! but not pulled (`lcp`), whose rows the pre-computed kinds form on their dense vertex
+//! response (`points`).
 
 mod along;
 pub mod cg;
 pub mod chooser;
 pub mod lcp;
 pub mod ordering;
+mod points;
 pub mod schur;
 mod small_dense;
 pub mod sparse;
@@ -20,6 +22,7 @@ mod tree_solve;
 
 pub(crate) use along::{ContactResponse, HeldRows, block3};
 pub use cg::{CgResult, CgWorkspace};
+pub(crate) use points::{PointRows, Source, VertexResponse};
 pub use schur::HeldSchur;
 pub(crate) use small_dense::SmallDense;
 pub use sparse::{BlockPattern, Ordering, SparseCholesky};

@@ -3,7 +3,7 @@
 //! relaxed by eq. 13; reactions are tractions times tributary areas.
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::interact::{Constraints, Loads, PointContact};
 use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::model::{
     CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo, SurfaceView,
@@ -104,11 +104,11 @@ impl Bem {
         let m = 3 * self.contact_targets.len();
         self.p_contact.resize(m, 0.0);
         // Gravity: the homogeneous problem holds the contacts at u* − u_p.
-        let body = self.body.as_ref();
-        let particular = |x: Vec3| body.map_or(Vec3::ZERO, |b| b.force.displacement(x));
         self.homogeneous_targets.clear();
         for (k, &v) in self.system.contacts().iter().enumerate() {
-            let shift = particular(self.surface.vertices[v]);
+            let shift = self.body.as_ref().map_or(Vec3::ZERO, |b| {
+                b.force.displacement(self.surface.vertices[v])
+            });
             self.homogeneous_targets
                 .push(self.contact_targets.get(k).copied().unwrap_or(Vec3::ZERO) - shift);
         }
@@ -116,7 +116,12 @@ impl Bem {
         // block solved per step; else the kept capacitance inverse answers.
         let along = self.contact_normals.len() == self.system.contacts().len()
             && self.contact_normals.iter().any(|n| *n != Vec3::ZERO);
-        if along {
+        // Points pushed by instruments are solved with the contacts (`points`); without
+        // them, the contacts' own solves: the haptic path is unchanged.
+        let points = !self.points.is_empty();
+        if points {
+            self.solve_points()?;
+        } else if along {
             self.system.solve_along(
                 &self.homogeneous_targets,
                 &self.contact_normals,
@@ -132,8 +137,19 @@ impl Bem {
                 &mut self.p_contact,
             )?;
         }
+        let body = self.body.as_ref();
+        let particular = |x: Vec3| body.map_or(Vec3::ZERO, |b| b.force.displacement(x));
         let fixed = self.system.fixed();
         let at = |x: &[Real], v: usize| Vec3::new(x[3 * v], x[3 * v + 1], x[3 * v + 2]);
+        // The points' pushes act as loads (a known traction over the vertex's hat).
+        let load = |v: usize| {
+            at(&self.load_traction, v)
+                + if points {
+                    at(&self.point_traction, v)
+                } else {
+                    Vec3::ZERO
+                }
+        };
         let area = |v: usize| traction_area(&self.system, &self.areas, v);
         for (v, &is_fixed) in fixed.iter().enumerate() {
             let rest = self.surface.vertices[v];
@@ -144,7 +160,7 @@ impl Bem {
                 self.traction[v] = at(&self.x, v) + extra;
             } else {
                 self.target[v] = rest + at(&self.x, v) + particular(rest);
-                self.traction[v] = at(&self.load_traction, v);
+                self.traction[v] = load(v);
             }
         }
         for (k, &v) in self.system.contacts().iter().enumerate() {
@@ -163,7 +179,7 @@ impl Bem {
             if fixed[v] {
                 self.point_forces[v] - self.traction[v] * area(v)
             } else {
-                -(self.traction[v] - at(&self.load_traction, v)) * area(v)
+                -(self.traction[v] - load(v)) * area(v)
             }
         };
         self.reactions.distribute(|v| reaction(v as usize));
@@ -228,7 +244,25 @@ impl Deformable for Bem {
         self.contact_normals
             .extend(self.scratch.contacts.iter().map(|&v| along[v]));
         self.reactions.set(c);
+        self.points.clear();
+        self.point_lambda.clear();
         Ok(true)
+    }
+
+    fn holds_point_contacts(&self) -> bool {
+        true
+    }
+
+    /// Checked (a vertex that does not exist, a non-finite number: an error naming the
+    /// point), then solved with the held contacts from the next step on (`points`). A
+    /// point whose vertices are all fixed is held by the support: it is not pushed.
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        self.stage_points(points)?;
+        Ok(true)
+    }
+
+    fn point_reactions(&self) -> &[Real] {
+        &self.point_lambda
     }
 
     /// Point loads become tractions over their vertex's tributary area; gravity (times the
@@ -301,7 +335,17 @@ impl Deformable for Bem {
         } else {
             self.positions.copy_from_slice(&self.target);
         }
-        Ok(StepInfo::default())
+        // With points, the pivoting rounds of their complementarity solve.
+        let (iterations, capped) = if self.points.is_empty() {
+            (0, false)
+        } else {
+            (self.point_rows.rounds, self.point_rows.capped)
+        };
+        Ok(StepInfo {
+            iterations,
+            capped,
+            ..StepInfo::default()
+        })
     }
 
     /// The reactions are −P_c · area_c with P_C = W̃_CC⁻¹ (targets − u_L): linear in the
@@ -309,7 +353,7 @@ impl Deformable for Bem {
     /// A contact held along its normal only has a stiffness along it alone: not in this
     /// closed form (`None`; the haptic loop then estimates it from successive updates).
     fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
-        if self.contact_normals.iter().any(|n| *n != Vec3::ZERO) {
+        if self.contact_normals.iter().any(|n| *n != Vec3::ZERO) || !self.points.is_empty() {
             return None;
         }
         let vertices: Vec<usize> = (self.reactions.owned_prescribed(entries)?.iter())
@@ -368,6 +412,7 @@ impl Deformable for Bem {
         self.positions.copy_from_slice(&self.surface.vertices);
         self.target.copy_from_slice(&self.surface.vertices);
         self.traction.iter_mut().for_each(|t| *t = Vec3::ZERO);
+        self.point_lambda.iter_mut().for_each(|l| *l = 0.0);
         self.reactions.distribute(|_| Vec3::ZERO);
     }
 

@@ -18,6 +18,7 @@ mod deformable;
 mod incision_worker;
 mod kelvin;
 mod model;
+mod points;
 mod quadrature;
 mod rim_worker;
 mod stroke;
@@ -32,6 +33,8 @@ mod tests_along;
 mod tests_background;
 #[cfg(test)]
 mod tests_cut;
+#[cfg(test)]
+mod tests_points;
 #[cfg(test)]
 mod tests_quadrature;
 #[cfg(test)]

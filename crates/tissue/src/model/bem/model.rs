@@ -10,13 +10,14 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, MeshError, SimError};
+use crate::interact::PointContact;
 use crate::material::Material;
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::mesh::SurfaceMesh;
 use crate::model::ConstraintReactions;
 use crate::model::registry::parse_params;
 use crate::model::{BuildInput, Progress};
-use crate::solve::HeldRows;
+use crate::solve::{HeldRows, PointRows};
 
 use super::assembly::{Geometry, Influence, assemble};
 use super::body_force::GravityResponse;
@@ -102,6 +103,15 @@ pub struct Bem {
     pub(super) contact_normals: Vec<Vec3>,
     /// The held directions' block of a solve with contacts held along their normals.
     pub(super) held: HeldRows,
+    /// Fine-surface points pushed by instruments (`Deformable::set_point_contacts`), their
+    /// pushes after the last step (N), the rows of their problem (`solve::points`), each
+    /// point's row (`None`: all its vertices fixed), and their pushes as known tractions
+    /// per dof (`points`).
+    pub(super) points: Vec<PointContact>,
+    pub(super) point_lambda: Vec<Real>,
+    pub(super) point_rows: PointRows,
+    pub(super) point_row: Vec<Option<usize>>,
+    pub(super) point_traction: Vec<Real>,
     pub(super) point_forces: Vec<Vec3>,
     /// Known tractions per dof (point loads over tributary areas), in Pa.
     pub(super) load_traction: Vec<Real>,
@@ -292,6 +302,11 @@ impl Bem {
             contact_targets: Vec::new(),
             contact_normals: Vec::new(),
             held: HeldRows::default(),
+            points: Vec::new(),
+            point_lambda: Vec::new(),
+            point_rows: PointRows::default(),
+            point_row: Vec::new(),
+            point_traction: vec![0.0; 3 * n],
             point_forces: vec![Vec3::ZERO; n],
             load_traction: vec![0.0; 3 * n],
             u_load: vec![0.0; 3 * n],

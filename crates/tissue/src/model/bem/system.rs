@@ -501,6 +501,22 @@ impl BemSystem {
         Ok(())
     }
 
+    /// x += W̃_{:,C} `p_contact` + W `loads` (contact tractions, known tractions per dof;
+    /// fixed vertices' entries ignored): what `solve` superposes, with loads beside it
+    /// (`Bem::solve_points`). O(n·(|C| + loaded dofs)).
+    pub(crate) fn add_response(&self, p_contact: &[Real], loads: &[Real], x: &mut [Real]) {
+        for (r, &pr) in p_contact.iter().enumerate().take(3 * self.contacts.len()) {
+            if pr != 0.0 {
+                axpy(x, pr, self.contact_column(r));
+            }
+        }
+        for (c, &pc) in loads.iter().enumerate() {
+            if pc != 0.0 && !self.fixed.get(c / 3).copied().unwrap_or(true) {
+                axpy(x, pc, self.w.col_as_slice(c));
+            }
+        }
+    }
+
     /// Column r of W̃_{:,C}: the whole surface's response to a unit traction on contact dof r.
     fn contact_column(&self, r: usize) -> &[Real] {
         match &self.rims {

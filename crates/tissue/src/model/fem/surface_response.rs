@@ -18,7 +18,7 @@ use faer::linalg::solvers::{DenseSolveCore, Solve};
 use faer::{Mat, Side};
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::interact::{Constraints, Loads, PointContact};
 use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::model::{
     ConstraintReactions, CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo,
@@ -29,7 +29,7 @@ use super::static_model::{FemStatic, NodalSolution};
 use super::surface_nodes::nodal_forces;
 use super::system::DofProblem;
 
-use crate::solve::{HeldRows, SmallDense};
+use crate::solve::{HeldRows, PointRows, SmallDense, Source, VertexResponse};
 
 const NONE: u32 = u32::MAX;
 
@@ -192,6 +192,15 @@ pub(crate) struct SurfaceCore {
     /// contacts' unknowns it gives (3 per contact; `ContactResponse`).
     pub held: HeldRows,
     pub unknowns: Vec<Real>,
+    /// Fine-surface points pushed by instruments (`Deformable::set_point_contacts`), their
+    /// pushes after the last step, and the rows of their problem (`solve::points`).
+    pub points: Vec<PointContact>,
+    pub point_lambda: Vec<Real>,
+    pub point_rows: PointRows,
+    /// Per point, its row in `point_rows` (`None`: all its vertices are fixed).
+    point_row: Vec<Option<usize>>,
+    /// The forces of the last point solve per free vertex (scratch).
+    pub point_forces: Vec<(usize, Vec3)>,
     surface_positions: Vec<Vec3>,
     surface_reaction: Vec<Vec3>,
     reactions: ConstraintReactions,
@@ -225,6 +234,11 @@ impl SurfaceCore {
             small: SmallDense::new(3 * INITIAL_CONTACTS),
             held: HeldRows::default(),
             unknowns: Vec::new(),
+            points: Vec::new(),
+            point_lambda: Vec::new(),
+            point_rows: PointRows::default(),
+            point_row: Vec::new(),
+            point_forces: Vec::new(),
             surface_reaction: vec![Vec3::ZERO; ns],
             reactions: ConstraintReactions::default(),
             precompute_seconds: 0.0,
@@ -331,6 +345,8 @@ impl SurfaceCore {
         self.lambda.resize(self.targets.len(), 0.0);
         self.unknowns.clear();
         self.unknowns.resize(self.targets.len(), 0.0);
+        self.points.clear();
+        self.point_lambda.clear();
     }
 
     /// Whether some contact is held along a direction only.
@@ -417,6 +433,7 @@ impl SurfaceCore {
     pub fn reset(&mut self) {
         self.us_trial.iter_mut().for_each(|v| *v = 0.0);
         self.lambda.iter_mut().for_each(|v| *v = 0.0);
+        self.point_lambda.iter_mut().for_each(|v| *v = 0.0);
         self.accept();
     }
 
@@ -480,6 +497,13 @@ pub(crate) trait SurfaceResponse: Send {
     fn contact_block(&self) -> Mat<Real>;
     /// The force contact k applies to the tissue per unit of its unknown: λ_k = F_k a_k.
     fn contact_force_map(&self, k: usize) -> Mat3;
+    /// W_ab: the displacement of free surface vertex a per unit force on free vertex b.
+    fn compliance_between(&self, a: usize, b: usize) -> Mat3;
+    /// The displacement of free surface vertex a under the loads alone.
+    fn free_displacement(&self, a: usize) -> Vec3;
+    /// `us_trial` = u₀ + Σ_b W_{:,b} f_b for the forces `core().point_forces` (per free
+    /// vertex, each vertex once).
+    fn superpose_forces(&mut self);
     /// Bytes held beyond the core.
     fn own_memory_bytes(&self) -> usize;
     /// Model-specific facts for `info()`.
@@ -496,6 +520,76 @@ pub(crate) trait SurfaceResponse: Send {
         self.rebuild(progress)?;
         self.core_mut().record(&c);
         self.core_mut().reset();
+        Ok(())
+    }
+
+    /// The held contacts and the points together (`solve::points`): one row per held
+    /// direction, one per point with a free vertex, on the compliance between their
+    /// vertices; the forces superposed on the loads' response. Writes `us_trial`, the
+    /// contacts' `lambda` (their held part: a point's push on a contact vertex is the
+    /// point's) and `point_lambda`.
+    fn solve_points(&mut self) -> Result<(), SimError> {
+        const AXES: [Vec3; 3] = [Vec3::X, Vec3::Y, Vec3::Z];
+        let mut rows = std::mem::take(&mut self.core_mut().point_rows);
+        let core = self.core_mut();
+        rows.clear();
+        for (k, &a) in core.contacts.iter().enumerate() {
+            let t = Vec3::from_slice(&core.targets[3 * k..3 * k + 3]);
+            match core.normals[k] {
+                n if n == Vec3::ZERO => AXES
+                    .iter()
+                    .for_each(|&e| rows.push_held(a as usize, e, e.dot(t))),
+                n => rows.push_held(a as usize, n, n.dot(t)),
+            }
+        }
+        core.point_row.clear();
+        for p in &core.points {
+            let slot = |v: u32| {
+                let v = v as usize;
+                (!core.set.mask[v]).then(|| core.set.slot[v] as usize)
+            };
+            let added = rows.push_point(p.vertices.map(slot), p.weights, p.normal, p.reach());
+            core.point_row.push(added.then(|| rows.len() - 1));
+        }
+        let solved = rows.solve(&Compliance(&*self)).map(|l| l.to_vec());
+        let core = self.core_mut();
+        let lambda = match solved {
+            Ok(l) => l,
+            Err(e) => {
+                core.point_rows = rows;
+                return Err(e);
+            }
+        };
+        let mut r = 0;
+        for (k, n) in core.normals.iter().enumerate() {
+            let dirs = if *n == Vec3::ZERO {
+                &AXES[..]
+            } else {
+                std::slice::from_ref(n)
+            };
+            let mut f = Vec3::ZERO;
+            for &e in dirs {
+                f += e * lambda[r];
+                r += 1;
+            }
+            core.lambda[3 * k..3 * k + 3].copy_from_slice(&f.to_array());
+        }
+        core.point_lambda.clear();
+        core.point_lambda
+            .extend(core.point_row.iter().map(|r| r.map_or(0.0, |r| lambda[r])));
+        let forces = &mut core.point_forces;
+        forces.clear();
+        rows.forces(|s, f| forces.push((s.vertex, f)));
+        forces.sort_unstable_by_key(|f| f.0);
+        forces.dedup_by(|next, kept| {
+            let same = next.0 == kept.0;
+            if same {
+                kept.1 += next.1;
+            }
+            same
+        });
+        core.point_rows = rows;
+        self.superpose_forces();
         Ok(())
     }
 
@@ -553,6 +647,31 @@ impl<T: SurfaceResponse> Deformable for T {
         Ok(true)
     }
 
+    fn holds_point_contacts(&self) -> bool {
+        true
+    }
+
+    /// Checked (a vertex that does not exist, a non-finite number: an error naming the
+    /// point), then held from the next step on, solved with the held contacts
+    /// (`SurfaceResponse::solve_points`). A point whose vertices are all fixed is held by
+    /// the support: it is not pushed (λ = 0).
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        let count = self.core().surface_count();
+        for p in points {
+            p.check(count)?;
+        }
+        let core = self.core_mut();
+        core.points.clear();
+        core.points.extend_from_slice(points);
+        core.point_lambda.clear();
+        core.point_lambda.resize(points.len(), 0.0);
+        Ok(true)
+    }
+
+    fn point_reactions(&self) -> &[Real] {
+        &self.core().point_lambda
+    }
+
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {
         self.core_mut().set_loads(loads)?;
         if self.core().ready() {
@@ -572,9 +691,16 @@ impl<T: SurfaceResponse> Deformable for T {
                 ),
             });
         }
-        self.solve_contacts()?;
+        // Without points, the contacts' own solve: the 1 kHz haptic path is unchanged.
+        let mut info = StepInfo::default();
+        if self.core().points.is_empty() {
+            self.solve_contacts()?;
+        } else {
+            self.solve_points()?;
+            info.iterations = self.core().point_rows.rounds;
+        }
         self.core_mut().accept();
-        Ok(StepInfo::default())
+        Ok(info)
     }
 
     fn reactions(&self) -> Reactions<'_> {
@@ -587,7 +713,8 @@ impl<T: SurfaceResponse> Deformable for T {
     fn prescribed_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
         // A contact held along its normal only has a stiffness along it alone: not in the
         // closed form below (the haptic loop then estimates it from successive updates).
-        if self.core().holds_along() {
+        // Nor does one beside points (their pushes change with the targets too).
+        if self.core().holds_along() || !self.core().points.is_empty() {
             return None;
         }
         let selected = self.core().contacts_of_entries(entries)?;
@@ -647,5 +774,21 @@ impl<T: SurfaceResponse> Deformable for T {
             ),
         ]);
         info
+    }
+}
+
+/// A model's compliance between free surface vertices, for `solve::points`: a force is a
+/// force whether a held contact or a point applies it.
+struct Compliance<'a, T: ?Sized>(&'a T);
+
+impl<T: SurfaceResponse + ?Sized> VertexResponse for Compliance<'_, T> {
+    const SYMMETRIC: bool = true;
+
+    fn response(&self, j: usize, source: Source) -> Mat3 {
+        self.0.compliance_between(j, source.vertex)
+    }
+
+    fn free(&self, j: usize) -> Vec3 {
+        self.0.free_displacement(j)
     }
 }

@@ -27,6 +27,8 @@ use super::surface_response::{SurfaceCore, SurfaceResponse};
 pub(crate) mod tests;
 #[cfg(test)]
 mod tests_along;
+#[cfg(test)]
+mod tests_points;
 
 /// The `[model]` settings of `fem-condensed` (none yet).
 #[derive(Clone, Copy, Debug, Default, Deserialize)]
@@ -177,6 +179,30 @@ impl SurfaceResponse for FemCondensed {
     /// λ is the unknown itself.
     fn contact_force_map(&self, _k: usize) -> Mat3 {
         Mat3::IDENTITY
+    }
+
+    fn compliance_between(&self, a: usize, b: usize) -> Mat3 {
+        block3(self.w.as_ref(), 3 * a, 3 * b)
+    }
+
+    fn free_displacement(&self, a: usize) -> Vec3 {
+        Vec3::from_slice(&self.u0[3 * a..3 * a + 3])
+    }
+
+    /// u_s = u₀ + Σ_b W_{:,b} f_b, from the pre-inverted columns.
+    fn superpose_forces(&mut self) {
+        let core = &mut self.core;
+        core.us_trial.copy_from_slice(&self.u0);
+        for &(b, f) in &core.point_forces {
+            for (i, &fi) in f.to_array().iter().enumerate() {
+                if fi != 0.0 {
+                    let column = self.w.col_as_slice(3 * b + i);
+                    for (u, &w) in core.us_trial.iter_mut().zip(column) {
+                        *u += w * fi;
+                    }
+                }
+            }
+        }
     }
 
     fn own_memory_bytes(&self) -> usize {

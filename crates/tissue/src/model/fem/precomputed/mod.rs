@@ -239,6 +239,36 @@ impl SurfaceResponse for FemPrecomputedTensors {
         self.t_f[self.core.contacts[k] as usize]
     }
 
+    /// W_ab = T^U_{a,b} W_bb (T^U_{a,b} = W_ab W_bb⁻¹, module notes): W is not kept, but
+    /// the tensors give back any of its blocks.
+    fn compliance_between(&self, a: usize, b: usize) -> Mat3 {
+        self.t_u[b * self.n + a] * self.w_diag[b]
+    }
+
+    fn free_displacement(&self, a: usize) -> Vec3 {
+        self.u0[a]
+    }
+
+    /// u_i = u0_i + Σ_b T^U_{i,b} (W_bb f_b): the virtual displacement of a force f_b is
+    /// W_bb f_b.
+    fn superpose_forces(&mut self) {
+        let n = self.n;
+        let core = &mut self.core;
+        let us = &mut core.us_trial;
+        for (i, u) in self.u0.iter().enumerate() {
+            us[3 * i..3 * i + 3].copy_from_slice(&u.to_array());
+        }
+        for &(b, f) in &core.point_forces {
+            let a = self.w_diag[b] * f;
+            for (i, t) in self.t_u[b * n..(b + 1) * n].iter().enumerate() {
+                let d = *t * a;
+                us[3 * i] += d.x;
+                us[3 * i + 1] += d.y;
+                us[3 * i + 2] += d.z;
+            }
+        }
+    }
+
     fn own_memory_bytes(&self) -> usize {
         self.tensor_bytes()
     }
