@@ -26,7 +26,11 @@ fn press(h: Real) -> (Vec3, usize) {
         // The probe goes down (−y): the liver pushes it up, never pulls it in.
         pulls += usize::from(r.forces[0].y < 0.0);
         // Every step's contact loop settled (the scene's cap is set for it).
-        assert!(r.contact_converged, "h = {h}, t = {}: the contact loop capped", r.time);
+        assert!(
+            r.contact_converged,
+            "h = {h}, t = {}: the contact loop capped",
+            r.time
+        );
     }
     assert_eq!(pulls, 0, "h = {h}");
     let f = sim.instruments()[0].force();
