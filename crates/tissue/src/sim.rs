@@ -553,11 +553,13 @@ impl Simulation {
     }
 
     /// Whether this instrument's contact with the fine surface is solved exactly on its
-    /// points (`interact::fine_points`): a static model that solves point contacts, a
-    /// frictionless pushing instrument. The others use the coarse vertices' planes.
+    /// points (`interact::fine_points`): a model that solves point contacts, static or with
+    /// push-only contacts (the shared integrator's kinds: gathered once at the step's start,
+    /// projected within it, `integrate::PointHold`), a frictionless pushing instrument. The
+    /// others use the coarse vertices' planes.
     fn exact_points(&self, inst: &Instrument) -> bool {
         self.fine.is_some()
-            && self.is_static
+            && (self.is_static || self.model.contacts_push_only())
             && inst.friction() == Some(0.0)
             && inst.shape().is_some()
             && self.model.holds_point_contacts()

@@ -18,12 +18,15 @@
 pub mod contact;
 pub mod coupling;
 mod implicit;
+mod points;
 pub mod rest_factor;
 mod schemes;
 pub mod split_damping;
 pub mod stable_step;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_points;
 #[cfg(test)]
 mod tests_substeps;
 
@@ -33,6 +36,7 @@ use crate::error::SimError;
 use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::model::StepInfo;
 
+pub use points::PointHold;
 pub use rest_factor::RankOneJacobians;
 pub use stable_step::Substeps;
 use stable_step::{RateEstimate, substeps_for};
@@ -459,6 +463,13 @@ pub(crate) struct Workspace {
     /// Per hold: the momentum a contact's projections gave its particle along n since the
     /// step began, N·s.
     pub contact_impulse: Vec<Real>,
+    /// Per point contact (`points`): whether it acted in the last (sub)step, and the momentum
+    /// its projections gave along its normal since the step began, N·s.
+    pub point_active: Vec<bool>,
+    pub point_impulse: Vec<Real>,
+    /// Per point contact, within one projection: its velocity bound and its position and
+    /// velocity pushes (`points::project`).
+    pub point_lambda: Vec<[Real; 3]>,
 }
 
 impl Workspace {
@@ -608,6 +619,10 @@ pub struct Integrator {
     last_substeps: u32,
     saved: Saved,
     sub_holds: Vec<Hold>,
+    /// Push-only contacts on points tied to particles (`set_points`), and the push on each
+    /// over the last step (its momentum / dt), N.
+    points: Vec<PointHold>,
+    point_pushes: Vec<Real>,
     scratch_inv_mass: Vec<Real>,
     /// Held flags and forces of the velocity split (`ParticleSystem::apply_velocity_split`).
     split_held: Vec<bool>,
@@ -683,6 +698,25 @@ impl Integrator {
     /// order of the `holds` given to it.
     pub fn held_forces(&self) -> &[Vec3] {
         &self.held_forces
+    }
+
+    /// Push-only contacts on points tied to particles, held from the next step on beside the
+    /// holds (`points`: the same projection as `Hold::contact`, over a point's particles).
+    /// A held particle (a full `Hold`) takes none of a point's move.
+    pub fn set_points(&mut self, points: Vec<PointHold>) {
+        self.point_pushes = vec![0.0; points.len()];
+        self.points = points;
+    }
+
+    /// The points of `set_points`.
+    pub fn points(&self) -> &[PointHold] {
+        &self.points
+    }
+
+    /// The push on each point of `set_points` over the last step along its normal (the
+    /// momentum its projections gave / dt, ≥ 0), N.
+    pub fn point_pushes(&self) -> &[Real] {
+        &self.point_pushes
     }
 
     /// Forgets the forces kept from the last step: call it after changing the system itself
@@ -923,6 +957,10 @@ impl Integrator {
         }
         if result.is_ok() {
             self.contact_forces(holds, dt);
+            let impulses = &self.work.point_impulse;
+            self.point_pushes.clear();
+            self.point_pushes
+                .extend((0..self.points.len()).map(|k| impulses.get(k).map_or(0.0, |p| p / dt)));
         }
         if split && result.is_ok() {
             self.apply_split(system, state, holds, dt);
@@ -1056,6 +1094,8 @@ impl Integrator {
     ) -> Result<StepInfo, SimError> {
         self.work.contact_impulse.clear();
         self.work.contact_impulse.resize(holds.len(), 0.0);
+        self.work.point_impulse.clear();
+        self.work.point_impulse.resize(self.points.len(), 0.0);
         if n <= 1 {
             self.work.span = (0.0, 1.0);
             let mut info = self.single(system, state, holds, dt)?;
@@ -1226,11 +1266,13 @@ impl Integrator {
                 Scheme::ImplicitEuler => unreachable!("implicit Euler substeps take `single`"),
             };
             place_holds(w, sub, h);
+            points::project(w, &self.points, h);
             system.set_step_time(w.span.1);
             eval_forces(system, &w.x1, &w.v1, &mut w.f1);
             let (dw, dw_abs) = held_work(w, sub);
-            work += dw;
-            work_in += dw_abs;
+            let (pw, pw_abs) = points::work(w, &self.points);
+            work += dw + pw;
+            work_in += dw_abs + pw_abs;
             if k < n {
                 std::mem::swap(&mut w.x0, &mut w.x1);
                 std::mem::swap(&mut w.v0, &mut w.v1);
@@ -1277,6 +1319,7 @@ impl Integrator {
         };
         let w = &mut self.work;
         place_holds(w, holds, dt);
+        points::project(w, &self.points, dt);
         if let Some(node) = (0..w.x1.len()).find(|&i| !is_finite_vec(w.x1[i] + w.v1[i])) {
             return Err(self.diverged(node, "its position or velocity is not finite".into()));
         }
@@ -1350,6 +1393,9 @@ impl Integrator {
             w.held[h.particle] = true;
             w.v0[h.particle] = (h.target - w.x0[h.particle]) / dt;
         }
+        for pt in &self.points {
+            pt.check(n)?;
+        }
         if let Some(i) = (0..n).find(|&i| !w.held[i] && w.inv_mass[i] == 0.0) {
             return Err(SimError::BadParameter {
                 name: "mass",
@@ -1395,6 +1441,8 @@ impl Integrator {
         // Work the held particles did on the rest: −∫ f·dx along their straight path, by the
         // trapezoid rule (exact for linear forces).
         let (work, work_in) = held_work(w, holds);
+        let (pw, pw_abs) = points::work(w, &self.points);
+        let (work, work_in) = (work + pw, work_in + pw_abs);
         let released = self.released_kinetic();
         let (work, work_in) = (work + released, work_in + released);
         // What one explicit kick may add by itself: ½h²Σ|f|²/m (the kinetic energy of one

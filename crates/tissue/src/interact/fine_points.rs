@@ -65,6 +65,12 @@ pub fn gather(
         {
             near = exit_along(shape, at, p, -outward);
         }
+        // A point on an edge of a box (outside it by round-off) has no direction out: it
+        // touches without pushing, and the next gather finds it on one side
+        // (`PointContact::check` refuses a normal that is not a unit vector).
+        if (near.normal.length() - 1.0).abs() > 1e-6 {
+            continue;
+        }
         out.push(FinePoint {
             fine: j as u32,
             contact: PointContact {

@@ -9,8 +9,8 @@
 //! that hold it, so the sum over an instrument's vertices is the total force it feels.
 
 use crate::error::SimError;
-use crate::integrate::Hold;
-use crate::interact::{Constraints, Loads};
+use crate::integrate::{Hold, PointHold};
+use crate::interact::{Constraints, Loads, PointContact};
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
@@ -141,6 +141,7 @@ impl Deformable for SpringModel {
             }
         }
         self.holds = holds;
+        self.integrator.set_points(Vec::new());
         self.constraints = HeldConstraints { claims };
         self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
         self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
@@ -201,6 +202,40 @@ impl Deformable for SpringModel {
 
     fn contacts_push_only(&self) -> bool {
         true
+    }
+
+    /// The kinds whose surface vertices are particles (`spring-mass`,
+    /// `volumetric-spring-mass`): a point is then tied to three particles. A simplex
+    /// vertex is rebuilt from its ring (not a fixed weighting of particles) and keeps the
+    /// coarse vertices' planes.
+    fn holds_point_contacts(&self) -> bool {
+        matches!(self.link, SurfaceLink::Nodes(_))
+    }
+
+    /// Each point a push-only contact on its three particles, projected after every
+    /// (sub)step by the integrator (`integrate::PointHold`).
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        let SurfaceLink::Nodes(nodes) = &self.link else {
+            return Ok(points.is_empty());
+        };
+        let count = nodes.len().min(self.surface_rest.len());
+        let mut holds = Vec::with_capacity(points.len());
+        for pt in points {
+            pt.check(count)?;
+            holds.push(PointHold::tied(
+                pt.vertices.map(|v| nodes[v as usize] as usize),
+                pt.weights,
+                pt.normal,
+                pt.reach(),
+                pt.vertices.map(|v| self.surface_rest[v as usize]),
+            ));
+        }
+        self.integrator.set_points(holds);
+        Ok(true)
+    }
+
+    fn point_reactions(&self) -> &[Real] {
+        self.integrator.point_pushes()
     }
 
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {

@@ -2,7 +2,8 @@
 //! integrator, cutting by tetrahedron removal.
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::integrate::PointHold;
+use crate::interact::{Constraints, Loads, PointContact};
 use crate::math::{Real, Vec3};
 use crate::model::{
     CutInfo, CutPath, Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView,
@@ -55,6 +56,34 @@ impl Deformable for TensorMass {
 
     fn contacts_push_only(&self) -> bool {
         true
+    }
+
+    fn holds_point_contacts(&self) -> bool {
+        true
+    }
+
+    /// Each point a push-only contact on its three vertices' nodes, projected after every
+    /// (sub)step by the integrator (`integrate::PointHold`).
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        let (nodes, rest) = (&self.surface.nodes, &self.surface.rest_positions);
+        let count = nodes.len().min(rest.len());
+        let mut holds = Vec::with_capacity(points.len());
+        for pt in points {
+            pt.check(count)?;
+            holds.push(PointHold::tied(
+                pt.vertices.map(|v| nodes[v as usize] as usize),
+                pt.weights,
+                pt.normal,
+                pt.reach(),
+                pt.vertices.map(|v| rest[v as usize]),
+            ));
+        }
+        self.integrator.set_points(holds);
+        Ok(true)
+    }
+
+    fn point_reactions(&self) -> &[Real] {
+        self.integrator.point_pushes()
     }
 
     /// Gravity acts as the lumped share m_i g; point loads on their vertex's node.

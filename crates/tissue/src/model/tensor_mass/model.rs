@@ -317,6 +317,7 @@ impl TensorMass {
                 })
             })
             .collect();
+        self.integrator.set_points(Vec::new());
         self.constraints = c.clone();
         self.fixed_reactions = vec![Vec3::ZERO; c.fixed.len()];
         self.prescribed_reactions = vec![Vec3::ZERO; c.prescribed.len()];
