@@ -13,8 +13,8 @@
 
 use rustc_hash::FxHashMap;
 
-use super::vertex_move::move_within_bounds;
 use super::domain::Domain;
+use super::vertex_move::move_within_bounds;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 use crate::mesh::boundary::boundary_surface;
@@ -115,7 +115,10 @@ pub fn snap_bare_vertices(
 
 #[cfg(test)]
 mod tests {
+    use super::super::PROVEN_DIHEDRAL_DEG;
+    use super::super::report::dihedral_angles;
     use super::*;
+    use crate::math::tet_signed_volume;
     use crate::mesh::stuffing::Implicit;
 
     /// A 2 × 2 × 1 block of unit cubes, 6 tetrahedra each around the same diagonal.

@@ -24,8 +24,8 @@
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
-use super::vertex_move::move_within_bounds;
 use super::domain::{Domain, bisect};
+use super::vertex_move::move_within_bounds;
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
 
