@@ -323,8 +323,11 @@ mod tests {
         for (j, p) in now.iter().enumerate() {
             assert!((drawn[3 * j + 1] as Real - p.y).abs() < 1e-6);
         }
-        // Strain per drawn vertex: under the probe it is over twice the organ's median (the
+        // Strain per drawn vertex: under the probe it is well over the organ's median (the
         // largest values may sit at the three point supports, where strain concentrates).
+        // 1.85× measured since `tensor-mass` holds the fine points exactly (session 15): the
+        // frictionless liver slides round the probe at this damping and settles less pressed
+        // (docs/contact.md); over 2× before, with the per-vertex planes.
         let nodes = tissue::metrics::surface_nodes(sim.model()).unwrap_or_default();
         assert!(nodes.iter().all(Option::is_some));
         let with_strain = test_figures(Some(&nodes));
@@ -347,7 +350,7 @@ mod tests {
             near.len()
         );
         assert!(
-            !near.is_empty() && near_mean > 2.0 * median,
+            !near.is_empty() && near_mean > 1.5 * median,
             "near {near_mean}, median {median}"
         );
 
