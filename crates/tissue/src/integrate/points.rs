@@ -19,6 +19,7 @@
 //! watch would read the undone kicks along n as growth.
 
 use crate::error::SimError;
+use crate::interact::PointContact;
 use crate::math::{Real, Vec3, is_finite_vec};
 
 use super::Workspace;
@@ -61,6 +62,30 @@ impl PointHold {
             normal,
             level,
         }
+    }
+
+    /// A scene's point contacts (`interact::PointContact`, on surface vertices) as holds on
+    /// the particles `nodes[v]` of their vertices, whose rest positions are `rest[v]`: what
+    /// every kind on this integrator does in `Deformable::set_point_contacts`.
+    pub fn from_contacts(
+        points: &[PointContact],
+        nodes: &[u32],
+        rest: &[Vec3],
+    ) -> Result<Vec<Self>, SimError> {
+        let count = nodes.len().min(rest.len());
+        points
+            .iter()
+            .map(|pt| {
+                pt.check(count)?;
+                Ok(Self::tied(
+                    pt.vertices.map(|v| nodes[v as usize] as usize),
+                    pt.weights,
+                    pt.normal,
+                    pt.reach(),
+                    pt.vertices.map(|v| rest[v as usize]),
+                ))
+            })
+            .collect()
     }
 
     /// The point's normal coordinate at `x`, less its level (negative: past the plane).

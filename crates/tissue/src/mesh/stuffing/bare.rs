@@ -121,37 +121,9 @@ mod tests {
     use crate::math::tet_signed_volume;
     use crate::mesh::stuffing::Implicit;
 
-    /// A 2 × 2 × 1 block of unit cubes, 6 tetrahedra each around the same diagonal.
+    /// A 2 × 2 × 1 block of unit cubes (the manifold repair's test cubes).
     fn block() -> TetMesh {
-        let mut ids: FxHashMap<[i32; 3], u32> = FxHashMap::default();
-        let mut vertices = Vec::new();
-        let mut tets = Vec::new();
-        for o in [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]] {
-            let mut id = |p: [i32; 3]| {
-                *ids.entry(p).or_insert_with(|| {
-                    vertices.push(Vec3::new(p[0] as Real, p[1] as Real, p[2] as Real));
-                    vertices.len() as u32 - 1
-                })
-            };
-            let c = |i: usize| {
-                [
-                    o[0] + (i & 1) as i32,
-                    o[1] + ((i >> 1) & 1) as i32,
-                    o[2] + ((i >> 2) & 1) as i32,
-                ]
-            };
-            for (a, b) in [(1, 3), (3, 2), (2, 6), (6, 4), (4, 5), (5, 1)] {
-                tets.push([id(c(0)), id(c(a)), id(c(b)), id(c(7))]);
-            }
-        }
-        let mut m = TetMesh::new(vertices, tets);
-        for t in &mut m.tets {
-            let p = t.map(|v| m.vertices[v as usize]);
-            if tet_signed_volume(p[0], p[1], p[2], p[3]) < 0.0 {
-                t.swap(0, 1);
-            }
-        }
-        m
+        super::super::manifold::tests::cubes(&[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
     }
 
     #[test]

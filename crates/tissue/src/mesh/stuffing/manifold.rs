@@ -579,12 +579,12 @@ pub fn make_boundary_manifold(mesh: &mut TetMesh, tags: &mut Vec<i32>) -> Manifo
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// Unit cubes of 6 tetrahedra each (all split around the same diagonal, so they
     /// conform) at `offsets` (in cube lengths), sharing the vertices at the same places.
-    fn cubes(offsets: &[[i32; 3]]) -> TetMesh {
+    pub(in crate::mesh::stuffing) fn cubes(offsets: &[[i32; 3]]) -> TetMesh {
         let mut ids: FxHashMap<[i32; 3], u32> = FxHashMap::default();
         let mut vertices = Vec::new();
         let mut tets = Vec::new();

@@ -218,18 +218,7 @@ impl Deformable for SpringModel {
         let SurfaceLink::Nodes(nodes) = &self.link else {
             return Ok(points.is_empty());
         };
-        let count = nodes.len().min(self.surface_rest.len());
-        let mut holds = Vec::with_capacity(points.len());
-        for pt in points {
-            pt.check(count)?;
-            holds.push(PointHold::tied(
-                pt.vertices.map(|v| nodes[v as usize] as usize),
-                pt.weights,
-                pt.normal,
-                pt.reach(),
-                pt.vertices.map(|v| self.surface_rest[v as usize]),
-            ));
-        }
+        let holds = PointHold::from_contacts(points, nodes, &self.surface_rest)?;
         self.integrator.set_points(holds);
         Ok(true)
     }

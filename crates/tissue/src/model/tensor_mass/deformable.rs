@@ -65,19 +65,8 @@ impl Deformable for TensorMass {
     /// Each point a push-only contact on its three vertices' nodes, projected after every
     /// (sub)step by the integrator (`integrate::PointHold`).
     fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
-        let (nodes, rest) = (&self.surface.nodes, &self.surface.rest_positions);
-        let count = nodes.len().min(rest.len());
-        let mut holds = Vec::with_capacity(points.len());
-        for pt in points {
-            pt.check(count)?;
-            holds.push(PointHold::tied(
-                pt.vertices.map(|v| nodes[v as usize] as usize),
-                pt.weights,
-                pt.normal,
-                pt.reach(),
-                pt.vertices.map(|v| rest[v as usize]),
-            ));
-        }
+        let holds =
+            PointHold::from_contacts(points, &self.surface.nodes, &self.surface.rest_positions)?;
         self.integrator.set_points(holds);
         Ok(true)
     }
