@@ -171,8 +171,9 @@ const R_PROBE: Real = 0.005;
 
 /// The shipped liver with its fine surface and a frictionless probe pressed 1 cm
 /// (`scenes/liver-probe.toml`, mass damping 20 1/s) on the dynamic kinds that hold the fine
-/// points exactly: no step is refused, the tissue never pulls the probe in, no push is
-/// negative, and no fine point the probe pushed ends the step past its plane.
+/// points exactly (the shared integrator's and the dynamic FEM's): no step is refused, the
+/// tissue never pulls the probe in, no push is negative, and no fine point the probe pushed
+/// ends the step past its plane.
 #[test]
 fn the_fine_liver_pressed_on_the_dynamic_kinds_pushes_only() {
     let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
@@ -187,7 +188,13 @@ fn the_fine_liver_pressed_on_the_dynamic_kinds_pushes_only() {
         .replace("density = 1000.0", "density = 1000.0\ndamping = 20.0");
     let dir = std::env::temp_dir().join(format!("tissue-dyn-points-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    for kind in ["tensor-mass", "spring-mass"] {
+    for kind in [
+        "tensor-mass",
+        "spring-mass",
+        "fem-explicit",
+        "fem-semi-implicit",
+        "fem-corotational",
+    ] {
         let path = dir.join(format!("{kind}.toml"));
         let text = base.replace("kind = \"fem-static\"", &format!("kind = \"{kind}\""));
         std::fs::write(&path, text).unwrap();
@@ -218,7 +225,17 @@ fn the_fine_liver_pressed_on_the_dynamic_kinds_pushes_only() {
             "{kind}: end |F| = {last:.6} N, largest change in a step {jump:.2e} N, deepest pushed \
              point {worst_gap:.1e} m past its plane"
         );
-        assert!(worst_gap < 1e-9, "{kind}: {worst_gap}");
+        // `fem-explicit` projects after each of its substeps (a few dozen a step here) and
+        // leaves up to 5.2e-9 m (the projection stops at 50 Gauss-Seidel sweeps; the
+        // shared integrator's kinds take one or few substeps): 5e-7 of the press.
+        // `fem-corotational` holds them to its CG's tolerance (1e-6) and the compliance
+        // that matches it in their LCP (`contact::hold_points`): 2.3e-8 m.
+        let tolerance = match kind {
+            "fem-explicit" => 1e-8,
+            "fem-corotational" => 1e-7,
+            _ => 1e-9,
+        };
+        assert!(worst_gap < tolerance, "{kind}: {worst_gap}");
     }
 }
 
