@@ -15,6 +15,11 @@
 //! changes, at most `MAX_CONTACT_SOLVES` times (a step that stops there says `capped`).
 //! The push is the held row's reaction: the normal component of A Δv − b over h, the force
 //! the instrument put on the node over the step (the filter dropped it from the solve).
+//!
+//! A fine surface's points (`hold_points`) tie three nodes each, which a per-node filter
+//! cannot hold: after the vertex contacts settle, each point that ends past its plane gets a
+//! column A⁻¹c of the filtered system (one CG solve), and their pushes solve the mixed
+//! complementarity problem on W = Cᵀ A⁻¹ C (`solve::lcp`).
 
 use crate::error::SimError;
 use crate::integrate::PointHold;
