@@ -179,3 +179,85 @@ fn a_fine_point_across_the_interface_is_refused_with_its_reason() {
     assert!(text.contains("follows vertices of both parts"), "{text}");
     assert!(text.contains("on surface vertices"), "{text}");
 }
+
+/// A point on one vertex of the rest (weights 1, 0, 0) is that vertex's push-only contact:
+/// the hybrid pressed through the point and through the vertex held along the normal
+/// (`set_constraints_along`) gives the same push and surface at every step, to the
+/// regularisation the points' rows get (1e-9 of the Schur complement's diagonal).
+#[test]
+fn a_point_on_a_rest_vertex_is_that_vertex_contact() {
+    use tissue::interact::{Constraints, PointContact, Prescribed};
+    let mesh = block(L, H, 8, &|_| 0.0);
+    let params: toml::Table =
+        toml::from_str(&format!("cut_region = {CORNER}\nnonlinear = false")).unwrap();
+    let build = || model_with("hybrid", &mesh, 0.3, params.clone());
+    let (mut by_point, mut by_vertex) = (build(), build());
+    let rest = by_point.rest_surface().to_vec();
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&v| rest[v as usize].z < 1e-9)
+        .collect();
+    // The top vertex nearest the centre, on the rest (label 0).
+    let labels = by_point.vertex_labels().unwrap();
+    let v = (0..rest.len())
+        .filter(|&v| labels[v] == 0 && rest[v].z > H - 1e-9)
+        .min_by(|&a, &b| {
+            rest[a]
+                .truncate()
+                .length()
+                .total_cmp(&rest[b].truncate().length())
+        })
+        .unwrap() as u32;
+    let normal = -Vec3::Z;
+    let (mut worst_push, mut worst_surface): (Real, Real) = (0.0, 0.0);
+    let dt = 2e-3;
+    for step in 1..=150 {
+        let depth = 3e-4 * (step as Real / 50.0).min(1.0);
+        let target = rest[v as usize] - Vec3::Z * depth;
+        by_point
+            .set_constraints(&Constraints::fixed(fixed.clone()))
+            .unwrap();
+        let point = PointContact {
+            vertices: [v, v, v],
+            weights: [1.0, 0.0, 0.0],
+            rest: rest[v as usize],
+            normal,
+            target,
+        };
+        assert!(by_point.set_point_contacts(&[point]).unwrap());
+        let held = Constraints {
+            fixed: fixed.clone(),
+            prescribed: vec![Prescribed {
+                vertex: v,
+                position: target,
+            }],
+        };
+        assert!(
+            by_vertex
+                .set_constraints_along(&held, &[Some(normal)])
+                .unwrap()
+        );
+        by_point.step(dt).unwrap();
+        by_vertex.step(dt).unwrap();
+        let push = by_point.point_reactions()[0];
+        let vertex_push = -by_vertex.reactions().prescribed[0].dot(normal);
+        worst_push = worst_push.max((push - vertex_push).abs() / vertex_push.abs().max(1e-300));
+        let (a, b) = (by_point.surface().positions, by_vertex.surface().positions);
+        let d = a
+            .iter()
+            .zip(b)
+            .zip(&rest)
+            .map(|((p, q), r)| ((*p - *q).length(), (*q - *r).length()))
+            .fold((0.0, 0.0), |(m, s): (Real, Real), (d, u)| {
+                (m.max(d), s.max(u))
+            });
+        worst_surface = worst_surface.max(d.0 / d.1.max(1e-300));
+        assert!(push > 0.0, "step {step}: {push}");
+    }
+    eprintln!(
+        "point on a rest vertex vs its contact: push {worst_push:.1e}, surface {worst_surface:.1e} relative"
+    );
+    assert!(
+        worst_push < 1e-6 && worst_surface < 1e-6,
+        "{worst_push} {worst_surface}"
+    );
+}

@@ -1122,6 +1122,11 @@ impl Hybrid {
     /// `Deformable::set_point_contacts`: checks the points, keeps them, and splits them and
     /// the constraints again between the parts (`route_points`). Nothing changes on error.
     pub(super) fn apply_points(&mut self, points: &[PointContact]) -> Result<(), SimError> {
+        if points.is_empty() && self.points.is_empty() {
+            // `Simulation` sets the points every step, none without a fine surface: the
+            // constraints are split once, as before points existed.
+            return Ok(());
+        }
         let count = self.surf_nodes.len();
         for p in points {
             p.check(count)?;
