@@ -7,7 +7,6 @@ mod sliding;
 use sliding::*;
 use tissue::interact::{Instrument, InstrumentKind};
 use tissue::math::{Real, Vec3};
-use tissue::sim::Simulation;
 
 /// A block pressed 1.5 mm through a fine surface (each coarse face cut in 4) by a
 /// frictionless instrument, held there until the dynamic kinds settle: `tensor-mass` (the
