@@ -5,38 +5,8 @@
 mod sliding;
 
 use sliding::*;
-use tissue::interact::{Instrument, InstrumentKind, MappedSurface};
+use tissue::interact::{Instrument, InstrumentKind};
 use tissue::math::{Real, Vec3};
-use tissue::sim::Simulation;
-
-/// The model's surface with each triangle cut into n² (a grid of barycentric points, the
-/// edges' points repeated per triangle): a fine surface lying on the coarse one.
-fn subdivided(sim: &Simulation, n: usize) -> MappedSurface {
-    let rest = sim.model().rest_surface();
-    let triangles = sim.model().surface().triangles;
-    let mut points = Vec::new();
-    let mut tris = Vec::new();
-    for t in triangles {
-        let [a, b, c] = t.map(|v| rest[v as usize]);
-        let base = points.len() as u32;
-        let index = |i: usize, j: usize| base + (i * (2 * n + 3 - i) / 2 + j) as u32;
-        for i in 0..=n {
-            for j in 0..=n - i {
-                let (u, v) = (i as Real / n as Real, j as Real / n as Real);
-                points.push(a + (b - a) * u + (c - a) * v);
-            }
-        }
-        for i in 0..n {
-            for j in 0..n - i {
-                tris.push([index(i, j), index(i + 1, j), index(i, j + 1)]);
-                if j + 1 < n - i {
-                    tris.push([index(i + 1, j), index(i + 1, j + 1), index(i, j + 1)]);
-                }
-            }
-        }
-    }
-    MappedSurface::new(points, tris, rest, triangles).unwrap()
-}
 
 /// The end force on a 4 × 4 × 2 cm block (floor fixed) pressed `depth` by a 5 mm probe over
 /// 0.5 s and held to 1 s, frictionless, through a fine surface (each coarse face cut in 4)

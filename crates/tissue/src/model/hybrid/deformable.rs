@@ -1,7 +1,7 @@
 //! `Deformable` for `Hybrid`.
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads};
+use crate::interact::{Constraints, Loads, PointContact};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{
     ContactSurface, CutInfo, CutPath, Deformable, ModelInfo, Progress, Reactions, StepInfo,
@@ -64,6 +64,7 @@ impl Deformable for Hybrid {
     /// Contacts and supports on either part; on the rest they are contacts of its
     /// condensed response (a new node costs three sparse solves, once).
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
+        self.clear_points();
         self.apply_constraints(c, &[])
     }
 
@@ -76,11 +77,33 @@ impl Deformable for Hybrid {
         c: &Constraints,
         normals: &[Option<Vec3>],
     ) -> Result<bool, SimError> {
+        self.clear_points();
         self.apply_constraints(c, normals).map(|()| true)
     }
 
     fn contacts_push_only(&self) -> bool {
         true
+    }
+
+    /// With `exact_fine_points` only (see `Hybrid::exact_points`).
+    fn holds_point_contacts(&self) -> bool {
+        self.exact_points
+    }
+
+    /// Each point goes to the part that owns the vertices it follows: on the region, the
+    /// tensor-mass integrator's projection (`integrate::PointHold`); on the rest, or across
+    /// the interface, a push-only contact of the rest's condensed response on the nodes it
+    /// follows (its interface nodes' share through the coupling), settled with the rest's
+    /// other contacts within the step (`Hybrid::route_points`).
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        if !self.exact_points {
+            return Ok(points.is_empty());
+        }
+        self.apply_points(points).map(|()| true)
+    }
+
+    fn point_reactions(&self) -> &[Real] {
+        self.point_pushes()
     }
 
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError> {

@@ -84,13 +84,24 @@ struct HybridKeys {
     /// scalpels' first blade positions; without any, the organ's topmost point).
     #[serde(default)]
     auto_seeds: Vec<[Real; 3]>,
+    /// Hold a fine contact surface's points exactly (default false: the coarse vertices'
+    /// planes). A point whose vertices lie on both sides of the interface cannot be held
+    /// and stops the step with an error, so this is for instruments that stay on one part.
+    #[serde(default)]
+    exact_fine_points: bool,
 }
 
 fn yes() -> bool {
     true
 }
 
-const OWN_KEYS: [&str; 4] = ["cut_region", "nonlinear", "auto_radius", "auto_seeds"];
+const OWN_KEYS: [&str; 5] = [
+    "cut_region",
+    "nonlinear",
+    "auto_radius",
+    "auto_seeds",
+    "exact_fine_points",
+];
 
 impl Hybrid {
     /// Builds the model from the registry's input.
@@ -197,6 +208,7 @@ impl Hybrid {
         };
         let mut model = Self::build(mesh, in_region, mode, auto_radius, recipe)?;
         model.default_seed = default_seed;
+        model.exact_points = keys.exact_fine_points;
         Ok(model)
     }
 }

@@ -9,7 +9,7 @@ use faer::Mat;
 use crate::error::{Error, SimError};
 use crate::integrate::Scheme;
 use crate::integrate::coupling::NodeCoupling;
-use crate::interact::{Constraints, Loads, Prescribed};
+use crate::interact::{Constraints, Loads, PointContact, Prescribed, SurfaceHold};
 use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3, closest_point_on_triangle};
 use crate::mesh::TET_FACES;
@@ -22,7 +22,7 @@ use crate::model::{
 
 use super::CutRegion;
 use super::grow::{Built, Growth};
-use super::rest::RestPart;
+use super::rest::{RestPart, Site};
 use super::split::{NONE, Split, centroids};
 
 /// What the model was built with, kept for region growths.
@@ -97,8 +97,17 @@ pub struct Hybrid {
     pub(super) reactions: ConstraintReactions,
     /// Per surface vertex: the prescribed entry of the region model holding it, or `NONE`.
     tm_entry: Vec<u32>,
-    /// Surface vertex of each contact of the rest (the active ones, in the rest's order).
+    /// Surface vertex of each contact of the rest (the active ones, in the rest's order;
+    /// `NONE` for a fine surface's point).
     rest_contact: Vec<u32>,
+    /// The outer slots the rest's active contacts name (a point's three among them): the
+    /// vertices a partial contact surface computes exactly.
+    rest_site_slots: Vec<u32>,
+    /// The fine surface's points of the last `set_point_contacts` (cleared by the
+    /// constraints), where each went, and each one's push after the last step (N).
+    points: Vec<PointContact>,
+    point_routes: Vec<PointRoute>,
+    point_pushes: Vec<Real>,
     /// The directions given with the constraints (`set_constraints_along`), kept to apply
     /// them again after a cut, growth or reset.
     normals: Vec<Option<Vec3>>,
@@ -106,8 +115,8 @@ pub struct Hybrid {
     rest_cands: Vec<RestCandidate>,
     /// Per candidate: held in the step being taken.
     rest_active: Vec<bool>,
-    /// Outer slots whose contact pushed at the end of the last step (sorted).
-    rest_pushed: Vec<u32>,
+    /// The rest's contacts that pushed at the end of the last step.
+    rest_pushed: Vec<Key>,
     /// Steps the rest's active set settled in, their solves, and the steps stopped at
     /// `MAX_CONTACT_SOLVES`.
     pub(super) contact_stats: ContactStats,
@@ -128,6 +137,10 @@ pub struct Hybrid {
     volume_positions: OnceCell<Vec<Vec3>>,
     /// The automatic region's seed when neither the scene nor a scalpel gave one.
     pub(super) default_seed: Option<Vec3>,
+    /// Whether a fine surface's points are held exactly (`[model] exact_fine_points`; off by
+    /// default: a point across the interface cannot be held yet and stops the run, so an
+    /// instrument that may reach the interface keeps the coarse vertices' planes).
+    pub(super) exact_points: bool,
     /// Where the notice that the region covers the organ goes (once).
     pub(super) progress: Progress,
     /// That notice was given.
@@ -182,23 +195,46 @@ fn fresh_reference_number() -> u64 {
 }
 
 /// An entry of the constraints on the rest's outer surface: a support or grasp (held in
-/// full, always active) or an instrument's frictionless contact (held along its normal
-/// while active: it only pushes, `Hybrid::advance`).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// full, always active), an instrument's frictionless contact (held along its normal while
+/// active: it only pushes, `Hybrid::advance`) or a fine surface's point on the rest (the
+/// same, on the nodes it follows: `rest::Site`).
+#[derive(Clone, Debug, PartialEq)]
 struct RestCandidate {
+    /// The surface vertex of a contact; `NONE` for a point.
     vertex: u32,
-    slot: u32,
-    /// Target displacement.
+    site: Site,
+    /// What names it from one step to the next (its slot, or the point's vertices).
+    key: Key,
+    /// Target displacement (a point's: its reach along the normal).
     target: Vec3,
     /// Outward from the instrument (toward the tissue); `None`: held in full.
     normal: Option<Vec3>,
 }
 
 impl RestCandidate {
-    /// How far a node displaced by `u` is out of the contact's plane (negative: past it).
+    /// How far a site displaced by `u` is out of the contact's plane (negative: past it).
     fn gap(&self, u: Vec3) -> Real {
         self.normal.map_or(0.0, |n| n.dot(u - self.target))
     }
+}
+
+/// A rest contact's name across steps: a contact's outer slot, or a point's vertices and
+/// weights (a fine surface's vertex keeps both while its coarse triangle stays).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Key {
+    Slot(u32),
+    Point([u32; 3], [u64; 3]),
+}
+
+/// Where a fine surface's point is held (`Hybrid::route_points`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PointRoute {
+    /// By the region's integrator (`integrate::PointHold`): the region model's point `k`.
+    Region(usize),
+    /// By the rest's contacts: candidate `k` of the rest.
+    Rest(usize),
+    /// Nowhere: every node it follows is held in full (the supports take it).
+    Held,
 }
 
 /// How the rest's contacts settled (`ModelInfo::details`).
@@ -294,6 +330,10 @@ impl Hybrid {
             reactions: ConstraintReactions::default(),
             tm_entry: Vec::new(),
             rest_contact: Vec::new(),
+            rest_site_slots: Vec::new(),
+            points: Vec::new(),
+            point_routes: Vec::new(),
+            point_pushes: Vec::new(),
             normals: Vec::new(),
             rest_cands: Vec::new(),
             rest_active: Vec::new(),
@@ -310,6 +350,7 @@ impl Hybrid {
             alive_tets: Vec::new(),
             volume_positions: OnceCell::new(),
             default_seed: None,
+            exact_points: false,
             progress: Progress::silent(),
             whole_noticed: false,
             mesh,
@@ -533,8 +574,12 @@ impl Hybrid {
                 rows.push(v);
             }
         };
-        for &v in &self.rest_contact {
-            take(v);
+        for &s in &self.rest_site_slots {
+            if let Some(&v) = maps.vertex_of_slot.get(s as usize)
+                && v != NONE
+            {
+                take(v);
+            }
         }
         for &v in &seeds {
             take(v);
@@ -780,6 +825,12 @@ impl Hybrid {
     /// contacts: −(T_region + d_Iᵀ S d_I + yᵀ W_cc⁻¹ y), y = G_c d_I − d_c (reactions are
     /// the tissue's forces on the instrument, so pushing in lowers them).
     pub(super) fn held_stiffness(&self, entries: std::ops::Range<usize>) -> Option<Mat3> {
+        // A fine surface's points move with the instrument too, which the formula below
+        // does not see: the haptic loop estimates the stiffness instead (as the
+        // pre-computed kinds say with points).
+        if !self.points.is_empty() {
+            return None;
+        }
         let picked = self.constraints.prescribed.get(entries)?;
         let mut region_held = vec![false; self.split.region.global.len()];
         let mut contact_held = vec![false; self.rest_contact.len()];
@@ -896,27 +947,53 @@ impl Hybrid {
             } else if let Some(slot) = self.rest.outer_slot(self.split.rest.local[g]) {
                 cands.push(RestCandidate {
                     vertex: v as u32,
-                    slot,
+                    site: Site::outer(slot),
+                    key: Key::Slot(slot),
                     target: h.displacement,
                     normal: h.along,
                 });
             }
         }
+        let contacts = cands.len();
+        let (routes, tm_points) = self.route_points(&holds, &mut cands)?;
         // The first guess of the active set: the contacts held in full, those that pushed
-        // at the end of the last step, and those whose node is past its plane now (its
-        // three rows of the rest's surface, not the whole surface).
+        // at the end of the last step, and those whose site is past its plane now (its
+        // three rows of the rest's surface, not the whole surface). Points past their
+        // planes are guessed deepest first, each only if it names an outer node no point
+        // guessed before names (`solve::lcp::first_guess`: about one point per node can
+        // push independently).
         let mut now = None;
         let mut active = Vec::with_capacity(cands.len());
-        for k in &cands {
-            let on = k.normal.is_none() || self.rest_pushed.binary_search(&k.slot).is_ok() || {
+        let mut depth = Vec::new();
+        for (i, k) in cands.iter().enumerate() {
+            let pushed = self.rest_pushed.contains(&k.key);
+            let on = k.normal.is_none() || pushed || {
                 let (u, z) = now.get_or_insert_with(|| {
                     let u = self.interface_u();
                     let z = self.rest.contact_forces(&u);
                     (u, z)
                 });
-                k.gap(self.rest.outer_displacement(k.slot, u, z)) < 0.0
+                let gap = k.gap(self.rest.site_displacement(&k.site, u, z));
+                if i >= contacts && gap < 0.0 {
+                    depth.push((gap, i));
+                }
+                i < contacts && gap < 0.0
             };
             active.push(on);
+        }
+        depth.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut named: Vec<u32> = cands[contacts..]
+            .iter()
+            .zip(&active[contacts..])
+            .filter(|(_, a)| **a)
+            .flat_map(|(k, _)| outer_slots(&k.site))
+            .collect();
+        for (_, i) in depth {
+            let slots: Vec<u32> = outer_slots(&cands[i].site).collect();
+            if slots.iter().any(|s| !named.contains(s)) {
+                named.extend(slots);
+                active[i] = true;
+            }
         }
         let before = (
             std::mem::replace(&mut self.rest_cands, cands),
@@ -927,6 +1004,10 @@ impl Hybrid {
             return Err(e);
         }
         self.tm.set_constraints_along(&tm_c, &tm_normals)?;
+        self.tm.set_point_contacts(&tm_points)?;
+        self.point_routes = routes;
+        self.point_pushes.clear();
+        self.point_pushes.resize(self.points.len(), 0.0);
         self.tm_entry = tm_entry;
         self.drop_near();
         self.constraints = c.clone();
@@ -935,10 +1016,149 @@ impl Hybrid {
         Ok(())
     }
 
+    /// Sends each fine surface's point (`points`) to the part that holds it:
+    ///
+    /// - every vertex it follows (with a weight) on the region: the region's integrator
+    ///   (`integrate::PointHold`), exactly as `tensor-mass` holds it;
+    /// - every one on the rest's outer surface: a push-only contact of the rest's condensed
+    ///   response on those nodes (`rest::Site`), settled with the rest's other contacts
+    ///   within the step, exactly as the pre-computed kinds hold it; one whose nodes are all
+    ///   held in full is the supports' (not pushed);
+    /// - across the interface (a triangle of the rest touching it: some of its vertices
+    ///   are interface nodes, which the region moves, the others the rest's): refused,
+    ///   naming the point. Two ways were tried and failed on the block pressed across the
+    ///   interface (docs/contact.md): as a contact of the rest's response with the
+    ///   interface nodes' share through the coupling, two such points on one rest node
+    ///   with different interface nodes are one row of the rest's compliance but two of
+    ///   the coupling, a constraint on the region's nodes that the rest's force law can
+    ///   give only as an unbounded stiffness (29 substeps where 5 were needed, the active
+    ///   set changing at every step, the force off the static answer by up to 9 %); by the
+    ///   region's projection with the rest's vertices held where the step found them, the
+    ///   rest's share is not pushed and the interface nodes make it up, a lagged iteration
+    ///   whose gain is −(w_rest / w_region)·(how far the rest node follows them): it blew
+    ///   up at step 144.
+    ///
+    /// Appends the rest's candidates to `cands`; returns each point's route and the region
+    /// model's points.
+    fn route_points(
+        &self,
+        holds: &[Option<SurfaceHold>],
+        cands: &mut Vec<RestCandidate>,
+    ) -> Result<(Vec<PointRoute>, Vec<PointContact>), SimError> {
+        let mut routes = Vec::with_capacity(self.points.len());
+        let mut tm_points = Vec::new();
+        for pt in &self.points {
+            let used: Vec<usize> = (0..3).filter(|&i| pt.weights[i] != 0.0).collect();
+            let node = |i: usize| self.surf_nodes[pt.vertices[i] as usize] as usize;
+            let tm_of = |i: usize| {
+                let r = self.split.region.local[node(i)];
+                (r != NONE)
+                    .then(|| self.tm_vertex.get(r as usize).copied())
+                    .flatten()
+                    .filter(|&sv| sv != NONE)
+            };
+            let slot_of = |i: usize| {
+                (self.split.region.local[node(i)] == NONE)
+                    .then(|| self.rest.outer_slot(self.split.rest.local[node(i)]))
+                    .flatten()
+            };
+            if let Some(&i) = used
+                .iter()
+                .find(|&&i| tm_of(i).is_none() && slot_of(i).is_none())
+            {
+                return Err(SimError::BadParameter {
+                    name: "point contact",
+                    value: format!("on surface vertices {:?}", pt.vertices),
+                    reason: format!(
+                        "hybrid cannot hold it: vertex {} is on neither part's surface",
+                        pt.vertices[i]
+                    ),
+                });
+            }
+            let on_region: Vec<usize> = used
+                .iter()
+                .copied()
+                .filter(|&i| tm_of(i).is_some())
+                .collect();
+            if on_region.is_empty() {
+                let terms: Vec<(u32, Real)> = used
+                    .iter()
+                    .filter_map(|&i| slot_of(i).map(|s| (s, pt.weights[i])))
+                    .collect();
+                let held = used
+                    .iter()
+                    .all(|&i| holds[pt.vertices[i] as usize].is_some_and(|h| h.along.is_none()));
+                if held || terms.is_empty() {
+                    routes.push(PointRoute::Held);
+                    continue;
+                }
+                routes.push(PointRoute::Rest(cands.len()));
+                cands.push(RestCandidate {
+                    vertex: NONE,
+                    site: Site { terms, point: true },
+                    key: Key::Point(pt.vertices, pt.weights.map(Real::to_bits)),
+                    target: pt.reach() * pt.normal,
+                    normal: Some(pt.normal),
+                });
+                continue;
+            }
+            if on_region.len() < used.len() {
+                return Err(SimError::BadParameter {
+                    name: "point contact",
+                    value: format!("on surface vertices {:?}", pt.vertices),
+                    reason: "hybrid cannot hold a fine surface's point that follows vertices of \
+                             both parts (a triangle of the pre-computed rest touching the cut \
+                             region); keep the frictionless instrument on one part (a \
+                             cut_region that covers where it presses, or none of it) or make \
+                             it sticking (docs/contact.md, exact fine points on hybrid)"
+                        .into(),
+                });
+            }
+            let first = tm_of(on_region[0]).unwrap_or(0);
+            routes.push(PointRoute::Region(tm_points.len()));
+            tm_points.push(PointContact {
+                vertices: std::array::from_fn(|i| tm_of(i).unwrap_or(first)),
+                ..*pt
+            });
+        }
+        Ok((routes, tm_points))
+    }
+
+    /// `Deformable::set_point_contacts`: checks the points, keeps them, and splits them and
+    /// the constraints again between the parts (`route_points`). Nothing changes on error.
+    pub(super) fn apply_points(&mut self, points: &[PointContact]) -> Result<(), SimError> {
+        if points.is_empty() && self.points.is_empty() {
+            // `Simulation` sets the points every step, none without a fine surface: the
+            // constraints are split once, as before points existed.
+            return Ok(());
+        }
+        let count = self.surf_nodes.len();
+        for p in points {
+            p.check(count)?;
+        }
+        let before = std::mem::replace(&mut self.points, points.to_vec());
+        let (c, normals) = (self.constraints.clone(), self.normals.clone());
+        if let Err(e) = self.apply_constraints(&c, &normals) {
+            self.points = before;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// The pushes on the points of the last `set_point_contacts` after the last step.
+    pub(super) fn point_pushes(&self) -> &[Real] {
+        &self.point_pushes
+    }
+
+    /// Forgets the points (`set_constraints` clears them).
+    pub(super) fn clear_points(&mut self) {
+        self.points.clear();
+    }
+
     /// Hands the active candidates to the rest (nothing new when the set, its directions
     /// and targets are those already held).
     fn install_rest_set(&mut self) -> Result<(), SimError> {
-        let (mut slots, mut targets, mut normals, mut vertices) =
+        let (mut sites, mut targets, mut normals, mut vertices) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for (k, _) in self
             .rest_cands
@@ -946,15 +1166,15 @@ impl Hybrid {
             .zip(&self.rest_active)
             .filter(|(_, a)| **a)
         {
-            slots.push(k.slot);
+            sites.push(k.site.clone());
             targets.extend_from_slice(&k.target.to_array());
             normals.push(k.normal);
             vertices.push(k.vertex);
         }
-        if !self.rest.same_contacts(&slots, &targets, &normals) {
-            let new_set = self.rest.contact_slots() != slots.as_slice()
+        if !self.rest.same_contacts(&sites, &targets, &normals) {
+            let new_set = self.rest.contact_sites() != sites.as_slice()
                 || self.rest.contact_normals() != normals.as_slice();
-            self.rest.set_contacts(&slots, &targets, &normals)?;
+            self.rest.set_contacts(&sites, &targets, &normals)?;
             // The coupling's forces and energy changed under the integrator's feet; its
             // stiffness (S + G_cᵀ P G_c) only when the contact set or its directions did.
             self.tm.forget_forces();
@@ -966,11 +1186,16 @@ impl Hybrid {
                 let coupling = self
                     .rest
                     .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-                self.tm
-                    .recheck_stability(&coupling, CONTACT_RECHECK_ITERATIONS);
+                let iterations = if std::env::var("HYB_ITERS").is_ok() {
+                    30
+                } else {
+                    CONTACT_RECHECK_ITERATIONS
+                };
+                self.tm.recheck_stability(&coupling, iterations);
             }
         }
         self.rest_contact = vertices;
+        self.rest_site_slots = sites.iter().flat_map(outer_slots).collect();
         self.surf_pos.take();
         self.drop_near();
         Ok(())
@@ -1101,7 +1326,7 @@ impl Hybrid {
                     next[i] = false;
                     released[i] = true;
                 } else if !next[i] && !released[i] {
-                    let d = self.rest.outer_displacement(k.slot, &u, &z);
+                    let d = self.rest.site_displacement(&k.site, &u, &z);
                     next[i] = k.gap(d) < -depth;
                 }
             }
@@ -1117,9 +1342,8 @@ impl Hybrid {
                     .iter()
                     .zip(&pushes)
                     .filter(|(k, p)| k.normal.is_some() && **p > 0.0)
-                    .map(|(k, _)| k.slot)
+                    .map(|(k, _)| k.key)
                     .collect();
-                self.rest_pushed.sort_unstable();
                 return Ok(info);
             }
             self.rest_active = next;
@@ -1146,8 +1370,38 @@ impl Hybrid {
             }
         }
         for (k, &v) in self.rest_contact.iter().enumerate() {
+            if v == NONE {
+                continue; // a point: its push is read below
+            }
             // The rest pushes its contact with −λ.
             force[v as usize] = -Vec3::new(z[(3 * k, 0)], z[(3 * k + 1, 0)], z[(3 * k + 2, 0)]);
+        }
+        // Each point's push λ = n·f, f the force its site applies to the rest (its row of
+        // z when active); the region's from its integrator.
+        let mut row_of = vec![NONE; self.rest_cands.len()];
+        let mut row = 0;
+        for (i, &a) in self.rest_active.iter().enumerate() {
+            if a {
+                row_of[i] = row;
+                row += 1;
+            }
+        }
+        let region = self.tm.point_reactions();
+        for (p, route) in self.point_pushes.iter_mut().zip(&self.point_routes) {
+            *p =
+                match *route {
+                    PointRoute::Region(j) => region.get(j).copied().unwrap_or(0.0),
+                    PointRoute::Rest(i) => {
+                        let (k, r) = (&self.rest_cands[i], row_of[i] as usize);
+                        match k.normal {
+                            Some(n) if row_of[i] != NONE && 3 * r + 2 < z.nrows() => n.dot(
+                                Vec3::new(z[(3 * r, 0)], z[(3 * r + 1, 0)], z[(3 * r + 2, 0)]),
+                            ),
+                            _ => 0.0,
+                        }
+                    }
+                    PointRoute::Held => 0.0,
+                };
         }
         self.reactions
             .distribute(|v| force.get(v as usize).copied().unwrap_or(Vec3::ZERO));
@@ -1499,4 +1753,9 @@ impl Hybrid {
             + self.mesh.tets.len() * (16 + 16 + 24 + 1)
             + self.surf_nodes.len() * (4 + 48)
     }
+}
+
+/// The outer slots a rest contact's site names.
+fn outer_slots(site: &Site) -> impl Iterator<Item = u32> + '_ {
+    site.outer_terms().map(|(s, _)| s)
 }

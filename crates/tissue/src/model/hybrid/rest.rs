@@ -60,11 +60,51 @@ fn dot(x: &[Real], y: &[Real]) -> Real {
     acc.iter().sum::<Real>() + tail
 }
 
+/// Where a contact acts: one outer node (a support, a grasp, an instrument's contact on a
+/// vertex) or a point tied to several outer nodes by weights (a fine surface's point,
+/// `interact::PointContact`). The contact is a virtual node whose displacement is
+/// Σ wᵢ uᵢ and whose force f acts as wᵢ f on each node, so its rows of G are Σ wᵢ G_i, its
+/// block of W is Σ wᵢ w'ⱼ W_ij, and every formula of the module holds with these rows.
+/// (A point that also follows interface nodes is not one: `Hybrid::route_points`.)
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Site {
+    /// (outer slot, weight).
+    pub terms: Vec<(u32, Real)>,
+    /// A fine surface's point: its row is regularised (`held_inverse`), as several points
+    /// on one coarse triangle can be tied by the same three nodes.
+    pub point: bool,
+}
+
+impl Site {
+    /// One outer node, weight 1.
+    pub fn outer(slot: u32) -> Self {
+        Self {
+            terms: vec![(slot, 1.0)],
+            point: false,
+        }
+    }
+
+    /// The outer slot of a contact on one outer node (weight 1), else `NONE`.
+    fn single_slot(&self) -> u32 {
+        match self.terms.as_slice() {
+            [(s, w)] if *w == 1.0 => *s,
+            _ => NONE,
+        }
+    }
+
+    /// The outer slots the site names, with their weights.
+    pub fn outer_terms(&self) -> impl Iterator<Item = (u32, Real)> + '_ {
+        self.terms.iter().copied()
+    }
+}
+
 /// The contacts on the outer surface, as the coupling forces use them.
 #[derive(Clone, Debug)]
 struct Contacts {
-    /// Outer slots of the contact nodes.
-    slots: Vec<u32>,
+    /// Where each contact acts.
+    sites: Vec<Site>,
+    /// Their target displacements (3 per contact).
+    targets: Vec<Real>,
     /// t − u₀_c (3 per contact).
     rhs: Mat<Real>,
     /// G_c: rows of G at the contacts (3m × 3n_I).
@@ -88,7 +128,8 @@ struct Contacts {
 impl Contacts {
     fn empty(ni: usize) -> Self {
         Self {
-            slots: Vec::new(),
+            sites: Vec::new(),
+            targets: Vec::new(),
             normals: Vec::new(),
             rhs: Mat::zeros(0, 1),
             g: Mat::zeros(0, ni),
@@ -312,8 +353,7 @@ impl RestPart {
         let mut dp = held(&self.iface, self.outer_slot.len())?;
         dp.forces.copy_from_slice(&f);
         let sol = self.fem()?.borrow_mut().solve_dofs(&dp)?;
-        // The contacts' right-hand sides hold u₀: their targets, read before u₀ changes.
-        let targets = self.contact_targets();
+        let targets = self.contacts.targets.clone();
         for (b, &m) in self.iface.iter().enumerate() {
             for l in 0..3 {
                 self.r0[(3 * b + l, 0)] = sol.reactions[m as usize][l];
@@ -325,20 +365,17 @@ impl RestPart {
             }
         }
         self.forces = f;
-        let slots = self.contacts.slots.clone();
+        let sites = self.contacts.sites.clone();
         let normals = self.contacts.normals.clone();
-        self.set_contacts(&slots, &targets, &normals)
+        // The contacts' right-hand sides hold u₀.
+        self.set_contacts(&sites, &targets, &normals)
     }
 
-    /// The target displacements of the current contacts (3 per contact).
-    fn contact_targets(&self) -> Vec<Real> {
-        let c = &self.contacts;
-        (0..c.rhs.nrows())
-            .map(|i| {
-                let slot = c.slots[i / 3] as usize;
-                c.rhs[(i, 0)] + self.u0[(3 * slot + i % 3, 0)]
-            })
-            .collect()
+    /// Σ wᵢ u₀ᵢ of a site along axis `l` (the interface is at rest under the loads alone).
+    fn site_base(&self, site: &Site, l: usize) -> Real {
+        site.outer_terms()
+            .map(|(s, w)| w * self.u0[(3 * s as usize + l, 0)])
+            .sum()
     }
 
     /// The compliance columns of outer slot `slot` (3 sparse solves the first time).
@@ -374,16 +411,21 @@ impl RestPart {
         Ok(())
     }
 
-    /// The outer slots of the contacts set.
-    pub fn contact_slots(&self) -> &[u32] {
-        &self.contacts.slots
+    /// Where the contacts set act.
+    pub fn contact_sites(&self) -> &[Site] {
+        &self.contacts.sites
     }
 
     /// Are these the contacts, directions and targets already set?
-    pub fn same_contacts(&self, slots: &[u32], targets: &[Real], normals: &[Option<Vec3>]) -> bool {
-        self.contacts.slots == slots
+    pub fn same_contacts(
+        &self,
+        sites: &[Site],
+        targets: &[Real],
+        normals: &[Option<Vec3>],
+    ) -> bool {
+        self.contacts.sites == sites
             && self.contacts.normals == normals
-            && self.contact_targets() == targets
+            && self.contacts.targets == targets
     }
 
     /// The directions the contacts set are held along (`None`: in full).
@@ -391,46 +433,61 @@ impl RestPart {
         &self.contacts.normals
     }
 
-    /// Sets the contacts: outer slots, their target displacements (3 each; a support is a
-    /// contact with target zero) and the direction each is held along (`None`: all three;
-    /// a unit n: along n only, free across it, its force along n). Nothing changes on
-    /// error.
+    /// Sets the contacts: where each acts (`Site`), their target displacements (3 each; a
+    /// support is a contact with target zero) and the direction each is held along
+    /// (`None`: all three; a unit n: along n only, free across it, its force along n).
+    /// Nothing changes on error.
     pub fn set_contacts(
         &mut self,
-        slots: &[u32],
+        sites: &[Site],
         targets: &[Real],
         normals: &[Option<Vec3>],
     ) -> Result<(), SimError> {
-        if normals.len() != slots.len() || targets.len() != 3 * slots.len() {
+        if normals.len() != sites.len() || targets.len() != 3 * sites.len() {
             return Err(SimError::BadParameter {
                 name: "contacts",
                 value: format!(
-                    "{} slots, {} targets, {} directions",
-                    slots.len(),
+                    "{} sites, {} targets, {} directions",
+                    sites.len(),
                     targets.len(),
                     normals.len()
                 ),
                 reason: "needs 3 targets and one direction (or none) per contact".into(),
             });
         }
-        if slots == self.contacts.slots.as_slice() && normals == self.contacts.normals.as_slice() {
+        let ni = self.panels.dim();
+        let bad = sites
+            .iter()
+            .flat_map(|s| &s.terms)
+            .find(|&&(s, w)| !w.is_finite() || s as usize >= self.outer.len());
+        if let Some((s, w)) = bad {
+            return Err(SimError::BadParameter {
+                name: "contacts",
+                value: format!("outer slot {s} with weight {w}"),
+                reason: "a contact names a node the rest does not have (internal)".into(),
+            });
+        }
+        if sites == self.contacts.sites.as_slice() && normals == self.contacts.normals.as_slice() {
             // The same contact set held the same ways (an instrument moving its targets):
             // only the right-hand side changes, W_cc and P stay.
-            for (k, &s) in slots.iter().enumerate() {
+            for (k, site) in sites.iter().enumerate() {
                 for l in 0..3 {
                     self.contacts.rhs[(3 * k + l, 0)] =
-                        targets[3 * k + l] - self.u0[(3 * s as usize + l, 0)];
+                        targets[3 * k + l] - self.site_base(site, l);
                 }
             }
+            self.contacts.targets = targets.to_vec();
             return Ok(());
         }
-        for &s in slots {
-            self.ensure_column(s)?;
+        for site in sites {
+            for (s, _) in site.outer_terms() {
+                self.ensure_column(s)?;
+            }
         }
-        let m3 = 3 * slots.len();
-        let ni = self.panels.dim();
+        let m3 = 3 * sites.len();
         let mut c = Contacts {
-            slots: slots.to_vec(),
+            sites: sites.to_vec(),
+            targets: targets.to_vec(),
             normals: normals.to_vec(),
             rhs: Mat::zeros(m3, 1),
             g: Mat::zeros(m3, ni),
@@ -438,17 +495,27 @@ impl RestPart {
             w: Mat::zeros(m3, m3),
             w_inv: Mat::zeros(m3, m3),
         };
-        for (k, &s) in slots.iter().enumerate() {
-            let col = &self.columns[&s];
+        for (k, site) in sites.iter().enumerate() {
             for l in 0..3 {
-                let row = 3 * s as usize + l;
-                c.rhs[(3 * k + l, 0)] = targets[3 * k + l] - self.u0[(row, 0)];
-                for j in 0..ni {
-                    c.g[(3 * k + l, j)] = self.gt[(j, row)];
+                let r = 3 * k + l;
+                c.rhs[(r, 0)] = targets[r] - self.site_base(site, l);
+                for (s, w) in site.outer_terms() {
+                    let row = 3 * s as usize + l;
+                    for j in 0..ni {
+                        c.g[(r, j)] += w * self.gt[(j, row)];
+                    }
                 }
-                for (q, &s2) in slots.iter().enumerate() {
-                    for l2 in 0..3 {
-                        c.w[(3 * q + l2, 3 * k + l)] = col[(3 * s2 as usize + l2, l)];
+            }
+            for (s, w) in site.outer_terms() {
+                let col = &self.columns[&s];
+                for (q, other) in sites.iter().enumerate() {
+                    for (s2, w2) in other.outer_terms() {
+                        for l in 0..3 {
+                            for l2 in 0..3 {
+                                c.w[(3 * q + l2, 3 * k + l)] +=
+                                    w * w2 * col[(3 * s2 as usize + l2, l)];
+                            }
+                        }
                     }
                 }
             }
@@ -461,7 +528,9 @@ impl RestPart {
                     c.w[(j, i)] = m;
                 }
             }
-            c.w_inv = held_inverse(&c.w, slots, normals, &mut self.full_inverse)?;
+            let keys: Vec<u32> = sites.iter().map(Site::single_slot).collect();
+            let soft: Vec<bool> = sites.iter().map(|s| s.point).collect();
+            c.w_inv = held_inverse(&c.w, &keys, normals, &soft, &mut self.full_inverse)?;
         }
         c.g_rows = (0..m3)
             .flat_map(|i| (0..ni).map(move |j| (i, j)))
@@ -607,13 +676,15 @@ impl RestPart {
             u_i.as_ref(),
             1.0,
         );
-        for (k, &s) in self.contacts.slots.iter().enumerate() {
-            let col = &self.columns[&s];
-            for l in 0..3 {
-                let f = z[(3 * k + l, 0)];
-                if f != 0.0 {
-                    for i in 0..u.nrows() {
-                        u[(i, 0)] += col[(i, l)] * f;
+        for (k, site) in self.contacts.sites.iter().enumerate() {
+            for (s, w) in site.outer_terms() {
+                let col = &self.columns[&s];
+                for l in 0..3 {
+                    let f = w * z[(3 * k + l, 0)];
+                    if f != 0.0 {
+                        for i in 0..u.nrows() {
+                            u[(i, 0)] += col[(i, l)] * f;
+                        }
                     }
                 }
             }
@@ -657,19 +728,29 @@ impl RestPart {
         self.outer.len()
     }
 
-    /// The contact forces `z` (as `contact_forces` gives them) by outer slot.
+    /// The contact forces `z` (as `contact_forces` gives them) on the outer slots, each
+    /// slot once (a point's force shared by its weights; the interface nodes' shares left
+    /// out: they move nothing on the outer surface).
     pub fn forces_by_slot(&self, z: &Mat<Real>) -> Vec<(u32, Vec3)> {
-        self.contacts
-            .slots
-            .iter()
-            .enumerate()
-            .map(|(k, &s)| {
-                (
-                    s,
-                    Vec3::new(z[(3 * k, 0)], z[(3 * k + 1, 0)], z[(3 * k + 2, 0)]),
-                )
-            })
-            .collect()
+        let mut out: Vec<(u32, Vec3)> = Vec::with_capacity(self.contacts.sites.len());
+        for (k, site) in self.contacts.sites.iter().enumerate() {
+            let f = Vec3::new(z[(3 * k, 0)], z[(3 * k + 1, 0)], z[(3 * k + 2, 0)]);
+            for (s, w) in site.outer_terms() {
+                match out.iter_mut().find(|(r, _)| *r == s) {
+                    Some((_, g)) => *g += w * f,
+                    None => out.push((s, w * f)),
+                }
+            }
+        }
+        out
+    }
+
+    /// The displacement of a contact's site (Σ wᵢ uᵢ over its outer nodes) for `u_i` and
+    /// the contact forces `z`.
+    pub fn site_displacement(&self, site: &Site, u_i: &Mat<Real>, z: &Mat<Real>) -> Vec3 {
+        site.outer_terms()
+            .map(|(s, w)| w * self.outer_displacement(s, u_i, z))
+            .sum()
     }
 
     /// The displacement of outer slot `slot` for `u_i` and contact forces `z`: its three
@@ -681,13 +762,15 @@ impl RestPart {
         for l in 0..3 {
             d[l] += dot(self.gt.col_as_slice(o + l), u);
         }
-        for (k, s) in self.contacts.slots.iter().enumerate() {
-            let col = &self.columns[s];
-            for m in 0..3 {
-                let f = z[(3 * k + m, 0)];
-                if f != 0.0 {
-                    for l in 0..3 {
-                        d[l] += col[(o + l, m)] * f;
+        for (k, site) in self.contacts.sites.iter().enumerate() {
+            for (s, w) in site.outer_terms() {
+                let col = &self.columns[&s];
+                for m in 0..3 {
+                    let f = w * z[(3 * k + m, 0)];
+                    if f != 0.0 {
+                        for l in 0..3 {
+                            d[l] += col[(o + l, m)] * f;
+                        }
                     }
                 }
             }
@@ -709,10 +792,12 @@ impl RestPart {
                 dp.targets[3 * n as usize + k] = u_i[(3 * a + k, 0)];
             }
         }
-        for (k, &s) in self.contacts.slots.iter().enumerate() {
-            let n = self.outer[s as usize] as usize;
-            for l in 0..3 {
-                dp.forces[3 * n + l] += z[(3 * k + l, 0)];
+        for (k, site) in self.contacts.sites.iter().enumerate() {
+            for (s, w) in site.outer_terms() {
+                let n = self.outer[s as usize] as usize;
+                for l in 0..3 {
+                    dp.forces[3 * n + l] += w * z[(3 * k + l, 0)];
+                }
             }
         }
         Ok(self.fem()?.borrow_mut().solve_dofs(&dp)?.displacements)
@@ -749,13 +834,11 @@ impl RestPart {
         for (n, f) in self.forces.chunks_exact(3).enumerate() {
             m += x[n].cross(Vec3::new(f[0], f[1], f[2]));
         }
-        for (k, &s) in self.contacts.slots.iter().enumerate() {
-            let n = self.outer[s as usize] as usize;
-            m += x[n].cross(Vec3::new(
-                z[(3 * k, 0)],
-                z[(3 * k + 1, 0)],
-                z[(3 * k + 2, 0)],
-            ));
+        for (k, site) in self.contacts.sites.iter().enumerate() {
+            for (s, w) in site.outer_terms() {
+                let n = self.outer[s as usize] as usize;
+                m += x[n].cross(w * Vec3::new(z[(3 * k, 0)], z[(3 * k + 1, 0)], z[(3 * k + 2, 0)]));
+            }
         }
         m
     }
@@ -832,10 +915,17 @@ fn symmetrise(m: &mut Mat<Real>) {
 /// P_FF = A⁻¹ + E S⁻¹ Eᵀ, P_FN = −E S⁻¹ nᵀ, P_NN = n S⁻¹ nᵀ. A new direction then costs
 /// O(f²k) for f full contacts, not a factorisation of the whole block (the supports on
 /// the rest are contacts held in full: hundreds of rows).
+///
+/// `slots` names the contacts held in full (their one outer slot: the cache's key); `soft`
+/// marks a fine surface's points, whose diagonal of S is raised by `solve::lcp`'s
+/// `REGULARISATION` of its largest entry: more points pushing on one coarse triangle than
+/// its nodes have directions make S singular, and the raise picks one of the forces that
+/// hold them (the displacement is the same for all).
 fn held_inverse(
     w: &Mat<Real>,
     slots: &[u32],
     normals: &[Option<Vec3>],
+    soft: &[bool],
     cache: &mut FullInverse,
 ) -> Result<Mat<Real>, SimError> {
     let full: Vec<usize> = (0..slots.len()).filter(|&k| normals[k].is_none()).collect();
@@ -844,7 +934,8 @@ fn held_inverse(
         .collect();
     let (nf, nk) = (3 * full.len(), along.len());
     let full_slots: Vec<u32> = full.iter().map(|&k| slots[k]).collect();
-    if cache.slots != full_slots || cache.inv.nrows() != nf {
+    // A key of `NONE` (a contact held in full on a point: not made today) is never cached.
+    if cache.slots != full_slots || cache.inv.nrows() != nf || full_slots.contains(&NONE) {
         let mut a = Mat::<Real>::zeros(nf, nf);
         for (i, &ki) in full.iter().enumerate() {
             for (j, &kj) in full.iter().enumerate() {
@@ -923,6 +1014,14 @@ fn held_inverse(
         );
     }
     symmetrise(&mut s_mat);
+    if along.iter().any(|&(k, _)| soft[k]) {
+        let largest = (0..nk).map(|i| s_mat[(i, i)].abs()).fold(0.0, Real::max);
+        for (i, &(k, _)) in along.iter().enumerate() {
+            if soft[k] {
+                s_mat[(i, i)] += crate::solve::lcp::REGULARISATION * largest;
+            }
+        }
+    }
     let mut s_inv = s_mat.llt(Side::Lower).map_err(singular)?.inverse();
     symmetrise(&mut s_inv);
     // E S⁻¹ (nf × k).

@@ -254,7 +254,7 @@ fn a_contact_change_keeps_the_automatic_substep_within_the_coupled_limit() {
                 .collect(),
         };
         h.set_constraints(&c).unwrap();
-        let slots = h.rest.contact_slots().to_vec();
+        let slots = h.rest.contact_sites().to_vec();
         // (Before the first step the loads left the limit unmeasured: a full measure.)
         if let (true, Some(warm)) = (slots != last_slots, h.tm.integrator().stable_dt()) {
             changes += 1;
