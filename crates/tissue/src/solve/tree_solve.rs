@@ -246,7 +246,10 @@ pub struct TreeSolve {
     work_total: u64,
     work_top: u64,
     work_group: u64,
+    /// The plan on two threads (the top's large supernodes split), and on one (whole: the
+    /// same arithmetic on every element without the split's extra passes).
     plan: Plan,
+    serial_plan: Plan,
     avx2: bool,
 }
 
@@ -355,9 +358,11 @@ impl TreeSolve {
         let avx2 = std::is_x86_feature_detected!("avx2");
         #[cfg(not(target_arch = "x86_64"))]
         let avx2 = false;
-        let plan = Plan::new(&nodes, &groups, &top);
+        let plan = Plan::new(&nodes, &groups, &top, MIN_SPLIT);
+        let serial_plan = Plan::new(&nodes, &groups, &top, usize::MAX);
         Some(Self {
             plan,
+            serial_plan,
             nodes,
             pattern,
             groups,
@@ -404,8 +409,10 @@ impl TreeSolve {
         ((self.work_top + self.work_group) as f64) <= ratio * self.work_total as f64
     }
 
-    /// Solves L Lᵀ x = b in place (`rhs` holds b, then x) with L's `values`: the plan's
-    /// chunks on two of rayon's threads when `parallel` (the same bits either way).
+    /// Solves L Lᵀ x = b in place (`rhs` holds b, then x) with L's `values`: the split
+    /// plan's chunks on two of rayon's threads when `parallel`, the serial plan otherwise
+    /// (the same bits either way: a split supernode does each element's arithmetic in the
+    /// same order as a whole one).
     pub fn solve<V: Stored>(&mut self, values: &[V], rhs: &mut [Real], parallel: bool) {
         let Self {
             nodes,
@@ -413,6 +420,7 @@ impl TreeSolve {
             groups,
             top,
             plan,
+            serial_plan,
             avx2,
             ..
         } = self;
@@ -430,14 +438,15 @@ impl TreeSolve {
             next: AtomicUsize::new(0),
             done: AtomicUsize::new(0),
         };
-        let (plan, avx2) = (&*plan, *avx2);
+        let avx2 = *avx2;
         #[cfg(feature = "parallel")]
         if parallel {
+            let plan = &*plan;
             rayon::join(|| drive(&shared, plan, avx2), || drive(&shared, plan, avx2));
             return;
         }
-        let _ = parallel;
-        drive(&shared, plan, avx2);
+        let _ = (parallel, plan);
+        drive(&shared, serial_plan, avx2);
     }
 }
 
@@ -516,9 +525,9 @@ impl Plan {
         self.phase(vec![vec![task]]);
     }
 
-    /// Groups forward, the top forward and backward (its large supernodes split in two by
-    /// rows forward and by columns backward), groups backward.
-    fn new(nodes: &[Node], groups: &[Segment], top: &Segment) -> Self {
+    /// Groups forward, the top forward and backward (its supernodes of `min_split` values or
+    /// more split in two by rows forward and by columns backward), groups backward.
+    fn new(nodes: &[Node], groups: &[Segment], top: &Segment, min_split: usize) -> Self {
         let mut plan = Plan::default();
         plan.phase(
             (0..groups.len() as u32)
@@ -528,7 +537,7 @@ impl Plan {
         plan.serial(Task::TopGather);
         let split = |s: u32| {
             let nd = nodes[s as usize];
-            (nd.cols as usize * nd.rows as usize >= MIN_SPLIT).then_some(nd)
+            (nd.cols as usize * nd.rows as usize >= min_split).then_some(nd)
         };
         for &s in &top.nodes {
             let Some(nd) = split(s) else {
