@@ -111,11 +111,6 @@ fn the_fine_liver_pressed_on_the_dynamic_kinds_pushes_only() {
     let base = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
         .unwrap()
         .replace("../assets", &format!("{root}/assets"))
-        .replace(
-            "scale = 0.01",
-            &format!("scale = 0.01\nvisual = \"{root}/assets/meshes/liver-smooth.obj\""),
-        )
-        .replace("contact = \"sticking\"", "")
         .replace("density = 1000.0", "density = 1000.0\ndamping = 20.0");
     let dir = std::env::temp_dir().join(format!("tissue-dyn-points-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -82,6 +82,83 @@ impl MappedSurface {
         })
     }
 
+    /// The coarse surface itself with each triangle cut into n² similar ones (n ≥ 1), each
+    /// fine vertex tied to the triangle it was made on by its exact barycentric weights: a
+    /// fine contact surface lying on the coarse one, for contact on the faces as well as the
+    /// vertices (a probe then cannot pass between the coarse vertices). Corners and edge
+    /// points are shared between the triangles that meet there, so no two fine vertices
+    /// coincide. `None` when the coarse surface has no triangle or names a missing vertex.
+    pub fn subdivided(
+        coarse_rest: &[Vec3],
+        coarse_triangles: &[[u32; 3]],
+        n: usize,
+    ) -> Option<Self> {
+        if coarse_triangles.is_empty() {
+            return None;
+        }
+        let n = n.max(1);
+        let mut rest = Vec::new();
+        let (mut nodes, mut weights) = (Vec::new(), Vec::new());
+        let mut shared: std::collections::HashMap<(u32, u32, usize), u32> =
+            std::collections::HashMap::new();
+        let mut triangles = Vec::with_capacity(coarse_triangles.len() * n * n);
+        for tri in coarse_triangles {
+            let x = corners(coarse_rest, tri)?;
+            // Grid point (i, j): weights (n − i − j, i, j) / n on the corners.
+            let mut id = |i: usize, j: usize| -> u32 {
+                let w = [(n - i - j) as Real, i as Real, j as Real].map(|c| c / n as Real);
+                // A point on an edge (or a corner) is keyed by the edge's two coarse vertices
+                // in ascending order and its step from the lower one, so both triangles on
+                // the edge find it.
+                let on: Vec<usize> = (0..3).filter(|&k| w[k] > 0.0).collect();
+                let key = match on.as_slice() {
+                    [k] => Some((tri[*k], tri[*k], 0)),
+                    [a, b] => {
+                        let (a, b) = if tri[*a] < tri[*b] {
+                            (*a, *b)
+                        } else {
+                            (*b, *a)
+                        };
+                        Some((tri[a], tri[b], (w[b] * n as Real).round() as usize))
+                    }
+                    _ => None,
+                };
+                if let Some(k) = key
+                    && let Some(&v) = shared.get(&k)
+                {
+                    return v;
+                }
+                let v = rest.len() as u32;
+                rest.push(x[0] * w[0] + x[1] * w[1] + x[2] * w[2]);
+                nodes.push([tri[0], tri[1], tri[2], tri[0]]);
+                weights.push([w[0], w[1], w[2], 0.0]);
+                if let Some(k) = key {
+                    shared.insert(k, v);
+                }
+                v
+            };
+            let mut grid = vec![vec![0u32; n + 1]; n + 1];
+            for (i, row) in grid.iter_mut().enumerate() {
+                for (j, g) in row.iter_mut().enumerate().take(n + 1 - i) {
+                    *g = id(i, j);
+                }
+            }
+            for i in 0..n {
+                for j in 0..n - i {
+                    triangles.push([grid[i][j], grid[i + 1][j], grid[i][j + 1]]);
+                    if j + 1 < n - i {
+                        triangles.push([grid[i + 1][j], grid[i + 1][j + 1], grid[i][j + 1]]);
+                    }
+                }
+            }
+        }
+        Some(Self {
+            rest,
+            triangles,
+            mapping: SurfaceMapping::Embedded { nodes, weights },
+        })
+    }
+
     /// Number of fine vertices.
     pub fn len(&self) -> usize {
         self.rest.len()
@@ -183,5 +260,47 @@ mod tests {
         m.mapping.apply_transpose(&f, &mut g);
         let total: Vec3 = g.iter().copied().sum();
         assert!(total.distance(Vec3::Z + Vec3::X - Vec3::Y) < 1e-15);
+    }
+
+    #[test]
+    fn a_subdivided_surface_lies_on_the_coarse_one_and_shares_its_edges() {
+        // A tetrahedron's four faces (outward), each cut into 3² = 9.
+        let coarse = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        let tris = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let n = 3;
+        let m = MappedSurface::subdivided(&coarse, &tris, n).unwrap();
+        // V + E (n − 1) + F (n − 1)(n − 2)/2 distinct vertices: no two coincide.
+        assert_eq!(m.len(), 4 + 6 * (n - 1) + 4 * (n - 1) * (n - 2) / 2);
+        for (a, p) in m.rest.iter().enumerate() {
+            for q in &m.rest[a + 1..] {
+                assert!(p.distance(*q) > 1e-9);
+            }
+        }
+        assert_eq!(m.triangles.len(), 4 * n * n);
+        // The same enclosed volume and area vector per coarse face: the fine triangles tile
+        // the coarse ones with their orientation.
+        let volume = |x: &[Vec3], t: &[[u32; 3]]| -> Real {
+            t.iter()
+                .map(|t| x[t[0] as usize].dot(x[t[1] as usize].cross(x[t[2] as usize])) / 6.0)
+                .sum()
+        };
+        assert!((volume(&m.rest, &m.triangles) - volume(&coarse, &tris)).abs() < 1e-15);
+        // Each fine vertex is where its weights put it, and moves with the coarse surface.
+        let moved: Vec<Vec3> = coarse
+            .iter()
+            .map(|p| *p * 1.5 + Vec3::new(0.1, 0.0, -0.2))
+            .collect();
+        let mut out = Vec::new();
+        m.positions(&coarse, &moved, &mut out);
+        for (j, (o, r)) in out.iter().zip(&m.rest).enumerate() {
+            let (v, w) = m.tie(j).unwrap();
+            let at: Vec3 = (0..3).map(|k| coarse[v[k] as usize] * w[k]).sum();
+            assert!(at.distance(*r) < 1e-15);
+            assert!(o.distance(*r * 1.5 + Vec3::new(0.1, 0.0, -0.2)) < 1e-14);
+        }
+        // n = 1 is the coarse surface itself.
+        let same = MappedSurface::subdivided(&coarse, &tris, 1).unwrap();
+        assert_eq!(same.rest, coarse);
+        assert!(MappedSurface::subdivided(&coarse, &[], 2).is_none());
     }
 }
