@@ -414,6 +414,16 @@ impl SparseCholesky {
         (self.tree.is_some(), self.parallel)
     }
 
+    /// The tree solve's top supernodes (columns, rows), if it is used.
+    pub fn tree_top_shape(&self) -> Option<Vec<(u32, u32)>> {
+        self.tree.as_ref().map(TreeSolve::top_shape)
+    }
+
+    /// How many of the tree solve's top supernodes are split between two threads.
+    pub fn tree_split_supernodes(&self) -> usize {
+        self.tree.as_ref().map_or(0, TreeSolve::split_supernodes)
+    }
+
     /// The tree solve's work estimates (whole, serial top, largest group), if it is used.
     pub fn tree_work(&self) -> Option<(u64, u64, u64)> {
         self.tree.as_ref().map(TreeSolve::work)
@@ -947,7 +957,9 @@ mod tests {
             top + group < total * 3 / 4,
             "chain, ND: {top} + {group} of {total}"
         );
-        // A 3-D grid both ways: nested dissection splits under its top separator.
+        // A 3-D grid both ways: nested dissection splits under its top separator. Their top
+        // supernodes are large enough to be split between the threads themselves (forward
+        // by rows in panels, backward by columns), so those paths are checked too.
         let (p, positions) = cube(10);
         let (total, top, group) =
             check_tree(&p, &positions, Ordering::NestedDissection, "grid, ND");
@@ -956,6 +968,14 @@ mod tests {
             "grid, ND: {top} + {group} of {total}"
         );
         check_tree(&p, &positions, Ordering::Amd, "grid, AMD");
+        for ordering in [Ordering::NestedDissection, Ordering::Amd] {
+            let chol = supernodal(&p, &positions, ordering);
+            assert!(
+                chol.tree_split_supernodes() > 0,
+                "grid, {ordering:?}: no top supernode split: {:?}",
+                chol.tree_top_shape()
+            );
+        }
         // Two nodes (one supernode), and a dense matrix: a tree that does not split.
         let tiny = BlockPattern::from_elements(2, 3, &[0, 1], 2);
         check_tree(&tiny, &[], Ordering::Amd, "tiny");
@@ -1030,6 +1050,7 @@ mod tests {
                     }
                 }
                 let (total, top, group) = chol.tree_work().unwrap_or_default();
+                println!("top: {:?}", chol.tree_top_shape());
                 println!(
                     "{size} beam, {} unknowns, {ordering:?}{}: factor {} values, supernodal {}, \
                      work top {:.3} largest group {:.3}; solve faer {:.1} us, tree 1 thread \

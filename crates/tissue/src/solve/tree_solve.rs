@@ -30,6 +30,8 @@
 // Supernode tables are read at one index across several arrays: explicit indices read clearest.
 #![allow(clippy::needless_range_loop)]
 
+use std::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
+
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 
 use crate::math::Real;
@@ -244,6 +246,10 @@ pub struct TreeSolve {
     work_total: u64,
     work_top: u64,
     work_group: u64,
+    /// The plan on two threads (the top's large supernodes split), and on one (whole: the
+    /// same arithmetic on every element without the split's extra passes).
+    plan: Plan,
+    serial_plan: Plan,
     avx2: bool,
 }
 
@@ -352,7 +358,11 @@ impl TreeSolve {
         let avx2 = std::is_x86_feature_detected!("avx2");
         #[cfg(not(target_arch = "x86_64"))]
         let avx2 = false;
+        let plan = Plan::new(&nodes, &groups, &top, MIN_SPLIT);
+        let serial_plan = Plan::new(&nodes, &groups, &top, usize::MAX);
         Some(Self {
+            plan,
+            serial_plan,
             nodes,
             pattern,
             groups,
@@ -369,6 +379,25 @@ impl TreeSolve {
         })
     }
 
+    /// The top's supernodes (columns, rows), children first: what the serial top is made of.
+    pub fn top_shape(&self) -> Vec<(u32, u32)> {
+        self.top
+            .nodes
+            .iter()
+            .map(|&s| (self.nodes[s as usize].cols, self.nodes[s as usize].rows))
+            .collect()
+    }
+
+    /// How many of the top's supernodes are split between the two threads.
+    pub fn split_supernodes(&self) -> usize {
+        self.plan
+            .chunks
+            .iter()
+            .flatten()
+            .filter(|t| matches!(t, Task::BackGather(_)))
+            .count()
+    }
+
     /// Work estimates: the whole solve, its serial top, its largest group.
     pub fn work(&self) -> (u64, u64, u64) {
         (self.work_total, self.work_top, self.work_group)
@@ -380,58 +409,397 @@ impl TreeSolve {
         ((self.work_top + self.work_group) as f64) <= ratio * self.work_total as f64
     }
 
-    /// Solves L Lᵀ x = b in place (`rhs` holds b, then x) with L's `values`, the groups on
-    /// rayon's threads when `parallel` (the same bits either way).
+    /// Solves L Lᵀ x = b in place (`rhs` holds b, then x) with L's `values`: the split
+    /// plan's chunks on two of rayon's threads when `parallel`, the serial plan otherwise
+    /// (the same bits either way: a split supernode does each element's arithmetic in the
+    /// same order as a whole one).
     pub fn solve<V: Stored>(&mut self, values: &[V], rhs: &mut [Real], parallel: bool) {
         let Self {
             nodes,
             pattern,
             groups,
             top,
+            plan,
+            serial_plan,
             avx2,
             ..
         } = self;
-        let (nodes, pattern, avx2) = (&*nodes, &*pattern, *avx2);
-        let b: &[Real] = rhs;
-        for (x, &o) in top.x.iter_mut().zip(&top.orig) {
-            *x = b[o as usize];
+        let shared = Shared {
+            nodes,
+            pattern,
+            l: values,
+            groups: groups.as_mut_ptr(),
+            top_x: top.x.as_mut_ptr(),
+            top_w: top.work.as_mut_ptr(),
+            top_orig: &top.orig,
+            top_len: (top.x.len(), top.work.len()),
+            rhs: rhs.as_mut_ptr(),
+            n: rhs.len(),
+            next: AtomicUsize::new(0),
+            done: AtomicUsize::new(0),
+        };
+        let avx2 = *avx2;
+        #[cfg(feature = "parallel")]
+        if parallel {
+            let plan = &*plan;
+            rayon::join(|| drive(&shared, plan, avx2), || drive(&shared, plan, avx2));
+            return;
         }
-        each(groups, parallel, |g| {
-            for (x, &o) in g.x.iter_mut().zip(&g.orig) {
-                *x = b[o as usize];
-            }
-            g.up.fill(0.0);
-            forward(g, nodes, pattern, values, avx2);
-        });
-        for g in groups.iter() {
-            for (x, u) in top.x.iter_mut().zip(&g.up) {
-                *x += u;
-            }
-        }
-        forward(top, nodes, pattern, values, avx2);
-        backward(top, &[], nodes, pattern, values, avx2);
-        let top_x = &top.x;
-        each(groups, parallel, |g| {
-            backward(g, top_x, nodes, pattern, values, avx2)
-        });
-        for segment in groups.iter().chain(std::iter::once(&*top)) {
-            for (&x, &o) in segment.x.iter().zip(&segment.orig) {
-                rhs[o as usize] = x;
-            }
-        }
+        let _ = (parallel, plan);
+        drive(&shared, serial_plan, avx2);
     }
 }
 
-/// `f` on every group: on rayon's threads when `parallel` (and the feature is on).
-fn each(groups: &mut [Segment], parallel: bool, f: impl Fn(&mut Segment) + Send + Sync) {
-    #[cfg(feature = "parallel")]
-    if parallel {
-        use rayon::prelude::*;
-        groups.par_iter_mut().for_each(f);
-        return;
+/// Below this many values (columns × rows) a top supernode is solved by one thread: the
+/// split's two waits cost about a microsecond, the work of this many values a few.
+const MIN_SPLIT: usize = 16_384;
+
+/// Columns per panel of a split supernode's forward triangle: the panel's own triangle is
+/// serial, the rows below it are split.
+const PANEL: usize = 64;
+
+/// One piece of a solve's work. Chunks of one phase are independent; a phase starts when
+/// every chunk before it has finished.
+#[derive(Clone, Copy, Debug)]
+enum Task {
+    /// A group's forward solve (gathered from b, its updates to the top in its buffer).
+    GroupForward(u32),
+    /// The top's unknowns gathered from b, the groups' updates added in group order.
+    TopGather,
+    /// A small top supernode's forward solve, whole.
+    NodeForward(u32),
+    /// A split top supernode's forward triangle on columns (and rows) `a..b` (at `a` = 0,
+    /// its columns copied in first).
+    PanelTriangle { s: u32, a: u32, b: u32 },
+    /// Rows `lo..hi` (all below `b`) of a split top supernode updated by columns `a..b`;
+    /// after its last panel, the rows below the triangle scattered into the top's unknowns.
+    PanelRows {
+        s: u32,
+        a: u32,
+        b: u32,
+        lo: u32,
+        hi: u32,
+    },
+    /// A small top supernode's backward solve, whole.
+    NodeBackward(u32),
+    /// A split top supernode's columns and rows gathered for its backward solve.
+    BackGather(u32),
+    /// Columns `c0..c1` of a split top supernode: the dots with the rows below the triangle.
+    BackRect { s: u32, c0: u32, c1: u32 },
+    /// A split top supernode's backward triangle, its columns written back.
+    BackTriangle(u32),
+    /// A group's backward solve, scattered into x.
+    GroupBackward(u32),
+    /// The top's unknowns scattered into x.
+    TopScatter,
+}
+
+/// The solve as phases of chunks of tasks, fixed by the factor's structure.
+#[derive(Clone, Debug, Default)]
+struct Plan {
+    chunks: Vec<Vec<Task>>,
+    /// Per chunk: the index of its phase's first chunk (what must have finished before it).
+    needs: Vec<usize>,
+}
+
+impl Plan {
+    /// A phase of `chunks` independent chunks; a phase of one chunk joins a serial phase just
+    /// before it.
+    fn phase(&mut self, chunks: Vec<Vec<Task>>) {
+        let alone = self.needs.last() == Some(&(self.chunks.len().wrapping_sub(1)));
+        if let [one] = chunks.as_slice()
+            && alone
+            && let Some(last) = self.chunks.last_mut()
+        {
+            last.extend_from_slice(one);
+            return;
+        }
+        let first = self.chunks.len();
+        for c in chunks {
+            self.chunks.push(c);
+            self.needs.push(first);
+        }
     }
-    let _ = parallel;
-    groups.iter_mut().for_each(f);
+
+    fn serial(&mut self, task: Task) {
+        self.phase(vec![vec![task]]);
+    }
+
+    /// Groups forward, the top forward and backward (its supernodes of `min_split` values or
+    /// more split in two by rows forward and by columns backward), groups backward.
+    fn new(nodes: &[Node], groups: &[Segment], top: &Segment, min_split: usize) -> Self {
+        let mut plan = Plan::default();
+        plan.phase(
+            (0..groups.len() as u32)
+                .map(|g| vec![Task::GroupForward(g)])
+                .collect(),
+        );
+        plan.serial(Task::TopGather);
+        let split = |s: u32| {
+            let nd = nodes[s as usize];
+            (nd.cols as usize * nd.rows as usize >= min_split).then_some(nd)
+        };
+        for &s in &top.nodes {
+            let Some(nd) = split(s) else {
+                plan.serial(Task::NodeForward(s));
+                continue;
+            };
+            let (nc, nr) = (nd.cols as usize, nd.rows as usize);
+            for a in (0..nc).step_by(PANEL) {
+                let b = (a + PANEL).min(nc);
+                plan.serial(Task::PanelTriangle {
+                    s,
+                    a: a as u32,
+                    b: b as u32,
+                });
+                if b < nr {
+                    // Halves on a multiple of 8 rows from b: whole vector steps.
+                    let mid = (b + (nr - b) / 2 / 8 * 8).max(b);
+                    let rows = |lo: usize, hi: usize| {
+                        vec![Task::PanelRows {
+                            s,
+                            a: a as u32,
+                            b: b as u32,
+                            lo: lo as u32,
+                            hi: hi as u32,
+                        }]
+                    };
+                    plan.phase(vec![rows(b, mid), rows(mid, nr)]);
+                }
+            }
+        }
+        for &s in top.nodes.iter().rev() {
+            let Some(nd) = split(s) else {
+                plan.serial(Task::NodeBackward(s));
+                continue;
+            };
+            let nc = nd.cols;
+            plan.serial(Task::BackGather(s));
+            if nd.rows > nc {
+                let mid = nc / 2;
+                plan.phase(vec![
+                    vec![Task::BackRect { s, c0: 0, c1: mid }],
+                    vec![Task::BackRect { s, c0: mid, c1: nc }],
+                ]);
+            }
+            plan.serial(Task::BackTriangle(s));
+        }
+        let mut last: Vec<Vec<Task>> = (0..groups.len() as u32)
+            .map(|g| vec![Task::GroupBackward(g)])
+            .collect();
+        last.push(vec![Task::TopScatter]);
+        plan.phase(last);
+        plan
+    }
+}
+
+/// What the chunks share while a solve runs: the factor, and raw pointers to the segments'
+/// vectors and x, which the plan's phases hand out so that no two running chunks write the
+/// same element (or read one the other writes).
+struct Shared<'a, V> {
+    nodes: &'a [Node],
+    pattern: &'a [u32],
+    l: &'a [V],
+    groups: *mut Segment,
+    /// The top's unknowns and work vector (lengths `top_len`), and its rows' originals.
+    top_x: *mut Real,
+    top_w: *mut Real,
+    top_orig: &'a [u32],
+    top_len: (usize, usize),
+    rhs: *mut Real,
+    n: usize,
+    /// The next chunk to claim, and how many have finished.
+    next: AtomicUsize,
+    done: AtomicUsize,
+}
+
+// SAFETY: the raw pointers are only dereferenced by chunks, and the plan's phases keep
+// concurrently running chunks on disjoint elements (see `run`).
+unsafe impl<V: Sync> Sync for Shared<'_, V> {}
+
+/// Claims chunks in order until none is left, each run once every chunk of the phases
+/// before it has finished. With one thread this is the plan in order; with two, whichever
+/// thread is free takes the next chunk, so a helper that starts late only takes less.
+fn drive<V: Stored>(sh: &Shared<'_, V>, plan: &Plan, avx2: bool) {
+    loop {
+        let c = sh.next.fetch_add(1, AtomicOrdering::Relaxed);
+        let Some(chunk) = plan.chunks.get(c) else {
+            return;
+        };
+        let mut spins = 0u32;
+        // Chunks are claimed in order, so the chunks this one waits for are being run.
+        while sh.done.load(AtomicOrdering::Acquire) < plan.needs[c] {
+            spins += 1;
+            if spins < 1 << 14 {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
+        }
+        for &task in chunk {
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: `avx2` was detected on this CPU; the phases (see `run`).
+                unsafe { run_avx2(sh, task) };
+                continue;
+            }
+            let _ = avx2;
+            // SAFETY: the phases (see `run`).
+            unsafe { run::<V, false>(sh, task) };
+        }
+        sh.done.fetch_add(1, AtomicOrdering::AcqRel);
+    }
+}
+
+/// # Safety
+/// The CPU must support AVX2; as `run`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn run_avx2<V: Stored>(sh: &Shared<'_, V>, task: Task) {
+    // SAFETY: the caller's contract.
+    unsafe { run::<V, true>(sh, task) }
+}
+
+/// One task. The plan runs a task touching a segment's vectors as a whole (`GroupForward`,
+/// `TopGather`, `NodeForward`, `PanelTriangle`, `BackGather`, `BackTriangle`,
+/// `GroupBackward`) alone or beside tasks of other segments; the two `PanelRows` of a phase
+/// write the top's work rows `lo..hi` (disjoint, below the panel's columns, which they
+/// read) and scatter to distinct unknowns of the top (a supernode's rows are distinct); the
+/// two `BackRect` write columns `c0..c1` (disjoint) and read the rows below the triangle.
+///
+/// # Safety
+/// Only as the plan's phases run it, with `AVX2` only when the CPU supports it.
+#[inline(always)]
+unsafe fn run<V: Stored, const AVX2: bool>(sh: &Shared<'_, V>, task: Task) {
+    let (nodes, pattern, l) = (sh.nodes, sh.pattern, sh.l);
+    // SAFETY (every block below): the phases, as above; the segments' vectors are not
+    // resized while a solve runs, and `rhs` is `n` long.
+    unsafe {
+        let top_x = || std::slice::from_raw_parts_mut(sh.top_x, sh.top_len.0);
+        let top_w = || std::slice::from_raw_parts_mut(sh.top_w, sh.top_len.1);
+        let b = || std::slice::from_raw_parts(sh.rhs, sh.n);
+        match task {
+            Task::GroupForward(g) => {
+                let g = &mut *sh.groups.add(g as usize);
+                for (x, &o) in g.x.iter_mut().zip(&g.orig) {
+                    *x = b()[o as usize];
+                }
+                g.up.fill(0.0);
+                forward_body(g, nodes, pattern, l);
+            }
+            Task::TopGather => {
+                let x = top_x();
+                for (x, &o) in x.iter_mut().zip(sh.top_orig) {
+                    *x = b()[o as usize];
+                }
+                for gi in 0..GROUPS {
+                    let g = &*sh.groups.add(gi);
+                    for (x, u) in x.iter_mut().zip(&g.up) {
+                        *x += u;
+                    }
+                }
+            }
+            Task::NodeForward(s) => {
+                forward_node(nodes[s as usize], top_x(), top_w(), &mut [], pattern, l);
+            }
+            Task::PanelTriangle { s, a, b } => {
+                let (x, work) = (top_x(), top_w());
+                let nd = nodes[s as usize];
+                let (nr, at, ld) = (nd.rows as usize, nd.local as usize, nd.ld as usize);
+                let (a, b) = (a as usize, b as usize);
+                let nc = nd.cols as usize;
+                let w = &mut work[..nr];
+                if a == 0 {
+                    w[..nc].copy_from_slice(&x[at..at + nc]);
+                    w[nc..].fill(0.0);
+                }
+                for j in a..b {
+                    let col = &l[nd.val + j * ld..nd.val + j * ld + b];
+                    let wj = w[j] / col[j].widen();
+                    w[j] = wj;
+                    for (wi, ci) in w[j + 1..b].iter_mut().zip(&col[j + 1..]) {
+                        *wi -= ci.widen() * wj;
+                    }
+                }
+                x[at + a..at + b].copy_from_slice(&w[a..b]);
+            }
+            Task::PanelRows { s, a, b, lo, hi } => {
+                let nd = nodes[s as usize];
+                let (nc, ld) = (nd.cols as usize, nd.ld as usize);
+                let (a, b, lo, hi) = (a as usize, b as usize, lo as usize, hi as usize);
+                let panel = std::slice::from_raw_parts(sh.top_w.add(a), b - a);
+                let rows = std::slice::from_raw_parts_mut(sh.top_w.add(lo), hi - lo);
+                for (k, &wj) in panel.iter().enumerate() {
+                    let j = a + k;
+                    let col = &l[nd.val + j * ld + lo..nd.val + j * ld + hi];
+                    for (wi, ci) in rows.iter_mut().zip(col) {
+                        *wi -= ci.widen() * wj;
+                    }
+                }
+                if b == nc {
+                    let first = lo.max(nc);
+                    let rows_at = &pattern[nd.pat + first - nc..nd.pat + hi - nc];
+                    for (&r, &v) in rows_at.iter().zip(&rows[first - lo..]) {
+                        *sh.top_x.add(r as usize) += v;
+                    }
+                }
+            }
+            Task::NodeBackward(s) => {
+                backward_node::<V, AVX2>(nodes[s as usize], top_x(), &[], top_w(), pattern, l);
+            }
+            Task::BackGather(s) => {
+                let (x, work) = (top_x(), top_w());
+                let nd = nodes[s as usize];
+                let (nc, nr, at) = (nd.cols as usize, nd.rows as usize, nd.local as usize);
+                let w = &mut work[..nr];
+                w[..nc].copy_from_slice(&x[at..at + nc]);
+                for (wi, &r) in w[nc..].iter_mut().zip(&pattern[nd.pat..nd.pat + nr - nc]) {
+                    *wi = x[r as usize];
+                }
+            }
+            Task::BackRect { s, c0, c1 } => {
+                let nd = nodes[s as usize];
+                let (nc, nr, ld) = (nd.cols as usize, nd.rows as usize, nd.ld as usize);
+                let w_rows = std::slice::from_raw_parts(sh.top_w.add(nc), nr - nc);
+                let cols =
+                    std::slice::from_raw_parts_mut(sh.top_w.add(c0 as usize), (c1 - c0) as usize);
+                for (k, wj) in cols.iter_mut().enumerate() {
+                    let at = nd.val + (c0 as usize + k) * ld;
+                    *wj -= dot_for::<V, AVX2>(&l[at + nc..at + nr], w_rows);
+                }
+            }
+            Task::BackTriangle(s) => {
+                let (x, work) = (top_x(), top_w());
+                let nd = nodes[s as usize];
+                let (nc, at, ld) = (nd.cols as usize, nd.local as usize, nd.ld as usize);
+                let w = &mut work[..nc];
+                back_triangle::<V, AVX2>(&l[nd.val..], ld, w);
+                x[at..at + nc].copy_from_slice(w);
+            }
+            Task::GroupBackward(g) => {
+                let g = &mut *sh.groups.add(g as usize);
+                let tx: &[Real] = top_x();
+                for &s in g.nodes.iter().rev() {
+                    backward_node::<V, AVX2>(
+                        nodes[s as usize],
+                        &mut g.x,
+                        tx,
+                        &mut g.work,
+                        pattern,
+                        l,
+                    );
+                }
+                for (&x, &o) in g.x.iter().zip(&g.orig) {
+                    *sh.rhs.add(o as usize) = x;
+                }
+            }
+            Task::TopScatter => {
+                for (&x, &o) in top_x().iter().zip(sh.top_orig) {
+                    *sh.rhs.add(o as usize) = x;
+                }
+            }
+        }
+    }
 }
 
 /// The chosen cut: the frontier's subtree roots with their group, and the work of the top
@@ -511,59 +879,8 @@ fn deal(frontier: &[usize], sub: &[u64], top: u64) -> Split {
     }
 }
 
-/// The forward solve through a segment's supernodes: their columns in `seg.x`, their
-/// updates to rows of the same segment into `seg.x` and to the top's rows into `seg.up`.
-fn forward<V: Stored>(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[V], avx2: bool) {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: `avx2` was detected on this CPU.
-        return unsafe { forward_avx2(seg, nodes, pattern, l) };
-    }
-    let _ = avx2;
-    forward_body(seg, nodes, pattern, l);
-}
-
-/// The backward solve through a segment's supernodes (descending), reading the top's
-/// unknowns from `top_x`.
-fn backward<V: Stored>(
-    seg: &mut Segment,
-    top_x: &[Real],
-    nodes: &[Node],
-    pattern: &[u32],
-    l: &[V],
-    avx2: bool,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: `avx2` was detected on this CPU.
-        return unsafe { backward_avx2(seg, top_x, nodes, pattern, l) };
-    }
-    let _ = avx2;
-    backward_body::<V, false>(seg, top_x, nodes, pattern, l);
-}
-
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn forward_avx2<V: Stored>(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[V]) {
-    forward_body(seg, nodes, pattern, l);
-}
-
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn backward_avx2<V: Stored>(
-    seg: &mut Segment,
-    top_x: &[Real],
-    nodes: &[Node],
-    pattern: &[u32],
-    l: &[V],
-) {
-    backward_body::<V, true>(seg, top_x, nodes, pattern, l);
-}
-
+/// The forward solve through a group's supernodes: their columns in `seg.x`, their
+/// updates to rows of the same group into `seg.x` and to the top's rows into `seg.up`.
 #[inline(always)]
 fn forward_body<V: Stored>(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l: &[V]) {
     let Segment {
@@ -574,78 +891,92 @@ fn forward_body<V: Stored>(seg: &mut Segment, nodes: &[Node], pattern: &[u32], l
         ..
     } = seg;
     for &s in list.iter() {
-        let nd = nodes[s as usize];
-        let (nc, nr, at) = (nd.cols as usize, nd.rows as usize, nd.local as usize);
-        let ld = nd.ld as usize;
-        let block = &l[nd.val..nd.val + (nc - 1) * ld + nr];
-        let w = &mut work[..nr];
-        w[..nc].copy_from_slice(&x[at..at + nc]);
-        w[nc..].fill(0.0);
-        for j in 0..nc {
-            let col = &block[j * ld..j * ld + nr];
-            let wj = w[j] / col[j].widen();
-            w[j] = wj;
-            for (wi, ci) in w[j + 1..].iter_mut().zip(&col[j + 1..]) {
-                *wi -= ci.widen() * wj;
-            }
-        }
-        x[at..at + nc].copy_from_slice(&w[..nc]);
-        let (own, rest) = pattern[nd.pat..nd.pat + nr - nc].split_at(nd.own as usize);
-        let (w_own, w_rest) = w[nc..].split_at(nd.own as usize);
-        for (&r, &v) in own.iter().zip(w_own) {
-            x[r as usize] += v;
-        }
-        for (&r, &v) in rest.iter().zip(w_rest) {
-            up[r as usize] += v;
-        }
+        forward_node(nodes[s as usize], x, work, up, pattern, l);
     }
 }
 
-/// `AVX2`: compiled for AVX2 (`backward_avx2`), whose dot products use its intrinsics.
+/// One supernode's forward solve: its columns in `x`, its updates to rows of its own
+/// segment into `x` and to the top's rows into `up`.
 #[inline(always)]
-fn backward_body<V: Stored, const AVX2: bool>(
-    seg: &mut Segment,
-    top_x: &[Real],
-    nodes: &[Node],
+fn forward_node<V: Stored>(
+    nd: Node,
+    x: &mut [Real],
+    work: &mut [Real],
+    up: &mut [Real],
     pattern: &[u32],
     l: &[V],
 ) {
-    let Segment {
-        nodes: list,
-        x,
-        work,
-        ..
-    } = seg;
-    for &s in list.iter().rev() {
-        let nd = nodes[s as usize];
-        let (nc, nr, at) = (nd.cols as usize, nd.rows as usize, nd.local as usize);
-        let ld = nd.ld as usize;
-        let block = &l[nd.val..nd.val + (nc - 1) * ld + nr];
-        let w = &mut work[..nr];
-        w[..nc].copy_from_slice(&x[at..at + nc]);
-        let (own, rest) = pattern[nd.pat..nd.pat + nr - nc].split_at(nd.own as usize);
-        let (w_own, w_rest) = w[nc..].split_at_mut(nd.own as usize);
-        for (wi, &r) in w_own.iter_mut().zip(own) {
-            *wi = x[r as usize];
+    let (nc, nr, at) = (nd.cols as usize, nd.rows as usize, nd.local as usize);
+    let ld = nd.ld as usize;
+    let block = &l[nd.val..nd.val + (nc - 1) * ld + nr];
+    let w = &mut work[..nr];
+    w[..nc].copy_from_slice(&x[at..at + nc]);
+    w[nc..].fill(0.0);
+    for j in 0..nc {
+        let col = &block[j * ld..j * ld + nr];
+        let wj = w[j] / col[j].widen();
+        w[j] = wj;
+        for (wi, ci) in w[j + 1..].iter_mut().zip(&col[j + 1..]) {
+            *wi -= ci.widen() * wj;
         }
-        for (wi, &r) in w_rest.iter_mut().zip(rest) {
-            *wi = top_x[r as usize];
-        }
-        // The rows below the triangle first, columns in memory order: the bulk of most
-        // supernodes, read forward as the hardware prefetcher expects (a column-by-column
-        // sweep from the last column read the block backwards and took twice the forward
-        // solve's time on the 20k beam).
-        let (w_top, w_rows) = w.split_at_mut(nc);
-        for (j, wj) in w_top.iter_mut().enumerate() {
-            *wj -= dot_for::<V, AVX2>(&block[j * ld + nc..j * ld + nr], w_rows);
-        }
-        // Then the triangle, last column first.
-        for j in (0..nc).rev() {
-            let col = &block[j * ld..j * ld + nc];
-            let d = dot_for::<V, AVX2>(&col[j + 1..], &w[j + 1..nc]);
-            w[j] = (w[j] - d) / col[j].widen();
-        }
-        x[at..at + nc].copy_from_slice(&w[..nc]);
+    }
+    x[at..at + nc].copy_from_slice(&w[..nc]);
+    let (own, rest) = pattern[nd.pat..nd.pat + nr - nc].split_at(nd.own as usize);
+    let (w_own, w_rest) = w[nc..].split_at(nd.own as usize);
+    for (&r, &v) in own.iter().zip(w_own) {
+        x[r as usize] += v;
+    }
+    for (&r, &v) in rest.iter().zip(w_rest) {
+        up[r as usize] += v;
+    }
+}
+
+/// One supernode's backward solve, reading its own segment's unknowns from `x` and the
+/// top's from `top_x`. `AVX2`: compiled for AVX2 (`run_avx2`), whose dot products use its
+/// intrinsics.
+#[inline(always)]
+fn backward_node<V: Stored, const AVX2: bool>(
+    nd: Node,
+    x: &mut [Real],
+    top_x: &[Real],
+    work: &mut [Real],
+    pattern: &[u32],
+    l: &[V],
+) {
+    let (nc, nr, at) = (nd.cols as usize, nd.rows as usize, nd.local as usize);
+    let ld = nd.ld as usize;
+    let block = &l[nd.val..nd.val + (nc - 1) * ld + nr];
+    let w = &mut work[..nr];
+    w[..nc].copy_from_slice(&x[at..at + nc]);
+    let (own, rest) = pattern[nd.pat..nd.pat + nr - nc].split_at(nd.own as usize);
+    let (w_own, w_rest) = w[nc..].split_at_mut(nd.own as usize);
+    for (wi, &r) in w_own.iter_mut().zip(own) {
+        *wi = x[r as usize];
+    }
+    for (wi, &r) in w_rest.iter_mut().zip(rest) {
+        *wi = top_x[r as usize];
+    }
+    // The rows below the triangle first, columns in memory order: the bulk of most
+    // supernodes, read forward as the hardware prefetcher expects (a column-by-column
+    // sweep from the last column read the block backwards and took twice the forward
+    // solve's time on the 20k beam).
+    let (w_top, w_rows) = w.split_at_mut(nc);
+    for (j, wj) in w_top.iter_mut().enumerate() {
+        *wj -= dot_for::<V, AVX2>(&block[j * ld + nc..j * ld + nr], w_rows);
+    }
+    back_triangle::<V, AVX2>(block, ld, w_top);
+    x[at..at + nc].copy_from_slice(w_top);
+}
+
+/// The backward triangle of a supernode whose block starts `block` (columns `ld` apart),
+/// on its columns' unknowns `w` (the rows below already subtracted), last column first.
+#[inline(always)]
+fn back_triangle<V: Stored, const AVX2: bool>(block: &[V], ld: usize, w: &mut [Real]) {
+    let nc = w.len();
+    for j in (0..nc).rev() {
+        let col = &block[j * ld..j * ld + nc];
+        let d = dot_for::<V, AVX2>(&col[j + 1..], &w[j + 1..nc]);
+        w[j] = (w[j] - d) / col[j].widen();
     }
 }
 
@@ -654,7 +985,7 @@ fn backward_body<V: Stored, const AVX2: bool>(
 fn dot_for<V: Stored, const AVX2: bool>(a: &[V], b: &[Real]) -> Real {
     #[cfg(target_arch = "x86_64")]
     if AVX2 {
-        // SAFETY: only `backward_avx2`, called when AVX2 was detected, passes `AVX2`.
+        // SAFETY: only `run_avx2`, called when AVX2 was detected, passes `AVX2`.
         return unsafe { dot_avx2(a, b) };
     }
     dot(a, b)

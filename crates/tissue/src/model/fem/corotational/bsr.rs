@@ -49,6 +49,11 @@ pub struct BlockStiffness {
     /// and adds them in the order the serial one scatters them.
     term_start: Vec<u32>,
     terms: Vec<u32>,
+    /// The product's two parts (`apply`): rows `..split` and `split..` (0: one part, on
+    /// meshes too small for a second thread to pay). The first part's transposed blocks
+    /// reach rows `split..spill_end` of the second.
+    split: usize,
+    spill_end: usize,
 }
 
 impl BlockStiffness {
@@ -108,7 +113,24 @@ impl BlockStiffness {
                 }
             }
         }
+        // Split where half the blocks are above: a fixed choice of the structure, so the
+        // product's bits do not depend on the thread count.
+        let split = if elements.len() >= super::force::PARALLEL_MIN_ELEMENTS {
+            row_start
+                .partition_point(|&s| 2 * s < cols.len())
+                .min(nodes)
+        } else {
+            0
+        };
+        let spill_end = cols[..row_start[split]]
+            .iter()
+            .map(|&c| c as usize + 1)
+            .max()
+            .unwrap_or(split)
+            .max(split);
         Self {
+            split,
+            spill_end,
             blocks: vec![[0.0; 9]; cols.len()],
             row_start,
             cols,
@@ -223,9 +245,68 @@ impl BlockStiffness {
     }
 
     /// y = c_m m z + c_k K z per node (flat z, y; `masses` per node).
+    ///
+    /// Each stored block adds to its own row and (off the diagonal) its transpose to its
+    /// column's row, so a row's sum runs over the rows before it. On large meshes the rows
+    /// are cut in two parts at `split`: the first part's transposed blocks that reach the
+    /// second go into a buffer of their own, added to those rows after the second part has
+    /// summed its own; the parts run on two of rayon's threads when there are several, in
+    /// turn otherwise, with the same arithmetic: the same bits on any number of threads.
     pub fn apply(&self, cm: Real, ck: Real, masses: &[Real], z: &[Real], y: &mut [Real]) {
+        let (n, split) = (self.row_start.len() - 1, self.split);
+        if split == 0 {
+            self.rows(0..n, z, y, 0, &mut []);
+            mass_term(cm, ck, masses, z, y);
+            return;
+        }
+        let (y0, y1) = y.split_at_mut(3 * split);
+        let mut spill = vec![0.0; 3 * (self.spill_end - split)];
+        let (z0, z1) = z.split_at(3 * split);
+        let (m0, m1) = masses.split_at(split);
+        let settled = 3 * (self.spill_end - split);
+        let mut first = || {
+            self.rows(0..split, z, y0, 0, &mut spill);
+            mass_term(cm, ck, m0, z0, y0);
+        };
+        let mut second = || {
+            self.rows(split..n, z, y1, split, &mut []);
+            let at = settled.min(y1.len());
+            mass_term(cm, ck, &m1[at / 3..], &z1[at..], &mut y1[at..]);
+        };
+        #[cfg(feature = "parallel")]
+        if rayon::current_num_threads() > 1 {
+            rayon::join(first, second);
+        } else {
+            first();
+            second();
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            first();
+            second();
+        }
+        let y1 = &mut y[3 * split..];
+        for (v, s) in y1.iter_mut().zip(&spill) {
+            *v += s;
+        }
+        let at = settled.min(y1.len());
+        mass_term(cm, ck, &m1[..at / 3], &z1[..at], &mut y1[..at]);
+    }
+
+    /// The blocks of `rows` into `y`, which holds rows `base..` (zeroed first); transposed
+    /// blocks of columns past `y`'s rows into `spill`, which holds the rows after them.
+    fn rows(
+        &self,
+        rows: std::ops::Range<usize>,
+        z: &[Real],
+        y: &mut [Real],
+        base: usize,
+        spill: &mut [Real],
+    ) {
         y.iter_mut().for_each(|v| *v = 0.0);
-        for (r, w) in self.row_start.windows(2).enumerate() {
+        let end = 3 * base + y.len();
+        for r in rows {
+            let w = &self.row_start[r..r + 2];
             let i = 3 * r;
             let (zr0, zr1, zr2) = (z[i], z[i + 1], z[i + 2]);
             let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
@@ -237,20 +318,37 @@ impl BlockStiffness {
                 s2 += b[6] * z0 + b[7] * z1 + b[8] * z2;
                 if c != i {
                     // The block below the diagonal is this one's transpose.
-                    y[c] += b[0] * zr0 + b[3] * zr1 + b[6] * zr2;
-                    y[c + 1] += b[1] * zr0 + b[4] * zr1 + b[7] * zr2;
-                    y[c + 2] += b[2] * zr0 + b[5] * zr1 + b[8] * zr2;
+                    let t = if c < end {
+                        &mut y[c - 3 * base..c - 3 * base + 3]
+                    } else {
+                        &mut spill[c - end..c - end + 3]
+                    };
+                    t[0] += b[0] * zr0 + b[3] * zr1 + b[6] * zr2;
+                    t[1] += b[1] * zr0 + b[4] * zr1 + b[7] * zr2;
+                    t[2] += b[2] * zr0 + b[5] * zr1 + b[8] * zr2;
                 }
             }
-            y[i] += s0;
-            y[i + 1] += s1;
-            y[i + 2] += s2;
+            let o = i - 3 * base;
+            y[o] += s0;
+            y[o + 1] += s1;
+            y[o + 2] += s2;
         }
-        for ((yr, zr), m) in y.chunks_exact_mut(3).zip(z.chunks_exact(3)).zip(masses) {
-            let cmm = cm * m;
-            yr[0] = cmm * zr[0] + ck * yr[0];
-            yr[1] = cmm * zr[1] + ck * yr[1];
-            yr[2] = cmm * zr[2] + ck * yr[2];
-        }
+    }
+
+    /// The product on one part and in one row order, as before the split (tests).
+    #[cfg(test)]
+    pub fn without_split(mut self) -> Self {
+        self.split = 0;
+        self
+    }
+}
+
+/// y = c_m m z + c_k y per node.
+fn mass_term(cm: Real, ck: Real, masses: &[Real], z: &[Real], y: &mut [Real]) {
+    for ((yr, zr), m) in y.chunks_exact_mut(3).zip(z.chunks_exact(3)).zip(masses) {
+        let cmm = cm * m;
+        yr[0] = cmm * zr[0] + ck * yr[0];
+        yr[1] = cmm * zr[1] + ck * yr[1];
+        yr[2] = cmm * zr[2] + ck * yr[2];
     }
 }
