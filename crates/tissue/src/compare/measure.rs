@@ -1015,7 +1015,7 @@ fn held_by(sim: &Simulation, pushing: usize) -> String {
     } else if !probe.contacts().is_empty() {
         format!("surface vertices ({pushing} held)")
     } else {
-        "nothing: the probe lost the organ".into()
+        "nothing (the probe lost the organ)".into()
     }
 }
 
