@@ -120,7 +120,7 @@ pub fn fine_contact_surface(
     edges.sort_by(Real::total_cmp);
     let edge = edges.get(edges.len() / 2).copied().unwrap_or(0.0);
     let k = fine_levels(edge, radius, triangles.len());
-    let fine = MappedSurface::subdivided(rest, triangles, k).ok_or_else(|| {
+    let fine = MappedSurface::subdivided(rest, triangles, 1 << k).ok_or_else(|| {
         Error::from(SimError::Unsupported {
             model: model.kind(),
             operation: "a fine contact surface",

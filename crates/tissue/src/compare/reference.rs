@@ -476,7 +476,7 @@ mod tests {
                     let fine = MappedSurface::subdivided(
                         model.rest_surface(),
                         model.surface().triangles,
-                        k,
+                        1 << k,
                     )
                     .unwrap();
                     let mut sim = Simulation::new(model, fixed, Loads::default()).unwrap();

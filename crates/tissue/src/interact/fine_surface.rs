@@ -82,93 +82,75 @@ impl MappedSurface {
         })
     }
 
-    /// The coarse surface itself subdivided flat: each triangle into 4^`levels` similar
-    /// triangles (its edges cut into 2^`levels` equal parts), every fine vertex tied to the
-    /// coarse triangle it lies on by its exact barycentric weights. Vertices on a coarse
-    /// edge are shared by its two triangles, so a closed surface stays closed, and each
-    /// fine triangle keeps its coarse triangle's orientation. Triangles naming a vertex
-    /// twice or one beyond `coarse_rest` are skipped. `None` when none is left.
-    ///
-    /// On a coarse surface of flat triangles (linear tetrahedra's boundary) the fine points
-    /// lie on the very faces the model deforms, so an instrument touching them touches the
-    /// model's own surface, only at more points than its vertices.
+    /// The coarse surface itself with each triangle cut into n² similar ones (n ≥ 1), each
+    /// fine vertex tied to the triangle it was made on by its exact barycentric weights: a
+    /// fine contact surface lying on the coarse one, for contact on the faces as well as the
+    /// vertices (a probe then cannot pass between the coarse vertices). Corners and edge
+    /// points are shared between the triangles that meet there, so no two fine vertices
+    /// coincide. `None` when the coarse surface has no triangle or names a missing vertex.
     pub fn subdivided(
         coarse_rest: &[Vec3],
         coarse_triangles: &[[u32; 3]],
-        levels: u32,
+        n: usize,
     ) -> Option<Self> {
-        let n = 1u32 << levels.min(10);
-        let mut rest: Vec<Vec3> = coarse_rest.to_vec();
-        let mut nodes: Vec<[u32; 4]> = (0..coarse_rest.len() as u32)
-            .map(|v| [v, v, v, v])
-            .collect();
-        let mut weights: Vec<[Real; 4]> = vec![[1.0, 0.0, 0.0, 0.0]; coarse_rest.len()];
-        // Points inside a coarse edge, by (lower vertex, upper vertex, steps from the lower).
-        let mut on_edge: std::collections::HashMap<(u32, u32, u32), u32> = Default::default();
-        let mut triangles = Vec::new();
-        let mut lattice = Vec::with_capacity(((n + 1) * (n + 2) / 2) as usize);
+        if coarse_triangles.is_empty() {
+            return None;
+        }
+        let n = n.max(1);
+        let mut rest = Vec::new();
+        let (mut nodes, mut weights) = (Vec::new(), Vec::new());
+        let mut shared: std::collections::HashMap<(u32, u32, usize), u32> =
+            std::collections::HashMap::new();
+        let mut triangles = Vec::with_capacity(coarse_triangles.len() * n * n);
         for tri in coarse_triangles {
-            let [a, b, c] = *tri;
-            if a == b || b == c || a == c || corners(coarse_rest, tri).is_none() {
-                continue;
-            }
-            // Lattice point (i, j), i + j ≤ n, is a + i/n (b − a) + j/n (c − a).
-            lattice.clear();
-            for i in 0..=n {
-                for j in 0..=n - i {
-                    let w = [
-                        (n - i - j) as Real / n as Real,
-                        i as Real / n as Real,
-                        j as Real / n as Real,
-                    ];
-                    let corner = match (i, j) {
-                        (0, 0) => Some(a),
-                        (i, 0) if i == n => Some(b),
-                        (0, j) if j == n => Some(c),
-                        _ => None,
-                    };
-                    // The edge the point lies inside, if any: (its ends, steps from the first).
-                    let edge = match (i, j) {
-                        _ if corner.is_some() => None,
-                        (i, 0) => Some((a, b, i)),
-                        (0, j) => Some((a, c, j)),
-                        (i, j) if i + j == n => Some((b, c, j)),
-                        _ => None,
-                    };
-                    let mut fresh = || {
-                        rest.push(
-                            w[0] * coarse_rest[a as usize]
-                                + w[1] * coarse_rest[b as usize]
-                                + w[2] * coarse_rest[c as usize],
-                        );
-                        nodes.push([a, b, c, a]);
-                        weights.push([w[0], w[1], w[2], 0.0]);
-                        (rest.len() - 1) as u32
-                    };
-                    let id = match (corner, edge) {
-                        (Some(v), _) => v,
-                        (None, Some((u, v, k))) => {
-                            let key = if u < v { (u, v, k) } else { (v, u, n - k) };
-                            *on_edge.entry(key).or_insert_with(fresh)
-                        }
-                        (None, None) => fresh(),
-                    };
-                    lattice.push(id);
+            let x = corners(coarse_rest, tri)?;
+            // Grid point (i, j): weights (n − i − j, i, j) / n on the corners.
+            let mut id = |i: usize, j: usize| -> u32 {
+                let w = [(n - i - j) as Real, i as Real, j as Real].map(|c| c / n as Real);
+                // A point on an edge (or a corner) is keyed by the edge's two coarse vertices
+                // in ascending order and its step from the lower one, so both triangles on
+                // the edge find it.
+                let on: Vec<usize> = (0..3).filter(|&k| w[k] > 0.0).collect();
+                let key = match on.as_slice() {
+                    [k] => Some((tri[*k], tri[*k], 0)),
+                    [a, b] => {
+                        let (a, b) = if tri[*a] < tri[*b] {
+                            (*a, *b)
+                        } else {
+                            (*b, *a)
+                        };
+                        Some((tri[a], tri[b], (w[b] * n as Real).round() as usize))
+                    }
+                    _ => None,
+                };
+                if let Some(k) = key
+                    && let Some(&v) = shared.get(&k)
+                {
+                    return v;
+                }
+                let v = rest.len() as u32;
+                rest.push(x[0] * w[0] + x[1] * w[1] + x[2] * w[2]);
+                nodes.push([tri[0], tri[1], tri[2], tri[0]]);
+                weights.push([w[0], w[1], w[2], 0.0]);
+                if let Some(k) = key {
+                    shared.insert(k, v);
+                }
+                v
+            };
+            let mut grid = vec![vec![0u32; n + 1]; n + 1];
+            for (i, row) in grid.iter_mut().enumerate() {
+                for (j, g) in row.iter_mut().enumerate().take(n + 1 - i) {
+                    *g = id(i, j);
                 }
             }
-            // Row i starts at Σ_{r<i} (n + 1 − r).
-            let at = |i: u32, j: u32| lattice[(i * (n + 1) - i * (i.max(1) - 1) / 2 + j) as usize];
             for i in 0..n {
                 for j in 0..n - i {
-                    triangles.push([at(i, j), at(i + 1, j), at(i, j + 1)]);
-                    if i + j + 1 < n {
-                        triangles.push([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                    triangles.push([grid[i][j], grid[i + 1][j], grid[i][j + 1]]);
+                    if j + 1 < n - i {
+                        triangles.push([grid[i + 1][j], grid[i + 1][j + 1], grid[i][j + 1]]);
                     }
                 }
             }
-        }
-        if triangles.is_empty() {
-            return None;
         }
         Some(Self {
             rest,
@@ -280,46 +262,45 @@ mod tests {
         assert!(total.distance(Vec3::Z + Vec3::X - Vec3::Y) < 1e-15);
     }
 
-    /// A closed coarse surface (the unit tetrahedron's four faces) subdivided flat twice:
-    /// 4² times the triangles, every coarse edge's inner points shared (V + E (2^k − 1) +
-    /// F (2^k − 1)(2^k − 2)/2 vertices), closed and oriented as the coarse one (each fine
-    /// triangle's normal is its coarse face's), the fine points on their faces, weights
-    /// that sum to 1, and a motion of the coarse vertices carried to the fine ones by
-    /// barycentric interpolation exactly (a fine point at a corner moves with its vertex).
     #[test]
-    fn subdividing_flat_keeps_the_surface_closed_and_the_points_on_their_faces() {
+    fn a_subdivided_surface_lies_on_the_coarse_one_and_shares_its_edges() {
+        // A tetrahedron's four faces (outward), each cut into 3² = 9.
         let coarse = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
         let tris = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
-        for k in 0..=3u32 {
-            let m = MappedSurface::subdivided(&coarse, &tris, k).unwrap();
-            let n = 1usize << k;
-            assert_eq!(m.triangles.len(), 4 * n * n);
-            assert_eq!(m.len(), 4 + 6 * (n - 1) + 4 * (n - 1) * (n.max(2) - 2) / 2);
-            assert!(crate::compare::measure::closed_and_oriented(&m.triangles));
-            let normal = |p: [Vec3; 3]| (p[1] - p[0]).cross(p[2] - p[0]).normalize();
-            for (f, t) in m.triangles.iter().enumerate() {
-                let fine = normal(t.map(|v| m.rest[v as usize]));
-                let c = tris[f / (n * n)];
-                let coarse_n = normal(c.map(|v| coarse[v as usize]));
-                assert!(fine.distance(coarse_n) < 1e-12, "k {k} triangle {f}");
-            }
-            let moved: Vec<Vec3> = coarse
-                .iter()
-                .enumerate()
-                .map(|(i, p)| *p * (1.0 + i as Real) + Vec3::splat(0.1 * i as Real))
-                .collect();
-            let mut out = Vec::new();
-            m.positions(&coarse, &moved, &mut out);
-            for j in 0..m.len() {
-                let (v, w) = m.tie(j).unwrap();
-                assert!((w.iter().sum::<Real>() - 1.0).abs() < 1e-15);
-                let at = |x: &[Vec3]| (0..3).map(|i| w[i] * x[v[i] as usize]).sum::<Vec3>();
-                assert!(at(&coarse).distance(m.rest[j]) < 1e-15);
-                assert!(at(&moved).distance(out[j]) < 1e-14);
+        let n = 3;
+        let m = MappedSurface::subdivided(&coarse, &tris, n).unwrap();
+        // V + E (n − 1) + F (n − 1)(n − 2)/2 distinct vertices: no two coincide.
+        assert_eq!(m.len(), 4 + 6 * (n - 1) + 4 * (n - 1) * (n - 2) / 2);
+        for (a, p) in m.rest.iter().enumerate() {
+            for q in &m.rest[a + 1..] {
+                assert!(p.distance(*q) > 1e-9);
             }
         }
-        // Nothing to subdivide: no triangle, or only degenerate and out-of-range ones.
+        assert_eq!(m.triangles.len(), 4 * n * n);
+        // The same enclosed volume and area vector per coarse face: the fine triangles tile
+        // the coarse ones with their orientation.
+        let volume = |x: &[Vec3], t: &[[u32; 3]]| -> Real {
+            t.iter()
+                .map(|t| x[t[0] as usize].dot(x[t[1] as usize].cross(x[t[2] as usize])) / 6.0)
+                .sum()
+        };
+        assert!((volume(&m.rest, &m.triangles) - volume(&coarse, &tris)).abs() < 1e-15);
+        // Each fine vertex is where its weights put it, and moves with the coarse surface.
+        let moved: Vec<Vec3> = coarse
+            .iter()
+            .map(|p| *p * 1.5 + Vec3::new(0.1, 0.0, -0.2))
+            .collect();
+        let mut out = Vec::new();
+        m.positions(&coarse, &moved, &mut out);
+        for (j, (o, r)) in out.iter().zip(&m.rest).enumerate() {
+            let (v, w) = m.tie(j).unwrap();
+            let at: Vec3 = (0..3).map(|k| coarse[v[k] as usize] * w[k]).sum();
+            assert!(at.distance(*r) < 1e-15);
+            assert!(o.distance(*r * 1.5 + Vec3::new(0.1, 0.0, -0.2)) < 1e-14);
+        }
+        // n = 1 is the coarse surface itself.
+        let same = MappedSurface::subdivided(&coarse, &tris, 1).unwrap();
+        assert_eq!(same.rest, coarse);
         assert!(MappedSurface::subdivided(&coarse, &[], 2).is_none());
-        assert!(MappedSurface::subdivided(&coarse, &[[0, 0, 1], [0, 1, 9]], 2).is_none());
     }
 }
