@@ -413,10 +413,8 @@ pub fn measure_kind(
             Measure::of(0.0, "s").noted("static: immediate"),
         );
     } else {
-        match guarded(|| {
-            step_response(kind, organ, scenario, mat, law, dt_run, reference, settings)
-        })
-        .and_then(|r| r)
+        match guarded(|| step_response(kind, organ, scenario, mat, law, dt_run, settings))
+            .and_then(|r| r)
         {
             Ok((freq, delay)) => {
                 rec.measures.insert("frequency".into(), freq);
@@ -1065,6 +1063,7 @@ fn rotation(
 
 /// The plate compression by 10 % of the height: relative volume change, its curve,
 /// settled, and whether the plate held its vertices along y only (frictionless).
+#[allow(clippy::type_complexity)]
 fn compression(
     kind: &str,
     organ: &Organ,
@@ -1113,7 +1112,6 @@ pub(super) fn step_response(
     mat: Material,
     law: ContactLaw,
     dt: Real,
-    _reference: &Reference,
     s: &Settings,
 ) -> Result<(Measure, Measure), Error> {
     let model = organ.build(kind, mat)?;

@@ -309,7 +309,6 @@ pub fn reference(
             organ.material,
             DYNAMICS_LAW,
             0.25 * dt,
-            &out,
             s,
         )
     {
