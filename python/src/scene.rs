@@ -22,6 +22,9 @@ use crate::model::info_dict;
 const DEMO_SCENE: &str = include_str!("../../scenes/liver-probe.toml");
 const DEMO_LIVER: &[u8] = include_bytes!("../../assets/meshes/liver.msh");
 const DEMO_LIVER_NAME: &str = "liver.msh (built in)";
+/// The demo scene's `[mesh] visual`: the smooth surface its probe touches.
+const DEMO_LIVER_SMOOTH: &[u8] = include_bytes!("../../assets/meshes/liver-smooth.obj");
+const DEMO_LIVER_SMOOTH_NAME: &str = "liver-smooth.obj (built in)";
 
 /// A scene file, loaded and checked (nothing built yet).
 #[pyclass(module = "tissue._native")]
@@ -106,7 +109,13 @@ impl Scene {
             .detach(|| {
                 if self.built_in_mesh {
                     let mesh = parse(Format::Msh, DEMO_LIVER, Path::new(DEMO_LIVER_NAME))?;
-                    self.scene.build_with_mesh(mesh, DEMO_LIVER_NAME)
+                    let smooth = parse(
+                        Format::Obj,
+                        DEMO_LIVER_SMOOTH,
+                        Path::new(DEMO_LIVER_SMOOTH_NAME),
+                    )?;
+                    self.scene
+                        .build_with_meshes(mesh, DEMO_LIVER_NAME, Some(smooth))
                 } else {
                     self.scene.build()
                 }

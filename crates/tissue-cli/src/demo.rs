@@ -1,5 +1,5 @@
 //! `tissue demo`: the liver scene built in (`scenes/liver-probe.toml` with the shipped
-//! `liver.msh`), run and summarised; `--out` also writes the outputs, `--print-scene`
+//! `liver.msh` and its smooth surface `liver-smooth.obj`), run and summarised; `--out` also writes the outputs, `--print-scene`
 //! prints the scene file.
 
 use std::path::Path;
@@ -11,10 +11,13 @@ use tissue::scene::Scene;
 use crate::DemoArgs;
 use crate::run::execute;
 
-/// The scene `tissue run scenes/liver-probe.toml` runs; its mesh comes from the binary.
+/// The scene `tissue run scenes/liver-probe.toml` runs; its meshes come from the binary.
 const SCENE: &str = include_str!("../../../scenes/liver-probe.toml");
 const LIVER: &[u8] = include_bytes!("../../../assets/meshes/liver.msh");
 const LIVER_NAME: &str = "liver.msh (built in)";
+/// The scene's `[mesh] visual`: the surface the probe touches.
+const LIVER_SMOOTH: &[u8] = include_bytes!("../../../assets/meshes/liver-smooth.obj");
+const LIVER_SMOOTH_NAME: &str = "liver-smooth.obj (built in)";
 
 pub fn demo(args: &DemoArgs) -> anyhow::Result<()> {
     if args.print_scene {
@@ -27,7 +30,8 @@ pub fn demo(args: &DemoArgs) -> anyhow::Result<()> {
         Path::new("liver-probe.toml (built in)"),
     )?;
     let mesh = parse(Format::Msh, LIVER, Path::new(LIVER_NAME))?;
-    let sim = scene.build_with_mesh(mesh, LIVER_NAME)?;
+    let smooth = parse(Format::Obj, LIVER_SMOOTH, Path::new(LIVER_SMOOTH_NAME))?;
+    let sim = scene.build_with_meshes(mesh, LIVER_NAME, Some(smooth))?;
     let o = execute(&scene, sim, args.out.as_deref(), false)?;
     let change = 100.0 * (o.final_volume - o.initial_volume) / o.initial_volume;
     crate::outln!("tissue demo: a probe pressing 1 cm into a liver held at three ligament nodes");

@@ -64,9 +64,12 @@ fn local_model_predicts_the_full_force_near_the_anchor() {
         local.stiffness().y_axis.y
     );
     assert!(f_true.y > 0.05, "the liver pushes the probe up: {f_true:?}");
-    // Linear elasticity with a fixed contact set: the linear model is near exact, holding
-    // the last force is not.
-    assert!(err_linear < 0.01 * err_hold, "{err_linear} vs {err_hold}");
+    // Linear elasticity: the linear model is near exact, holding the last force is not.
+    // The frictionless probe on the smooth liver's points takes more points as it goes in
+    // (the patch grows, Hertz-like), so the force curves and the secant is first order:
+    // measured 0.037 of the hold's error (with the sticking probe's fixed contact set it
+    // was below 0.01).
+    assert!(err_linear < 0.1 * err_hold, "{err_linear} vs {err_hold}");
     assert!(err_hold > 1e-3);
     // Pressing in is resisted: the vertical stiffness is negative (force drops going up).
     assert!(local.stiffness().y_axis.y < -1.0);

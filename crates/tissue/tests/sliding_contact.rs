@@ -428,18 +428,14 @@ fn a_capsule_lying_on_the_block_pushes_straight_down() {
     }
 }
 
-/// The shipped liver scene with its fine surface (`[mesh] visual`), fem-static: contacts are
-/// found on the 2194 fine vertices and handed to the coarse surface by the map's weights.
+/// The shipped liver scene with its fine surface (`[mesh] visual`), fem-static, the probe
+/// frictionless: contacts are found on the 2194 fine vertices and solved on them exactly.
 #[test]
 fn fine_liver_surface_holds_the_probe_out_and_the_supports_balance() {
     let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
         .unwrap()
-        .replace("../assets", &format!("{root}/assets"))
-        .replace(
-            "scale = 0.01",
-            &format!("scale = 0.01\nvisual = \"{root}/assets/meshes/liver-smooth.obj\""),
-        );
+        .replace("../assets", &format!("{root}/assets"));
     let dir = std::env::temp_dir().join(format!("tissue-fine-liver-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("fine.toml");
@@ -486,12 +482,7 @@ fn a_fine_surface_static_press_gives_one_force_at_any_step() {
     let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
     let base = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
         .unwrap()
-        .replace("../assets", &format!("{root}/assets"))
-        .replace(
-            "scale = 0.01",
-            &format!("scale = 0.01\nvisual = \"{root}/assets/meshes/liver-smooth.obj\""),
-        )
-        .replace("contact = \"sticking\"", "");
+        .replace("../assets", &format!("{root}/assets"));
     let dir = std::env::temp_dir().join(format!("tissue-fine-dt-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let mut ends = Vec::new();
@@ -559,11 +550,6 @@ fn fine_liver_surface_pressed_and_drawn_back_pushes_only_and_retraces() {
     let base = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
         .unwrap()
         .replace("../assets", &format!("{root}/assets"))
-        .replace(
-            "scale = 0.01",
-            &format!("scale = 0.01\nvisual = \"{root}/assets/meshes/liver-smooth.obj\""),
-        )
-        .replace("contact = \"sticking\"", "")
         .replace(
             "{ t = 1.0, position = [-0.005, 0.0455, 0.0067] } ]",
             "{ t = 1.0, position = [-0.005, 0.0455, 0.0067] },\n \
@@ -679,11 +665,6 @@ fn bem_holds_the_fine_liver_surface_on_its_points() {
     let text = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
         .unwrap()
         .replace("../assets", &format!("{root}/assets"))
-        .replace(
-            "scale = 0.01",
-            &format!("scale = 0.01\nvisual = \"{root}/assets/meshes/liver-smooth.obj\""),
-        )
-        .replace("contact = \"sticking\"", "")
         .replace("kind = \"fem-static\"", "kind = \"bem\"");
     let dir = std::env::temp_dir().join(format!("tissue-fine-bem-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -36,7 +36,7 @@ use crate::error::SimError;
 use crate::math::{Mat3, Real, Vec3, is_finite_vec};
 use crate::model::StepInfo;
 
-pub use points::PointHold;
+pub use points::{PointHold, PointProjection};
 pub use rest_factor::RankOneJacobians;
 pub use stable_step::Substeps;
 use stable_step::{RateEstimate, substeps_for};
@@ -467,9 +467,9 @@ pub(crate) struct Workspace {
     /// its projections gave along its normal since the step began, N·s.
     pub point_active: Vec<bool>,
     pub point_impulse: Vec<Real>,
-    /// Per point contact, within one projection: its velocity bound and its position and
-    /// velocity pushes (`points::project`).
-    pub point_lambda: Vec<[Real; 3]>,
+    /// The points' projection (`points::PointProjection`) and its pushes of the last
+    /// (sub)step.
+    pub points: points::PointProjection,
 }
 
 impl Workspace {

@@ -147,6 +147,90 @@ impl PointHold {
     }
 }
 
+/// The projection of `project` over plain slices, for every scheme that keeps positions and
+/// velocities per particle (the integrator's state, `fem-explicit`'s central difference,
+/// `fem-corotational`'s implicit step): written once, called by each.
+///
+/// After `run`, each point's pushes over the (sub)step are kept (`acted`, `momentum`) until
+/// the next `run`.
+#[derive(Clone, Debug, Default)]
+pub struct PointProjection {
+    /// Per point: the least normal velocity it may keep (0 past its plane, else the inward
+    /// speed that reaches the plane in one more (sub)step), and what its position and
+    /// velocity projections have given so far (≥ 0), in the point's mass units.
+    lambda: Vec<[Real; 3]>,
+}
+
+impl PointProjection {
+    /// Projects `points` after a (sub)step of length `h` on the positions `x` and velocities
+    /// `v` of their particles, whose inverse masses are `inv_mass` (0 for a held particle,
+    /// which takes none of a point's move): see the module documentation. Only the points'
+    /// particles are read and written. `x` may be displacements if the points' levels are
+    /// (`PointHold::tied` with zero rest positions).
+    pub fn run(
+        &mut self,
+        points: &[PointHold],
+        x: &mut [Vec3],
+        v: &mut [Vec3],
+        inv_mass: &[Real],
+        h: Real,
+    ) {
+        self.lambda.clear();
+        self.lambda.extend(points.iter().map(|pt| {
+            let gap = pt.gap(x);
+            [if gap < 0.0 { 0.0 } else { -gap / h }, 0.0, 0.0]
+        }));
+        // Projected Gauss-Seidel: a point's total push may shrink again (never below zero)
+        // when its neighbours' pushes did its work, so that points sharing particles end on
+        // their planes without over-correcting them; accumulated pushes only, a sweep that
+        // moved a point's particles the wrong way left them moving into the tissue, and the
+        // mass damping of that motion read as 3 % less push on a block under a flat plane.
+        for stage in [1, 2] {
+            for _ in 0..SWEEPS {
+                let mut largest: Real = 0.0;
+                for (k, pt) in points.iter().enumerate() {
+                    let inverse = pt.inverse_mass(inv_mass);
+                    if inverse <= 0.0 {
+                        continue;
+                    }
+                    let lambda = &mut self.lambda[k];
+                    let (y, short) = if stage == 1 {
+                        let short = -pt.gap(x);
+                        (&mut *x, short)
+                    } else {
+                        let short = lambda[0] - pt.coordinate(v);
+                        (&mut *v, short)
+                    };
+                    let total = (lambda[stage] + short / inverse).max(0.0);
+                    let delta = total - lambda[stage];
+                    if delta != 0.0 {
+                        lambda[stage] = total;
+                        pt.shift(y, inv_mass, inverse, delta * inverse);
+                        largest = largest.max((delta * inverse).abs());
+                    }
+                }
+                // Round-off, in m (positions) or m per (sub)step (velocities).
+                let tolerance = if stage == 1 { 1e-15 } else { 1e-15 / h };
+                if largest <= tolerance {
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Whether point `k` was moved (back onto its plane, or slowed) by the last `run`.
+    pub fn acted(&self, k: usize) -> bool {
+        self.lambda.get(k).is_some_and(|l| l[1] > 0.0 || l[2] > 0.0)
+    }
+
+    /// The momentum the last `run` gave point `k` along its normal (≥ 0; N·s when the
+    /// inverse masses are in 1/kg): its velocity projection's, as `Hold::contact` counts a
+    /// particle's (the position projection changes no velocity).
+    pub fn momentum(&self, k: usize) -> Real {
+        self.lambda.get(k).map_or(0.0, |l| l[2])
+    }
+}
+
 /// Projects the points after a (sub)step of length `h` (see the module documentation):
 /// positions and velocities in `w.x1`, `w.v1`, each point's momentum added to
 /// `w.point_impulse`, whether it acted in `w.point_active`, and its ledger term in
@@ -158,57 +242,13 @@ pub(super) fn project(w: &mut Workspace, points: &[PointHold], h: Real) {
     if points.is_empty() {
         return;
     }
-    // Per point: the least normal velocity it may keep (0 past its plane, else the inward
-    // speed that reaches the plane in one more (sub)step), and what its position and
-    // velocity projections have given so far (≥ 0), in the point's mass units.
-    w.point_lambda.clear();
-    w.point_lambda.extend(points.iter().map(|pt| {
-        let gap = pt.gap(&w.x1);
-        [if gap < 0.0 { 0.0 } else { -gap / h }, 0.0, 0.0]
-    }));
-    // Projected Gauss-Seidel: a point's total push may shrink again (never below zero) when
-    // its neighbours' pushes did its work, so that points sharing particles end on their
-    // planes without over-correcting them; accumulated pushes only, a sweep that moved a
-    // point's particles the wrong way left them moving into the tissue, and the mass
-    // damping of that motion read as 3 % less push on a block under a flat plane.
-    for stage in [1, 2] {
-        for _ in 0..SWEEPS {
-            let mut largest: Real = 0.0;
-            for (k, pt) in points.iter().enumerate() {
-                let inverse = pt.inverse_mass(&w.inv_mass);
-                if inverse <= 0.0 {
-                    continue;
-                }
-                let lambda = &mut w.point_lambda[k];
-                let (y, short) = if stage == 1 {
-                    let short = -pt.gap(&w.x1);
-                    (&mut w.x1, short)
-                } else {
-                    let short = lambda[0] - pt.coordinate(&w.v1);
-                    (&mut w.v1, short)
-                };
-                let total = (lambda[stage] + short / inverse).max(0.0);
-                let delta = total - lambda[stage];
-                if delta != 0.0 {
-                    lambda[stage] = total;
-                    pt.shift(y, &w.inv_mass, inverse, delta * inverse);
-                    largest = largest.max((delta * inverse).abs());
-                }
-            }
-            // Round-off, in m (positions) or m per (sub)step (velocities).
-            let tolerance = if stage == 1 { 1e-15 } else { 1e-15 / h };
-            if largest <= tolerance {
-                break;
-            }
-        }
-    }
+    w.points.run(points, &mut w.x1, &mut w.v1, &w.inv_mass, h);
     for (k, pt) in points.iter().enumerate() {
-        let [_, by_position, by_velocity] = w.point_lambda[k];
-        if by_position <= 0.0 && by_velocity <= 0.0 {
+        if !w.points.acted(k) {
             continue;
         }
         w.point_active[k] = true;
-        w.point_impulse[k] += by_velocity;
+        w.point_impulse[k] += w.points.momentum(k);
         let inverse = pt.inverse_mass(&w.inv_mass);
         let (kept, v0n) = (pt.coordinate(&w.v1), pt.coordinate(&w.v0));
         w.along_work += 0.5 * (kept * kept - v0n * v0n) / inverse;

@@ -194,7 +194,7 @@ pub fn hold_points(
             if let Some(&outward) = outward
                 .get_or_insert_with(|| outward_normals(&now, &fine.triangles))
                 .get(j)
-                && closest.normal.dot(outward) > 0.0
+                && on_far_side(shape, closest.normal, outward)
             {
                 closest = exit_along(shape, at, p, -outward);
             }
@@ -253,6 +253,32 @@ fn corners(positions: &[Vec3], t: &[u32; 3]) -> Option<[Vec3; 3]> {
         *positions.get(t[2] as usize)?,
     ])
 }
+
+/// Whether a point of the tissue (its outward unit normal `outward`) inside `shape`, whose
+/// nearest way out of the shape is along `push`, is on the shape's far side: the instrument
+/// came through the tissue's surface there (a jump of the viewer's probe past its centre),
+/// and the nearest way out would push the tissue out of itself. It then leaves along the
+/// tissue's inward normal instead (`exit_along`).
+///
+/// A curved shape's normal turns continuously, so crossing the tissue's tangent plane
+/// (`push · outward > 0`) marks its far half. A flat face's normal is one for the whole
+/// face: a side face of the tissue slipping under a box's bottom (its outward normal across
+/// the push, tilted a little either way as the tissue bulges) is plain contact, so a box
+/// counts as passed through only where the face turns toward the tissue's outside by more
+/// than `FACE_THROUGH_COS`. A half-space has no far side. Sending such side points through
+/// the box to its far side gave a wide box pressed on a block 20 % more force than the
+/// plane it equals there.
+pub(crate) fn on_far_side(shape: &Shape, push: Vec3, outward: Vec3) -> bool {
+    match shape {
+        Shape::Plane { .. } => false,
+        Shape::Box { .. } => push.dot(outward) > FACE_THROUGH_COS,
+        Shape::Sphere { .. } | Shape::Capsule { .. } => push.dot(outward) > 0.0,
+    }
+}
+
+/// cos 60°: a box face within 60° of the tissue's outward normal pushes the tissue out of
+/// itself (`on_far_side`).
+const FACE_THROUGH_COS: Real = 0.5;
 
 /// Where a point `p` inside `shape` (at `at`) leaves it moving along the unit direction
 /// `d`: the contact there as `Shape::closest` gives one (depth minus the way to go, normal
@@ -626,5 +652,30 @@ mod tests {
         assert!(!is_adhesive(Vec3::new(0.0, 2.0, 0.0), below, c, 2.0));
         // It pulls down: adhesive.
         assert!(is_adhesive(Vec3::new(0.0, -2.0, 0.0), below, c, 2.0));
+    }
+
+    #[test]
+    fn only_a_shape_the_instrument_came_through_sends_a_point_back_the_other_way() {
+        let up = Vec3::Z;
+        // A side face bulged a little downward under a flat face pushing down: contact.
+        let side = Vec3::new(1.0, 0.0, -0.1).normalize();
+        let half = Vec3::splat(0.01);
+        assert!(!on_far_side(&Shape::Plane { normal: -up }, -up, side));
+        assert!(!on_far_side(&Shape::Box { half }, -up, side));
+        // The same box come down through the top: its top face pushes the tissue's top out.
+        assert!(on_far_side(&Shape::Box { half }, up, up));
+        // A half-space has no far side, whatever the tissue's normal there.
+        assert!(!on_far_side(&Shape::Plane { normal: -up }, -up, -up));
+        // A ball whose centre went below the tissue's top pushes the top up and out.
+        let ball = Shape::Sphere { radius: 0.005 };
+        assert!(on_far_side(&ball, Vec3::new(0.3, 0.0, 1.0).normalize(), up));
+        assert!(!on_far_side(
+            &ball,
+            Vec3::new(0.3, 0.0, -1.0).normalize(),
+            up
+        ));
+        // Where it leaves instead: through the ball's bottom, below its centre.
+        let exit = exit_along(&ball, Vec3::ZERO, Vec3::new(0.0, 0.0, 0.002), -up);
+        assert!((exit.point - Vec3::new(0.0, 0.0, -0.005)).length() < 1e-12);
     }
 }

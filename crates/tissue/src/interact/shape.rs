@@ -102,8 +102,13 @@ impl Shape {
                 let d = p - at;
                 let outside = d.abs() - half;
                 if outside.max_element() > 0.0 {
-                    let q = at + d.clamp(-half, half);
-                    let gap = p - q;
+                    // The gap from the clamped offset, not from the clamped point: along an
+                    // axis where p is within the box's extent it is then exactly zero. From
+                    // p − (at + clamp) it was round-off (1e-19 m) there, which outweighed a
+                    // point resting on a face to round-off and gave it a side face's normal.
+                    let c = d.clamp(-half, half);
+                    let gap = d - c;
+                    let q = at + c;
                     return Closest {
                         depth: gap.length(),
                         normal: gap.normalize_or_zero(),

@@ -580,7 +580,20 @@ impl Scene {
 
     /// Builds the simulation from a mesh already loaded (unscaled, scaled here by `[mesh]`
     /// `scale`); `source` names it. The scene's kind is built on it as on a `[mesh]` body.
-    pub fn build_with_mesh(&self, mut mesh: MeshData, source: &str) -> Result<Simulation, Error> {
+    /// A `[mesh] visual` the scene names is read from its file.
+    pub fn build_with_mesh(&self, mesh: MeshData, source: &str) -> Result<Simulation, Error> {
+        self.build_with_meshes(mesh, source, None)
+    }
+
+    /// `build_with_mesh` with the `[mesh] visual` surface loaded too (unscaled, as read; used
+    /// when the scene names one), for a scene whose files are built into the program (the
+    /// demo) rather than beside it.
+    pub fn build_with_meshes(
+        &self,
+        mut mesh: MeshData,
+        source: &str,
+        visual: Option<MeshData>,
+    ) -> Result<Simulation, Error> {
         let scale = self.mesh_spec().map_or(1.0, |m| m.scale);
         for v in &mut mesh.vertices {
             *v *= scale;
@@ -593,7 +606,7 @@ impl Scene {
         };
         let material = self.material_for(&body)?;
         let model = self.build_model(&self.model_kind, &body, material, &self.model_params)?;
-        self.build_with_model(model, &body.mesh)
+        self.build_around(model, &body.mesh, visual)
     }
 
     /// Builds the simulation around a model already built from `mesh` (scaled): regions,
@@ -602,6 +615,16 @@ impl Scene {
         &self,
         model: Box<dyn Deformable>,
         mesh: &MeshData,
+    ) -> Result<Simulation, Error> {
+        self.build_around(model, mesh, None)
+    }
+
+    /// `build_with_model`, with the `[mesh] visual` surface given (unscaled) or read.
+    fn build_around(
+        &self,
+        model: Box<dyn Deformable>,
+        mesh: &MeshData,
+        visual_mesh: Option<MeshData>,
     ) -> Result<Simulation, Error> {
         let mut fixed = Vec::new();
         for (k, r) in self.fixed.iter().enumerate() {
@@ -662,25 +685,35 @@ impl Scene {
             sim.add_instrument(inst);
         }
         if let Some(visual) = self.mesh_spec().and_then(|m| m.visual.as_ref()) {
-            let surface = self.fine_surface(visual, sim.model())?;
+            let surface = self.fine_surface(visual, visual_mesh, sim.model())?;
             sim.set_fine_surface(surface)?;
         }
         Ok(sim)
     }
 
-    /// `[mesh] visual`: the fine surface read, scaled like the body, and tied to the model's
-    /// rest surface.
-    fn fine_surface(&self, visual: &Path, model: &dyn Deformable) -> Result<MappedSurface, Error> {
-        let path = self.base_dir.join(visual);
+    /// `[mesh] visual`: the fine surface (`given`, or read from its file), scaled like the
+    /// body, and tied to the model's rest surface.
+    fn fine_surface(
+        &self,
+        visual: &Path,
+        given: Option<MeshData>,
+        model: &dyn Deformable,
+    ) -> Result<MappedSurface, Error> {
         let named =
             |m: String| self.invalid(format!("[mesh] visual = \"{}\": {m}", visual.display()));
-        if !path.is_file() {
-            return Err(named(format!(
-                "no such file (looked for {})",
-                path.display()
-            )));
-        }
-        let mut mesh = crate::io::read(&path)?;
+        let mut mesh = match given {
+            Some(mesh) => mesh,
+            None => {
+                let path = self.base_dir.join(visual);
+                if !path.is_file() {
+                    return Err(named(format!(
+                        "no such file (looked for {})",
+                        path.display()
+                    )));
+                }
+                crate::io::read(&path)?
+            }
+        };
         if mesh.triangles.is_empty() {
             return Err(named("the file has no triangles".into()));
         }

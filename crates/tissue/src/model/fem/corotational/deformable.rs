@@ -2,7 +2,8 @@
 //! reactions handed back per given constraint (as `fem-static` does).
 
 use crate::error::SimError;
-use crate::interact::{Constraints, Loads, SurfaceHold};
+use crate::integrate::PointHold;
+use crate::interact::{Constraints, Loads, PointContact, SurfaceHold};
 use crate::math::{Real, Vec3};
 use crate::model::{Deformable, ModelInfo, Reactions, StepInfo, SurfaceView, VolumeView};
 
@@ -122,12 +123,34 @@ impl Deformable for FemCorotational {
         }
         self.set_node_constraints(&fixed, &prescribed)?;
         self.contacts = contacts;
+        self.points.clear();
+        self.point_push.clear();
         self.reactions.set(c);
         Ok(true)
     }
 
     fn contacts_push_only(&self) -> bool {
         true
+    }
+
+    fn holds_point_contacts(&self) -> bool {
+        true
+    }
+
+    /// Each point held in the implicit step by the contact problem of the points on the
+    /// step's matrix (`contact::points`).
+    fn set_point_contacts(&mut self, points: &[PointContact]) -> Result<bool, SimError> {
+        self.points = PointHold::from_contacts(
+            points,
+            &self.boundary.nodes,
+            &self.boundary.surface.vertices,
+        )?;
+        self.point_push = vec![0.0; points.len()];
+        Ok(true)
+    }
+
+    fn point_reactions(&self) -> &[Real] {
+        &self.point_push
     }
 
     /// Gravity acts as the lumped share m_i g on each node; point loads on their vertex's node.

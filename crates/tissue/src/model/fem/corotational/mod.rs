@@ -43,7 +43,9 @@
 //! - `bsr`: the step's stiffness assembled into 3×3 block-sparse rows for the CG products
 //! - `warp`: the warp-canceling preconditioner (rest factor, node rotations)
 //! - `step`: the implicit Euler step; `deformable`: the `Deformable` interface
-//! - `contact`: frictionless contacts that only push (the filter, the active set's data)
+//! - `contact`: frictionless contacts that only push (the filter, the active set's data),
+//!   and a fine contact surface's points (`contact::points`, held in the step by their
+//!   contact problem on the step's matrix)
 
 mod bsr;
 mod contact;
@@ -160,6 +162,8 @@ struct Workspace {
     active: Vec<bool>,
     released: Vec<bool>,
     pushes: Vec<Real>,
+    /// The fine surface's points within the step (`contact::PointWork`).
+    points: contact::PointWork,
 }
 
 /// The corotational implicit model (see the module doc).
@@ -192,6 +196,10 @@ pub struct FemCorotational {
     contacts: Vec<contact::PushContact>,
     /// Per node: a contact on it pushed in the last step (the next step starts it held).
     pushed: Vec<bool>,
+    /// A fine surface's points (`Deformable::set_point_contacts`) on the nodes, held in the
+    /// step (`contact::points`), and the push on each over the last step, N.
+    points: Vec<crate::integrate::PointHold>,
+    point_push: Vec<Real>,
     /// Solves the last step's active set took, and steps that stopped at the bound.
     contact_solves: usize,
     contact_caps: u64,
@@ -279,6 +287,8 @@ impl FemCorotational {
             holds: vec![Hold::Free; n],
             contacts: Vec::new(),
             pushed: vec![false; n],
+            points: Vec::new(),
+            point_push: Vec::new(),
             contact_solves: 0,
             contact_caps: 0,
             length,
@@ -302,6 +312,7 @@ impl FemCorotational {
                 active: Vec::new(),
                 released: Vec::new(),
                 pushes: Vec::new(),
+                points: contact::PointWork::default(),
             },
             precompute_seconds: start.elapsed().as_secs_f64(),
             last_cg: Default::default(),

@@ -8,7 +8,7 @@ use crate::model::StepInfo;
 use crate::solve::{CgResult, CgWorkspace};
 
 use super::bsr::BlockStiffness;
-use super::contact::{Filter, MAX_CONTACT_SOLVES};
+use super::contact::{self, Filter, MAX_CONTACT_SOLVES, PointsDone};
 use super::force;
 use super::warp::WarpPreconditioner;
 use super::{FemCorotational, Hold, Resolved};
@@ -231,6 +231,36 @@ impl FemCorotational {
             }
         };
 
+        // A fine surface's points, held by their contact problem on this step's matrix
+        // (`contact::hold_points`), the vertex contacts' active set settled.
+        let mut points_done = PointsDone::default();
+        if !self.points.is_empty() && cg.relative_residual.is_finite() {
+            let holds = &self.holds;
+            let free = |d: usize| holds[d / 3] == Hold::Free;
+            let (cg_work, filter) = (&mut ws.cg, &ws.filter);
+            let column = |r: &[Real], y: &mut [Real]| {
+                let s = Solve { rhs: r, ..solve };
+                let c = s.run(cg_work, warp.as_deref_mut(), filter, y, tol);
+                let capped = !c.relative_residual.is_finite()
+                    || (c.iterations >= cap && c.relative_residual > tol);
+                (c.iterations, capped)
+            };
+            points_done = contact::hold_points(
+                &self.points,
+                &self.x,
+                &self.v,
+                h,
+                depth,
+                // Ten times the CG's tolerance: W's roundoff (`hold_points`).
+                10.0 * tol.max(1e-10),
+                free,
+                filter,
+                column,
+                &mut ws.dv,
+                &mut ws.points,
+            )?;
+            iterations += points_done.iterations;
+        }
         if !cg.relative_residual.is_finite() {
             return Err(SimError::Diverged {
                 step: self.steps + 1,
@@ -292,6 +322,9 @@ impl FemCorotational {
             k.push = p.max(0.0);
             self.pushed[k.node] = k.push > 0.0;
         }
+        for (p, l) in self.point_push.iter_mut().zip(&self.ws.points.lambda) {
+            *p = l.max(0.0);
+        }
         self.contact_solves = solves;
         self.contact_caps += u64::from(!settled);
         self.update_reactions();
@@ -299,7 +332,7 @@ impl FemCorotational {
         Ok(StepInfo {
             iterations,
             residual,
-            capped: (cg.iterations >= cap && residual > tol) || !settled,
+            capped: (cg.iterations >= cap && residual > tol) || !settled || points_done.capped,
             substeps: 1,
         })
     }
@@ -352,6 +385,7 @@ impl FemCorotational {
         self.elastic_valid = true;
         self.steps = 0;
         self.contacts.iter_mut().for_each(|k| k.push = 0.0);
+        self.point_push.iter_mut().for_each(|p| *p = 0.0);
         self.pushed.iter_mut().for_each(|p| *p = false);
         if let Some(w) = self.warp.as_mut() {
             w.reset();

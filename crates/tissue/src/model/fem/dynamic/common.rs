@@ -9,6 +9,7 @@
 use std::time::Instant;
 
 use crate::error::{Error, SimError};
+use crate::integrate::{PointHold, PointProjection};
 use crate::material::{ElementMaterials, Material};
 use crate::math::{Real, Vec3};
 use crate::mesh::{Boundary, TetMesh, boundary_surface};
@@ -45,6 +46,19 @@ pub(super) struct Core {
     pub problem: DofProblem,
     /// Frictionless contacts that only push, on nodes free in `problem` (`contacts`).
     pub contacts: Vec<PushContact>,
+    /// A fine surface's points on the nodes (`points`), held from the next step on.
+    pub points: Vec<PointHold>,
+    /// Per point: the push over the last step along its normal, N (≥ 0); the momentum the
+    /// projections gave it over the accepted substeps of this step, N·s, and over the
+    /// substep in progress (`fem-explicit`).
+    pub point_push: Vec<Real>,
+    pub point_impulse: Vec<Real>,
+    pub point_trial: Vec<Real>,
+    /// `fem-explicit`'s projection of the points and its per-node buffers (velocities and
+    /// inverse masses, set on the points' nodes only).
+    pub projection: PointProjection,
+    pub point_v: Vec<Vec3>,
+    pub point_inv_mass: Vec<Real>,
     pub reactions: ConstraintReactions,
     /// U_t, U_{t−Δt} and the trial U_{t+Δt}.
     pub u: Vec<Real>,
@@ -108,6 +122,13 @@ impl Core {
             diag: assembler.pattern.diagonal_slots(),
             problem: DofProblem::new(dofs),
             contacts: Vec::new(),
+            points: Vec::new(),
+            point_push: Vec::new(),
+            point_impulse: Vec::new(),
+            point_trial: Vec::new(),
+            projection: PointProjection::default(),
+            point_v: vec![Vec3::ZERO; dofs / 3],
+            point_inv_mass: vec![0.0; dofs / 3],
             reactions: ConstraintReactions::default(),
             u: vec![0.0; dofs],
             u_prev: vec![0.0; dofs],
@@ -376,6 +397,7 @@ impl Core {
         self.energy = 0.0;
         self.last_work = 0.0;
         self.contacts.iter_mut().for_each(|k| k.push = 0.0);
+        self.point_push.iter_mut().for_each(|p| *p = 0.0);
         self.update_positions();
         self.update_reactions();
     }

@@ -58,6 +58,10 @@ impl Core {
         dp.forces = std::mem::take(&mut self.problem.forces);
         self.problem = dp;
         self.contacts = contacts;
+        self.points.clear();
+        self.point_push.clear();
+        self.point_impulse.clear();
+        self.point_trial.clear();
         self.reactions.set(c);
         self.update_energy_floor();
         Ok(as_asked)
@@ -100,6 +104,7 @@ impl Core {
         for k in &self.contacts {
             e += 0.5 * stiffest(k.node) * k.normal.dot(k.target).powi(2);
         }
+        e += self.points_floor(stiffest);
         self.energy_floor = e.max(Real::MIN_POSITIVE);
     }
 

@@ -61,9 +61,10 @@ impl Core {
         }
     }
 
-    /// Restores the nodes `push_contacts` moved in a refused (sub)step.
+    /// Restores the nodes `push_contacts` and `project_points` moved in a refused
+    /// (sub)step (last first: a node both moved gets its value from before either).
     pub fn undo_pushes(&mut self, undo: &[(usize, Vec3)]) {
-        for &(i, u0) in undo {
+        for &(i, u0) in undo.iter().rev() {
             unflatten_mut(&mut self.u)[i] = u0;
         }
     }
@@ -71,12 +72,16 @@ impl Core {
     /// Starts a step's momentum count.
     pub fn clear_impulses(&mut self) {
         self.contacts.iter_mut().for_each(|k| k.impulse = 0.0);
+        self.point_impulse.iter_mut().for_each(|p| *p = 0.0);
     }
 
     /// Ends a step of length `dt`: the push is the momentum per second.
     pub fn finish_pushes(&mut self, dt: Real) {
         for k in &mut self.contacts {
             k.push = k.impulse / dt;
+        }
+        for (p, i) in self.point_push.iter_mut().zip(&self.point_impulse) {
+            *p = i / dt;
         }
         self.write_contact_reactions();
         self.update_reactions();
@@ -109,6 +114,6 @@ impl Core {
             let depth = (-k.gap(&self.u)).max(0.0);
             e += 0.5 * stiffest(k.node) * depth * depth;
         }
-        e
+        e + self.points_work(stiffest)
     }
 }

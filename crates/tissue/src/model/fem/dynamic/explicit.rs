@@ -345,6 +345,7 @@ impl FemExplicit {
         }
         self.undo.clear();
         c.push_contacts(dt, &mut self.undo);
+        c.project_points(dt, &mut self.undo);
         let energy = c.trial_energy(dt);
         if let Err(e) = c.check_trial(energy, "explicit step") {
             c.undo_pushes(&self.undo);
@@ -353,6 +354,9 @@ impl FemExplicit {
         }
         for k in &mut c.contacts {
             k.impulse += k.trial;
+        }
+        for (i, t) in c.point_impulse.iter_mut().zip(&c.point_trial) {
+            *i += t;
         }
         c.accept(dt, energy);
         Ok(())

@@ -40,6 +40,20 @@ macro_rules! forward_deformable {
             fn contacts_push_only(&self) -> bool {
                 true
             }
+            fn holds_point_contacts(&self) -> bool {
+                true
+            }
+            /// Projected after every substep (`fem-explicit`) or held in the solve
+            /// (`fem-semi-implicit`): `points`.
+            fn set_point_contacts(
+                &mut self,
+                points: &[crate::interact::PointContact],
+            ) -> Result<bool, crate::error::SimError> {
+                self.core.set_points(points).map(|()| true)
+            }
+            fn point_reactions(&self) -> &[crate::math::Real] {
+                &self.core.point_push
+            }
             fn set_loads(
                 &mut self,
                 loads: &crate::interact::Loads,

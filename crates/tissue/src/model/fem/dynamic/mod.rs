@@ -56,6 +56,7 @@
 //! - `constraints`: surface constraints and loads to dofs, reactions per constraint
 //! - `contacts`: frictionless contacts that only push (issue 20)
 //! - `forward`: the `Deformable` methods both schemes forward to `Core`
+//! - `points`: a fine contact surface's points (issue 20)
 //! - `explicit`: `FemExplicit`; `semi_implicit`: `FemSemiImplicit`
 
 mod common;
@@ -63,6 +64,7 @@ mod constraints;
 mod contacts;
 mod explicit;
 mod forward;
+mod points;
 mod semi_implicit;
 
 pub use explicit::FemExplicit;

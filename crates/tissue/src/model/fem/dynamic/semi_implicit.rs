@@ -215,6 +215,8 @@ impl FemSemiImplicit {
                     .hold_along(k.node, k.normal, k.normal.dot(k.target))?;
             }
             self.hat.finish();
+            self.hat.points.clear();
+            self.hat.points.extend(c.point_rows());
             self.system
                 .solve(&self.hat, &mut c.u_next, &mut self.reactions_scratch)?;
             // Pulls and penetrations below roundoff of the pushes and of the motion are none.
@@ -249,6 +251,13 @@ impl FemSemiImplicit {
             };
             k.push = pushed;
         }
+        // The points' multipliers: K̂ U⁺ = F̂ + C λ is the equation of motion at the end of
+        // the step, so λ is the push then, N.
+        c.point_push.clear();
+        c.point_push.extend(
+            (0..c.points.len())
+                .map(|j| self.system.point_pushes.get(j).map_or(0.0, |l| l.max(0.0))),
+        );
         self.pushed.iter_mut().for_each(|p| *p = false);
         for k in &c.contacts {
             self.pushed[k.node] = k.push > 0.0;
