@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::error::{Error, SimError};
 use crate::interact::{
-    Constraints, Instrument, InstrumentKind, Keyframe, Loads, Prescribed, Trajectory,
+    Constraints, Instrument, InstrumentKind, Keyframe, Loads, MappedSurface, Prescribed, Trajectory,
 };
 use crate::math::{Real, Vec3, is_finite_vec};
 use crate::model::Deformable;
@@ -17,37 +17,37 @@ use super::Settings;
 /// How the comparison's probe touches the organ.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ContactLaw {
-    /// A touched vertex is held at its point of the probe (`Instrument::sticking`).
-    #[default]
+    /// A touched vertex is held at its point of the probe (`Instrument::sticking`). No
+    /// scenario uses it now; kept for regression tests of the sticking probe.
     Sticking,
-    /// Frictionless (`contact = "sliding"`): a touched vertex is held along the probe's normal
-    /// only, slides across it and is let go when it pulls. The force then follows the
-    /// continuum under refinement instead of how many nodes the patch catches.
+    /// Frictionless at the model's surface vertices (`contact = "sliding"`): a touched
+    /// vertex is held along the probe's normal only, slides across it and is let go when it
+    /// pulls. The reference's law (quadratic `fem-static`, every surface node touchable).
     Frictionless,
+    /// Every kind's law: frictionless against a fine contact surface, the model's own rest
+    /// surface subdivided flat (`fine_contact_surface`) and set with
+    /// `Simulation::set_fine_surface`. A kind that solves point contacts
+    /// (`Deformable::holds_point_contacts`) holds the fine points exactly; the others get
+    /// the simulation's per-coarse-vertex planes built from the fine surface's face contacts.
+    /// On a coarse surface a frictionless vertex can slide off a sphere and let it pass
+    /// between vertices (the dynamic kinds lost the probe so); the fine surface's points
+    /// cover the faces between the vertices.
+    #[default]
+    FineSurface,
 }
 
-/// The kinds whose probe is frictionless, like the reference's, so that their error is the
-/// model's and not the contact law's: the static kinds that hold a contact along its normal
-/// exactly in their own solve (docs/contact.md). The dynamic kinds that can hold normals too
-/// (`fem-semi-implicit`, the spring kinds) were measured frictionless in the full run and lost
-/// the probe during the hold on the built-in liver (spring-mass: the probe's force rose to
-/// 1.7 mN, then its top vertex slid off the sphere and the force ended at 0; the same for the
-/// others): vertex contact on a coarse surface lets a sliding vertex leave a sphere and the
-/// sphere pass between vertices, so they keep sticking contact, as every other kind does (the
-/// shared relaxation, `interact::sliding`, would measure itself rather than the model).
-pub const FRICTIONLESS_KINDS: &[&str] = &["fem-static", "fem-condensed"];
-
 /// Solves a static model's contact loop may take per step with a frictionless probe (the
-/// targets slide to their equilibrium: one back-substitution each).
+/// targets or the fine points' planes slide to their equilibrium: one back-substitution
+/// each).
 pub const FRICTIONLESS_CONTACT_ITERATIONS: usize = 60;
 
 impl ContactLaw {
-    /// The law the comparison's probe has on `kind`.
-    pub fn of(kind: &str) -> Self {
-        if FRICTIONLESS_KINDS.contains(&kind) {
-            Self::Frictionless
-        } else {
-            Self::Sticking
+    /// As written in the record (`contact_law`'s value).
+    pub fn code(self) -> Real {
+        match self {
+            Self::Sticking => 0.0,
+            Self::Frictionless => 1.0,
+            Self::FineSurface => 2.0,
         }
     }
 
@@ -55,9 +55,104 @@ impl ContactLaw {
     pub fn name(self) -> &'static str {
         match self {
             Self::Sticking => "sticking (a touched vertex is held at its point of the probe)",
-            Self::Frictionless => "frictionless (held along the probe's normal, never pulling)",
+            Self::Frictionless => {
+                "frictionless at the surface vertices (held along the probe's normal, never \
+                 pulling)"
+            }
+            Self::FineSurface => {
+                "frictionless on a fine contact surface (the rest surface subdivided flat)"
+            }
         }
     }
+
+    /// The probe instrument frictionless (every law but sticking).
+    pub fn frictionless(self) -> bool {
+        self != Self::Sticking
+    }
+}
+
+/// The fine contact surface's subdivision for a probe of `radius` on a surface whose
+/// median edge is `edge` (both m): the fewest levels k (each triangle into 4^k) that bring
+/// the fine edge, edge / 2^k, to at most a quarter of the radius (`FINE_EDGE_PER_RADIUS`).
+/// The sphere then sags e²/(8 R) ≤ R/128 between neighbouring points, so it cannot pass
+/// between them, and the shallow indentation's patch (radius √(2 R d) ≈ 0.44 R at a depth of
+/// a tenth of R) holds about π (0.44 R)² / (0.87 (R/4)²) ≈ 11 fine points, the deep one
+/// (d = 0.4 R, radius 0.8 R) about 37, where the coarse liver's patch holds 1 to 3 vertices.
+/// Not finer: on a flat-subdivided face the points add no direction its three vertices do
+/// not have, only dependent rows, and at an eighth of the radius (16 triangles per coarse
+/// one on the liver) a deep random probe gathered 347 points and `fem-static`'s and the
+/// condensed kinds' complementarity solver found no solution within its cap. At most
+/// `MAX_FINE_LEVELS`, and fewer while the fine surface would have more than
+/// `MAX_FINE_TRIANGLES` (a finely meshed organ needs little or no subdivision).
+///
+/// The patch estimate is Hertz's, for a smooth surface. The built-in liver's probe presses
+/// a cone point of the coarse polyhedron, whose patch is about 3 mm across, and there k = 1
+/// is not converged (`reference::tests::fine_surface_refinement_study`, `fem-condensed`,
+/// shallow: k = 0 and 1 give the vertex law's 1.307 mN, k = 2 1.726 mN, k = 3 1.640 mN;
+/// deep: k = 1 19.3 mN, k = 2 15.8 mN, k = 3 no complementary solution within the cap).
+pub fn fine_levels(edge: Real, radius: Real, coarse_triangles: usize) -> u32 {
+    let mut k = 0;
+    while k < MAX_FINE_LEVELS && edge / Real::from(1u32 << k) > radius * FINE_EDGE_PER_RADIUS {
+        k += 1;
+    }
+    while k > 0 && coarse_triangles << (2 * k) > MAX_FINE_TRIANGLES {
+        k -= 1;
+    }
+    k
+}
+
+/// The fine contact surface's longest median edge, in probe radii (`fine_levels`).
+pub const FINE_EDGE_PER_RADIUS: Real = 0.25;
+/// The most subdivision levels of the fine contact surface.
+pub const MAX_FINE_LEVELS: u32 = 4;
+/// The most triangles of the fine contact surface.
+pub const MAX_FINE_TRIANGLES: usize = 200_000;
+
+/// The fine contact surface of `model` for a probe of `radius` (m): its rest surface
+/// subdivided flat `fine_levels` times, each fine vertex tied to its coarse triangle. Also
+/// returns the levels.
+pub fn fine_contact_surface(
+    model: &dyn Deformable,
+    radius: Real,
+) -> Result<(MappedSurface, u32), Error> {
+    let rest = model.rest_surface();
+    let triangles = model.surface().triangles;
+    let mut edges: Vec<Real> = triangles
+        .iter()
+        .flat_map(|t| (0..3).map(move |i| (t[i], t[(i + 1) % 3])))
+        .filter_map(|(a, b)| Some(rest.get(a as usize)?.distance(*rest.get(b as usize)?)))
+        .filter(|l| *l > 0.0)
+        .collect();
+    edges.sort_by(Real::total_cmp);
+    let edge = edges.get(edges.len() / 2).copied().unwrap_or(0.0);
+    let k = fine_levels(edge, radius, triangles.len());
+    let fine = MappedSurface::subdivided(rest, triangles, 1 << k).ok_or_else(|| {
+        Error::from(SimError::Unsupported {
+            model: model.kind(),
+            operation: "a fine contact surface",
+            reason: "its surface has no triangle to subdivide".into(),
+        })
+    })?;
+    Ok((fine, k))
+}
+
+/// A simulation of `model` held at `fixed`, ready for the probe's law: with the fine
+/// contact surface of a probe of `radius` set for `ContactLaw::FineSurface`.
+pub fn probe_simulation(
+    model: Box<dyn Deformable>,
+    fixed: Vec<u32>,
+    radius: Real,
+    law: ContactLaw,
+) -> Result<Simulation, Error> {
+    let fine = match law {
+        ContactLaw::FineSurface => Some(fine_contact_surface(model.as_ref(), radius)?.0),
+        _ => None,
+    };
+    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    if let Some(fine) = fine {
+        sim.set_fine_surface(fine)?;
+    }
+    Ok(sim)
 }
 
 /// How a model is stepped through a quasi-static scenario.
@@ -91,7 +186,7 @@ impl Stepping {
             max_time: s.settle_time,
             increments: s.increments,
             budget: BUDGET_SECONDS[usize::from(!s.quick)],
-            contact: ContactLaw::Sticking,
+            contact: ContactLaw::default(),
         }
     }
 }
@@ -214,9 +309,10 @@ pub fn probe_instrument(
         }
     })?;
     let probe = Instrument::new("probe", InstrumentKind::Probe, radius, path)?;
-    Ok(match law {
-        ContactLaw::Sticking => probe.sticking(),
-        ContactLaw::Frictionless => probe.with_friction(0.0)?,
+    Ok(if law.frictionless() {
+        probe.with_friction(0.0)?
+    } else {
+        probe.sticking()
     })
 }
 
@@ -230,7 +326,7 @@ pub fn indent(
     depth: Real,
     st: &Stepping,
 ) -> Result<(Settled, Simulation), Error> {
-    let sim = Simulation::new(model, fixed, Loads::default())?;
+    let sim = probe_simulation(model, fixed, radius, st.contact)?;
     indent_sim(sim, point, radius, 0.0, depth, st)
 }
 
@@ -247,7 +343,7 @@ pub fn indent_sim(
     depth: Real,
     st: &Stepping,
 ) -> Result<(Settled, Simulation), Error> {
-    if st.is_static && st.contact == ContactLaw::Frictionless {
+    if st.is_static && st.contact.frictionless() {
         sim.set_max_contact_iterations(FRICTIONLESS_CONTACT_ITERATIONS);
     }
     // Static models: `increments` solves over a unit ramp; dynamic ones follow the ramp.

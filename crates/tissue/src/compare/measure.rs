@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::error::{Error, SimError};
-use crate::interact::{Constraints, Instrument, InstrumentKind, Keyframe, Loads, Trajectory};
+use crate::interact::{Constraints, Instrument, InstrumentKind, Keyframe, Trajectory};
 use crate::material::Material;
 use crate::math::{Real, Vec3};
 use crate::mesh::MeshData;
@@ -13,7 +13,8 @@ use crate::model::{CutPath, Deformable};
 use crate::sim::Simulation;
 
 use super::drive::{
-    ContactLaw, Stepping, check_finite, indent, prescribe, prescribe_along, volume,
+    ContactLaw, Stepping, check_finite, fine_contact_surface, indent, prescribe, prescribe_along,
+    probe_simulation, volume,
 };
 use super::record::{Curve, KindRecord, Measure};
 use super::setup::{Organ, Scenario, build_on, guarded, nearest};
@@ -139,11 +140,33 @@ pub fn measure_kind(
         "is_static".into(),
         Measure::of(if is_static { 1.0 } else { 0.0 }, "bool"),
     );
+    // The probe's contact surface: the rest surface subdivided flat (`drive::fine_levels`).
+    let law = ContactLaw::FineSurface;
+    match fine_contact_surface(model.as_ref(), scenario.probe_radius) {
+        Ok((fine, k)) => {
+            m.insert(
+                "fine_surface_levels".into(),
+                Measure::of(Real::from(k), "levels").noted(format!(
+                    "each surface triangle into 4^{k}: {} fine vertices, {} triangles, for a \
+                     probe of radius {:.2e} m",
+                    fine.len(),
+                    fine.triangles.len(),
+                    scenario.probe_radius
+                )),
+            );
+        }
+        Err(e) => {
+            m.insert(
+                "fine_surface_levels".into(),
+                Measure::failed("levels", err(&e)),
+            );
+        }
+    }
     drop(model);
 
     // Robustness 1: the largest stable step.
     progress("stable step");
-    let stable = stable_step(kind, organ, scenario, qs_mat, settings);
+    let stable = stable_step(kind, organ, scenario, qs_mat, law, settings);
     let dt_run = match &stable {
         Ok(dt) => {
             let mut meas = Measure::of(*dt, "s");
@@ -166,21 +189,9 @@ pub fn measure_kind(
     };
     let stable_dt = stable.as_ref().ok().copied();
     let st = Stepping {
-        contact: ContactLaw::of(kind),
+        contact: law,
         ..Stepping::new(is_static, dt_run, settings)
     };
-    rec.measures.insert(
-        "contact_law".into(),
-        Measure::of(
-            if st.contact == ContactLaw::Frictionless {
-                1.0
-            } else {
-                0.0
-            },
-            "frictionless",
-        )
-        .noted(st.contact.name()),
-    );
     rec.measures.insert(
         "run_dt".into(),
         Measure::of(if is_static { 1.0 } else { dt_run }, "s"),
@@ -192,7 +203,8 @@ pub fn measure_kind(
         ("haptic", 1e-3, settings.cost_steps),
         ("visual", 1.0 / 60.0, 12),
     ] {
-        let r = guarded(|| cost_per_ms(kind, organ, scenario, qs_mat, dt, steps)).and_then(|r| r);
+        let r =
+            guarded(|| cost_per_ms(kind, organ, scenario, qs_mat, law, dt, steps)).and_then(|r| r);
         let m = match r {
             Ok((per_ms, latency, _)) => {
                 if name == "haptic" {
@@ -228,10 +240,31 @@ pub fn measure_kind(
 
     // Deformational behaviour and mesh dimension: the shallow indentation.
     progress("indentation");
-    match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.shallow))
-        .and_then(|r| r)
-    {
-        Ok((f, field, curve, settled)) => {
+    let shallow = guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.shallow))
+        .and_then(|r| r);
+    // Which hold the law gave this kind, as the shallow indentation ended: the fine points
+    // solved exactly by the model, or the simulation's per-coarse-vertex planes.
+    let held = match &shallow {
+        Ok(ind) => ind.held.clone(),
+        Err(e) => format!("the shallow indentation failed: {e}"),
+    };
+    rec.measures.insert(
+        "contact_law".into(),
+        Measure::of(
+            st.contact.code(),
+            "law (0 sticking, 1 frictionless at the vertices, 2 frictionless on the fine surface)",
+        )
+        .noted(format!("{}: {held}", st.contact.name())),
+    );
+    match shallow {
+        Ok(Indented {
+            force: f,
+            field,
+            curve,
+            settled,
+            contacts,
+            ..
+        }) => {
             let fe = (f - reference.force_shallow).abs() / reference.force_shallow.abs().max(1e-12);
             let mut fm = Measure::of(f, "N");
             let mut em = Measure::of(fe, "relative");
@@ -241,6 +274,10 @@ pub fn measure_kind(
             }
             rec.measures.insert("force_shallow".into(), fm);
             rec.measures.insert("force_error".into(), em);
+            rec.measures.insert(
+                "contacts_shallow".into(),
+                Measure::of(contacts as Real, "held").noted(held.clone()),
+            );
             let de = reference.displacement_error(&field);
             rec.measures
                 .insert("displacement_error".into(), Measure::of(de, "relative"));
@@ -273,7 +310,17 @@ pub fn measure_kind(
     progress("deep");
     match guarded(|| indentation(kind, organ, scenario, qs_mat, &st, scenario.deep)).and_then(|r| r)
     {
-        Ok((f, _, _, settled)) => {
+        Ok(Indented {
+            force: f,
+            settled,
+            contacts,
+            held,
+            ..
+        }) => {
+            rec.measures.insert(
+                "contacts_deep".into(),
+                Measure::of(contacts as Real, "held").noted(held),
+            );
             let fe = (f - reference.force_deep).abs() / reference.force_deep.abs().max(1e-12);
             let mut em = Measure::of(fe, "relative");
             if !settled {
@@ -319,11 +366,17 @@ pub fn measure_kind(
         ..qs_mat
     };
     match guarded(|| compression(kind, organ, scenario, incompressible, &st)).and_then(|r| r) {
-        Ok((dv, curve, settled)) => {
-            let mut vm = Measure::of(dv, "relative");
-            if !settled {
-                vm = vm.noted("not settled at the time limit");
-            }
+        Ok((dv, curve, settled, along)) => {
+            let plate = if along {
+                "plate frictionless (held along y only)"
+            } else {
+                "plate held in all three directions (the model cannot hold along y only)"
+            };
+            let vm = Measure::of(dv, "relative").noted(if settled {
+                plate.to_string()
+            } else {
+                format!("not settled at the time limit; {plate}")
+            });
             rec.measures.insert("compression_volume".into(), vm);
             rec.measures.insert(
                 "compression_volume_error".into(),
@@ -360,7 +413,7 @@ pub fn measure_kind(
             Measure::of(0.0, "s").noted("static: immediate"),
         );
     } else {
-        match guarded(|| step_response(kind, organ, scenario, mat, dt_run, reference, settings))
+        match guarded(|| step_response(kind, organ, scenario, mat, law, dt_run, settings))
             .and_then(|r| r)
         {
             Ok((freq, delay)) => {
@@ -461,10 +514,10 @@ fn ladder(
     for l in 1..=s.ladder_refinements {
         let step = guarded(|| -> Result<(Organ, Real, Real, Real), Error> {
             let finer = level.refined()?;
-            let (f, _, _, _) = indentation(kind, &finer, sc, mat, st, sc.shallow)?;
+            let f = indentation(kind, &finer, sc, mat, st, sc.shallow)?.force;
             let e = (f - reference.force_shallow).abs() / reference.force_shallow.abs().max(1e-12);
             // The cost run's model also says how many elements this size has (no third build).
-            let (c, _, n) = cost_per_ms(kind, &finer, sc, mat, 1e-3, s.cost_steps)?;
+            let (c, _, n) = cost_per_ms(kind, &finer, sc, mat, st.contact, 1e-3, s.cost_steps)?;
             Ok((finer, n, e, c))
         })
         .and_then(|r| r);
@@ -577,20 +630,21 @@ pub(super) fn stable_step(
     organ: &Organ,
     sc: &Scenario,
     mat: Material,
+    law: ContactLaw,
     s: &Settings,
 ) -> Result<Real, String> {
     let ok = |dt: Real| -> Result<(), String> {
         let r = guarded(|| -> Result<(), Error> {
             let model = organ.build(kind, mat)?;
             let fixed = sc.fixed(model.rest_surface());
-            let mut sim = Simulation::new(model, fixed, Loads::default())?;
+            let mut sim = probe_simulation(model, fixed, sc.probe_radius, law)?;
             // Already pressed in at the first step: the harshest contact.
             let inst = super::drive::probe_instrument(
                 sc.probe() - Vec3::Y * sc.shallow,
                 sc.probe_radius,
                 0.0,
                 1.0,
-                ContactLaw::of(kind),
+                law,
             )?;
             sim.add_instrument(inst);
             for _ in 0..s.stability_steps {
@@ -646,20 +700,21 @@ fn cost_per_ms(
     organ: &Organ,
     sc: &Scenario,
     mat: Material,
+    law: ContactLaw,
     dt: Real,
     steps: usize,
 ) -> Result<(Real, Real, Real), Error> {
     let model = organ.build(kind, mat)?;
     let elements = model.info().elements as Real;
     let fixed = sc.fixed(model.rest_surface());
-    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    let mut sim = probe_simulation(model, fixed, sc.probe_radius, law)?;
     let total = dt * steps as Real;
     sim.add_instrument(super::drive::probe_instrument(
         sc.probe(),
         sc.probe_radius,
         sc.shallow,
         total,
-        ContactLaw::of(kind),
+        law,
     )?);
     // One step first: lazy factorisations belong to pre-computation, not to every step.
     sim.step(dt)?;
@@ -752,7 +807,7 @@ fn run_random_path(
     let inward = (centre - p).normalize_or_zero();
     let model = organ.build(kind, mat)?;
     let fixed = sc.fixed(model.rest_surface());
-    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    let mut sim = probe_simulation(model, fixed, sc.probe_radius, st.contact)?;
     let (kindi, start, end) = if rp.grasp {
         (
             InstrumentKind::Grasper {
@@ -780,10 +835,14 @@ fn run_random_path(
             reason: e.to_string(),
         }
     })?;
-    // Each kind keeps the contact its scenario was validated with (a grasper holds).
+    // The probe has the scenarios' law (a grasper holds what it grasped).
     let mut inst = Instrument::new("random", kindi, sc.probe_radius, path)?;
-    if !rp.grasp && ContactLaw::of(kind) == ContactLaw::Sticking {
-        inst = inst.sticking();
+    if !rp.grasp {
+        inst = if st.contact.frictionless() {
+            inst.with_friction(0.0)?
+        } else {
+            inst.sticking()
+        };
     }
     sim.add_instrument(inst);
     let dt = if st.is_static { duration / 8.0 } else { st.dt };
@@ -892,9 +951,22 @@ fn inverted_element(
     }
 }
 
-/// Quasi-static probe indentation to `depth`: force (N), the surface displacement field
-/// (rest position, displacement), the force curve, settled.
-#[allow(clippy::type_complexity)]
+/// The end of a quasi-static probe indentation.
+pub(super) struct Indented {
+    /// The probe's force, up, N.
+    pub force: Real,
+    /// The surface displacement field: rest position, displacement.
+    pub field: Vec<(Vec3, Vec3)>,
+    /// (load fraction, force) along the run.
+    pub curve: Vec<[Real; 2]>,
+    pub settled: bool,
+    /// What the probe held at the end: pushed fine points, or coarse vertices.
+    pub contacts: usize,
+    /// How it held them, in words (exact fine points, per-vertex planes, nothing).
+    pub held: String,
+}
+
+/// Quasi-static probe indentation to `depth`.
 fn indentation(
     kind: &str,
     organ: &Organ,
@@ -902,7 +974,7 @@ fn indentation(
     mat: Material,
     st: &Stepping,
     depth: Real,
-) -> Result<(Real, Vec<(Vec3, Vec3)>, Vec<[Real; 2]>, bool), Error> {
+) -> Result<Indented, Error> {
     let model = organ.build(kind, mat)?;
     let fixed = sc.fixed(model.rest_surface());
     let (settled, sim) = indent(model, fixed, sc.probe(), sc.probe_radius, depth, st)?;
@@ -913,7 +985,36 @@ fn indentation(
         .zip(m.surface().positions)
         .map(|(r, p)| (*r, *p - *r))
         .collect();
-    Ok((settled.value, field, settled.curve, settled.settled))
+    Ok(Indented {
+        force: settled.value,
+        field,
+        curve: settled.curve,
+        settled: settled.settled,
+        contacts: settled.contacts,
+        held: held_by(&sim, settled.contacts),
+    })
+}
+
+/// How the probe (the simulation's first instrument) holds the organ now, in words: the
+/// fine points the model solves exactly, the per-coarse-vertex planes of the fine surface's
+/// face contacts, or its vertices; and how many of them push.
+fn held_by(sim: &Simulation, pushing: usize) -> String {
+    let Some(probe) = sim.instruments().first() else {
+        return "no probe".into();
+    };
+    let faces = probe.contacts().iter().filter(|c| c.face.is_some()).count();
+    if !probe.fine_points().is_empty() {
+        format!(
+            "exact fine points ({pushing} of the {} near the probe pushed)",
+            probe.fine_points().len()
+        )
+    } else if faces > 0 {
+        format!("per-vertex planes of the fine surface's faces ({pushing} coarse vertices held)")
+    } else if !probe.contacts().is_empty() {
+        format!("surface vertices ({pushing} held)")
+    } else {
+        "nothing (the probe lost the organ)".into()
+    }
 }
 
 /// Rigid 90° rotation about z through the organ's centre. First the whole surface is carried
@@ -960,23 +1061,30 @@ fn rotation(
     Ok((whole.value, dv, whole.settled))
 }
 
-/// The plate compression by 10 % of the height: relative volume change, its curve, settled.
+/// The plate compression by 10 % of the height: relative volume change, its curve,
+/// settled, and whether the plate held its vertices along y only (frictionless).
+#[allow(clippy::type_complexity)]
 fn compression(
     kind: &str,
     organ: &Organ,
     sc: &Scenario,
     mat: Material,
     st: &Stepping,
-) -> Result<(Real, Vec<[Real; 2]>, bool), Error> {
+) -> Result<(Real, Vec<[Real; 2]>, bool, bool), Error> {
     let mut model = organ.build(kind, mat)?;
     let rest = model.rest_surface().to_vec();
     let fixed = sc.fixed(&rest);
     let plate = sc.plate(&rest);
     let v0 = volume(model.as_ref());
     let travel = sc.compression;
-    // The plate is frictionless where the probe is (the vertices under it held along y only).
-    let along = (st.contact == ContactLaw::Frictionless).then_some(Vec3::Y);
-    let (settled, _) = prescribe_along(
+    // The plate is frictionless as the probe is: the vertices under it held along its
+    // normal only, where the model can (the note says when it could not). The normal is the
+    // plate's face toward the tissue, −y: a kind whose holds along a direction only push
+    // (`contacts_push_only`) is pushed down by it (along +y such a hold let every vertex go
+    // free above its target, and the organ did not move: volume change 0 on every dynamic
+    // kind); a static kind holds the vertex both ways, whichever the sign.
+    let along = st.contact.frictionless().then_some(-Vec3::Y);
+    let (settled, held_along) = prescribe_along(
         model.as_mut(),
         &fixed,
         &plate,
@@ -985,7 +1093,12 @@ fn compression(
         st,
         |m| (volume(m) - v0) / v0,
     )?;
-    Ok((settled.value, settled.curve, settled.settled))
+    Ok((
+        settled.value,
+        settled.curve,
+        settled.settled,
+        held_along && along.is_some(),
+    ))
 }
 
 /// Step response to the probe pressed in suddenly (the shallow depth at the first step) with
@@ -997,22 +1110,22 @@ pub(super) fn step_response(
     organ: &Organ,
     sc: &Scenario,
     mat: Material,
+    law: ContactLaw,
     dt: Real,
-    _reference: &Reference,
     s: &Settings,
 ) -> Result<(Measure, Measure), Error> {
     let model = organ.build(kind, mat)?;
     let rest = model.rest_surface().to_vec();
     let fixed = sc.fixed(&rest);
     let far = nearest(&rest, Vec3::from(sc.far_point)).unwrap_or(0) as usize;
-    let mut sim = Simulation::new(model, fixed, Loads::default())?;
+    let mut sim = probe_simulation(model, fixed, sc.probe_radius, law)?;
     let pressed = sc.probe() - Vec3::Y * sc.shallow;
     sim.add_instrument(super::drive::probe_instrument(
         pressed,
         sc.probe_radius,
         0.0,
         1.0,
-        ContactLaw::of(kind),
+        law,
     )?);
     let steps = (s.dynamics_time / dt).ceil() as usize;
     let mut side = Vec::with_capacity(steps);
@@ -1265,11 +1378,17 @@ mod tests {
         let dt = match std::env::var("HYBRID_PATH_DT") {
             Ok(d) => d.parse().unwrap(),
             Err(_) => {
-                let stable = stable_step("hybrid", &organ, &sc, mat, &s).unwrap();
+                let stable =
+                    stable_step("hybrid", &organ, &sc, mat, ContactLaw::Sticking, &s).unwrap();
                 (0.5 * stable).min(s.run_dt_max)
             }
         };
-        let st = Stepping::new(false, dt, &s);
+        // The sticking probe this regression was found with (the scenarios' probe is now
+        // frictionless on a fine surface).
+        let st = Stepping {
+            contact: ContactLaw::Sticking,
+            ..Stepping::new(false, dt, &s)
+        };
         let rp = random_path_list(&organ, &sc, 1).unwrap()[0];
         let run = run_random_path("hybrid", &organ, &sc, mat, &st, &s, &rp);
         println!("dt {dt:e}: {rp:?}: {run:?}");

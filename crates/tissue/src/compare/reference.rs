@@ -122,6 +122,12 @@ fn detail(info: &crate::model::ModelInfo, key: &str) -> usize {
         .unwrap_or(0)
 }
 
+/// The probe's law in the dynamics reference (`fem-explicit`'s step response and its stable
+/// step): sticking, as it was measured before every kind's probe became frictionless on a
+/// fine surface, so that the reference stays the one cached and documented (the far side's
+/// first peak and delay, which it gives, follow the organ's inertia more than the law).
+pub const DYNAMICS_LAW: ContactLaw = ContactLaw::Sticking;
+
 /// Computes the reference on `organ` (it must have tetrahedra). The probe is frictionless
 /// (held along its normal only, never pulling): with sticking contact the force follows how
 /// many nodes the patch catches and does not converge under refinement.
@@ -295,9 +301,16 @@ pub fn reference(
     out.bar_nu = nu;
     progress("reference dynamics");
     let dyn_kind = "fem-explicit";
-    if let Ok(dt) = stable_step(dyn_kind, organ, sc, mat, s)
-        && let Ok((freq, delay)) =
-            step_response(dyn_kind, organ, sc, organ.material, 0.25 * dt, &out, s)
+    if let Ok(dt) = stable_step(dyn_kind, organ, sc, mat, DYNAMICS_LAW, s)
+        && let Ok((freq, delay)) = step_response(
+            dyn_kind,
+            organ,
+            sc,
+            organ.material,
+            DYNAMICS_LAW,
+            0.25 * dt,
+            s,
+        )
     {
         out.frequency = freq.value;
         out.delay = delay.value;
@@ -430,6 +443,159 @@ mod tests {
         );
         assert!((a - b).length() <= 1e-8 * a.length(), "{a:?} {b:?}");
         assert!(tangential <= 1e-6 && pull <= 1e-9, "{tangential} {pull}");
+    }
+
+    /// Every kind's probe law (frictionless on the rest surface subdivided flat,
+    /// `drive::fine_contact_surface`) on the built-in liver's shallow indentation, checked
+    /// against physics two ways. Linear `fem-static` (the fine points' rows through the Schur
+    /// complement of its sparse factorisation), `fem-condensed` and
+    /// `fem-precomputed-tensors` (the dense surface response) are three implementations of
+    /// the same frictionless problem: their forces agree to 1e-8 (measured 1.4e-12; the
+    /// LCP's regularisation bounds it), and the supports balance the probe (1.2e-15 N). The
+    /// rule gives k = 1 on the liver. Under refinement of the fine surface the force is not
+    /// yet converged at k = 1 (+32 % at k = 2: `fine_surface_refinement_study`), so this test
+    /// checks the implementations' agreement, not the subdivision.
+    #[test]
+    fn the_fine_surface_probe_agrees_between_the_linear_fem_kinds() {
+        use crate::compare::drive::{fine_contact_surface, indent_sim, probe_simulation};
+        use crate::interact::MappedSurface;
+        let (organ, sc) = liver();
+        let s = Settings::quick();
+        let mat = settling(organ.material, &sc);
+        let st = Stepping {
+            contact: ContactLaw::FineSurface,
+            ..Stepping::new(true, 1.0, &s)
+        };
+        // The probe on `kind` with the rule's fine surface, or with `levels` subdivisions.
+        let press = |kind: &str, levels: Option<u32>| {
+            let model = organ.build(kind, mat).unwrap();
+            let fixed = sc.fixed(model.rest_surface());
+            let sim = match levels {
+                None => probe_simulation(model, fixed, sc.probe_radius, st.contact).unwrap(),
+                Some(k) => {
+                    let fine = MappedSurface::subdivided(
+                        model.rest_surface(),
+                        model.surface().triangles,
+                        1 << k,
+                    )
+                    .unwrap();
+                    let mut sim = Simulation::new(model, fixed, Loads::default()).unwrap();
+                    sim.set_fine_surface(fine).unwrap();
+                    sim
+                }
+            };
+            let (settled, sim) =
+                indent_sim(sim, sc.probe(), sc.probe_radius, 0.0, sc.shallow, &st).unwrap();
+            let probe = &sim.instruments()[0];
+            assert!(settled.contact_converged, "{kind} {levels:?}");
+            assert!(!probe.fine_points().is_empty(), "{kind}: exact points");
+            (
+                sim.instrument_forces()[0],
+                sim.fixed_reaction_total(),
+                settled.contacts,
+            )
+        };
+        let model = organ.build("fem-static", mat).unwrap();
+        let (fine, k) = fine_contact_surface(model.as_ref(), sc.probe_radius).unwrap();
+        println!(
+            "the rule: k = {k}, {} fine vertices, {} triangles",
+            fine.len(),
+            fine.triangles.len()
+        );
+        assert_eq!(k, 1);
+        let (a, supports, pushed) = press("fem-static", None);
+        println!(
+            "fem-static: F = {a:?} N ({pushed} points pushed), supports + F = {:.1e} N, \
+             against the quick reference {:.4e} N",
+            (supports + a).length(),
+            0.0010737544
+        );
+        assert!(a.y > 0.0 && (supports + a).length() <= 1e-8 * a.length());
+        for kind in ["fem-condensed", "fem-precomputed-tensors"] {
+            let (b, _, _) = press(kind, None);
+            println!(
+                "{kind}: F = {b:?} N, off fem-static by {:.1e}",
+                (a - b).length() / a.length()
+            );
+            assert!((a - b).length() <= 1e-8 * a.length(), "{kind}: {a:?} {b:?}");
+        }
+        // The rule's surface is `subdivided` with 2^k divisions: the same force.
+        let (same, _, _) = press("fem-condensed", Some(k));
+        assert!((same - a).length() <= 1e-8 * a.length());
+    }
+
+    /// The fine surface's subdivision under refinement: `fem-condensed`'s shallow probe
+    /// force on the built-in liver for k = 0 (the coarse vertices as points) to
+    /// `FINE_LEVELS` (default 4), printed with the points pushed and the change from the
+    /// level before. `cargo test --release -p tissue --lib fine_surface_refinement_study --
+    /// --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn fine_surface_refinement_study() {
+        use crate::compare::drive::indent_sim;
+        use crate::interact::MappedSurface;
+        let (organ, sc) = liver();
+        let s = Settings::quick();
+        let mat = settling(organ.material, &sc);
+        let st = Stepping {
+            contact: ContactLaw::FineSurface,
+            ..Stepping::new(true, 1.0, &s)
+        };
+        let top: u32 = std::env::var("FINE_LEVELS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(4);
+        let kind = std::env::var("FINE_KIND").unwrap_or("fem-condensed".into());
+        let mut last: Option<Real> = None;
+        for k in 0..=top {
+            let t = Instant::now();
+            let model = organ.build(&kind, mat).unwrap();
+            let fixed = sc.fixed(model.rest_surface());
+            let fine =
+                MappedSurface::subdivided(model.rest_surface(), model.surface().triangles, 1 << k)
+                    .unwrap();
+            let count = fine.len();
+            let mut sim = Simulation::new(model, fixed, Loads::default()).unwrap();
+            sim.set_fine_surface(fine).unwrap();
+            for depth in [sc.shallow, sc.deep] {
+                let r = indent_sim(sim, sc.probe(), sc.probe_radius, 0.0, depth, &st);
+                let Ok((settled, done)) = r else {
+                    println!("{kind} k = {k} depth {depth:.2e} m: {:?}", r.err());
+                    break;
+                };
+                let f = done.instrument_forces()[0];
+                println!(
+                    "{kind} k = {k} ({count} fine vertices), depth {depth:.2e} m: F = ({:.4e}, \
+                     {:.6e}, {:.4e}) N, {} points pushed of {} near, converged {}, {:.2} s{}",
+                    f.x,
+                    f.y,
+                    f.z,
+                    settled.contacts,
+                    done.instruments()[0].fine_points().len(),
+                    settled.contact_converged,
+                    t.elapsed().as_secs_f64(),
+                    match (last, depth == sc.shallow) {
+                        (Some(l), true) =>
+                            format!(", {:+.2} % from k - 1", 100.0 * (f.y / l - 1.0)),
+                        _ => String::new(),
+                    }
+                );
+                if depth == sc.shallow {
+                    last = Some(f.y);
+                }
+                // The deep press starts again from rest on a fresh model.
+                let model = organ.build(&kind, mat).unwrap();
+                let fixed = sc.fixed(model.rest_surface());
+                let fine = MappedSurface::subdivided(
+                    model.rest_surface(),
+                    model.surface().triangles,
+                    1 << k,
+                )
+                .unwrap();
+                sim = Simulation::new(model, fixed, Loads::default()).unwrap();
+                sim.set_fine_surface(fine).unwrap();
+            }
+        }
     }
 
     /// The reference's shallow indentation at every level up to `REFERENCE_LEVELS` (default

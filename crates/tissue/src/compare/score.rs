@@ -240,10 +240,24 @@ fn rule(key: &str, r: &KindRecord, sc: &Scenario, rf: &Reference) -> (Real, Stri
             (
                 0.5 * f + 0.5 * d,
                 format!(
-                    "force {} (error {}) · displacement error {}",
+                    "force {} (error {}) · displacement error {}{}{}",
                     show(r, "force_shallow", |x| format!("{x:.4} N")),
                     show(r, "force_error", pct),
-                    show(r, "displacement_error", pct)
+                    show(r, "displacement_error", pct),
+                    // A run still moving at the time limit, and how the probe held the
+                    // organ (exact fine points, per-vertex planes, or nothing).
+                    match r
+                        .measures
+                        .get("force_error")
+                        .and_then(|m| m.note.as_deref())
+                    {
+                        Some(n) if val(r, "force_error").is_some() => format!(" ({n})"),
+                        _ => String::new(),
+                    },
+                    match r.measures.get("contacts_shallow") {
+                        Some(Measure { note: Some(n), .. }) => format!(" · probe held by {n}"),
+                        _ => String::new(),
+                    }
                 ),
             )
         }
