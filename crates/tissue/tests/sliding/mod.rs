@@ -206,31 +206,9 @@ pub fn tangential(f: Vec3) -> Real {
     Vec3::new(f.x, f.y, 0.0).length()
 }
 
-/// The model's surface with each triangle cut into n² (a grid of barycentric points, the
-/// edges' points repeated per triangle): a fine surface lying on the coarse one.
+/// The model's own surface with each triangle cut into n² (`MappedSurface::subdivided`): a
+/// fine surface lying on the coarse one.
 pub fn subdivided(sim: &Simulation, n: usize) -> MappedSurface {
-    let rest = sim.model().rest_surface();
-    let triangles = sim.model().surface().triangles;
-    let mut points = Vec::new();
-    let mut tris = Vec::new();
-    for t in triangles {
-        let [a, b, c] = t.map(|v| rest[v as usize]);
-        let base = points.len() as u32;
-        let index = |i: usize, j: usize| base + (i * (2 * n + 3 - i) / 2 + j) as u32;
-        for i in 0..=n {
-            for j in 0..=n - i {
-                let (u, v) = (i as Real / n as Real, j as Real / n as Real);
-                points.push(a + (b - a) * u + (c - a) * v);
-            }
-        }
-        for i in 0..n {
-            for j in 0..n - i {
-                tris.push([index(i, j), index(i + 1, j), index(i, j + 1)]);
-                if j + 1 < n - i {
-                    tris.push([index(i + 1, j), index(i + 1, j + 1), index(i, j + 1)]);
-                }
-            }
-        }
-    }
-    MappedSurface::new(points, tris, rest, triangles).unwrap()
+    let m = sim.model();
+    MappedSurface::subdivided(m.rest_surface(), m.surface().triangles, n).unwrap()
 }
