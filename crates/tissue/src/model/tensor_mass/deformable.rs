@@ -58,9 +58,8 @@ impl Deformable for TensorMass {
         true
     }
 
-    /// Under the explicit schemes (`Integrator::holds_points`).
     fn holds_point_contacts(&self) -> bool {
-        self.integrator.holds_points()
+        true
     }
 
     /// Each point a push-only contact on its three vertices' nodes, projected after every
