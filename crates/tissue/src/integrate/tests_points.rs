@@ -20,7 +20,12 @@ fn integrator(scheme: Scheme, substeps: u32) -> Integrator {
 #[test]
 fn a_point_on_one_particle_is_the_vertex_contact() {
     let (k, d) = (100.0, 0.01);
-    for scheme in Scheme::ALL {
+    // Implicit Euler holds vertex contacts in its solve and takes no points
+    // (`Integrator::holds_points`).
+    for scheme in Scheme::ALL
+        .into_iter()
+        .filter(|s| *s != Scheme::ImplicitEuler)
+    {
         for substeps in [1, 3] {
             let sys = || Springs::new(vec![1.0, 1.0], vec![(0, 1, k, 0.0, 20.0)]);
             let (mut a_sys, mut b_sys) = (sys(), sys());

@@ -205,11 +205,12 @@ impl Deformable for SpringModel {
     }
 
     /// The kinds whose surface vertices are particles (`spring-mass`,
-    /// `volumetric-spring-mass`): a point is then tied to three particles. A simplex
+    /// `volumetric-spring-mass`), under an explicit scheme (`Integrator::holds_points`): a
+    /// point is then tied to three particles. A simplex
     /// vertex is rebuilt from its ring (not a fixed weighting of particles) and keeps the
     /// coarse vertices' planes.
     fn holds_point_contacts(&self) -> bool {
-        matches!(self.link, SurfaceLink::Nodes(_))
+        matches!(self.link, SurfaceLink::Nodes(_)) && self.integrator.holds_points()
     }
 
     /// Each point a push-only contact on its three particles, projected after every

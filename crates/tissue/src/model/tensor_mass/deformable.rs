@@ -58,8 +58,9 @@ impl Deformable for TensorMass {
         true
     }
 
+    /// Under the explicit schemes (`Integrator::holds_points`).
     fn holds_point_contacts(&self) -> bool {
-        true
+        self.integrator.holds_points()
     }
 
     /// Each point a push-only contact on its three vertices' nodes, projected after every
