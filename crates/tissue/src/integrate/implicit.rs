@@ -25,15 +25,9 @@ use crate::math::{Mat3, Real, Vec3, flatten, flatten_mut, unflatten, unflatten_m
 use crate::model::StepInfo;
 use crate::solve::{CgResult, CgWorkspace};
 
+use super::contact::{self, HeldContacts, MAX_CONTACT_SOLVES};
 use super::rest_factor::RestPreconditioner;
 use super::{Hold, IntegratorSettings, ParticleSystem, Preconditioner, Workspace};
-
-/// Solves of one step's contact active set before it keeps the last one (and says so).
-const MAX_CONTACT_SOLVES: usize = 12;
-
-/// A free contact's particle may end this far past its plane without being taken, in m
-/// (the solve's tolerance moves positions by about that much; `place_holds` puts it back).
-const GAP_TOLERANCE: Real = 1e-10;
 
 /// A contact held in the solve: which hold, its particle, normal and plane point.
 #[derive(Clone, Copy, Debug)]
@@ -66,6 +60,11 @@ pub(super) struct ImplicitSolver {
     pub contact_pushes: Vec<(usize, Real)>,
     /// Particles whose contact pushed in the last step: the next step's first guess.
     pushed: Vec<usize>,
+    /// The step's contacts held in the solve, and their pushes after the last solve, N.
+    held: HeldContacts,
+    pushes: Vec<Real>,
+    /// The held contacts' known velocity changes (x_c of the filtered solve).
+    known: Vec<Vec3>,
 }
 
 impl ImplicitSolver {
@@ -150,6 +149,9 @@ impl ImplicitSolver {
             product,
             contact_pushes,
             pushed,
+            held,
+            pushes,
+            known,
             ..
         } = self;
         let mut apply = |p: &[Real], y: &mut [Real]| {
@@ -161,6 +163,9 @@ impl ImplicitSolver {
         };
         let (max_it, tol) = (settings.cg_max_iterations, settings.cg_tolerance);
         let mut contacts_settled = true;
+        // ‖S b‖ over the load the tolerance is relative to (`contact::filtered_share`).
+        let mut share: Real = 1.0;
+        let mut iterations = 0;
         let result = if !contacts.is_empty() {
             let mut precondition = |r: &[Real], z: &mut [Real]| {
                 if factored {
@@ -181,21 +186,21 @@ impl ImplicitSolver {
             };
             // First guess: the contacts that pushed in the last step, and those the start's
             // motion carries past their planes.
-            let mut active: Vec<bool> = contacts
-                .iter()
-                .map(|c| {
-                    pushed.contains(&c.particle)
-                        || c.normal
-                            .dot(w.x0[c.particle] + h * w.v0[c.particle] - c.target)
-                            < 0.0
-                })
-                .collect();
-            let scale = rhs.iter().fold(0.0, |a: Real, v| a.max(v.abs())) / h;
+            held.start(contacts.iter().map(|c| {
+                pushed.contains(&c.particle)
+                    || c.normal
+                        .dot(w.x0[c.particle] + h * w.v0[c.particle] - c.target)
+                        < 0.0
+            }));
+            // The load on the unknowns not held in full (held particles' rows are zero).
+            let load = rhs.iter().map(|b| b * b).sum::<Real>().sqrt();
+            // Penetrations below round-off of the step's motion are none.
+            let depth = 1e-12 * extent(&w.x0);
             let mut result = CgResult::default();
             contacts_settled = false;
             for _ in 0..MAX_CONTACT_SOLVES {
                 // A held contact's velocity change along n ends its particle on its plane.
-                for (c, on) in contacts.iter().zip(&active) {
+                for (c, on) in contacts.iter().zip(&held.active) {
                     if *on {
                         let i = c.particle;
                         let want = c.normal.dot(c.target - w.x0[i]) / h - c.normal.dot(w.v0[i]);
@@ -203,8 +208,18 @@ impl ImplicitSolver {
                         dv[i] += c.normal * (want - along);
                     }
                 }
+                let active = &held.active;
+                let held_mask = &*mass;
+                // S: zero on the held particles (their Δv is known: zero), I − n nᵀ on the
+                // held contacts' particles. Without the first part the held rows of A Δv
+                // stay in the residual, which no search direction can reduce.
                 let filter = |v: &mut [Real]| {
-                    for (c, on) in contacts.iter().zip(&active) {
+                    for (vj, d) in v.iter_mut().zip(held_mask.iter()) {
+                        if *d == 0.0 {
+                            *vj = 0.0;
+                        }
+                    }
+                    for (c, on) in contacts.iter().zip(active) {
                         if *on {
                             let j = 3 * c.particle;
                             let x = Vec3::new(v[j], v[j + 1], v[j + 2]);
@@ -213,6 +228,27 @@ impl ImplicitSolver {
                         }
                     }
                 };
+                product.copy_from_slice(rhs);
+                filter(product);
+                let filtered = product.iter().map(|b| b * b).sum::<Real>().sqrt();
+                // What drives the free part: S (b − A x_c), x_c the held contacts' known
+                // velocity changes along n. A probe moving into still tissue loads it
+                // through x_c alone (b is round-off at rest), so the tolerance is relative
+                // to the larger of that and the whole load.
+                known.iter_mut().for_each(|v| *v = Vec3::ZERO);
+                for (c, on) in contacts.iter().zip(active) {
+                    if *on {
+                        let i = c.particle;
+                        known[i] = c.normal * c.normal.dot(dv[i]);
+                    }
+                }
+                apply(flatten(known), product);
+                for (p, b) in product.iter_mut().zip(rhs.iter()) {
+                    *p = b - *p;
+                }
+                filter(product);
+                let driver = product.iter().map(|b| b * b).sum::<Real>().sqrt();
+                share = contact::filtered_share(load.max(driver), filtered);
                 result = cg.solve_filtered(
                     &mut apply,
                     &mut precondition,
@@ -220,47 +256,42 @@ impl ImplicitSolver {
                     rhs,
                     flatten_mut(dv),
                     max_it,
-                    tol,
+                    tol / share,
                 );
-                apply(flatten(dv), product);
-                let mut changed = false;
-                for (c, on) in contacts.iter().zip(active.iter_mut()) {
-                    let i = c.particle;
-                    if *on {
-                        let j = 3 * i;
-                        let r = Vec3::new(
-                            product[j] - rhs[j],
-                            product[j + 1] - rhs[j + 1],
-                            product[j + 2] - rhs[j + 2],
-                        );
-                        // The reaction over the step: (A Δv − b)ᵢ = h F_c.
-                        if c.normal.dot(r) / h < -1e-9 * scale {
-                            *on = false;
-                            changed = true;
-                        }
-                    } else {
-                        let x1 = w.x0[i] + h * (w.v0[i] + dv[i]);
-                        if c.normal.dot(x1 - c.target) < -GAP_TOLERANCE {
-                            *on = true;
-                            changed = true;
-                        }
-                    }
-                }
-                if !changed {
+                iterations += result.iterations;
+                if !result.relative_residual.is_finite() {
                     contacts_settled = true;
                     break;
                 }
-            }
-            pushed.clear();
-            for (c, on) in contacts.iter().zip(&active) {
-                if *on {
+                apply(flatten(dv), product);
+                // The pushes: the normal rows of A Δv − b (which the filter left out) over h,
+                // the reaction over the step: (A Δv − b)ᵢ = h F_c.
+                pushes.clear();
+                pushes.extend(contacts.iter().map(|c| {
                     let j = 3 * c.particle;
                     let r = Vec3::new(
                         product[j] - rhs[j],
                         product[j + 1] - rhs[j + 1],
                         product[j + 2] - rhs[j + 2],
                     );
-                    contact_pushes.push((c.hold, (c.normal.dot(r) / h).max(0.0)));
+                    c.normal.dot(r) / h
+                }));
+                let end_gap = |k: usize| {
+                    let c = &contacts[k];
+                    let i = c.particle;
+                    c.normal.dot(w.x0[i] + h * (w.v0[i] + dv[i]) - c.target)
+                };
+                if !held.update(pushes, end_gap, depth) {
+                    contacts_settled = true;
+                    break;
+                }
+            }
+            pushed.clear();
+            for ((c, on), p) in contacts.iter().zip(&held.active).zip(pushes.iter()) {
+                if *on {
+                    // A contact pushes only: one left pulling by an unsettled set reads 0
+                    // (the step says `capped`).
+                    contact_pushes.push((c.hold, p.max(0.0)));
                     pushed.push(c.particle);
                 }
             }
@@ -307,14 +338,17 @@ impl ImplicitSolver {
             w.v1[i] = w.v0[i] + self.dv[i];
             w.x1[i] = w.x0[i] + h * w.v1[i];
         }
+        // The residual relative to the load the tolerance is relative to; the iterations of
+        // every solve of the contacts' active set.
+        let residual = result.relative_residual * share;
+        let iterations = iterations.max(result.iterations);
         Ok(StepInfo {
-            iterations: result.iterations,
-            residual: result.relative_residual,
+            iterations,
+            residual,
             // A solve stopped by the cap before its tolerance is an approximation the caller
             // must hear of (`tissue run` counts such steps and their worst residual), and so
             // is a contact active set still changing at its cap.
-            capped: (result.iterations >= max_it && result.relative_residual > tol)
-                || !contacts_settled,
+            capped: (result.iterations >= max_it && residual > tol) || !contacts_settled,
             ..StepInfo::default()
         })
     }
@@ -366,6 +400,7 @@ impl ImplicitSolver {
             &mut self.damping_diag,
             &mut self.k_times,
             &mut self.c_times,
+            &mut self.known,
         ] {
             buf.resize(n, Vec3::ZERO);
         }
@@ -377,6 +412,19 @@ impl ImplicitSolver {
         ] {
             buf.resize(3 * n, 0.0);
         }
+    }
+}
+
+/// The diagonal of the particles' bounding box, m: the length that round-off is relative to.
+fn extent(x: &[Vec3]) -> Real {
+    let (lo, hi) = x.iter().fold(
+        (Vec3::splat(Real::INFINITY), Vec3::splat(Real::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    if x.is_empty() {
+        0.0
+    } else {
+        (hi - lo).length()
     }
 }
 

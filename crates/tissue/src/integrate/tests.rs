@@ -687,8 +687,16 @@ fn a_contact_pushes_with_the_normal_force_and_lets_go_without_pulling() {
                 assert!(f.x == 0.0 && f.y == 0.0 && f.z <= 0.0, "{scheme}: {f}");
             }
             let rest = Vec3::new(below.x, below.y, 0.0);
+            // Implicit Euler holds the contact in its CG, whose tolerance (1e-6) is relative
+            // to the whole load, the contact's k·d included: the tangential balance is met
+            // to 1e-6 k d, a position 1e-6 d = 1e-8 m off (measured 4e-9 m).
+            let settled = if scheme == Scheme::ImplicitEuler {
+                1e-8
+            } else {
+                1e-9
+            };
             assert!(
-                (state.x[1] - rest).length() < 1e-9,
+                (state.x[1] - rest).length() < settled,
                 "{scheme}: {}",
                 state.x[1]
             );

@@ -8,11 +8,12 @@
 //! warp preconditioner is factorised with the supports (fixed and fully held nodes) only, so
 //! a contact taken or let go never refactorises.
 //!
-//! The active set is settled within the step, as `fem-semi-implicit` does: it starts from
-//! the contacts that pushed in the last step or start past their planes; a held contact
-//! whose reaction pulls is let go (for the rest of the step, so the loop ends), a free one
-//! that ends past its plane is taken, and it solves again (warm-started) until nothing
-//! changes, at most `MAX_CONTACT_SOLVES` times (a step that stops there says `capped`).
+//! The active set is settled within the step (`integrate::contact::HeldContacts`, shared
+//! with the integrator's implicit Euler): it starts from the contacts that pushed in the
+//! last step or start past their planes; a held contact whose reaction pulls is let go (for
+//! the rest of the step, so the loop ends), a free one that ends past its plane is taken,
+//! and it solves again (warm-started) until nothing changes, at most `MAX_CONTACT_SOLVES`
+//! times (a step that stops there says `capped`).
 //! The push is the held row's reaction: the normal component of A Δv − b over h, the force
 //! the instrument put on the node over the step (the filter dropped it from the solve).
 //!
@@ -26,8 +27,8 @@ use crate::integrate::PointHold;
 use crate::math::{Real, Vec3, unflatten};
 use crate::solve::lcp;
 
-/// Solves of one step's active set before it stops unsettled (and says so).
-pub const MAX_CONTACT_SOLVES: usize = 25;
+/// Solves of one step's active set before it stops unsettled (and says so): the shared one.
+pub use crate::integrate::contact::MAX_CONTACT_SOLVES;
 
 /// A contact on a node: the plane through `target` with unit normal `normal`, pointing out
 /// of the instrument toward the tissue.

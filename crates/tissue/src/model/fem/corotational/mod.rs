@@ -60,6 +60,7 @@ use std::time::Instant;
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
+use crate::integrate::contact::HeldContacts;
 use crate::interact::Loads;
 use crate::material::{ElementMaterials, Material};
 use crate::math::{Mat3, Real, Vec3, is_finite_vec};
@@ -159,8 +160,7 @@ struct Workspace {
     /// The CG's filter (held dofs, contacts held along their normals).
     filter: contact::Filter,
     /// Per contact, within the step: held along its normal; let go for pulling; its push.
-    active: Vec<bool>,
-    released: Vec<bool>,
+    held: HeldContacts,
     pushes: Vec<Real>,
     /// The fine surface's points within the step (`contact::PointWork`).
     points: contact::PointWork,
@@ -309,8 +309,7 @@ impl FemCorotational {
                 elastic: vec![0.0; 3 * n],
                 element_forces: Vec::new(),
                 filter: contact::Filter::default(),
-                active: Vec::new(),
-                released: Vec::new(),
+                held: HeldContacts::default(),
                 pushes: Vec::new(),
                 points: contact::PointWork::default(),
             },

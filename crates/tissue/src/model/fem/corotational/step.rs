@@ -12,6 +12,7 @@ use super::contact::{self, Filter, MAX_CONTACT_SOLVES, PointsDone};
 use super::force;
 use super::warp::WarpPreconditioner;
 use super::{FemCorotational, Hold, Resolved};
+use crate::integrate::contact::filtered_share;
 
 /// One solve of A Δv = b: what is fixed over the step's solves.
 struct Solve<'a> {
@@ -143,14 +144,11 @@ impl FemCorotational {
         // The contacts' active set (`contact`): the ones that pushed in the last step or
         // start past their planes are held first.
         let contacts = &self.contacts;
-        ws.active.clear();
-        ws.active.extend(
+        ws.held.start(
             contacts
                 .iter()
                 .map(|k| self.pushed[k.node] || k.gap(self.x[k.node]) < 0.0),
         );
-        ws.released.clear();
-        ws.released.resize(contacts.len(), false);
         ws.pushes.clear();
         ws.pushes.resize(contacts.len(), 0.0);
         // Pulls and penetrations below roundoff of the pushes and of the motion are none.
@@ -162,7 +160,7 @@ impl FemCorotational {
         let (cg, settled) = loop {
             solves += 1;
             ws.filter.along.clear();
-            for (k, _) in contacts.iter().zip(&ws.active).filter(|(_, a)| **a) {
+            for (k, _) in contacts.iter().zip(&ws.held.active).filter(|(_, a)| **a) {
                 // Δv along n takes the node onto the plane at the end of the step.
                 let i = k.node;
                 let n = k.normal;
@@ -180,11 +178,7 @@ impl FemCorotational {
             let load = ws.kv.iter().map(|b| b * b).sum::<Real>().sqrt();
             ws.filter.apply(&mut ws.kv);
             let filtered = ws.kv.iter().map(|b| b * b).sum::<Real>().sqrt();
-            share = if filtered > 0.0 && load > filtered {
-                filtered / load
-            } else {
-                1.0
-            };
+            share = filtered_share(load, filtered);
             let cg = solve.run(
                 &mut ws.cg,
                 warp.as_deref_mut(),
@@ -198,7 +192,7 @@ impl FemCorotational {
             }
             // The pushes: the normal rows of A Δv − b (which the filter left out) over h.
             ws.stiffness.apply(cm, ck, &self.masses, &ws.dv, &mut ws.kv);
-            for ((k, &a), p) in contacts.iter().zip(&ws.active).zip(&mut ws.pushes) {
+            for ((k, &a), p) in contacts.iter().zip(&ws.held.active).zip(&mut ws.pushes) {
                 *p = if a {
                     k.normal
                         .dot(unflatten(&ws.kv)[k.node] - unflatten(&ws.rhs)[k.node])
@@ -207,22 +201,13 @@ impl FemCorotational {
                     0.0
                 };
             }
-            let scale: Real = ws.pushes.iter().map(|p| p.abs()).sum();
-            let mut changed = false;
-            for (j, k) in contacts.iter().enumerate() {
+            let (x, v, dv) = (&self.x, &self.v, &ws.dv);
+            let end_gap = |j: usize| {
+                let k = &contacts[j];
                 let i = k.node;
-                if ws.active[j] && ws.pushes[j] < -1e-9 * scale {
-                    ws.active[j] = false;
-                    ws.released[j] = true;
-                    changed = true;
-                } else if !ws.active[j] && !ws.released[j] {
-                    let end = self.x[i] + (self.v[i] + unflatten(&ws.dv)[i]) * h;
-                    if k.gap(end) < -depth {
-                        ws.active[j] = true;
-                        changed = true;
-                    }
-                }
-            }
+                k.gap(x[i] + (v[i] + unflatten(dv)[i]) * h)
+            };
+            let changed = ws.held.update(&ws.pushes, end_gap, depth);
             if !changed {
                 break (cg, true);
             }

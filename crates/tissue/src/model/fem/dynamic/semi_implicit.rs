@@ -9,6 +9,7 @@
 use serde::Deserialize;
 
 use crate::error::{Error, SimError};
+use crate::integrate::contact::HeldContacts;
 use crate::material::{ElementMaterials, Material};
 use crate::math::{Real, Vec3};
 use crate::mesh::TetMesh;
@@ -34,9 +35,9 @@ pub struct FemSemiImplicit {
     khat: Vec<Real>,
     diag: Vec<usize>,
     reactions_scratch: Vec<Real>,
-    /// Per contact of the step in progress: held along its normal; let go for pulling.
-    active: Vec<bool>,
-    released: Vec<bool>,
+    /// The step in progress's contacts held along their normals, and their pushes, N.
+    held: HeldContacts,
+    pushes: Vec<Real>,
     /// Per node: a contact on it pushed in the last step.
     pushed: Vec<bool>,
     /// Solves the last step's active set took.
@@ -89,8 +90,8 @@ impl FemSemiImplicit {
             factored_dt: None,
             hat: DofProblem::new(dofs),
             reactions_scratch: vec![0.0; dofs],
-            active: Vec::new(),
-            released: Vec::new(),
+            held: HeldContacts::default(),
+            pushes: Vec::new(),
             pushed: vec![false; dofs / 3],
             rounds: 0,
             length,
@@ -191,17 +192,15 @@ impl FemSemiImplicit {
     /// free. It starts from the contacts that pushed in the last step or start past their
     /// planes; a held contact whose reaction pulls is let go (for the rest of the step, so
     /// the loop ends), a free one that ends past its plane is taken, and it solves again
-    /// until nothing changes. The pushes are the held contacts' reactions along −n.
+    /// until nothing changes (`integrate::contact::HeldContacts`, shared with the implicit
+    /// steps). The pushes are the held contacts' reactions along −n.
     fn solve_with_contacts(&mut self) -> Result<(), SimError> {
         let c = &mut self.core;
-        self.active.clear();
-        self.active.extend(
+        self.held.start(
             c.contacts
                 .iter()
                 .map(|k| self.pushed[k.node] || k.gap(&c.u) < 0.0),
         );
-        self.released.clear();
-        self.released.resize(c.contacts.len(), false);
         self.rounds = 0;
         loop {
             self.rounds += 1;
@@ -210,7 +209,12 @@ impl FemSemiImplicit {
             self.hat.list.clone_from(&p.list);
             self.hat.targets.clone_from(&p.targets);
             self.hat.along.clone_from(&p.along);
-            for (k, _) in c.contacts.iter().zip(&self.active).filter(|(_, a)| **a) {
+            for (k, _) in c
+                .contacts
+                .iter()
+                .zip(&self.held.active)
+                .filter(|(_, a)| **a)
+            {
                 self.hat
                     .hold_along(k.node, k.normal, k.normal.dot(k.target))?;
             }
@@ -224,25 +228,20 @@ impl FemSemiImplicit {
                 -k.normal
                     .dot(crate::math::unflatten(&self.reactions_scratch)[k.node])
             };
-            let scale: Real = c.contacts.iter().map(|k| push(k).abs()).sum();
+            self.pushes.clear();
+            self.pushes.extend(c.contacts.iter().map(push));
             let depth = 1e-12 * self.length;
-            let mut changed = false;
-            for (i, k) in c.contacts.iter().enumerate() {
-                if self.active[i] && push(k) < -1e-9 * scale {
-                    self.active[i] = false;
-                    self.released[i] = true;
-                    changed = true;
-                } else if !self.active[i] && !self.released[i] && k.gap(&c.u_next) < -depth {
-                    self.active[i] = true;
-                    changed = true;
-                }
-            }
+            let u_next = &c.u_next;
+            let contacts = &c.contacts;
+            let changed = self
+                .held
+                .update(&self.pushes, |i| contacts[i].gap(u_next), depth);
             if !changed {
                 break;
             }
         }
         for (i, k) in c.contacts.iter_mut().enumerate() {
-            let pushed = if self.active[i] {
+            let pushed = if self.held.active[i] {
                 (-k.normal
                     .dot(crate::math::unflatten(&self.reactions_scratch)[k.node]))
                 .max(0.0)
