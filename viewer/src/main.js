@@ -194,7 +194,7 @@ function onFrame(msg) {
   $('time').textContent = `${msg.time.toFixed(2)} s`;
   showStatus(msg);
   updateLegend();
-  $('force').textContent = `${n.toFixed(4)} N${msg.probe_active ? ` (press peak ${state.pressPeak.toFixed(4)} N)` : ''}`;
+  $('force').textContent = `${n.toFixed(4)} N${state.pressPeak > 0 ? ` (press peak ${state.pressPeak.toFixed(4)} N)` : ''}`;
   $('force-vec').textContent = f.map((x) => x.toFixed(3)).join(', ');
   $('disp').textContent = `${(organ.maxDisplacement * 1000).toFixed(2)} mm`;
 }

@@ -75,7 +75,7 @@ pub struct Session {
     /// device through the haptic handle); the simulated probe goes there at `MAX_TOOL_SPEED`.
     probe_goal: Option<Vec3>,
     /// The largest force on the probe (the model's reaction, what `step_coupled` hands the
-    /// haptic loop) since the current press began; 0 while parked. A frame shows one
+    /// haptic loop) since the page's current press began; 0 otherwise. A frame shows one
     /// instant of a force that can last a few steps: the spring-mass liver pushes back
     /// ~1 mN while the probe goes in, then dents past it and touches it only in bursts,
     /// and a page drawing 1-5 frames/s in software WebGL showed 0 N for the whole press.
@@ -471,7 +471,8 @@ impl Session {
         let stepping = Instant::now();
         match step_coupled(&mut self.sim, 0, &self.handle, self.dt) {
             Ok(report) => {
-                if self.handle.pose().position != self.setup.park {
+                // Only the page's presses: a device drives the handle with no press to delimit.
+                if self.probe_goal.is_some() {
                     let f = report.forces.first().map_or(0.0, |f| f.length());
                     self.press_peak = self.press_peak.max(f);
                 }
