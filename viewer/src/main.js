@@ -34,7 +34,7 @@ view.appendChild(banner);
 // What the tests (scripts/browser-test.sh) read.
 const state = {
   ready: false, frames: 0, inits: 0, init: null, last: null,
-  tool: 'probe', depth: 1.0, forceMagnitude: 0, notices: [],
+  tool: 'probe', depth: 1.0, forceMagnitude: 0, pressPeak: 0, notices: [],
   // Frames the organ could not show (a surface of another size: a new init on its way).
   skippedFrames: 0,
 };
@@ -182,6 +182,9 @@ function onFrame(msg) {
   if (shown === undefined) state.skippedFrames += 1;
   const n = shown || 0;
   state.forceMagnitude = n;
+  // The server's largest probe force of this press: a frame is one instant, and a force that
+  // lasts a few steps (a soft membrane denting past the probe) falls between slow frames.
+  state.pressPeak = msg.probe_active && Number.isFinite(msg.press_peak) ? msg.press_peak : 0;
   state.maxDisplacement = organ.maxDisplacement;
   state.openEdges = organ.openEdges ? organ.openEdges.length / 2 : 0;
   plot.push(n);
@@ -191,7 +194,7 @@ function onFrame(msg) {
   $('time').textContent = `${msg.time.toFixed(2)} s`;
   showStatus(msg);
   updateLegend();
-  $('force').textContent = `${n.toFixed(4)} N`;
+  $('force').textContent = `${n.toFixed(4)} N${state.pressPeak > 0 ? ` (press peak ${state.pressPeak.toFixed(4)} N)` : ''}`;
   $('force-vec').textContent = f.map((x) => x.toFixed(3)).join(', ');
   $('disp').textContent = `${(organ.maxDisplacement * 1000).toFixed(2)} mm`;
 }

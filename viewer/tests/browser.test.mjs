@@ -199,7 +199,7 @@ try {
     if (!h) { check(`switch to ${kind}`, false, 'organ not under the pointer'); continue; }
     const ok = h.blowUps.length === 0 && h.max > 0 && h.max < FORCE_BOUND;
     const built = seen.text ? `; while building: "${seen.text}", old model ${Math.min(...seen.rate).toFixed(0)}-${Math.max(...seen.rate).toFixed(0)} steps/s` : '';
-    check(`switch to ${kind}`, ok, `built in ${sw.ms} ms, probe 2 s: peak ${h.max.toFixed(4)} N, ${h.sim.toFixed(0)} steps/s, `
+    check(`switch to ${kind}`, ok, `built in ${sw.ms} ms, probe 2 s: peak ${h.max.toFixed(4)} N (frames ${h.shown.toFixed(4)} N, press ${h.peak.toFixed(4)} N) over ${h.frames} frames, ${h.sim.toFixed(0)} steps/s, `
       + `haptic ${h.haptic.toFixed(0)} Hz, "${h.status}"${h.blowUps.length ? `; ${h.blowUps.join(' | ')}` : ''}${built}`);
     matrix.push([kind, ok ? `ok ${h.max.toFixed(3)} N` : `FAIL ${h.max.toFixed(3)} N ${h.blowUps[0] || ''}`]);
   }

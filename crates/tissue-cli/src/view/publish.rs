@@ -90,6 +90,8 @@ pub struct Figures<'a> {
     pub haptic: TimingSummary,
     pub haptic_force: Vec3,
     pub probe_active: bool,
+    /// The largest force on the probe since the current press began, N (`Session`).
+    pub press_peak: Real,
     /// The running model's kind and the internal steps its last step took.
     pub kind: &'a str,
     pub substeps: u32,
@@ -155,6 +157,7 @@ pub fn frame_message(sim: &Simulation, f: &Figures<'_>, names: [&str; 3]) -> Str
         ),
         "probe": tool(probe),
         "probe_active": f.probe_active,
+        "press_peak": f.press_peak,
         "grasper": tool(grasper),
         "scalpel": tool(scalpel),
         "haptic_force": f.haptic_force.to_array(),
@@ -197,6 +200,7 @@ mod tests {
             haptic: TimingSummary::default(),
             haptic_force: Vec3::ZERO,
             probe_active: true,
+            press_peak: 0.0,
             kind: "tensor-mass",
             substeps: 1,
             strain_nodes,

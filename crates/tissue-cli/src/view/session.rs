@@ -74,6 +74,12 @@ pub struct Session {
     /// Where the page wants the probe while it presses (`None`: parked, or driven by a
     /// device through the haptic handle); the simulated probe goes there at `MAX_TOOL_SPEED`.
     probe_goal: Option<Vec3>,
+    /// The largest force on the probe (the model's reaction, what `step_coupled` hands the
+    /// haptic loop) since the page's current press began; 0 otherwise. A frame shows one
+    /// instant of a force that can last a few steps: the spring-mass liver pushes back
+    /// ~1 mN while the probe goes in, then dents past it and touches it only in bursts,
+    /// and a page drawing 1-5 frames/s in software WebGL showed 0 N for the whole press.
+    press_peak: Real,
     cut: Option<CutJob>,
     /// The blade's path is done and the model computes the incision off the thread (`bem`
     /// in real time): since when.
@@ -137,6 +143,7 @@ impl Session {
             hub,
             grasp: None,
             probe_goal: None,
+            press_peak: 0.0,
             cut: None,
             incision_pending: None,
             cut_ending: false,
@@ -212,6 +219,8 @@ impl Session {
                 // organ: the page starts a press touching it); after that it follows.
                 let parked = self.handle.pose().position == self.setup.park;
                 if p.is_none() || parked {
+                    // A press starts, or ends: its peak starts again from nothing.
+                    self.press_peak = 0.0;
                     self.handle.set_pose(Pose {
                         position: p.unwrap_or(self.setup.park),
                         ..self.handle.pose()
@@ -291,6 +300,7 @@ impl Session {
             ..self.handle.pose()
         });
         self.probe_goal = None;
+        self.press_peak = 0.0;
         self.handle.clear_contact();
     }
 
@@ -461,6 +471,11 @@ impl Session {
         let stepping = Instant::now();
         match step_coupled(&mut self.sim, 0, &self.handle, self.dt) {
             Ok(report) => {
+                // Only the page's presses: a device drives the handle with no press to delimit.
+                if self.probe_goal.is_some() {
+                    let f = report.forces.first().map_or(0.0, |f| f.length());
+                    self.press_peak = self.press_peak.max(f);
+                }
                 self.steps_in_window += 1;
                 self.step_seconds_in_window += stepping.elapsed().as_secs_f64();
                 self.substeps = report.info.substeps;
@@ -671,6 +686,7 @@ impl Session {
             haptic: self.handle.stats(),
             haptic_force: self.handle.latest().force,
             probe_active: self.handle.pose().position != self.setup.park,
+            press_peak: self.press_peak,
             kind: &self.kind,
             substeps: self.substeps,
             strain_nodes: self.strain_nodes.as_deref(),
@@ -789,5 +805,60 @@ mod tool_speed_tests {
         // 5 mm at 0.1 m/s is 50 ms: 1000 steps of 50 µs, the last one landing exactly.
         assert_eq!(steps, 1000);
         assert_eq!(approach(to, to, reach), to);
+    }
+}
+
+#[cfg(test)]
+mod press_peak_tests {
+    use super::*;
+    use tissue::scene::Scene;
+
+    /// The viewer's press on the demo liver switched to `spring-mass`, driven as the page
+    /// drives it (the points a page sent: the first a third of the way in, then the probe's
+    /// centre on the rest surface, one radius deep). The bendless membrane pushes back ~1 mN
+    /// while the probe goes in, then the vertex under it pops through its ring to its
+    /// mirror image (the same spring lengths) and the probe hangs in the dent touching it
+    /// in bursts: most steps read 0 N. The frames carry the press's peak, which says the
+    /// press reached the model whatever instants the page happens to draw.
+    #[test]
+    fn a_press_on_the_spring_mass_liver_keeps_its_peak_past_the_dent() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/liver-probe.toml");
+        let scene = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
+        let (mut setup, material) = Setup::load(&scene).unwrap_or_else(|e| panic!("{e}"));
+        setup.scene.model_kind = "spring-mass".into();
+        let hub = Arc::new(Hub::default());
+        let mut s =
+            Session::new(setup, material, Arc::clone(&hub), None).unwrap_or_else(|e| panic!("{e}"));
+        let first = Vec3::new(-0.001_504, 0.040_135, 0.027_232);
+        let deep = Vec3::new(-0.002_129, 0.037_918, 0.023_085);
+        s.apply(Command::Probe(Some(first)));
+        s.apply(Command::Probe(Some(deep)));
+        let mut zero_steps = 0;
+        let steps = (2.0 / s.dt).round() as usize;
+        for _ in 0..steps {
+            s.step_once();
+            let f = s.sim.instruments()[0].force().length();
+            zero_steps += usize::from(f == 0.0);
+        }
+        eprintln!(
+            "spring-mass press: peak {:.3e} N, {zero_steps} of {steps} steps at 0 N",
+            s.press_peak
+        );
+        assert!(
+            s.press_peak > 1e-4 && s.press_peak < 0.02,
+            "{}",
+            s.press_peak
+        );
+        assert!(
+            2 * zero_steps > steps,
+            "{zero_steps} of {steps} steps at 0 N"
+        );
+        s.publish_frame();
+        let frame: serde_json::Value =
+            serde_json::from_str(&hub.frame().text).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(frame["press_peak"].as_f64(), Some(s.press_peak));
+        // Letting go parks the probe and forgets the peak; the next press starts from 0.
+        s.apply(Command::Probe(None));
+        assert_eq!(s.press_peak, 0.0);
     }
 }
