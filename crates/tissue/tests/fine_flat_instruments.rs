@@ -116,7 +116,7 @@ fn a_box_through_a_fine_surface_pushes_along_its_face() {
 /// combination of three of its 25 vertices, rank 25): every fine point is a convex
 /// combination of coarse vertices that are points too, so each k holds what the vertices
 /// hold, and the static kinds that solve the points' complementarity problem give one force
-/// to round-off. Before `solve::lcp` handled dependent rows, k = 3 found no solution.
+/// to round-off (k = 3: 1,089 rows on the plane).
 #[test]
 fn a_plane_through_ever_finer_surfaces_pushes_the_same_on_the_static_kinds() {
     let plane = InstrumentKind::Plane { normal: -Vec3::Z };

@@ -423,6 +423,7 @@ fn cost_study() {
         };
         let (old_rounds, old_force) = match &old {
             Some((l, r)) => (format!("{r}"), coarse(&jt, l).iter().sum::<Real>()),
+            None if level > 3 => ("not run".into(), Real::NAN),
             None => (format!("capped at {}", 10 * b.len() + 50), Real::NAN),
         };
         println!(
