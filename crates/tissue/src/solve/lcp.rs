@@ -96,8 +96,8 @@ impl Active {
         for i in (0..y.len()).rev() {
             y[i] /= self.l[i][i];
             let yi = y[i];
-            for j in 0..i {
-                y[j] -= self.l[i][j] * yi;
+            for (yj, lij) in y[..i].iter_mut().zip(&self.l[i]) {
+                *yj -= lij * yi;
             }
         }
     }

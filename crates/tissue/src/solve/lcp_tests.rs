@@ -218,9 +218,12 @@ fn fine_weights(level: u32) -> Vec<[Real; 3]> {
     out
 }
 
+/// A row: its (coarse vertex, weight) terms and its normal.
+type PointRow = (Vec<(usize, Real)>, [Real; 3]);
+
 /// M = J C Jᵀ and, for coarse forces, Jᵀ: rows of (vertex, weight) terms along a normal, on
 /// a compliance C of 3 dofs per coarse vertex.
-fn response(c: &Mat<Real>, rows: &[(Vec<(usize, Real)>, [Real; 3])]) -> (Mat<Real>, Mat<Real>) {
+fn response(c: &Mat<Real>, rows: &[PointRow]) -> (Mat<Real>, Mat<Real>) {
     let dofs = c.nrows();
     let jt = Mat::<Real>::from_fn(dofs, rows.len(), |d, r| {
         let (terms, normal) = &rows[r];
