@@ -147,3 +147,49 @@ fn implicit_euler_contacts_under_a_plane_push_as_the_static_answer() {
         assert!(off < 1e-3, "{f} against {reference}");
     }
 }
+
+/// A plane pressed 1.5 mm into a 4 × 4 × 2 cm block (4 cells across) through its surface
+/// cut flat 1, 2, 4 and 8 times (k = 0 to 3: up to 1,100 points on the top, each a
+/// combination of three of its 25 vertices, rank 25): every fine point is a convex
+/// combination of coarse vertices that are points too, so each k holds what the vertices
+/// hold, and the static kinds that solve the points' complementarity problem give one force
+/// to round-off (k = 3: 1,089 rows on the plane).
+#[test]
+fn a_plane_through_ever_finer_surfaces_pushes_the_same_on_the_static_kinds() {
+    let plane = InstrumentKind::Plane { normal: -Vec3::Z };
+    let top = Vec3::new(0.0, 0.0, H);
+    let depth = 1.5e-3;
+    for kind in ["fem-static", "fem-condensed"] {
+        let mut forces = Vec::new();
+        for k in 0..=3 {
+            let mut sim = sim_on_floor(model(kind, &block(L, H, 4, &|_| 0.0), 0.3));
+            let m = sim.model();
+            let surface =
+                MappedSurface::subdivided(m.rest_surface(), m.surface().triangles, 1 << k).unwrap();
+            sim.set_fine_surface(surface).unwrap();
+            let inst = Instrument::new(
+                "plane",
+                plane.clone(),
+                0.005,
+                path(&[(0.0, top), (0.5, top - Vec3::Z * depth)]),
+            )
+            .unwrap()
+            .with_friction(0.0)
+            .unwrap();
+            sim.add_instrument(inst);
+            let mut f = Vec3::ZERO;
+            for _ in 0..4 {
+                let rep = sim.step(0.25).unwrap();
+                assert!(rep.contact_converged, "{kind} k = {k}");
+                f = rep.forces[0];
+            }
+            let near = sim.instruments()[0].fine_points().len();
+            eprintln!("{kind} k = {k}: {f:.9} N, {near} points near the plane");
+            forces.push(f);
+        }
+        for (k, f) in forces.iter().enumerate() {
+            let off = (*f - forces[0]).length() / forces[0].length();
+            assert!(off < 1e-8, "{kind} k = {k}: {f} against {}", forces[0]);
+        }
+    }
+}

@@ -89,7 +89,7 @@ impl ContactLaw {
 /// a cone point of the coarse polyhedron, whose patch is about 3 mm across, and there k = 1
 /// is not converged (`reference::tests::fine_surface_refinement_study`, `fem-condensed`,
 /// shallow: k = 0 and 1 give the vertex law's 1.307 mN, k = 2 1.726 mN, k = 3 1.640 mN;
-/// deep: k = 1 19.3 mN, k = 2 15.8 mN, k = 3 no complementary solution within the cap).
+/// deep: k = 1 19.3 mN, k = 2 15.8 mN, k = 3 14.4 mN; k = 4 1.619 / 14.6 mN; docs/compare.md).
 pub fn fine_levels(edge: Real, radius: Real, coarse_triangles: usize) -> u32 {
     let mut k = 0;
     while k < MAX_FINE_LEVELS && edge / Real::from(1u32 << k) > radius * FINE_EDGE_PER_RADIUS {

@@ -10,41 +10,138 @@
 //! ```
 //!
 //! M is the response of the rows to each other's multipliers (J K⁻¹ Jᵀ on a stiffness, the
-//! compliance of a pre-computed model): symmetric positive semi-definite. It is singular
-//! when a fine surface has more points on the instrument than the coarse vertices they
-//! follow have directions (four points on one coarse triangle are tied by three of its
-//! vertices' motions). The multipliers are then not unique but the displacement is; a
-//! relative `REGULARISATION` on the unilateral diagonal (a contact compliance of 1e-9 of
-//! the stiffest row's, far below any displacement the models report) makes M positive
-//! definite, so the problem has one solution, and block principal pivoting (Júdice and
-//! Pires, 1994) finds it: guess which unilateral rows push, solve the equalities on those,
-//! swap every row whose sign is wrong, and fall back to swapping one row at a time
-//! (Murty's rule, finite for positive definite M) when the block swaps stop reducing the
-//! number of wrong rows.
+//! compliance of a pre-computed model): symmetric positive semi-definite, M = G Gᵀ for some
+//! G. It is singular, and badly so, on a fine surface: its points are barycentric
+//! combinations of few coarse vertices, so hundreds of rows share the directions of a few
+//! dozen vertices (rank a small fraction of the rows). The multipliers are then not unique;
+//! the displacement (G λ: the coarse forces Jᵀ λ) and the gaps w are.
+//!
+//! Why a dual active-set method. The LCP is the optimality condition of the least-distance
+//! problem in the coarse directions, min ½|z|² subject to gᵢ·z + bᵢ ≥ 0 (= 0 on held
+//! rows), with z = Gᵀ λ and λ its multipliers; every quantity the method needs is an inner
+//! product gᵢ·gⱼ = Mᵢⱼ, so G is never formed. Goldfarb and Idnani's dual method (1983)
+//! starts from the unconstrained minimum and adds one violated row at a time, keeping the
+//! rows it holds linearly independent: a row that depends on the held ones (a fine point
+//! whose three vertices' directions the held points already fix) cannot be added as such,
+//! and the step instead raises its push while shifting the held pushes along the
+//! dependency until one of them reaches zero and is dropped. Dependent rows are handled by
+//! construction, the active block's Cholesky factor (updated one row at a time) stays as
+//! well conditioned as the independent rows are, and each full step strictly increases the
+//! dual objective, so no active set repeats (finite, no cycling). The earlier solver
+//! (block principal pivoting on M plus a 1e-9 regularisation) solved equalities on sets of
+//! dependent rows, conditioned ~1e9, whose multipliers were roundoff a million times the
+//! true ones; its sign tests then crawled or cycled (347 points of a liver with its surface
+//! cut in 16: no answer in 3,520 rounds). An interior point would cost 20–40 dense solves
+//! of all the rows; a reduction to independent rows first is what this method does as it
+//! goes, on the rows that matter only.
+//!
+//! A row counts as dependent when what it adds to the held rows' directions is at most
+//! `DEPENDENT` of its own response (the squared sine of its angle to their span). Its
+//! answer is a basic one: at most as many pushing rows as independent directions (a few
+//! points per coarse triangle, not all the points under the instrument), the displacement
+//! and the summed forces equal to any other solution's. A violated row that depends only
+//! on held (bilateral) rows, or on nothing (zero response), cannot be reached: an error,
+//! not a huge push.
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, MatRef, Side};
+use faer::{Mat, MatRef};
 
 use crate::error::SimError;
 use crate::math::Real;
 
-/// The unilateral diagonal is raised by this much of the largest diagonal entry.
+/// A relative regularisation some callers add to their own singular blocks (of the largest
+/// diagonal entry). `solve_mixed` adds none: it handles dependent rows itself.
 pub const REGULARISATION: Real = 1e-9;
 
-/// Block swaps tried without fewer wrong rows before swapping one at a time.
-const BLOCK_TRIES: usize = 3;
+/// A row is dependent on the held rows when the part of its response they do not explain
+/// is at most this much of its own diagonal (its direction within ~3e-5 rad of their span).
+pub const DEPENDENT: Real = 1e-9;
 
-/// A solved LCP: the multipliers and how many pivoting rounds it took.
+/// A free row is violated when its gap is below −`GAP_TOLERANCE` times the largest |b|.
+const GAP_TOLERANCE: Real = 1e-11;
+
+/// A solved LCP: the multipliers and how many active-set changes it took (rows added
+/// and dropped).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LcpSolution {
     pub lambda: Vec<Real>,
     pub rounds: usize,
 }
 
+/// The held rows and the Cholesky factor L of their block of M (row i of L has i + 1
+/// entries), grown and shrunk one row at a time.
+struct Active {
+    rows: Vec<usize>,
+    l: Vec<Vec<Real>>,
+}
+
+impl Active {
+    fn new() -> Self {
+        Self {
+            rows: Vec::new(),
+            l: Vec::new(),
+        }
+    }
+
+    /// y = L⁻¹ c (forward substitution).
+    fn forward(&self, c: &mut [Real]) {
+        for i in 0..c.len() {
+            let li = &self.l[i];
+            let s: Real = (0..i).map(|j| li[j] * c[j]).sum();
+            c[i] = (c[i] - s) / li[i];
+        }
+    }
+
+    /// x = L⁻ᵀ y (back substitution).
+    fn backward(&self, y: &mut [Real]) {
+        for i in (0..y.len()).rev() {
+            y[i] /= self.l[i][i];
+            let yi = y[i];
+            for (yj, lij) in y[..i].iter_mut().zip(&self.l[i]) {
+                *yj -= lij * yi;
+            }
+        }
+    }
+
+    /// The held rows' multipliers that zero their gaps: M_AA λ_A = −b_A.
+    fn multipliers(&self, b: &[Real]) -> Vec<Real> {
+        let mut x: Vec<Real> = self.rows.iter().map(|&i| -b[i]).collect();
+        self.forward(&mut x);
+        self.backward(&mut x);
+        x
+    }
+
+    /// Holds row `p` given y = L⁻¹ M_Ap and its pivot δ = M_pp − |y|² > 0.
+    fn push(&mut self, p: usize, mut y: Vec<Real>, delta: Real) {
+        y.push(delta.sqrt());
+        self.rows.push(p);
+        self.l.push(y);
+    }
+
+    /// Lets go of the k-th held row: its row and column leave L, and the rows below take
+    /// its column back by a rank-one update of their block (stable, O(held²)).
+    fn remove(&mut self, k: usize) {
+        self.rows.remove(k);
+        self.l.remove(k);
+        let mut x: Vec<Real> = self.l[k..].iter_mut().map(|row| row.remove(k)).collect();
+        for (j, xj) in (k..self.l.len()).zip(0..) {
+            let ljj = self.l[j][j];
+            let r = ljj.hypot(x[xj]);
+            let (c, s) = (r / ljj, x[xj] / ljj);
+            self.l[j][j] = r;
+            for (i, xi) in (j + 1..self.l.len()).zip(xj + 1..) {
+                let lij = (self.l[i][j] + s * x[xi]) / c;
+                x[xi] = c * x[xi] - s * lij;
+                self.l[i][j] = lij;
+            }
+        }
+    }
+}
+
 /// Solves the mixed LCP above for `m` (only its lower triangle is read) and `b`, the first
-/// `bilateral` rows held exactly. `pushing` guesses, per unilateral row, whether it pushes
-/// (missing entries: it pushes where its free gap b is negative). Errors (never panics) on
-/// mismatched sizes, non-finite data, or a bilateral block that is not positive definite.
+/// `bilateral` rows held exactly. `pushing` guesses, per unilateral row, which rows push
+/// (a warm start: the last solve's pushing rows; missing entries: not pushing). Errors
+/// (never panics) on mismatched sizes, non-finite data, held rows that depend on each
+/// other, a violated row no push can reach, or no solution within 10 n + 50 rows added.
 pub fn solve_mixed(
     m: MatRef<'_, Real>,
     b: &[Real],
@@ -63,91 +160,145 @@ pub fn solve_mixed(
             reason: "the response must be square with one row per gap (internal)".into(),
         });
     }
-    if b.iter().any(|v| !v.is_finite()) || (0..n).any(|i| !m[(i, i)].is_finite()) {
+    // The full symmetric matrix once: its columns are then contiguous.
+    let m = Mat::<Real>::from_fn(n, n, |i, j| if i >= j { m[(i, j)] } else { m[(j, i)] });
+    if b.iter().any(|v| !v.is_finite())
+        || (0..n).any(|j| m.col_as_slice(j).iter().any(|v| !v.is_finite()))
+    {
         return Err(SimError::BadParameter {
             name: "contact problem",
             value: format!("{n} rows"),
             reason: "a gap or a response is not finite".into(),
         });
     }
-    let max_diag = (0..n).map(|i| m[(i, i)].abs()).fold(0.0, Real::max);
-    let eps = REGULARISATION * max_diag.max(Real::MIN_POSITIVE);
-    let diag = |i: usize| m[(i, i)] + if i >= bilateral { eps } else { 0.0 };
+    let tol_w = GAP_TOLERANCE * b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+    let mut rounds = 0;
 
-    // Which rows are solved as equalities (the bilateral ones always).
-    let mut active: Vec<bool> = (0..n)
-        .map(|i| i < bilateral || pushing.get(i - bilateral).copied().unwrap_or(b[i] < 0.0))
-        .collect();
-    let mut lambda = vec![0.0; n];
-    let mut w = vec![0.0; n];
-    let mut best_wrong = usize::MAX;
-    let mut tries = BLOCK_TRIES;
-    // Murty's rule ends within 2ⁿ rounds in theory and within a few n in practice; the
-    // block rounds before it are bounded by BLOCK_TRIES per improvement (at most n).
-    let cap = 10 * n + 50;
-    for round in 1..=cap {
-        solve_active(m, b, &active, &diag, &mut lambda)?;
-        // Gaps of every row: w = M λ + b (M symmetric, lower triangle read).
-        for i in 0..n {
-            let mut v = b[i];
-            for j in 0..n {
-                let mij = if i == j {
-                    diag(i)
-                } else if i > j {
-                    m[(i, j)]
-                } else {
-                    m[(j, i)]
-                };
-                v += mij * lambda[j];
-            }
-            w[i] = v;
-        }
-        // Wrong rows: an equality that pulls, a free row that penetrates. A tolerance
-        // relative to the row's scale keeps roundoff from swapping a row back and forth.
-        let scale_w = b
-            .iter()
-            .fold(0.0, |a: Real, v| a.max(v.abs()))
-            .max(Real::MIN_POSITIVE);
-        let scale_l = lambda
-            .iter()
-            .fold(0.0, |a: Real, v| a.max(v.abs()))
-            .max(Real::MIN_POSITIVE);
-        let wrong: Vec<usize> = (bilateral..n)
-            .filter(|&i| {
-                if active[i] {
-                    lambda[i] < -1e-12 * scale_l
-                } else {
-                    w[i] < -1e-12 * scale_w
-                }
-            })
-            .collect();
-        if wrong.is_empty() {
-            for i in bilateral..n {
-                if !active[i] {
-                    lambda[i] = 0.0;
-                }
-            }
-            return Ok(LcpSolution {
-                lambda,
-                rounds: round,
+    // The held rows first (always independent, or the problem is ill-posed), then the
+    // guessed pushing rows that are independent of those before.
+    let mut active = Active::new();
+    let mut held = vec![false; n];
+    let guessed = (bilateral..n).filter(|&i| pushing.get(i - bilateral).copied().unwrap_or(false));
+    for i in (0..bilateral).chain(guessed) {
+        let mut y: Vec<Real> = active.rows.iter().map(|&j| m[(j, i)]).collect();
+        active.forward(&mut y);
+        let delta = m[(i, i)] - y.iter().map(|v| v * v).sum::<Real>();
+        if delta > DEPENDENT * m[(i, i)] && delta > 0.0 {
+            active.push(i, y, delta);
+            held[i] = true;
+        } else if i < bilateral {
+            return Err(SimError::NotPositiveDefinite {
+                row: i,
+                hint: "the contact rows held exactly depend on each other (two holds of one \
+                       direction of one vertex?)"
+                    .into(),
             });
         }
-        if wrong.len() < best_wrong {
-            best_wrong = wrong.len();
-            tries = BLOCK_TRIES;
-            wrong.iter().for_each(|&i| active[i] = !active[i]);
-        } else if tries > 0 {
-            tries -= 1;
-            wrong.iter().for_each(|&i| active[i] = !active[i]);
-        } else if let Some(&i) = wrong.last() {
-            active[i] = !active[i];
+    }
+    // A guess is a valid start where its pushes are ≥ 0: drop the most pulling guessed
+    // row until none pulls (the held rows' optimum is then a dual-feasible point).
+    let mut u = active.multipliers(b);
+    while let Some(k) = (0..active.rows.len())
+        .filter(|&k| active.rows[k] >= bilateral && u[k] < 0.0)
+        .min_by(|&x, &y| u[x].total_cmp(&u[y]))
+    {
+        held[active.rows[k]] = false;
+        active.remove(k);
+        u = active.multipliers(b);
+    }
+
+    let cap = 10 * n + 50;
+    let mut added = 0;
+    let mut w = vec![0.0; n];
+    loop {
+        // Every gap from the held pushes (recomputed, so no drift accumulates).
+        w.copy_from_slice(b);
+        for (&j, &uj) in active.rows.iter().zip(&u) {
+            if uj != 0.0 {
+                let cj = m.col_as_slice(j);
+                w.iter_mut().zip(cj).for_each(|(wi, mij)| *wi += mij * uj);
+            }
+        }
+        // The most penetrating free row, if any.
+        let Some(p) = (bilateral..n)
+            .filter(|&i| !held[i] && w[i] < -tol_w)
+            .min_by(|&x, &y| w[x].total_cmp(&w[y]))
+        else {
+            break;
+        };
+        if added == cap {
+            return Err(SimError::BadParameter {
+                name: "contact problem",
+                value: format!("{n} rows ({bilateral} held)"),
+                reason: format!("no complementary solution after {cap} rows added"),
+            });
+        }
+        added += 1;
+        let cp = m.col_as_slice(p);
+        let mut up = 0.0;
+        loop {
+            rounds += 1;
+            // r = M_AA⁻¹ M_Ap: how the held pushes shift per unit push of p; δ: how much
+            // of p's response they leave (0 for a dependent row).
+            let mut y: Vec<Real> = active.rows.iter().map(|&j| cp[j]).collect();
+            active.forward(&mut y);
+            let delta = cp[p] - y.iter().map(|v| v * v).sum::<Real>();
+            let mut r = y.clone();
+            active.backward(&mut r);
+            let wp = b[p]
+                + active
+                    .rows
+                    .iter()
+                    .zip(&u)
+                    .map(|(&j, &uj)| cp[j] * uj)
+                    .sum::<Real>()
+                + cp[p] * up;
+            let full = if delta > DEPENDENT * cp[p] && delta > 0.0 {
+                (-wp / delta).max(0.0)
+            } else {
+                Real::INFINITY
+            };
+            // The first pushing row that the shift brings to zero.
+            // Shifts within roundoff of the largest (a row that duplicates a held one)
+            // are none.
+            let shift = DEPENDENT * r.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+            let partial = (0..active.rows.len())
+                .filter(|&k| active.rows[k] >= bilateral && r[k] > shift)
+                .map(|k| (u[k].max(0.0) / r[k], k))
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            match partial {
+                Some((t, k)) if t < full => {
+                    u.iter_mut().zip(&r).for_each(|(uk, rk)| *uk -= t * rk);
+                    up += t;
+                    held[active.rows[k]] = false;
+                    active.remove(k);
+                    u.remove(k);
+                }
+                _ if full.is_finite() => {
+                    active.push(p, y, delta);
+                    held[p] = true;
+                    // The held rows' gaps are all zero now: their pushes from the factor.
+                    u = active.multipliers(b);
+                    break;
+                }
+                _ => {
+                    return Err(SimError::BadParameter {
+                        name: "contact problem",
+                        value: format!("row {p} of {n} ({bilateral} held), gap {wp:e}"),
+                        reason: "the row penetrates and no push reaches it: it moves only \
+                                 as rows held exactly do (or not at all)"
+                            .into(),
+                    });
+                }
+            }
         }
     }
-    Err(SimError::BadParameter {
-        name: "contact problem",
-        value: format!("{n} rows"),
-        reason: format!("no complementary solution after {cap} pivoting rounds"),
-    })
+    let mut lambda = vec![0.0; n];
+    for (&i, &ui) in active.rows.iter().zip(&u) {
+        // A pushing row's λ may be a roundoff below zero.
+        lambda[i] = if i < bilateral { ui } else { ui.max(0.0) };
+    }
+    Ok(LcpSolution { lambda, rounds })
 }
 
 /// A first guess of the pushing unilateral rows (for `solve_mixed`'s `pushing`): the
@@ -177,139 +328,6 @@ pub fn first_guess<N: AsRef<[usize]>>(
     pushing
 }
 
-/// λ on the active rows from M_AA λ_A = −b_A, zero elsewhere.
-fn solve_active(
-    m: MatRef<'_, Real>,
-    b: &[Real],
-    active: &[bool],
-    diag: &impl Fn(usize) -> Real,
-    lambda: &mut [Real],
-) -> Result<(), SimError> {
-    let rows: Vec<usize> = (0..b.len()).filter(|&i| active[i]).collect();
-    lambda.iter_mut().for_each(|l| *l = 0.0);
-    if rows.is_empty() {
-        return Ok(());
-    }
-    let k = rows.len();
-    let a = Mat::<Real>::from_fn(k, k, |r, c| {
-        let (i, j) = (rows[r], rows[c]);
-        if i == j {
-            diag(i)
-        } else if i > j {
-            m[(i, j)]
-        } else {
-            m[(j, i)]
-        }
-    });
-    let llt = a
-        .llt(Side::Lower)
-        .map_err(|_| SimError::NotPositiveDefinite {
-            row: rows[0],
-            hint: "the contact rows held exactly depend on each other (two holds of one \
-                   direction of one vertex?)"
-                .into(),
-        })?;
-    let mut x = Mat::<Real>::from_fn(k, 1, |r, _| -b[rows[r]]);
-    llt.solve_in_place(x.as_mut());
-    for (r, &i) in rows.iter().enumerate() {
-        lambda[i] = x[(r, 0)];
-    }
-    Ok(())
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A deterministic generator (xorshift) for the tests' random problems.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> Real {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as Real / (1u64 << 53) as Real * 2.0 - 1.0
-        }
-    }
-
-    /// M = Gᵀ G for a `rank` × `n` random G: positive semi-definite, singular below full rank.
-    fn random_psd(rng: &mut Rng, n: usize, rank: usize) -> Mat<Real> {
-        let g = Mat::<Real>::from_fn(rank, n, |_, _| rng.next());
-        g.transpose() * &g
-    }
-
-    fn check_complementary(m: &Mat<Real>, b: &[Real], bilateral: usize, l: &[Real]) {
-        let n = b.len();
-        let scale = b.iter().fold(1e-300, |a: Real, v| a.max(v.abs()));
-        for i in 0..n {
-            let w: Real = b[i] + (0..n).map(|j| m[(i, j)] * l[j]).sum::<Real>();
-            if i < bilateral {
-                assert!(w.abs() < 1e-7 * scale, "held row {i}: gap {w}");
-            } else {
-                assert!(l[i] >= 0.0, "row {i} pulls: {}", l[i]);
-                assert!(w > -1e-7 * scale, "row {i} penetrates: {w}");
-                assert!(
-                    l[i] * w.abs() < 1e-7 * scale * (1.0 + l[i]),
-                    "row {i}: λ {} w {w}",
-                    l[i]
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn random_definite_and_singular_problems_are_complementary() {
-        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
-        for trial in 0..300usize {
-            let n: usize = 1 + trial % 23;
-            // Every third problem singular: more rows than directions.
-            let rank = if trial % 3 == 0 { n.div_ceil(2) } else { n + 2 };
-            let m = random_psd(&mut rng, n, rank);
-            let bilateral = if trial % 5 == 0 && rank >= n {
-                n / 3
-            } else {
-                0
-            };
-            // A problem that has a solution, as contact problems do (a singular M with an
-            // arbitrary b may have none): b = w* − M λ* for a complementary pair.
-            let (mut l, mut w) = (vec![0.0; n], vec![0.0; n]);
-            for i in 0..n {
-                if i < bilateral || rng.next() > 0.0 {
-                    l[i] = rng.next() + if i < bilateral { 0.0 } else { 1.0 };
-                } else {
-                    w[i] = rng.next() + 1.0;
-                }
-            }
-            let b: Vec<Real> = (0..n)
-                .map(|i| w[i] - (0..n).map(|j| m[(i, j)] * l[j]).sum::<Real>())
-                .collect();
-            let s = solve_mixed(m.as_ref(), &b, bilateral, &[]).unwrap();
-            check_complementary(&m, &b, bilateral, &s.lambda);
-        }
-    }
-
-    #[test]
-    fn a_singular_problem_gives_the_displacement_of_the_exact_solution() {
-        // Two points on one spring: both rows say "push the one unknown to 1". The pushes
-        // split between them but their sum is what one row alone needs.
-        let m = Mat::<Real>::from_fn(2, 2, |_, _| 0.5);
-        let b = [-1.0, -1.0];
-        let s = solve_mixed(m.as_ref(), &b, 0, &[]).unwrap();
-        let sum = s.lambda[0] + s.lambda[1];
-        assert!((sum - 2.0).abs() < 1e-6, "{:?}", s.lambda);
-        // A point that is already clear of the plane is not pushed.
-        let m = Mat::<Real>::from_fn(2, 2, |i, j| if i == j { 1.0 } else { 0.2 });
-        let s = solve_mixed(m.as_ref(), &[-1.0, 3.0], 0, &[]).unwrap();
-        assert_eq!(s.lambda[1], 0.0);
-        assert!((s.lambda[0] - 1.0).abs() < 1e-8);
-    }
-
-    #[test]
-    fn bad_sizes_and_values_are_errors() {
-        let m = Mat::<Real>::identity(2, 2);
-        assert!(solve_mixed(m.as_ref(), &[1.0], 0, &[]).is_err());
-        assert!(solve_mixed(m.as_ref(), &[Real::NAN, 1.0], 0, &[]).is_err());
-        let zero = Mat::<Real>::zeros(1, 1);
-        assert!(solve_mixed(zero.as_ref(), &[1.0], 1, &[]).is_err());
-    }
-}
+#[path = "lcp_tests.rs"]
+mod tests;
