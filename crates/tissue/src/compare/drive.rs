@@ -179,6 +179,10 @@ pub struct Stepping {
     /// and the kinetic energy stayed below `rest_energy` times the run's largest.
     pub window: Real,
     pub rest_energy: Real,
+    /// Dynamic runs follow the smoothstep ramp (`smooth_ramp`); false: the linear ramp the
+    /// comparison used with mass damping before kinetic damping (the rigid rotation and the
+    /// fallback runs of `measure::relaxed` keep it).
+    pub smooth_ramp: bool,
 }
 
 /// Computing time of one quasi-static run of a dynamic model, s (`--quick`, full run). A
@@ -198,6 +202,7 @@ impl Stepping {
             kinetic_damping: true,
             window: SETTLE_WINDOW,
             rest_energy: REST_ENERGY,
+            smooth_ramp: true,
         }
     }
 }
@@ -304,8 +309,8 @@ fn run<M: ?Sized + Motion>(
     let dt = st.dt;
     let steps = (st.max_time / dt).ceil() as usize;
     let record_every = ((st.ramp / dt) / 20.0).ceil().max(1.0) as usize;
-    // Steady: the quantity moved less than 0.5 % (of its size) over the last 5 % of the time
-    // limit.
+    // Steady: the quantity moved less than 0.5 % (of its size) over the last `window` share
+    // (5 %) of the time limit.
     let window = ((st.window * st.max_time / dt).ceil() as usize).max(2);
     let mut history: Vec<Real> = Vec::new();
     // Kinetic energy: the last step's, the largest so far, and per step after the ramp.
@@ -325,7 +330,11 @@ fn run<M: ?Sized + Motion>(
             }
             .into());
         }
-        let s = smooth_ramp(t / st.ramp);
+        let s = if st.smooth_ramp {
+            smooth_ramp(t / st.ramp)
+        } else {
+            (t / st.ramp).min(1.0)
+        };
         apply(m, s)?;
         step(m, dt)?;
         out.steps = k;

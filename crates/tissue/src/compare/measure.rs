@@ -49,8 +49,8 @@ pub fn settling(m: Material, scenario: &Scenario) -> Material {
 
 /// A quasi-static run `f(material, stepping)` under kinetic damping (`run_mat`, `st`); where
 /// the undamped model fails (a spring model thrown beyond the plausible bound by the deep
-/// probe's ramp), taken again with `settling`'s mass damping and no kinetic damping, the
-/// failure listed in `fallbacks` (the record's `kinetic_damping` note says so).
+/// probe's ramp), taken again as before kinetic damping (`mass_damped`), the failure listed
+/// in `fallbacks` (the record's `kinetic_damping` note says so).
 fn relaxed<T>(
     what: &str,
     st: &Stepping,
@@ -62,13 +62,19 @@ fn relaxed<T>(
     match guarded(|| f(run_mat, st)).and_then(|r| r) {
         Err(e) if st.kinetic_damping => {
             fallbacks.push(format!("{what} ({e})"));
-            let damped = Stepping {
-                kinetic_damping: false,
-                ..*st
-            };
-            guarded(|| f(qs_mat, &damped)).and_then(|r| r)
+            guarded(|| f(qs_mat, &mass_damped(st))).and_then(|r| r)
         }
         r => r,
+    }
+}
+
+/// `st` as the comparison settled dynamic runs before kinetic damping: `settling`'s mass
+/// damping (the caller's material), no kinetic damping, the linear ramp.
+fn mass_damped(st: &Stepping) -> Stepping {
+    Stepping {
+        kinetic_damping: false,
+        smooth_ramp: false,
+        ..*st
     }
 }
 
@@ -386,9 +392,11 @@ pub fn measure_kind(
         }
     }
     progress("rotation");
-    match relaxed("rotation", &st, run_mat, qs_mat, &mut fallbacks, |m, s| {
-        rotation(kind, organ, scenario, m, s)
-    }) {
+    // The rigid 90° turn measures rotation invariance, not an equilibrium's precision: it
+    // keeps the mass-damped settling. Undamped under kinetic damping the fast turn left
+    // `tensor-mass-nonlinear` (StVK, whose inverted elements have spurious equilibria)
+    // holding 110 times the reference probe force instead of none.
+    match guarded(|| rotation(kind, organ, scenario, qs_mat, &mass_damped(&st))).and_then(|r| r) {
         Ok((force, dv, settled)) => {
             let rel = force / reference.force_shallow.abs().max(1e-12);
             let mut fm = Measure::of(rel, "× reference probe force");
