@@ -17,6 +17,8 @@ pub mod reference;
 pub mod score;
 pub mod setup;
 pub mod survey;
+#[cfg(test)]
+mod tests_settle;
 
 use serde::{Deserialize, Serialize};
 
@@ -85,7 +87,7 @@ impl Settings {
             random_paths: 4,
             random_step_cap: 300,
             ramp: 0.15,
-            settle_time: 0.6,
+            settle_time: 1.5,
             increments: 3,
             dynamics_time: 0.4,
             reference_refinements: 1,
@@ -107,7 +109,7 @@ impl Settings {
             random_paths: 12,
             random_step_cap: 2000,
             ramp: 0.2,
-            settle_time: 1.5,
+            settle_time: 2.5,
             increments: 5,
             dynamics_time: 0.8,
             reference_refinements: 2,

@@ -300,6 +300,11 @@ impl ParticleState {
             .map(|(v, m)| 0.5 * m * v.length_squared())
             .sum()
     }
+
+    /// Every velocity set to zero, the positions kept (`Deformable::stop_motion`).
+    pub fn stop(&mut self) {
+        self.v.iter_mut().for_each(|v| *v = Vec3::ZERO);
+    }
 }
 
 /// A particle held by a constraint: it reaches `target` at the end of the step.
@@ -795,6 +800,16 @@ impl Integrator {
         self.end = None;
         self.implicit.forget_warm_start();
         self.watch = GrowthWatch::default();
+    }
+
+    /// The state's velocities were set to zero (`Deformable::stop_motion`): the kept forces
+    /// and the implicit solver's warm start are dropped, the measured stability limit kept
+    /// (the stiffness is the same), and so is the growth watch: its ledger sees the drop
+    /// as a loss, and its allowance keeps the recent kinetic-energy peak (a watch started
+    /// afresh at rest would read the next steps' normal energy swing as growth).
+    pub fn motion_stopped(&mut self) {
+        self.end = None;
+        self.implicit.forget_warm_start();
     }
 
     /// Measures the stability limit now at `state` (the models call it when built, so that

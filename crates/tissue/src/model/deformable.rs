@@ -242,6 +242,22 @@ pub trait Deformable: Send {
         false
     }
 
+    /// The kinetic energy of the model's masses, ½ Σ m v², in J; `None` (the default) for a
+    /// model without velocities (static, or position-based). With `stop_motion`, what a
+    /// caller needs for dynamic relaxation (`compare::drive`'s kinetic damping).
+    fn kinetic_energy(&self) -> Option<Real> {
+        None
+    }
+
+    /// Sets every velocity to zero and keeps the positions, constraints and loads: the next
+    /// step starts from rest where the model is now. Dynamic relaxation's kinetic damping
+    /// calls it at each peak of the kinetic energy; it adds no force, so an equilibrium is
+    /// the same with or without it. Returns whether the model did (false, the default,
+    /// where `kinetic_energy` is `None`).
+    fn stop_motion(&mut self) -> bool {
+        false
+    }
+
     /// Replaces the external loads (gravity, point loads).
     fn set_loads(&mut self, loads: &Loads) -> Result<(), SimError>;
 

@@ -122,6 +122,17 @@ impl Deformable for Hybrid {
         self.cut_along(blade)
     }
 
+    /// The region's nodes: the pre-computed rest is static (no inertia).
+    fn kinetic_energy(&self) -> Option<Real> {
+        Some(self.tm.node_kinetic_energy())
+    }
+
+    /// The region's velocities zeroed; the rest holds no velocity.
+    fn stop_motion(&mut self) -> bool {
+        self.tm.stop_nodes();
+        true
+    }
+
     fn reset(&mut self) {
         self.reset_state();
     }

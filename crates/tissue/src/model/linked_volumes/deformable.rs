@@ -339,6 +339,19 @@ impl Deformable for LinkedVolumes {
         self.cut_links(blade)
     }
 
+    fn kinetic_energy(&self) -> Option<Real> {
+        use crate::integrate::ParticleSystem;
+        Some(self.state.kinetic_energy(self.system.masses()))
+    }
+
+    /// The particles' velocities zeroed (implicit Euler's next step starts from rest;
+    /// `Integrator::motion_stopped`).
+    fn stop_motion(&mut self) -> bool {
+        self.state.stop();
+        self.integrator.motion_stopped();
+        true
+    }
+
     fn reset(&mut self) {
         self.state = crate::integrate::ParticleState::at_rest(self.rest.clone());
         self.integrator.invalidate();

@@ -537,6 +537,17 @@ impl Deformable for SplineModel {
         })
     }
 
+    fn kinetic_energy(&self) -> Option<Real> {
+        Some(SplineModel::kinetic_energy(self))
+    }
+
+    /// The control points' velocities zeroed; the surface does not move.
+    fn stop_motion(&mut self) -> bool {
+        self.state.stop();
+        self.integrator.motion_stopped();
+        true
+    }
+
     fn reset(&mut self) {
         self.state = ParticleState::at_rest(self.rest.control.clone());
         self.integrator.invalidate();

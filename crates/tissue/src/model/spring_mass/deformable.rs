@@ -283,6 +283,18 @@ impl Deformable for SpringModel {
         super::cut::cut_model(self, blade)
     }
 
+    fn kinetic_energy(&self) -> Option<Real> {
+        use crate::integrate::ParticleSystem;
+        Some(self.state.kinetic_energy(self.body.masses()))
+    }
+
+    /// The particles' velocities zeroed (`Integrator::motion_stopped`).
+    fn stop_motion(&mut self) -> bool {
+        self.state.stop();
+        self.integrator.motion_stopped();
+        true
+    }
+
     fn reset(&mut self) {
         self.state.x.clone_from(&self.rest);
         self.state.v.iter_mut().for_each(|v| *v = Vec3::ZERO);

@@ -96,6 +96,15 @@ impl Deformable for TensorMass {
         self.cut_along(blade)
     }
 
+    fn kinetic_energy(&self) -> Option<Real> {
+        Some(self.node_kinetic_energy())
+    }
+
+    fn stop_motion(&mut self) -> bool {
+        self.stop_nodes();
+        true
+    }
+
     fn reset(&mut self) {
         self.reset_state();
     }

@@ -263,6 +263,16 @@ impl TensorMass {
     pub fn velocities(&self) -> &[Vec3] {
         &self.state.v
     }
+    /// ½ Σ m v² of the nodes, J.
+    pub fn node_kinetic_energy(&self) -> Real {
+        use crate::integrate::ParticleSystem;
+        self.state.kinetic_energy(self.system.masses())
+    }
+    /// Every node's velocity zeroed (`Deformable::stop_motion`; `Integrator::motion_stopped`).
+    pub fn stop_nodes(&mut self) {
+        self.state.stop();
+        self.integrator.motion_stopped();
+    }
     pub fn rest_nodes(&self) -> &[Vec3] {
         &self.mesh.vertices
     }

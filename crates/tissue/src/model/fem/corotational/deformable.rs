@@ -173,6 +173,21 @@ impl Deformable for FemCorotational {
         self.reactions.reactions()
     }
 
+    fn kinetic_energy(&self) -> Option<Real> {
+        Some(
+            self.velocities()
+                .iter()
+                .zip(self.masses())
+                .map(|(v, m)| 0.5 * m * v.length_squared())
+                .sum(),
+        )
+    }
+
+    fn stop_motion(&mut self) -> bool {
+        self.stop_nodes();
+        true
+    }
+
     fn reset(&mut self) {
         self.reset_state();
     }

@@ -389,6 +389,12 @@ impl FemCorotational {
     pub fn velocities(&self) -> &[Vec3] {
         &self.v
     }
+    /// Every node's velocity zeroed, the positions kept (`Deformable::stop_motion`); the
+    /// CG's warm start (the last Δv) is dropped with them.
+    pub fn stop_nodes(&mut self) {
+        self.v.iter_mut().for_each(|v| *v = Vec3::ZERO);
+        self.last_dv.iter_mut().for_each(|d| *d = 0.0);
+    }
     pub fn masses(&self) -> &[Real] {
         &self.masses
     }

@@ -389,6 +389,39 @@ impl Core {
         Ok(())
     }
 
+    /// ½ Σ m v² with v = (U_t − U_{t−Δt})/Δt over the last (sub)step, J (0 before the
+    /// first step).
+    pub fn kinetic_energy(&self) -> Real {
+        let Some(dt) = self.last_dt else {
+            return 0.0;
+        };
+        let inv = 1.0 / dt;
+        0.5 * self
+            .u
+            .iter()
+            .zip(&self.u_prev)
+            .zip(&self.mass)
+            .map(|((u, p), m)| m * ((u - p) * inv).powi(2))
+            .sum::<Real>()
+    }
+
+    /// Zero velocity, the displacements kept: U_{t−Δt} = U_t (both schemes read the
+    /// velocity from that difference), and the energy the step checks is the strain energy
+    /// alone.
+    pub fn stop_motion(&mut self) {
+        self.u_prev.copy_from_slice(&self.u);
+        self.assembler
+            .pattern
+            .mul_vec(&self.k, &self.u, &mut self.ku);
+        self.energy = 0.5
+            * self
+                .u
+                .iter()
+                .zip(&self.ku)
+                .map(|(a, b)| a * b)
+                .sum::<Real>();
+    }
+
     pub fn reset(&mut self) {
         for buf in [&mut self.u, &mut self.u_prev, &mut self.u_next, &mut self.r] {
             buf.iter_mut().for_each(|v| *v = 0.0);

@@ -69,6 +69,13 @@ macro_rules! forward_deformable {
             fn reactions(&self) -> crate::model::Reactions<'_> {
                 self.core.reactions()
             }
+            fn kinetic_energy(&self) -> Option<crate::math::Real> {
+                Some(self.core.kinetic_energy())
+            }
+            fn stop_motion(&mut self) -> bool {
+                self.core.stop_motion();
+                true
+            }
             fn reset(&mut self) {
                 self.core.reset();
             }

@@ -1,0 +1,422 @@
+//! How the dynamic kinds settle in the comparison's probe indentation (issue 20).
+
+use super::Settings;
+use super::drive::{ContactLaw, Settled, Stepping, indent, probe_instrument, probe_simulation};
+use super::measure::{relaxing, settling, stable_step};
+use super::setup::{Organ, Scenario};
+use crate::material::Material;
+use crate::math::{Real, Vec3};
+
+fn liver() -> (Organ, Scenario) {
+    let mut mesh = crate::io::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/meshes/liver.msh"
+    ))
+    .unwrap();
+    for v in &mut mesh.vertices {
+        *v *= 0.01;
+    }
+    let material = Material::new(3000.0, 0.3).unwrap();
+    let organ = Organ::new(mesh, "liver".into(), material, 0.0, 800).unwrap();
+    let sc = Scenario::of(&organ.mesh).unwrap();
+    (organ, sc)
+}
+
+fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// The shallow (or `DEPTH`=deep) indentation of `KINDS` (default fem-explicit, tensor-mass)
+/// with the probe's ramp of `--quick` and `T_END` s of hold, mass damping `DAMPING` times the
+/// comparison's settling damping: the probe force and the surface's kinetic energy (each
+/// surface vertex given an equal share of the organ's mass) over time, beside `fem-static`'s.
+#[test]
+#[ignore = "study: prints the force and kinetic energy over time"]
+fn settling_study() {
+    let (organ, sc) = liver();
+    let s = Settings::quick();
+    let kinds: String = env_or("KINDS", "fem-explicit,tensor-mass".to_string());
+    let factor: Real = env_or("DAMPING", 1.0);
+    let t_end: Real = env_or("T_END", 3.0);
+    let deep = std::env::var("DEPTH").is_ok_and(|d| d == "deep");
+    let depth = if deep { sc.deep } else { sc.shallow };
+    let base = settling(organ.material, &sc);
+    println!(
+        "settling damping 2ω = {:.2} /s, height {:.4} m, depth {depth:.4e} m",
+        base.damping, sc.height
+    );
+    let st_static = Stepping {
+        contact: ContactLaw::FineSurface,
+        ..Stepping::new(true, 1.0, &s)
+    };
+    let model = organ.build("fem-static", base).unwrap();
+    let fixed = sc.fixed(model.rest_surface());
+    let (st, _) = indent(model, fixed, sc.probe(), sc.probe_radius, depth, &st_static).unwrap();
+    println!("fem-static: {:.5e} N", st.value);
+    let mass = organ.material.density * sc.volume;
+    for kind in kinds.split(',') {
+        let mat = Material {
+            damping: factor * base.damping,
+            ..base
+        };
+        let stable = stable_step(kind, &organ, &sc, base, ContactLaw::FineSurface, &s).unwrap();
+        let dt = (0.5 * stable).min(s.run_dt_max);
+        let model = organ.build(kind, mat).unwrap();
+        let fixed = sc.fixed(model.rest_surface());
+        let mut sim =
+            probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
+        sim.add_instrument(
+            probe_instrument(
+                sc.probe(),
+                sc.probe_radius,
+                depth,
+                s.ramp,
+                ContactLaw::FineSurface,
+            )
+            .unwrap(),
+        );
+        let n = sim.model().surface().positions.len();
+        let m_v = mass / n as Real;
+        let mut prev: Vec<Vec3> = sim.model().surface().positions.to_vec();
+        let steps = (t_end / dt).ceil() as usize;
+        let every = ((0.025 / dt).round() as usize).max(1);
+        println!(
+            "{kind}: stable {stable:.3e} s, dt {dt:.3e} s, damping {:.2} /s",
+            mat.damping
+        );
+        let relax = std::env::var("KINETIC").is_ok();
+        let mut last = 0.0;
+        for k in 1..=steps {
+            sim.step(dt).unwrap();
+            if relax {
+                let e = sim.model().kinetic_energy().unwrap();
+                if e < last {
+                    sim.model_mut().stop_motion();
+                    last = 0.0;
+                } else {
+                    last = e;
+                }
+            }
+            let now = sim.model().surface().positions;
+            if k % every == 0 {
+                let ke: Real = now
+                    .iter()
+                    .zip(&prev)
+                    .map(|(a, b)| 0.5 * m_v * (*a - *b).length_squared() / (dt * dt))
+                    .sum();
+                let f = sim.instrument_forces()[0].y;
+                println!(
+                    "  t {:.3} s  F {f:.5e} N  F/F_static {:.3}  KE {ke:.3e} J",
+                    k as Real * dt,
+                    f / st.value
+                );
+            }
+            prev.copy_from_slice(now);
+        }
+    }
+}
+
+/// One kind's settled shallow or deep indentation as the comparison runs it (`--quick`'s
+/// ramp, time limit and step; kinetic damping where the kind has velocities), and its
+/// surface displacement field.
+fn settle(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+    depth: Real,
+) -> Result<(Settled, Vec<Vec3>), crate::error::Error> {
+    let q = Settings::quick();
+    let s = Settings {
+        settle_time: env_or("SETTLE_TIME", q.settle_time),
+        ..q
+    };
+    let base = settling(organ.material, sc);
+    let probe = organ.build(kind, base).unwrap();
+    let info = probe.info();
+    let has_motion = !info.is_static && probe.kinetic_energy().is_some();
+    let dt = if info.is_static {
+        1.0
+    } else {
+        let stable = stable_step(kind, organ, sc, base, ContactLaw::FineSurface, &s).unwrap();
+        (0.5 * stable).min(s.run_dt_max)
+    };
+    let st = Stepping {
+        contact: ContactLaw::FineSurface,
+        kinetic_damping: has_motion,
+        ..Stepping::new(info.is_static, dt, &s)
+    };
+    let st = Stepping {
+        window: env_or("WINDOW", st.window),
+        rest_energy: env_or("REST_ENERGY", st.rest_energy),
+        ..st
+    };
+    let model = organ.build(kind, relaxing(base, &st)).unwrap();
+    let fixed = sc.fixed(model.rest_surface());
+    let (settled, sim) = indent(model, fixed, sc.probe(), sc.probe_radius, depth, &st)?;
+    let m = sim.model();
+    let field = m
+        .surface()
+        .positions
+        .iter()
+        .zip(m.rest_surface())
+        .map(|(p, r)| *p - *r)
+        .collect();
+    Ok((settled, field))
+}
+
+/// RMS of a − b over the RMS of b (fields on the same surface vertices).
+fn field_error(a: &[Vec3], b: &[Vec3]) -> Real {
+    assert_eq!(a.len(), b.len());
+    let d: Real = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared())
+        .sum();
+    let n: Real = b.iter().map(|y| y.length_squared()).sum();
+    (d / n.max(1e-300)).sqrt()
+}
+
+/// The settled indentations of `KINDS` (default every dynamic kind) shallow and deep, with
+/// the comparison's kinetic damping: force, whether settled, steps, motion stops, and the
+/// force and displacement field against `fem-static` (linear, same mesh, same fine points).
+#[test]
+#[ignore = "study: every dynamic kind's settled indentation against fem-static"]
+fn kinetic_damping_study() {
+    let (organ, sc) = liver();
+    let kinds: String = env_or(
+        "KINDS",
+        "fem-explicit,fem-semi-implicit,fem-corotational,tensor-mass,tensor-mass-nonlinear,\
+         hybrid,spring-mass,simplex-spring-mass,volumetric-spring-mass,linked-volumes"
+            .to_string(),
+    );
+    for (name, depth) in [("shallow", sc.shallow), ("deep", sc.deep)] {
+        let (st, field_static) = settle("fem-static", &organ, &sc, depth).unwrap();
+        println!("{name}: fem-static {:.5e} N", st.value);
+        for kind in kinds.split(',') {
+            let t = std::time::Instant::now();
+            let (d, field) = match settle(kind, &organ, &sc, depth) {
+                Ok(r) => r,
+                Err(e) => {
+                    println!("  {kind}: {e}");
+                    continue;
+                }
+            };
+            println!(
+                "  {kind}: {:.5e} N ({:+.3} % of fem-static's), field {:.3} % off, settled \
+                 {} after {} steps, {} motion stops, {:.2} s",
+                d.value,
+                100.0 * (d.value / st.value - 1.0),
+                100.0 * field_error(&field, &field_static),
+                d.settled,
+                d.steps,
+                d.motion_stops,
+                t.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
+
+/// Settling methods side by side on `KINDS` (default fem-explicit, tensor-mass), shallow and
+/// deep: `METHODS` is a list of `kinetic:damping_factor:ramp_shape:ramp_s` (kinetic 0/1; the
+/// mass damping as a multiple of `settling`'s 2ω; ramp shape `lin` or `smooth`, the
+/// smoothstep 3s² − 2s³). Prints, per method, when the probe force comes and stays within
+/// 1 % and 0.2 % of `fem-static`'s, and its value at 0.6 s and at `T_END`.
+#[test]
+#[ignore = "study: settling methods compared"]
+fn settling_methods_study() {
+    let (organ, sc) = liver();
+    let s = Settings::quick();
+    let kinds: String = env_or("KINDS", "fem-explicit,tensor-mass".to_string());
+    let methods: String = env_or(
+        "METHODS",
+        "0:1:lin:0.15,0:0.3:lin:0.15,1:0:lin:0.15,1:0:smooth:0.15,0:0.3:smooth:0.15,1:0.3:smooth:0.15"
+            .to_string(),
+    );
+    let t_end: Real = env_or("T_END", 1.5);
+    let base = settling(organ.material, &sc);
+    for (name, depth) in [("shallow", sc.shallow), ("deep", sc.deep)] {
+        let st_static = Stepping {
+            contact: ContactLaw::FineSurface,
+            ..Stepping::new(true, 1.0, &s)
+        };
+        let model = organ.build("fem-static", base).unwrap();
+        let fixed = sc.fixed(model.rest_surface());
+        let (fs, _) = indent(model, fixed, sc.probe(), sc.probe_radius, depth, &st_static).unwrap();
+        println!("{name}: fem-static {:.5e} N", fs.value);
+        for kind in kinds.split(',') {
+            let stable = stable_step(kind, &organ, &sc, base, ContactLaw::FineSurface, &s).unwrap();
+            let dt = (0.5 * stable).min(s.run_dt_max);
+            for method in methods.split(',') {
+                let p: Vec<&str> = method.split(':').collect();
+                let kinetic = p[0] == "1";
+                let factor: Real = p[1].parse().unwrap();
+                let smooth = p[2] == "smooth";
+                let ramp: Real = p[3].parse().unwrap();
+                let mat = Material {
+                    damping: factor * base.damping,
+                    ..base
+                };
+                let model = organ.build(kind, mat).unwrap();
+                let fixed = sc.fixed(model.rest_surface());
+                let mut sim =
+                    probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface)
+                        .unwrap();
+                let top = sc.probe() + Vec3::Y * sc.probe_radius;
+                sim.add_instrument(
+                    probe_instrument(
+                        sc.probe(),
+                        sc.probe_radius,
+                        0.0,
+                        1.0,
+                        ContactLaw::FineSurface,
+                    )
+                    .unwrap(),
+                );
+                let steps = (t_end / dt).ceil() as usize;
+                let mut last = 0.0;
+                let mut stops = 0;
+                let mut hist: Vec<(Real, Real)> = Vec::new();
+                for k in 1..=steps {
+                    let t = k as Real * dt;
+                    let x = (t / ramp).min(1.0);
+                    let f = if smooth { x * x * (3.0 - 2.0 * x) } else { x };
+                    sim.set_instrument_position(0, Some(top - Vec3::Y * (f * depth)))
+                        .unwrap();
+                    sim.step(dt).unwrap();
+                    if kinetic {
+                        let e = sim.model().kinetic_energy().unwrap();
+                        if e < last {
+                            sim.model_mut().stop_motion();
+                            stops += 1;
+                            last = 0.0;
+                        } else {
+                            last = e;
+                        }
+                    }
+                    hist.push((t, sim.instrument_forces()[0].y / fs.value));
+                }
+                let stays = |tol: Real| {
+                    hist.iter()
+                        .rposition(|(_, r)| (r - 1.0).abs() > tol)
+                        .map_or(0.0, |i| hist.get(i + 1).map_or(Real::INFINITY, |h| h.0))
+                };
+                let at = |t: Real| {
+                    hist.iter()
+                        .find(|(u, _)| *u >= t - 1e-9)
+                        .map_or(Real::NAN, |h| h.1)
+                };
+                println!(
+                    "  {kind} dt {dt:.1e} [{method}]: within 1 % from {:.3} s, 0.2 % from {:.3} s; \
+                     F/F_static at 0.6 s {:.4}, at {t_end} s {:.4}; {stops} stops",
+                    stays(0.01),
+                    stays(0.002),
+                    at(0.6),
+                    at(t_end)
+                );
+            }
+        }
+    }
+}
+
+/// The comparison's settling on the built-in liver (`--quick`'s ramp, step and time limit;
+/// kinetic damping, `drive::run`), checked against physics. Linear `fem-explicit`,
+/// `fem-semi-implicit` and `tensor-mass` with the fine points solve the same frictionless
+/// problem on the same mesh as linear `fem-static` (a convex problem: one equilibrium), by
+/// a different route (dynamics to rest against a static solve): each settles, and its probe
+/// force and surface displacement field agree with `fem-static`'s within 1 % shallow and
+/// deep (measured: at most 0.26 % and 0.24 %). At the shallow depth the nonlinear kinds
+/// come within 20 % of their linear twins' force (measured: `fem-corotational` 12.0 % below
+/// `fem-explicit`, settled; `tensor-mass-nonlinear` 13.5 % below `tensor-mass`, still
+/// creeping up at the time limit: the shallow press pushes the liver's highest vertex
+/// alone, a point load whose strains near the point are large).
+#[test]
+fn the_dynamic_kinds_settle_to_the_static_equilibrium() {
+    let (organ, sc) = liver();
+    for (name, depth) in [("shallow", sc.shallow), ("deep", sc.deep)] {
+        let (st, field_static) = settle("fem-static", &organ, &sc, depth).unwrap();
+        let mut linear = Vec::new();
+        for kind in ["fem-explicit", "fem-semi-implicit", "tensor-mass"] {
+            let (d, field) = settle(kind, &organ, &sc, depth).unwrap();
+            let force = d.value / st.value - 1.0;
+            let field = field_error(&field, &field_static);
+            println!(
+                "{name} {kind}: {:.5e} N against {:.5e} N ({:+.3} %), field {:.3} % off, \
+                 {} steps, {} motion stops",
+                d.value,
+                st.value,
+                100.0 * force,
+                100.0 * field,
+                d.steps,
+                d.motion_stops
+            );
+            assert!(d.settled && d.motion_stops > 0, "{kind} {name}: {d:?}");
+            assert!(force.abs() < 0.01 && field < 0.01, "{kind} {name}");
+            linear.push(d.value);
+        }
+        if name == "shallow" {
+            for (kind, twin) in [("fem-corotational", 0), ("tensor-mass-nonlinear", 2)] {
+                let (d, _) = settle(kind, &organ, &sc, depth).unwrap();
+                let off = d.value / linear[twin] - 1.0;
+                println!(
+                    "{name} {kind}: {:.5e} N, {:+.2} % of its linear twin, settled {}",
+                    d.value,
+                    100.0 * off,
+                    d.settled
+                );
+                // `tensor-mass-nonlinear` still creeps up at the time limit (by 3e-4 of its
+                // force over the last 0.1 s): its bound is on the value, not on settling.
+                assert!(off.abs() < 0.2, "{kind}: {d:?}");
+                assert!(
+                    d.settled || kind == "tensor-mass-nonlinear",
+                    "{kind}: {d:?}"
+                );
+            }
+        }
+    }
+}
+
+/// `Deformable::stop_motion` on every kind that reports a kinetic energy: after a few steps
+/// under gravity (the bottom held) the energy is positive; stopped, it is zero, the surface
+/// has not moved, and the next step goes on from rest (its kinetic energy is that of one
+/// step's acceleration, below the moving state's). Kinds without velocities say so (false).
+#[test]
+fn stop_motion_zeroes_the_kinetic_energy_and_keeps_the_positions() {
+    use crate::interact::{Constraints, Loads};
+    let (organ, sc) = liver();
+    let mat = settling(organ.material, &sc);
+    for info in crate::model::KINDS {
+        let Ok(mut m) = organ.build(info.name, mat) else {
+            continue;
+        };
+        let fixed = sc.fixed(m.rest_surface());
+        m.set_constraints(&Constraints::fixed(fixed)).unwrap();
+        m.set_loads(&Loads {
+            gravity: Vec3::new(0.0, -9.81, 0.0),
+            point_loads: Vec::new(),
+        })
+        .unwrap();
+        let dt = 1e-3;
+        for _ in 0..5 {
+            m.step(dt).unwrap();
+        }
+        let Some(moving) = m.kinetic_energy() else {
+            assert!(!m.stop_motion(), "{}", info.name);
+            continue;
+        };
+        let before: Vec<Vec3> = m.surface().positions.to_vec();
+        assert!(moving > 0.0, "{}: {moving}", info.name);
+        assert!(m.stop_motion(), "{}", info.name);
+        assert_eq!(m.kinetic_energy(), Some(0.0), "{}", info.name);
+        assert_eq!(m.surface().positions, &before[..], "{}", info.name);
+        m.step(dt).unwrap();
+        let restarted = m.kinetic_energy().unwrap();
+        println!(
+            "{}: {moving:.3e} J moving, {restarted:.3e} J one step after the stop",
+            info.name
+        );
+        assert!(restarted > 0.0 && restarted < moving, "{}", info.name);
+    }
+}
