@@ -25,6 +25,7 @@
 
 mod bare;
 pub mod domain;
+pub mod follow;
 pub mod image_domain;
 mod interface_volume;
 pub mod interfaces;
@@ -543,6 +544,13 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     manifold.bare_moved = snapped.onto + snapped.partly;
     manifold.bare_partly = snapped.partly;
     manifold.bare_left = snapped.left;
+    // Boundary vertices onto features of the input at resolution h that the lattice
+    // passed over (one label: an interface would move with them).
+    let followed = if multi {
+        follow::Followed::default()
+    } else {
+        follow::follow_input(&mut mesh, &tags, domain, size)
+    };
     // Interfaces between labels off their chords (each label keeps its volume).
     if multi {
         interface_volume::keep_label_volumes(&mut mesh, &tags, domain, size);
@@ -550,6 +558,7 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     let mut report = measure(&mesh, domain, domain_index(domain), size);
     report.manifold = manifold;
     report.pieces = pieces;
+    report.followed = followed;
     report.warped = warped;
     report.steiner_points = steiner_points;
     report.cut_points = cuts.len();

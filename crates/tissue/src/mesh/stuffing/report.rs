@@ -82,6 +82,9 @@ pub struct MeshingReport {
     pub manifold: super::manifold::ManifoldRepair,
     /// The mesh's pieces, and those dropped when the input is one piece (`pieces`).
     pub pieces: super::pieces::Pieces,
+    /// Boundary vertices moved onto features of the input at resolution h that the lattice
+    /// passed over (`follow`).
+    pub followed: super::follow::Followed,
     /// Several labels meshed as separate regions: each label's tetrahedra and volume
     /// against its voxels, and the interfaces' distance to the input's (`interfaces`).
     pub labels: Option<super::interfaces::Labels>,
@@ -299,6 +302,19 @@ impl fmt::Display for MeshingReport {
                 m.bare_moved, m.bare_partly, m.bare_left
             )?;
         }
+        let fo = &self.followed;
+        if fo.onto + fo.partly + fo.refused + fo.off_chords > 0 {
+            writeln!(
+                f,
+                "followed:        {} boundary vertices moved onto the input where the mesh \
+                 passed over it by more than 0.45 h ({} only part of the way), {} pulls refused \
+                 (angles, or the mesh→input distance); {} moved off their faces' chords",
+                fo.onto + fo.partly,
+                fo.partly,
+                fo.refused,
+                fo.off_chords
+            )?;
+        }
         let p = &self.pieces;
         if p.dropped > 0 {
             writeln!(
@@ -435,7 +451,7 @@ const REFINE_SPACING: Real = 1.0 / 16.0;
 /// first-order estimate |f|/|∇f| is infinite and the bound is the nearest of the input's
 /// samples, which lie on lines h/4 apart and so can be about h/8 farther than the boundary
 /// between them (issue 25: the brain at 6 mm, 0.616 h by the samples).
-fn refined_distance(domain: &dyn Domain, p: Vec3, estimate: Real, size: Real) -> Real {
+pub(super) fn refined_distance(domain: &dyn Domain, p: Vec3, estimate: Real, size: Real) -> Real {
     if !(estimate.is_finite() && estimate > REFINE_ABOVE * size) {
         return estimate;
     }
@@ -588,6 +604,7 @@ pub fn measure(
         seconds: 0.0,
         manifold: Default::default(),
         pieces: Default::default(),
+        followed: Default::default(),
         labels: None,
         junctions: None,
     }
