@@ -162,10 +162,17 @@ impl Pull<'_> {
 }
 
 /// Moves boundary vertices of `mesh` towards the input where the mesh passes farther than
-/// `FAR`·h from it, either way. See the module doc.
-pub fn follow_input(mesh: &mut TetMesh, tags: &[i32], domain: &dyn Domain, size: Real) -> Followed {
+/// `FAR`·h from it, either way; `resolved` is `domain` at resolution `size`
+/// (`Domain::at_resolution`; `None`, a surface, leaves the mesh as it is). See the module doc.
+pub fn follow_input(
+    mesh: &mut TetMesh,
+    tags: &[i32],
+    domain: &dyn Domain,
+    resolved: Option<&dyn Domain>,
+    size: Real,
+) -> Followed {
     let mut done = Followed::default();
-    let Some(resolved) = domain.at_resolution(size) else {
+    let Some(resolved) = resolved else {
         return done;
     };
     let samples = resolved.boundary_samples(0.25 * size);
