@@ -17,11 +17,12 @@
 //! with the other. The other direction likewise: a boundary face whose centroid or edge
 //! midpoint is farther than `FAR`·h from the whole input (a face passing over a hollow that
 //! the filter keeps; the brain at 7 mm, 0.52 h) pulls its corner nearest to the input point
-//! nearest it onto that point, when that brings the face's farthest point nearer. A vertex
+//! nearest it onto that point, and a boundary vertex that far pulls itself, when that brings
+//! the faces' farthest point nearer. A vertex
 //! between two tags stays (it would move an interface), and a vertex moves at most once per
 //! round. Where nothing is far the mesh is left as it was.
 
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::domain::{Domain, bisect};
 use super::report::refined_distance;
@@ -45,6 +46,8 @@ const FRACTIONS: [Real; 4] = [1.0, 0.75, 0.5, 0.25];
 const MEAN_PER_CENTROID_GAP: Real = 0.75;
 /// How far (per h) from a face's centroid the input is looked for.
 const CHORD_SEARCH: Real = 0.25;
+/// A face whose centroid is nearer the input than this (per h) lies on a plane of it.
+const FLAT: Real = 1e-3;
 
 /// What `follow_input` did: vertices moved all the way onto the input, part of the way, and
 /// pulls refused (angles, or the mesh→input distance).
@@ -251,6 +254,16 @@ pub fn follow_input(
         }
         // Direction (a): face points far from the whole input, farthest first.
         let mut pulls: Vec<(Real, u32, Vec3)> = Vec::new();
+        // A vertex off the input (moved there by a pull, or a split copy) pulls itself.
+        for &v in faces.keys() {
+            let x = mesh.vertices[v as usize];
+            let d = to_input(x);
+            if d > FAR * size
+                && let Some((_, s)) = whole_bins.nearest(x)
+            {
+                pulls.push((d, v, s));
+            }
+        }
         for tri in &surface.triangles {
             let f = tri.map(|s| boundary.nodes[s as usize]);
             let [a, b, c] = f.map(|u| mesh.vertices[u as usize]);
@@ -309,7 +322,8 @@ pub fn follow_input(
 /// input along their normals (found within h/4), so each face moves by its mean gap and the
 /// volume between mesh and input vanishes to first order. Stuffing puts every boundary
 /// vertex on the input, so each face is a chord that shaves a convex part (the brain at 7 mm
-/// lost 0.93 % so, more after the pulls above carved hollows). A move is kept only as
+/// lost 0.93 % so, more after the pulls above carved hollows). A vertex with a flat face
+/// (or one whose input was not found) stays. A move is kept only as
 /// `pull` keeps one (angles, and its faces' points within `NEAR`·h of the input or no
 /// farther than they were), else halved, else dropped. Returns the vertices moved.
 fn off_chords(
@@ -325,6 +339,10 @@ fn off_chords(
     let reach = CHORD_SEARCH * size;
     let mut gaps: FxHashMap<u32, (Vec3, Real)> = FxHashMap::default();
     let mut faces: FxHashMap<u32, Vec<[u32; 3]>> = FxHashMap::default();
+    // Vertices with a face on a plane of the input (no sag), or with no input found along a
+    // face's normal, stay: the mean of a flat face's zero gap and a curved neighbour's
+    // outward one would lift the vertex off the plane (a block's face, an image's border).
+    let mut stays: FxHashSet<u32> = FxHashSet::default();
     for tri in &surface.triangles {
         let f = tri.map(|s| boundary.nodes[s as usize]);
         for v in f {
@@ -334,18 +352,21 @@ fn off_chords(
         let cross = (q - p).cross(r - p);
         let area = 0.5 * cross.length();
         let n = cross.normalize_or_zero();
-        if n == Vec3::ZERO {
-            continue;
-        }
         let c = (p + q + r) / 3.0;
         let (lo, hi) = (c - reach * n, c + reach * n);
         let value = |x: Vec3| domain.value(x);
         let (f_lo, f_hi) = (value(lo), value(hi));
-        let crossing = if f_lo < 0.0 && f_hi > 0.0 {
-            bisect(value, lo, hi)
+        let crossing = if n == Vec3::ZERO {
+            None
+        } else if f_lo < 0.0 && f_hi > 0.0 {
+            Some(bisect(value, lo, hi))
         } else if f_lo > 0.0 && f_hi < 0.0 {
-            bisect(value, hi, lo)
+            Some(bisect(value, hi, lo))
         } else {
+            None
+        };
+        let Some(crossing) = crossing.filter(|&x| (x - c).length() > FLAT * size) else {
+            stays.extend(f);
             continue;
         };
         for v in f {
@@ -356,7 +377,7 @@ fn off_chords(
     }
     let mut moves: Vec<(u32, Vec3)> = gaps
         .into_iter()
-        .filter(|(_, (_, area))| *area > 0.0)
+        .filter(|(v, (_, area))| *area > 0.0 && !stays.contains(v))
         .map(|(v, (sum, area))| (v, MEAN_PER_CENTROID_GAP * sum / area))
         .collect();
     moves.sort_unstable_by_key(|m| m.0);
@@ -381,4 +402,69 @@ fn off_chords(
         }
     }
     moved
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::report::measure;
+    use super::super::{ImageDomain, stuff};
+    use super::*;
+    use crate::image::{ByteOrder, SourceType, VoxelImage};
+    use crate::model::Progress;
+
+    /// A ball of voxels meshed, one boundary vertex then pushed 0.6 h off the input (as far
+    /// as the angles allow): the report sees the mesh farther than h/2, and the pulls bring
+    /// it back within 0.45 h, every tetrahedron oriented and within the proven angles.
+    #[test]
+    fn a_boundary_vertex_off_the_input_is_pulled_back_within_the_angles() {
+        let (n, sp, h) = ([28, 28, 28], 0.001, 0.003);
+        let c = Vec3::splat(13.5);
+        let mut values = vec![0f32; n[0] * n[1] * n[2]];
+        for k in 0..n[2] {
+            for j in 0..n[1] {
+                for i in 0..n[0] {
+                    let p = Vec3::new(i as Real, j as Real, k as Real);
+                    let inside = (p - c).length() < 10.0;
+                    values[i + n[0] * (j + n[1] * k)] = if inside { 1.0 } else { 0.0 };
+                }
+            }
+        }
+        let image = VoxelImage {
+            dims: n,
+            spacing: Vec3::splat(sp),
+            origin: Vec3::ZERO,
+            values,
+            source_type: SourceType::U8,
+            byte_order: ByteOrder::Little,
+            segments: Vec::new(),
+        };
+        let d = ImageDomain::from_threshold(&image, 0.5, 1.5).unwrap_or_else(|e| panic!("{e}"));
+        let s = stuff(&d, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+        assert!(s.report.violations().is_empty(), "{}", s.report);
+        let mut mesh = s.mesh.clone();
+        let boundary = boundary_surface(&mesh);
+        let z = |v: u32| mesh.vertices[v as usize].z;
+        let top = boundary
+            .nodes
+            .iter()
+            .copied()
+            .max_by(|&a, &b| z(a).total_cmp(&z(b)))
+            .unwrap_or_else(|| panic!("no boundary"));
+        let around: Vec<usize> = (0..mesh.tets.len())
+            .filter(|&t| mesh.tets[t].contains(&top))
+            .collect();
+        let push = 0.6 * h * Vec3::Z;
+        let pushed = move_within_bounds(&mut mesh, top, &around, push, &[1.0, 0.9, 0.85]);
+        assert!(pushed.is_some(), "the push kept no angle");
+        let before = measure(&mesh, &d, None, h);
+        assert!(before.mesh_to_input > 0.5 * h, "{before}");
+        let resolved = Domain::at_resolution(&d, h);
+        let done = follow_input(&mut mesh, &s.tags, &d, resolved.as_deref(), h);
+        assert!(done.onto + done.partly >= 1, "{done:?}");
+        let after = measure(&mesh, &d, None, h);
+        assert!(after.hausdorff <= 0.45 * h, "{after}");
+        assert_eq!((after.inverted, after.degenerate), (0, 0), "{after}");
+        assert!(after.min_dihedral_deg >= 10.7 - 1e-9, "{after}");
+        assert!(after.volume_error.unwrap_or(1.0).abs() < 0.01, "{after}");
+    }
 }
