@@ -22,7 +22,7 @@
 //! between two tags stays (it would move an interface), and a vertex moves at most once per
 //! round. Where nothing is far the mesh is left as it was.
 
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
 
 use super::domain::{Domain, bisect};
 use super::report::refined_distance;
@@ -114,6 +114,23 @@ fn face_points(mesh: &TetMesh, faces: &[[u32; 3]]) -> Vec<Vec3> {
         ]);
     }
     q
+}
+
+/// `d` without its parts along the unit `normals` (of flat faces): a move within their
+/// planes, or none when they leave no direction (three planes, or normals that do not
+/// agree after two passes).
+fn within_planes(mut d: Vec3, normals: &[Vec3]) -> Vec3 {
+    for _ in 0..2 {
+        for n in normals {
+            d -= d.dot(*n) * *n;
+        }
+    }
+    let tolerance = 1e-6 * d.length();
+    if normals.iter().all(|n| d.dot(*n).abs() <= tolerance) {
+        d
+    } else {
+        Vec3::ZERO
+    }
 }
 
 /// How a boundary vertex may move: its tetrahedra, its boundary faces, the distance to the
@@ -322,8 +339,8 @@ pub fn follow_input(
 /// input along their normals (found within h/4), so each face moves by its mean gap and the
 /// volume between mesh and input vanishes to first order. Stuffing puts every boundary
 /// vertex on the input, so each face is a chord that shaves a convex part (the brain at 7 mm
-/// lost 0.93 % so, more after the pulls above carved hollows). A vertex with a flat face
-/// (or one whose input was not found) stays. A move is kept only as
+/// lost 0.93 % so, more after the pulls above carved hollows). A vertex on a flat face of
+/// the input moves only along that face's plane (`within_planes`). A move is kept only as
 /// `pull` keeps one (angles, and its faces' points within `NEAR`·h of the input or no
 /// farther than they were), else halved, else dropped. Returns the vertices moved.
 fn off_chords(
@@ -339,10 +356,10 @@ fn off_chords(
     let reach = CHORD_SEARCH * size;
     let mut gaps: FxHashMap<u32, (Vec3, Real)> = FxHashMap::default();
     let mut faces: FxHashMap<u32, Vec<[u32; 3]>> = FxHashMap::default();
-    // Vertices with a face on a plane of the input (no sag), or with no input found along a
-    // face's normal, stay: the mean of a flat face's zero gap and a curved neighbour's
-    // outward one would lift the vertex off the plane (a block's face, an image's border).
-    let mut stays: FxHashSet<u32> = FxHashSet::default();
+    // A face on a plane of the input (no sag) holds its vertices to that plane: the mean
+    // of its zero gap and a curved neighbour's outward one would lift them off it (a block's
+    // face, an image's border), so the part of their move along its normal is taken out.
+    let mut planes: FxHashMap<u32, Vec<Vec3>> = FxHashMap::default();
     for tri in &surface.triangles {
         let f = tri.map(|s| boundary.nodes[s as usize]);
         for v in f {
@@ -352,23 +369,25 @@ fn off_chords(
         let cross = (q - p).cross(r - p);
         let area = 0.5 * cross.length();
         let n = cross.normalize_or_zero();
+        if n == Vec3::ZERO {
+            continue;
+        }
         let c = (p + q + r) / 3.0;
         let (lo, hi) = (c - reach * n, c + reach * n);
         let value = |x: Vec3| domain.value(x);
         let (f_lo, f_hi) = (value(lo), value(hi));
-        let crossing = if n == Vec3::ZERO {
-            None
-        } else if f_lo < 0.0 && f_hi > 0.0 {
-            Some(bisect(value, lo, hi))
+        let crossing = if f_lo < 0.0 && f_hi > 0.0 {
+            bisect(value, lo, hi)
         } else if f_lo > 0.0 && f_hi < 0.0 {
-            Some(bisect(value, hi, lo))
+            bisect(value, hi, lo)
         } else {
-            None
-        };
-        let Some(crossing) = crossing.filter(|&x| (x - c).length() > FLAT * size) else {
-            stays.extend(f);
             continue;
         };
+        if (crossing - c).length() <= FLAT * size {
+            for v in f {
+                planes.entry(v).or_default().push(n);
+            }
+        }
         for v in f {
             let e = gaps.entry(v).or_insert((Vec3::ZERO, 0.0));
             e.0 += area * (crossing - c);
@@ -377,8 +396,14 @@ fn off_chords(
     }
     let mut moves: Vec<(u32, Vec3)> = gaps
         .into_iter()
-        .filter(|(v, (_, area))| *area > 0.0 && !stays.contains(v))
-        .map(|(v, (sum, area))| (v, MEAN_PER_CENTROID_GAP * sum / area))
+        .filter(|(_, (_, area))| *area > 0.0)
+        .map(|(v, (sum, area))| {
+            let d = MEAN_PER_CENTROID_GAP * sum / area;
+            (
+                v,
+                within_planes(d, planes.get(&v).map(Vec::as_slice).unwrap_or(&[])),
+            )
+        })
         .collect();
     moves.sort_unstable_by_key(|m| m.0);
     let mut moved = 0;
