@@ -36,9 +36,12 @@ impl Cleaning {
     };
 }
 
-/// What cleaning changed, in voxels.
+/// What cleaning changed, in voxels, and the opening-closing radius that was asked for (a
+/// user's choice that changes the input every guarantee is measured against, so it is said).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct CleanReport {
+    /// `Cleaning::open_close`: radius in voxels of the opening then closing; 0 for none.
+    pub open_close: usize,
     pub voxels_before: usize,
     pub voxels_after: usize,
     /// Parts dropped for not being the largest.
@@ -50,6 +53,7 @@ pub struct CleanReport {
 /// Cleans `mask` (x fastest, then y, then z, over `dims`) in place as `c` says.
 pub fn clean_mask(mask: &mut [bool], dims: [usize; 3], c: Cleaning) -> CleanReport {
     let mut report = CleanReport {
+        open_close: c.open_close,
         voxels_before: count(mask),
         ..Default::default()
     };

@@ -19,7 +19,7 @@ use crate::model::Progress;
 use crate::voxel::VoxelGrid;
 
 /// Bumped when the mesher's output changes, so stale entries are never reused.
-const MESHER_VERSION: u64 = 7;
+const MESHER_VERSION: u64 = 8;
 /// Meshes kept in the cache (oldest dropped first).
 const CACHE_ENTRIES: usize = 8;
 

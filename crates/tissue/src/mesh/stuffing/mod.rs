@@ -25,6 +25,7 @@
 
 mod bare;
 pub mod domain;
+pub mod follow;
 pub mod image_domain;
 mod interface_volume;
 pub mod interfaces;
@@ -543,13 +544,28 @@ pub fn stuff(domain: &dyn Domain, size: Real, progress: &Progress) -> Result<Stu
     manifold.bare_moved = snapped.onto + snapped.partly;
     manifold.bare_partly = snapped.partly;
     manifold.bare_left = snapped.left;
+    // Boundary vertices onto features of the input at resolution h that the lattice
+    // passed over (one label: an interface would move with them).
+    let resolved = domain.at_resolution(size);
+    let followed = if multi {
+        follow::Followed::default()
+    } else {
+        follow::follow_input(&mut mesh, &tags, domain, resolved.as_deref(), size)
+    };
     // Interfaces between labels off their chords (each label keeps its volume).
     if multi {
         interface_volume::keep_label_volumes(&mut mesh, &tags, domain, size);
     }
-    let mut report = measure(&mesh, domain, domain_index(domain), size);
+    let mut report = report::measure_against(
+        &mesh,
+        domain,
+        resolved.as_deref(),
+        domain_index(domain),
+        size,
+    );
     report.manifold = manifold;
     report.pieces = pieces;
+    report.followed = followed;
     report.warped = warped;
     report.steiner_points = steiner_points;
     report.cut_points = cuts.len();

@@ -82,6 +82,9 @@ pub struct MeshingReport {
     pub manifold: super::manifold::ManifoldRepair,
     /// The mesh's pieces, and those dropped when the input is one piece (`pieces`).
     pub pieces: super::pieces::Pieces,
+    /// Boundary vertices moved onto features of the input at resolution h that the lattice
+    /// passed over (`follow`).
+    pub followed: super::follow::Followed,
     /// Several labels meshed as separate regions: each label's tetrahedra and volume
     /// against its voxels, and the interfaces' distance to the input's (`interfaces`).
     pub labels: Option<super::interfaces::Labels>,
@@ -232,10 +235,12 @@ impl fmt::Display for MeshingReport {
         ) {
             writeln!(
                 f,
-                "cleaned image:   {} → {} voxels ({} parts dropped, {} hole voxels filled); \
-                 volume against the voxels before cleaning {:.6e} m³: {:+.3} %",
+                "cleaned image:   {} → {} voxels (opened then closed by {} voxels, {} parts \
+                 dropped, {} hole voxels filled); volume against the voxels before cleaning \
+                 {:.6e} m³: {:+.3} %",
                 c.voxels_before,
                 c.voxels_after,
+                c.open_close,
                 c.parts_dropped,
                 c.hole_voxels_filled,
                 r,
@@ -297,6 +302,19 @@ impl fmt::Display for MeshingReport {
                 "bare vertices:   {} boundary vertices inside the shape moved onto its boundary \
                  ({} only part of the way), {} left inside",
                 m.bare_moved, m.bare_partly, m.bare_left
+            )?;
+        }
+        let fo = &self.followed;
+        if fo.onto + fo.partly + fo.refused + fo.off_chords > 0 {
+            writeln!(
+                f,
+                "followed:        {} boundary vertices moved onto the input where the mesh \
+                 passed over it by more than 0.45 h ({} only part of the way), {} pulls refused \
+                 (angles, or the mesh→input distance); {} moved off their faces' chords",
+                fo.onto + fo.partly,
+                fo.partly,
+                fo.refused,
+                fo.off_chords
             )?;
         }
         let p = &self.pieces;
@@ -435,7 +453,7 @@ const REFINE_SPACING: Real = 1.0 / 16.0;
 /// first-order estimate |f|/|∇f| is infinite and the bound is the nearest of the input's
 /// samples, which lie on lines h/4 apart and so can be about h/8 farther than the boundary
 /// between them (issue 25: the brain at 6 mm, 0.616 h by the samples).
-fn refined_distance(domain: &dyn Domain, p: Vec3, estimate: Real, size: Real) -> Real {
+pub(super) fn refined_distance(domain: &dyn Domain, p: Vec3, estimate: Real, size: Real) -> Real {
     if !(estimate.is_finite() && estimate > REFINE_ABOVE * size) {
         return estimate;
     }
@@ -458,6 +476,19 @@ fn median(mut v: Vec<Real>) -> Real {
 pub fn measure(
     mesh: &TetMesh,
     domain: &dyn Domain,
+    exact_distance: Option<&TriangleIndex>,
+    size: Real,
+) -> MeshingReport {
+    let resolved = domain.at_resolution(size);
+    measure_against(mesh, domain, resolved.as_deref(), exact_distance, size)
+}
+
+/// `measure`, with the input at resolution h already made (`Domain::at_resolution`: four
+/// distance transforms of the image, 1-2 s on the pelvis, which the mesher made already).
+pub fn measure_against(
+    mesh: &TetMesh,
+    domain: &dyn Domain,
+    resolved: Option<&dyn Domain>,
     exact_distance: Option<&TriangleIndex>,
     size: Real,
 ) -> MeshingReport {
@@ -511,7 +542,7 @@ pub fn measure(
             (input_to_mesh, farthest) = (d, p);
         }
     }
-    let resolved_input_to_mesh = domain.at_resolution(size).map(|r| {
+    let resolved_input_to_mesh = resolved.map(|r| {
         r.boundary_samples(0.25 * size)
             .iter()
             .map(|&p| index.distance(p))
@@ -588,6 +619,7 @@ pub fn measure(
         seconds: 0.0,
         manifold: Default::default(),
         pieces: Default::default(),
+        followed: Default::default(),
         labels: None,
         junctions: None,
     }
