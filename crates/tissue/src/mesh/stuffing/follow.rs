@@ -236,6 +236,33 @@ pub fn follow_input(
             }
         }
         let mut moved_now: Vec<u32> = Vec::new();
+        // One vertex pulled toward `target` (once a round, a vertex of one tag only); with
+        // `must_improve`, only a move that brings its faces' farthest point nearer the input.
+        let pull_to = |mesh: &mut TetMesh,
+                       v: u32,
+                       target: Vec3,
+                       must_improve: bool,
+                       moved_now: &mut Vec<u32>,
+                       done: &mut Followed| {
+            let ts = around.get(&v).map(Vec::as_slice).unwrap_or(&[]);
+            if moved_now.contains(&v) || !one_tag(ts) {
+                return;
+            }
+            let own = faces.get(&v).map(Vec::as_slice).unwrap_or(&[]);
+            let at = Pull {
+                around: ts,
+                faces: own,
+                to_input: &to_input,
+                size,
+                must_improve,
+                fractions: &FRACTIONS,
+            };
+            let taken = at.pull(mesh, v, target);
+            count(done, taken);
+            if taken.is_some() {
+                moved_now.push(v);
+            }
+        };
         // Direction (b): resolved samples far from the mesh, farthest first, each pulling
         // its nearest boundary vertex.
         let index = TriangleIndex::new(&surface.vertices, &surface.triangles);
@@ -250,24 +277,7 @@ pub fn follow_input(
             let Some((v, _)) = vertex_bins.nearest(p) else {
                 continue;
             };
-            let ts = around.get(&v).map(Vec::as_slice).unwrap_or(&[]);
-            if moved_now.contains(&v) || !one_tag(ts) {
-                continue;
-            }
-            let own = faces.get(&v).map(Vec::as_slice).unwrap_or(&[]);
-            let at = Pull {
-                around: ts,
-                faces: own,
-                to_input: &to_input,
-                size,
-                must_improve: false,
-                fractions: &FRACTIONS,
-            };
-            let taken = at.pull(mesh, v, p);
-            count(&mut done, taken);
-            if taken.is_some() {
-                moved_now.push(v);
-            }
+            pull_to(mesh, v, p, false, &mut moved_now, &mut done);
         }
         // Direction (a): face points far from the whole input, farthest first.
         let mut pulls: Vec<(Real, u32, Vec3)> = Vec::new();
@@ -307,24 +317,7 @@ pub fn follow_input(
         }
         pulls.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
         for (_, v, s) in pulls {
-            let ts = around.get(&v).map(Vec::as_slice).unwrap_or(&[]);
-            if moved_now.contains(&v) || !one_tag(ts) {
-                continue;
-            }
-            let own = faces.get(&v).map(Vec::as_slice).unwrap_or(&[]);
-            let at = Pull {
-                around: ts,
-                faces: own,
-                to_input: &to_input,
-                size,
-                must_improve: true,
-                fractions: &FRACTIONS,
-            };
-            let taken = at.pull(mesh, v, s);
-            count(&mut done, taken);
-            if taken.is_some() {
-                moved_now.push(v);
-            }
+            pull_to(mesh, v, s, true, &mut moved_now, &mut done);
         }
         if moved_now.is_empty() {
             break;
