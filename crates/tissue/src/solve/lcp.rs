@@ -304,10 +304,10 @@ pub fn solve_mixed(
 /// A first guess of the pushing unilateral rows (for `solve_mixed`'s `pushing`): the
 /// penetrating ones (b < 0), deepest first, each only if it names a vertex (`names(i)`) no
 /// row taken before names. Several points on one coarse triangle are tied by its three
-/// vertices' motions, so about one per vertex can push independently; guessing every
-/// penetrating point starts from a block so nearly singular (400 points on the liver's top:
-/// 58 guessed where 4 push) that the pivoting does not recover from the roundoff of
-/// multipliers a million times the true ones.
+/// vertices' motions, so about one per vertex can push independently. The dual active set
+/// (`solve_mixed`) would drop the dependent ones itself (it was written for the block
+/// pivoting of session 16, which did not recover from a guess of 58 points where 4 push);
+/// a guess of one point per vertex now only saves rounds.
 pub fn first_guess<N: AsRef<[usize]>>(
     b: &[Real],
     bilateral: usize,
