@@ -65,6 +65,8 @@ pub(super) struct ImplicitSolver {
     pushes: Vec<Real>,
     /// The held contacts' known velocity changes (x_c of the filtered solve).
     known: Vec<Vec3>,
+    /// This step's push-only contacts (a buffer kept between steps).
+    contacts: Vec<SolveContact>,
 }
 
 impl ImplicitSolver {
@@ -88,19 +90,23 @@ impl ImplicitSolver {
         let n = w.x0.len();
         self.resize(n);
         self.contact_pushes.clear();
-        let contacts: Vec<SolveContact> = holds
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.unilateral && c.particle < n && w.inv_mass[c.particle] > 0.0)
-            .filter_map(|(k, c)| {
-                c.along.map(|normal| SolveContact {
-                    hold: k,
-                    particle: c.particle,
-                    normal,
-                    target: c.target,
-                })
-            })
-            .collect();
+        // Kept between steps: no allocation per step.
+        let mut contacts = std::mem::take(&mut self.contacts);
+        contacts.clear();
+        contacts.extend(
+            holds
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.unilateral && c.particle < n && w.inv_mass[c.particle] > 0.0)
+                .filter_map(|(k, c)| {
+                    c.along.map(|normal| SolveContact {
+                        hold: k,
+                        particle: c.particle,
+                        normal,
+                        target: c.target,
+                    })
+                }),
+        );
         system.prepare_jacobians(&w.x0, &w.v0)?;
         system.stiffness_product(&w.v0, &mut w.a);
         system.jacobian_diagonal(&mut self.stiffness_diag, &mut self.damping_diag);
@@ -342,6 +348,7 @@ impl ImplicitSolver {
         // every solve of the contacts' active set.
         let residual = result.relative_residual * share;
         let iterations = iterations.max(result.iterations);
+        self.contacts = contacts;
         Ok(StepInfo {
             iterations,
             residual,

@@ -402,7 +402,7 @@ fn a_penetrating_row_with_no_response_is_an_error() {
 /// old one not run on level 4).
 /// `cargo test --release -p tissue --lib solve::lcp::tests::cost_study -- --ignored --nocapture`
 #[test]
-#[ignore]
+#[ignore = "study: prints both solvers' rows, rounds and time"]
 fn cost_study() {
     for level in 1..=4 {
         let mut rng = Rng(0x0bad_cafe_f00d_d00d);

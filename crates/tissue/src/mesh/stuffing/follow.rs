@@ -24,7 +24,8 @@
 
 use rustc_hash::FxHashMap;
 
-use super::domain::{Domain, bisect};
+use super::domain::Domain;
+use super::interface_volume::{FaceGap, face_gap};
 use super::report::refined_distance;
 use super::triangle_index::TriangleIndex;
 use super::vertex_move::move_within_bounds;
@@ -359,31 +360,23 @@ fn off_chords(
             faces.entry(v).or_default().push(f);
         }
         let [p, q, r] = f.map(|u| mesh.vertices[u as usize]);
-        let cross = (q - p).cross(r - p);
-        let area = 0.5 * cross.length();
-        let n = cross.normalize_or_zero();
-        if n == Vec3::ZERO {
-            continue;
-        }
-        let c = (p + q + r) / 3.0;
-        let (lo, hi) = (c - reach * n, c + reach * n);
         let value = |x: Vec3| domain.value(x);
-        let (f_lo, f_hi) = (value(lo), value(hi));
-        let crossing = if f_lo < 0.0 && f_hi > 0.0 {
-            bisect(value, lo, hi)
-        } else if f_lo > 0.0 && f_hi < 0.0 {
-            bisect(value, hi, lo)
-        } else {
+        let Some(FaceGap {
+            area,
+            normal: n,
+            gap,
+        }) = face_gap([p, q, r], reach, value)
+        else {
             continue;
         };
-        if (crossing - c).length() <= FLAT * size {
+        if gap.length() <= FLAT * size {
             for v in f {
                 planes.entry(v).or_default().push(n);
             }
         }
         for v in f {
             let e = gaps.entry(v).or_insert((Vec3::ZERO, 0.0));
-            e.0 += area * (crossing - c);
+            e.0 += area * gap;
             e.1 += area;
         }
     }

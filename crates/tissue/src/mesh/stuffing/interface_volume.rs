@@ -98,24 +98,10 @@ pub fn keep_label_volumes(
     let reach = SEARCH * size;
     for &(f, a, b) in &interface {
         let [p, q, r] = f.map(|v| mesh.vertices[v as usize]);
-        let cross = (q - p).cross(r - p);
-        let area = 0.5 * cross.length();
-        let n = cross.normalize_or_zero();
-        if n == Vec3::ZERO {
-            continue;
-        }
-        let c = (p + q + r) / 3.0;
         let value = |x: Vec3| domain.interface_value(x, a, b);
-        let (lo, hi) = (c - reach * n, c + reach * n);
-        let (f_lo, f_hi) = (value(lo), value(hi));
-        let crossing = if f_lo < 0.0 && f_hi > 0.0 {
-            bisect(value, lo, hi)
-        } else if f_lo > 0.0 && f_hi < 0.0 {
-            bisect(value, hi, lo)
-        } else {
+        let Some(FaceGap { area, gap, .. }) = face_gap([p, q, r], reach, value) else {
             continue;
         };
-        let gap = crossing - c;
         for v in f {
             let e = gaps.entry(v).or_insert((Vec3::ZERO, 0.0));
             e.0 += area * gap;
@@ -154,4 +140,43 @@ pub fn keep_label_volumes(
         }
     }
     done
+}
+
+/// A boundary face's chord against the surface it approximates: its area, unit normal, and
+/// the gap from its centroid to where the level set of `value` crosses the normal line
+/// within `reach` of the centroid (found by bisection). None for a degenerate face or no
+/// crossing. Shared by the interface correction here and the outer boundary's
+/// (`follow`).
+pub(super) struct FaceGap {
+    pub area: Real,
+    pub normal: Vec3,
+    pub gap: Vec3,
+}
+
+/// The chord of the face with corners `[p, q, r]` (see `FaceGap`).
+pub(super) fn face_gap(
+    [p, q, r]: [Vec3; 3],
+    reach: Real,
+    value: impl Fn(Vec3) -> Real + Copy,
+) -> Option<FaceGap> {
+    let cross = (q - p).cross(r - p);
+    let normal = cross.normalize_or_zero();
+    if normal == Vec3::ZERO {
+        return None;
+    }
+    let c = (p + q + r) / 3.0;
+    let (lo, hi) = (c - reach * normal, c + reach * normal);
+    let (f_lo, f_hi) = (value(lo), value(hi));
+    let crossing = if f_lo < 0.0 && f_hi > 0.0 {
+        bisect(value, lo, hi)
+    } else if f_lo > 0.0 && f_hi < 0.0 {
+        bisect(value, hi, lo)
+    } else {
+        return None;
+    };
+    Some(FaceGap {
+        area: 0.5 * cross.length(),
+        normal,
+        gap: crossing - c,
+    })
 }
