@@ -238,7 +238,9 @@ mod tests {
                 for i in 1..23 {
                     // A block with a crack at x = 11, 12 open to its +y side, and a sheet
                     // one voxel thick at x = 22 beyond a gap of 3 voxels.
-                    m[idx(i, j, k)] = !((11..13).contains(&i) && j > 3) && !(19..22).contains(&i);
+                    let crack = (11..13).contains(&i) && j > 3;
+                    let gap = (19..22).contains(&i);
+                    m[idx(i, j, k)] = !(crack || gap);
                 }
             }
         }
