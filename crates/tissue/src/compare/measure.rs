@@ -1098,15 +1098,17 @@ impl Indented {
 }
 
 /// Whether the probe, pressed `depth` m in, passed through the surface at the end of an
-/// indentation: it pushes nothing and the surface vertex it pressed (the one nearest the
-/// probe point at rest) lies below the probe's lowest point. A membrane (a surface of
-/// springs with no volume behind it) does this honestly: its pressed vertex snaps through
-/// to its mirror image, where it holds (next to) no force; the cell says so rather than
-/// "not settled". Measured (`compare::tests_settle::settling_trace_study`, shallow): on
-/// `spring-mass` the probe's push falls to 0 by 0.2 s and its pressed vertex ends 4.7 mm
-/// down under a 2.47 mm press; on `simplex-spring-mass` 2.65 mm down, pushing 0 to 6e-6 N
-/// (its peak 1.5e-4 N). Below the probe's lowest point, with under a tenth of the run's
-/// largest push left, the probe is through.
+/// indentation (settled or not): it pushes next to nothing (under a hundredth of the run's
+/// largest push) and the surface vertex it pressed (the one nearest the probe point at
+/// rest) lies below the probe's lowest point. A membrane (a surface of springs with no
+/// volume behind it) does this honestly: its pressed vertex snaps through to its mirror
+/// image, where it holds no force; the cell says so rather than "not settled". Measured
+/// (`compare::tests_settle::settling_trace_study`, shallow): on `spring-mass` the probe's
+/// push falls to 0 by 0.2 s and its pressed vertex ends 4.7 mm down under a 2.47 mm press;
+/// on `simplex-spring-mass` 2.6 mm down, pushing 0 (at rest). A pressed vertex below the
+/// probe alone is not enough: deep, `fem-corotational` settles with its pressed vertex
+/// 11.2 mm down under a 9.9 mm press (the liver folds round the sphere, whose sides still
+/// push 5.6 mN, 6 % of the ramp's peak).
 fn passed_through(
     sim: &Simulation,
     sc: &Scenario,
@@ -1119,7 +1121,7 @@ fn passed_through(
     let v = nearest(rest, sc.probe())? as usize;
     let dy = m.surface().positions.get(v)?.y - rest[v].y;
     let peak = curve.iter().map(|p| p[1]).fold(0.0, Real::max);
-    (peak > 0.0 && force <= 0.1 * peak && dy < -depth).then(|| {
+    (peak > 0.0 && force <= 0.01 * peak && dy < -depth).then(|| {
         format!(
             "probe passed through: the surface gave way under it (the pressed vertex {:.2} mm \
              below its rest, the probe {:.2} mm in; its push {force:.2e} N, {peak:.2e} N at its \
