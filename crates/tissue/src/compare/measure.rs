@@ -13,8 +13,8 @@ use crate::model::{CutPath, Deformable};
 use crate::sim::Simulation;
 
 use super::drive::{
-    ContactLaw, Stepping, check_finite, fine_contact_surface, indent, prescribe, prescribe_along,
-    probe_simulation, volume,
+    ContactLaw, PlateHold, Stepping, check_finite, fine_contact_surface, indent, prescribe,
+    prescribe_along, probe_simulation, volume,
 };
 use super::record::{Curve, KindRecord, Measure};
 use super::setup::{Organ, Scenario, build_on, guarded, nearest};
@@ -244,10 +244,27 @@ pub fn measure_kind(
     };
     // The quasi-static runs' material: undamped under kinetic damping.
     let run_mat = relaxing(qs_mat, &st);
+    // The runs that settle by kinetic damping take at most `settle_dt_max` (the random
+    // paths, the cuts and the inverted element keep `st`'s step).
+    let settle_st = Stepping {
+        dt: if is_static {
+            st.dt
+        } else {
+            st.dt.min(settings.settle_dt_max)
+        },
+        ..st
+    };
     rec.measures.insert(
         "run_dt".into(),
         Measure::of(if is_static { 1.0 } else { dt_run }, "s"),
     );
+    if !is_static {
+        rec.measures.insert(
+            "settle_dt".into(),
+            Measure::of(settle_st.dt, "s")
+                .noted("the step of the runs that settle by kinetic damping"),
+        );
+    }
 
     // Velocity: cost of a simulated millisecond at the haptic and the visual step.
     progress("velocity");
@@ -294,9 +311,14 @@ pub fn measure_kind(
     progress("indentation");
     // The quasi-static runs that fell back from kinetic damping to mass damping.
     let mut fallbacks: Vec<String> = Vec::new();
-    let shallow = relaxed("shallow", &st, run_mat, qs_mat, &mut fallbacks, |m, s| {
-        indentation(kind, organ, scenario, m, s, scenario.shallow)
-    });
+    let shallow = relaxed(
+        "shallow",
+        &settle_st,
+        run_mat,
+        qs_mat,
+        &mut fallbacks,
+        |m, s| indentation(kind, organ, scenario, m, s, scenario.shallow),
+    );
     // Which hold the law gave this kind, as the shallow indentation ended: the fine points
     // solved exactly by the model, or the simulation's per-coarse-vertex planes.
     let held = match &shallow {
@@ -312,20 +334,21 @@ pub fn measure_kind(
         .noted(format!("{}: {held}", st.contact.name())),
     );
     match shallow {
-        Ok(Indented {
-            force: f,
-            field,
-            curve,
-            settled,
-            contacts,
-            ..
-        }) => {
+        Ok(ind) => {
+            let unsettled = ind.unsettled_note();
+            let Indented {
+                force: f,
+                field,
+                curve,
+                contacts,
+                ..
+            } = ind;
             let fe = (f - reference.force_shallow).abs() / reference.force_shallow.abs().max(1e-12);
             let mut fm = Measure::of(f, "N");
             let mut em = Measure::of(fe, "relative");
-            if !settled {
-                fm = fm.noted("not settled at the time limit");
-                em = em.noted("not settled at the time limit");
+            if let Some(note) = unsettled {
+                fm = fm.noted(note.clone());
+                em = em.noted(note);
             }
             rec.measures.insert("force_shallow".into(), fm);
             rec.measures.insert("force_error".into(), em);
@@ -359,28 +382,34 @@ pub fn measure_kind(
         progress("mesh ladder");
     }
     ladder(
-        kind, organ, scenario, qs_mat, &st, reference, settings, &mut rec,
+        kind, organ, scenario, qs_mat, &settle_st, reference, settings, &mut rec,
     );
     // Great deformations: deep indentation, rigid rotation.
     progress("deep");
-    match relaxed("deep", &st, run_mat, qs_mat, &mut fallbacks, |m, s| {
-        indentation(kind, organ, scenario, m, s, scenario.deep)
-    }) {
-        Ok(Indented {
-            force: f,
-            settled,
-            contacts,
-            held,
-            ..
-        }) => {
+    match relaxed(
+        "deep",
+        &settle_st,
+        run_mat,
+        qs_mat,
+        &mut fallbacks,
+        |m, s| indentation(kind, organ, scenario, m, s, scenario.deep),
+    ) {
+        Ok(ind) => {
+            let unsettled = ind.unsettled_note();
+            let Indented {
+                force: f,
+                contacts,
+                held,
+                ..
+            } = ind;
             rec.measures.insert(
                 "contacts_deep".into(),
                 Measure::of(contacts as Real, "held").noted(held),
             );
             let fe = (f - reference.force_deep).abs() / reference.force_deep.abs().max(1e-12);
             let mut em = Measure::of(fe, "relative");
-            if !settled {
-                em = em.noted("not settled at the time limit");
+            if let Some(note) = unsettled {
+                em = em.noted(note);
             }
             rec.measures
                 .insert("force_deep".into(), Measure::of(f, "N"));
@@ -427,18 +456,14 @@ pub fn measure_kind(
     };
     match relaxed(
         "compression",
-        &st,
+        &settle_st,
         run_mat,
         qs_mat,
         &mut fallbacks,
         |m, s| compression(kind, organ, scenario, incompressible(m), s),
     ) {
-        Ok((dv, curve, settled, along)) => {
-            let plate = if along {
-                "plate frictionless (held along y only)"
-            } else {
-                "plate held in all three directions (the model cannot hold along y only)"
-            };
+        Ok((dv, curve, settled, how)) => {
+            let plate = how.note();
             let vm = Measure::of(dv, "relative").noted(if settled {
                 plate.to_string()
             } else {
@@ -497,9 +522,14 @@ pub fn measure_kind(
     }
     // Parameters: effective E and nu on a bar.
     progress("bar");
-    match relaxed("bar", &st, run_mat, qs_mat, &mut fallbacks, |m, s| {
-        bar(kind, m, s, settings)
-    }) {
+    match relaxed(
+        "bar",
+        &settle_st,
+        run_mat,
+        qs_mat,
+        &mut fallbacks,
+        |m, s| bar(kind, m, s, settings),
+    ) {
         Ok((force, nu)) => {
             let e_eff = qs_mat.young_modulus * force / reference.bar_force;
             rec.measures.insert(
@@ -1050,10 +1080,60 @@ pub(super) struct Indented {
     pub contacts: usize,
     /// How it held them, in words (exact fine points, per-vertex planes, nothing).
     pub held: String,
+    /// The probe passed through the surface (`passed_through`): the cell says so, not "not
+    /// settled".
+    pub through: Option<String>,
+}
+
+impl Indented {
+    /// The note of a cell that is not a settled equilibrium: the probe passed through, or
+    /// the run was still moving at the time limit; `None` when it settled.
+    pub fn unsettled_note(&self) -> Option<String> {
+        match (&self.through, self.settled) {
+            (Some(t), _) => Some(t.clone()),
+            (None, false) => Some("not settled at the time limit".into()),
+            (None, true) => None,
+        }
+    }
+}
+
+/// Whether the probe, pressed `depth` m in, passed through the surface at the end of an
+/// indentation (settled or not): it pushes next to nothing (under a hundredth of the run's
+/// largest push) and the surface vertex it pressed (the one nearest the probe point at
+/// rest) lies below the probe's lowest point. A membrane (a surface of springs with no
+/// volume behind it) does this honestly: its pressed vertex snaps through to its mirror
+/// image, where it holds no force; the cell says so rather than "not settled". Measured
+/// (`compare::tests_settle::settling_trace_study`, shallow): on `spring-mass` the probe's
+/// push falls to 0 by 0.2 s and its pressed vertex ends 4.7 mm down under a 2.47 mm press;
+/// on `simplex-spring-mass` 2.6 mm down, pushing 0 (at rest). A pressed vertex below the
+/// probe alone is not enough: deep, `fem-corotational` settles with its pressed vertex
+/// 11.2 mm down under a 9.9 mm press (the liver folds round the sphere, whose sides still
+/// push 5.6 mN, 6 % of the ramp's peak).
+fn passed_through(
+    sim: &Simulation,
+    sc: &Scenario,
+    depth: Real,
+    curve: &[[Real; 2]],
+    force: Real,
+) -> Option<String> {
+    let m = sim.model();
+    let rest = m.rest_surface();
+    let v = nearest(rest, sc.probe())? as usize;
+    let dy = m.surface().positions.get(v)?.y - rest[v].y;
+    let peak = curve.iter().map(|p| p[1]).fold(0.0, Real::max);
+    (peak > 0.0 && force <= 0.01 * peak && dy < -depth).then(|| {
+        format!(
+            "probe passed through: the surface gave way under it (the pressed vertex {:.2} mm \
+             below its rest, the probe {:.2} mm in; its push {force:.2e} N, {peak:.2e} N at its \
+             peak)",
+            -1e3 * dy,
+            1e3 * depth
+        )
+    })
 }
 
 /// Quasi-static probe indentation to `depth`.
-fn indentation(
+pub(super) fn indentation(
     kind: &str,
     organ: &Organ,
     sc: &Scenario,
@@ -1071,6 +1151,7 @@ fn indentation(
         .zip(m.surface().positions)
         .map(|(r, p)| (*r, *p - *r))
         .collect();
+    let through = passed_through(&sim, sc, depth, &settled.curve, settled.value);
     Ok(Indented {
         force: settled.value,
         field,
@@ -1078,6 +1159,7 @@ fn indentation(
         settled: settled.settled,
         contacts: settled.contacts,
         held: held_by(&sim, settled.contacts),
+        through,
     })
 }
 
@@ -1148,29 +1230,28 @@ fn rotation(
 }
 
 /// The plate compression by 10 % of the height: relative volume change, its curve,
-/// settled, and whether the plate held its vertices along y only (frictionless).
+/// settled, and how the plate held its vertices.
 #[allow(clippy::type_complexity)]
-fn compression(
+pub(super) fn compression(
     kind: &str,
     organ: &Organ,
     sc: &Scenario,
     mat: Material,
     st: &Stepping,
-) -> Result<(Real, Vec<[Real; 2]>, bool, bool), Error> {
+) -> Result<(Real, Vec<[Real; 2]>, bool, PlateHold), Error> {
     let mut model = organ.build(kind, mat)?;
     let rest = model.rest_surface().to_vec();
     let fixed = sc.fixed(&rest);
     let plate = sc.plate(&rest);
     let v0 = volume(model.as_ref());
     let travel = sc.compression;
-    // The plate is frictionless as the probe is: the vertices under it held along its
-    // normal only, where the model can (the note says when it could not). The normal is the
-    // plate's face toward the tissue, −y: a kind whose holds along a direction only push
-    // (`contacts_push_only`) is pushed down by it (along +y such a hold let every vertex go
-    // free above its target, and the organ did not move: volume change 0 on every dynamic
-    // kind); a static kind holds the vertex both ways, whichever the sign.
+    // The plate is frictionless as the probe is and held as the reference holds it: the
+    // vertices under it along y only, both ways, where the model can (`prescribe_along`;
+    // the note says what each kind got). The direction is the plate's face toward the
+    // tissue, −y, which a kind that falls back to push-only contacts needs (along +y such
+    // a hold let every vertex go free above its target).
     let along = st.contact.frictionless().then_some(-Vec3::Y);
-    let (settled, held_along) = prescribe_along(
+    let (settled, how) = prescribe_along(
         model.as_mut(),
         &fixed,
         &plate,
@@ -1179,12 +1260,7 @@ fn compression(
         st,
         |m| (volume(m) - v0) / v0,
     )?;
-    Ok((
-        settled.value,
-        settled.curve,
-        settled.settled,
-        held_along && along.is_some(),
-    ))
+    Ok((settled.value, settled.curve, settled.settled, how))
 }
 
 /// Step response to the probe pressed in suddenly (the shallow depth at the first step) with

@@ -131,6 +131,7 @@ fn settle(
     let q = Settings::quick();
     let s = Settings {
         settle_time: env_or("SETTLE_TIME", q.settle_time),
+        settle_dt_max: env_or("SETTLE_DT_MAX", q.settle_dt_max),
         ..q
     };
     let base = settling(organ.material, sc);
@@ -141,7 +142,7 @@ fn settle(
         1.0
     } else {
         let stable = stable_step(kind, organ, sc, base, ContactLaw::FineSurface, &s).unwrap();
-        (0.5 * stable).min(s.run_dt_max)
+        (0.5 * stable).min(s.settle_dt_max)
     };
     let st = Stepping {
         contact: ContactLaw::FineSurface,
@@ -327,11 +328,12 @@ fn settling_methods_study() {
 /// problem on the same mesh as linear `fem-static` (a convex problem: one equilibrium), by
 /// a different route (dynamics to rest against a static solve): each settles, and its probe
 /// force and surface displacement field agree with `fem-static`'s within 1 % shallow and
-/// deep (measured: at most 0.26 % and 0.24 %). At the shallow depth the nonlinear kinds
-/// come within 20 % of their linear twins' force (measured: `fem-corotational` 12.0 % below
-/// `fem-explicit`, settled; `tensor-mass-nonlinear` 13.5 % below `tensor-mass`, still
-/// creeping up at the time limit: the shallow press pushes the liver's highest vertex
-/// alone, a point load whose strains near the point are large).
+/// deep (measured with 1 ms steps and rest at 1e-8 of the peak energy: at most 0.053 % and
+/// 0.015 %; 0.26 % at 4 ms and 1e-6). At the shallow depth the nonlinear kinds settle
+/// within 20 % of their linear twins' force (measured: `fem-corotational` 12.0 % below
+/// `fem-explicit`, `tensor-mass-nonlinear` 13.6 % below `tensor-mass`, which at 4 ms
+/// steps still crept at the time limit: the shallow press pushes the liver's highest
+/// vertex alone, a point load whose strains near the point are large).
 #[test]
 fn the_dynamic_kinds_settle_to_the_static_equilibrium() {
     let (organ, sc) = liver();
@@ -366,13 +368,8 @@ fn the_dynamic_kinds_settle_to_the_static_equilibrium() {
                     100.0 * off,
                     d.settled
                 );
-                // `tensor-mass-nonlinear` still creeps up at the time limit (by 3e-4 of its
-                // force over the last 0.1 s): its bound is on the value, not on settling.
                 assert!(off.abs() < 0.2, "{kind}: {d:?}");
-                assert!(
-                    d.settled || kind == "tensor-mass-nonlinear",
-                    "{kind}: {d:?}"
-                );
+                assert!(d.settled, "{kind}: {d:?}");
             }
         }
     }
@@ -418,5 +415,241 @@ fn stop_motion_zeroes_the_kinetic_energy_and_keeps_the_positions() {
             info.name
         );
         assert!(restarted > 0.0 && restarted < moving, "{}", info.name);
+    }
+}
+
+/// One kind's plate compression at ν = 0.45 as the comparison runs it (`--quick`'s ramp,
+/// time limit and step; kinetic damping where the kind has velocities): the relative volume
+/// change, whether it settled, and how the plate held the vertices.
+fn plate(
+    kind: &str,
+    organ: &Organ,
+    sc: &Scenario,
+) -> Result<(Real, bool, super::drive::PlateHold), crate::error::Error> {
+    let q = Settings::quick();
+    let s = Settings {
+        settle_dt_max: env_or("SETTLE_DT_MAX", q.settle_dt_max),
+        ..q
+    };
+    let base = settling(organ.material, sc);
+    let probe = organ.build(kind, base)?;
+    let info = probe.info();
+    let has_motion = !info.is_static && probe.kinetic_energy().is_some();
+    let dt = if info.is_static {
+        1.0
+    } else {
+        let stable = stable_step(kind, organ, sc, base, ContactLaw::FineSurface, &s).unwrap();
+        (0.5 * stable).min(s.settle_dt_max)
+    };
+    let st = Stepping {
+        contact: ContactLaw::FineSurface,
+        kinetic_damping: has_motion,
+        ..Stepping::new(info.is_static, dt, &s)
+    };
+    let mat = Material {
+        poisson_ratio: 0.45,
+        ..relaxing(base, &st)
+    };
+    let (dv, _, settled, how) = super::measure::compression(kind, organ, sc, mat, &st)?;
+    Ok((dv, settled, how))
+}
+
+/// The plate is one boundary condition for every kind that can hold it so (issue 20): its
+/// vertices held along y both ways, free across, as the reference holds them. Linear
+/// `fem-explicit`, `fem-semi-implicit` and `tensor-mass` then solve the same linear problem
+/// on the same mesh as linear `fem-static`, by dynamics to rest: each settles, holds the
+/// plate two-sided, and its volume change agrees with `fem-static`'s (measured: +1.2299 %,
+/// +1.2298 %, +1.2299 % against +1.2298 %, within 0.009 % of it; asserted 0.5 %). With the
+/// push-only plate they held before, they swelled by 8.8 % where `fem-static` gives 1.23 %.
+#[test]
+fn the_plate_is_the_same_problem_for_a_static_and_a_dynamic_linear_kind() {
+    use super::drive::PlateHold;
+    let (organ, sc) = liver();
+    let (dv_static, settled, how) = plate("fem-static", &organ, &sc).unwrap();
+    println!(
+        "fem-static: volume change {:+.4} %, {how:?}",
+        100.0 * dv_static
+    );
+    assert!(settled && how == PlateHold::TwoSided);
+    assert!(dv_static.abs() > 1e-3, "{dv_static}");
+    for kind in ["fem-explicit", "fem-semi-implicit", "tensor-mass"] {
+        let (dv, settled, how) = plate(kind, &organ, &sc).unwrap();
+        let off = dv / dv_static - 1.0;
+        println!(
+            "{kind}: volume change {:+.4} % ({:+.3} % of fem-static's), settled {settled}, {how:?}",
+            100.0 * dv,
+            100.0 * off
+        );
+        assert_eq!(how, PlateHold::TwoSided, "{kind}");
+        assert!(settled, "{kind}");
+        assert!(off.abs() < 0.005, "{kind}: {dv} against {dv_static}");
+    }
+}
+
+/// The comparison's quasi-static run of `KINDS` traced (`--quick`'s step, smooth ramp and
+/// time limit, kinetic damping, no mass damping): every `EVERY` s (0.05) the watched
+/// quantity, the model's kinetic energy over its peak so far, the motion stops, the
+/// surface vertex that moved most over the interval (its rest height and its move), and
+/// for the probe the pressed vertex's fall. `RUN=shallow|deep|plate|plate-push` (the
+/// plate at ν = 0.45: two-sided, or with push-only contacts as before); `SETTLE_DT_MAX`.
+#[test]
+#[ignore = "study: traces the settling of the comparison's runs"]
+fn settling_trace_study() {
+    use super::drive::smooth_ramp;
+    use super::setup::nearest;
+    use crate::interact::{Constraints, Prescribed};
+    let (organ, sc) = liver();
+    let q = Settings::quick();
+    let s = Settings {
+        settle_dt_max: env_or("SETTLE_DT_MAX", q.settle_dt_max),
+        ..q
+    };
+    let kinds: String = env_or("KINDS", "fem-explicit".to_string());
+    let run: String = env_or("RUN", "shallow".to_string());
+    let every: Real = env_or("EVERY", 0.05);
+    let t_end: Real = env_or("T_END", s.settle_time);
+    let base = settling(organ.material, &sc);
+    let plate = run.starts_with("plate");
+    let depth = if run == "deep" { sc.deep } else { sc.shallow };
+    for kind in kinds.split(',') {
+        let stable = stable_step(kind, &organ, &sc, base, ContactLaw::FineSurface, &s).unwrap();
+        let dt = (0.5 * stable).min(s.settle_dt_max);
+        let mat = Material {
+            damping: 0.0,
+            poisson_ratio: if plate { 0.45 } else { base.poisson_ratio },
+            ..base
+        };
+        let model = organ.build(kind, mat).unwrap();
+        let rest: Vec<Vec3> = model.rest_surface().to_vec();
+        let fixed = sc.fixed(&rest);
+        let moved = sc.plate(&rest);
+        let pressed = nearest(&rest, sc.probe()).unwrap() as usize;
+        let v0 = super::drive::volume(model.as_ref());
+        let mut sim = probe_simulation(
+            model,
+            fixed.clone(),
+            sc.probe_radius,
+            ContactLaw::FineSurface,
+        )
+        .unwrap();
+        let top = sc.probe() + Vec3::Y * sc.probe_radius;
+        if !plate {
+            sim.add_instrument(
+                probe_instrument(
+                    sc.probe(),
+                    sc.probe_radius,
+                    0.0,
+                    1.0,
+                    ContactLaw::FineSurface,
+                )
+                .unwrap(),
+            );
+        }
+        println!("{kind} {run}: dt {dt:.1e} s");
+        let steps = (t_end / dt).ceil() as usize;
+        let print = ((every / dt).round() as usize).max(1);
+        let (mut last, mut peak, mut stops) = (0.0, 0.0 as Real, 0);
+        let mut prev: Vec<Vec3> = rest.clone();
+        for k in 1..=steps {
+            let t = k as Real * dt;
+            let f = smooth_ramp(t / s.ramp);
+            if plate {
+                let c = Constraints {
+                    fixed: fixed.clone(),
+                    prescribed: moved
+                        .iter()
+                        .map(|&v| Prescribed {
+                            vertex: v,
+                            position: rest[v as usize] - Vec3::Y * (f * sc.compression),
+                        })
+                        .collect(),
+                };
+                let normals = vec![Some(-Vec3::Y); moved.len()];
+                let m = sim.model_mut();
+                if run == "plate-push" {
+                    m.set_constraints_along(&c, &normals).unwrap();
+                } else {
+                    m.set_constraints_two_sided(&c, &normals).unwrap();
+                }
+                m.step(dt).unwrap();
+            } else {
+                sim.set_instrument_position(0, Some(top - Vec3::Y * (f * depth)))
+                    .unwrap();
+                sim.step(dt).unwrap();
+            }
+            let e = sim.model().kinetic_energy().unwrap_or(0.0);
+            peak = peak.max(e);
+            if e < last && sim.model_mut().stop_motion() {
+                stops += 1;
+                last = 0.0;
+            } else {
+                last = e;
+            }
+            if k % print == 0 {
+                let m = sim.model();
+                let now = m.surface().positions;
+                let (v, d) = now
+                    .iter()
+                    .zip(&prev)
+                    .map(|(a, b)| (*a - *b).length())
+                    .enumerate()
+                    .fold((0, 0.0), |b, (i, d)| if d > b.1 { (i, d) } else { b });
+                let q = if plate {
+                    format!(
+                        "dV/V {:+.4} %",
+                        100.0 * (super::drive::volume(m) / v0 - 1.0)
+                    )
+                } else {
+                    format!(
+                        "F {:.5e} N, pressed vertex dy {:+.3} mm",
+                        sim.instrument_forces()[0].y,
+                        1e3 * (now[pressed].y - rest[pressed].y)
+                    )
+                };
+                println!(
+                    "  t {t:.3}  {q}  KE/peak {:.2e}  stops {stops}  most moved: vertex {v} \
+                     (rest y {:.1} mm) by {:.2e} mm",
+                    e / peak.max(1e-300),
+                    1e3 * rest[v].y,
+                    1e3 * d
+                );
+                prev.copy_from_slice(now);
+            }
+        }
+    }
+}
+
+/// A membrane that gives way is the model's honest answer, and its cell says "probe passed
+/// through", not "not settled" (`measure::passed_through`): `spring-mass` (a surface of
+/// springs, nothing behind it) lets the shallow probe push its pressed vertex through to
+/// its mirror image, below the probe, and holds no force; `fem-explicit` (a volume) holds
+/// the probe and is not called through.
+#[test]
+fn a_membrane_that_gives_way_is_said_to_let_the_probe_through() {
+    let (organ, sc) = liver();
+    let s = Settings::quick();
+    let base = settling(organ.material, &sc);
+    for (kind, through) in [("spring-mass", true), ("fem-explicit", false)] {
+        let stable = stable_step(kind, &organ, &sc, base, ContactLaw::FineSurface, &s).unwrap();
+        let st = Stepping {
+            contact: ContactLaw::FineSurface,
+            kinetic_damping: true,
+            ..Stepping::new(false, (0.5 * stable).min(s.settle_dt_max), &s)
+        };
+        let ind =
+            super::measure::indentation(kind, &organ, &sc, relaxing(base, &st), &st, sc.shallow)
+                .unwrap();
+        println!("{kind}: {:.3e} N, {:?}", ind.force, ind.unsettled_note());
+        assert_eq!(ind.through.is_some(), through, "{kind}: {:?}", ind.through);
+        if through {
+            assert!(ind.force.abs() < 1e-6, "{kind}: {}", ind.force);
+            assert!(
+                ind.unsettled_note()
+                    .unwrap()
+                    .starts_with("probe passed through")
+            );
+        } else {
+            assert!(ind.settled && ind.unsettled_note().is_none(), "{kind}");
+        }
     }
 }

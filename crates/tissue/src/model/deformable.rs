@@ -209,6 +209,25 @@ pub trait Deformable: Send {
         self.set_constraints(constraints).map(|()| false)
     }
 
+    /// `set_constraints_along` with every entry given a direction held along it both ways
+    /// (its displacement along n equals its target's, it moves freely across n, its reaction
+    /// may pull), also on a kind whose directional holds are contacts that only push
+    /// (`contacts_push_only`): a frictionless plate bonded to the tissue along its normal,
+    /// as `tissue compare`'s reference holds its plate. Returns whether the model did so; one
+    /// that cannot holds every entry in full and returns false (the default for the
+    /// push-only kinds; the others' `set_constraints_along` already holds both ways).
+    fn set_constraints_two_sided(
+        &mut self,
+        constraints: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        if self.contacts_push_only() {
+            self.set_constraints(constraints).map(|()| false)
+        } else {
+            self.set_constraints_along(constraints, normals)
+        }
+    }
+
     /// Whether the model solves `set_point_contacts` (false by default).
     fn holds_point_contacts(&self) -> bool {
         false

@@ -200,6 +200,25 @@ impl Deformable for SpringModel {
         Ok(true)
     }
 
+    /// The kinds whose surface vertices are particles, under an explicit scheme: the holds
+    /// of `set_constraints_along` made two-sided (`integrate::Hold` with `unilateral` false:
+    /// the projection after every substep puts the particle on its plane from either side).
+    /// A simplex vertex is rebuilt from its ring (its particles shared by several vertices'
+    /// planes) and implicit Euler holds only push-only contacts in its solve: there every
+    /// entry is held in full and the answer is false.
+    fn set_constraints_two_sided(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        if !self.holds_point_contacts() {
+            return self.set_constraints(c).map(|()| false);
+        }
+        self.set_constraints_along(c, normals)?;
+        self.holds.iter_mut().for_each(|h| h.unilateral = false);
+        Ok(true)
+    }
+
     fn contacts_push_only(&self) -> bool {
         true
     }

@@ -41,7 +41,7 @@ impl Deformable for TensorMass {
     }
 
     fn set_constraints(&mut self, c: &Constraints) -> Result<(), SimError> {
-        self.apply_constraints(c, &[])
+        self.apply_constraints(c, &[], true)
     }
 
     /// Entries with a direction are frictionless contacts held by the integrator's
@@ -51,7 +51,24 @@ impl Deformable for TensorMass {
         c: &Constraints,
         normals: &[Option<Vec3>],
     ) -> Result<bool, SimError> {
-        self.apply_constraints(c, normals).map(|()| true)
+        self.apply_constraints(c, normals, true).map(|()| true)
+    }
+
+    /// Under the explicit schemes, an entry with a direction held along it both ways by the
+    /// integrator's projection after every substep (`integrate::Hold` with `unilateral`
+    /// false). Implicit Euler holds only the push-only contacts in its solve (a projection
+    /// after it would not give the constrained equilibrium): there every entry is held in
+    /// full and the answer is false.
+    fn set_constraints_two_sided(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        if self.integrator.holds_points() {
+            self.apply_constraints(c, normals, false).map(|()| true)
+        } else {
+            self.apply_constraints(c, &[], true).map(|()| false)
+        }
     }
 
     fn contacts_push_only(&self) -> bool {

@@ -306,11 +306,13 @@ impl TensorMass {
     /// target (fixed wins; the last of two prescriptions wins). A prescribed entry with a
     /// direction in `normals` is a frictionless contact (`Hold::contact`): it keeps its node
     /// on the instrument's side of the target's tangent plane, within every substep, and
-    /// never pulls.
+    /// never pulls; with `push_only` false it is held on that plane both ways (a bonded
+    /// frictionless plate, `Deformable::set_constraints_two_sided`).
     pub(super) fn apply_constraints(
         &mut self,
         c: &Constraints,
         normals: &[Option<Vec3>],
+        push_only: bool,
     ) -> Result<(), SimError> {
         let holds = c.surface_holds(&self.surface.rest_positions, normals)?;
         self.holds = holds
@@ -321,7 +323,11 @@ impl TensorMass {
                 h.map(|h| {
                     let target = self.mesh.vertices[n] + h.displacement;
                     match h.along {
-                        Some(dir) => Hold::contact(n, target, dir),
+                        Some(dir) if push_only => Hold::contact(n, target, dir),
+                        Some(dir) => Hold {
+                            along: Some(dir),
+                            ..Hold::new(n, target)
+                        },
                         None => Hold::new(n, target),
                     }
                 })

@@ -29,8 +29,34 @@ impl Core {
         c: &Constraints,
         normals: &[Option<Vec3>],
     ) -> Result<bool, SimError> {
+        self.hold_entries(c, normals, false)
+    }
+
+    /// `set_constraints_along` with the entries given a coordinate axis held along it both
+    /// ways (`Deformable::set_constraints_two_sided`): one held dof each, its target the
+    /// entry's displacement along the axis, the other two free. An entry given an oblique
+    /// direction is held in full (the central difference has no row for it) and the answer
+    /// is false.
+    pub fn set_constraints_two_sided(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+    ) -> Result<bool, SimError> {
+        self.hold_entries(c, normals, true)
+    }
+
+    fn hold_entries(
+        &mut self,
+        c: &Constraints,
+        normals: &[Option<Vec3>],
+        two_sided: bool,
+    ) -> Result<bool, SimError> {
         let mut holds = c.surface_holds(&self.boundary.surface.vertices, normals)?;
-        let as_asked = oblique_holds(&holds) <= ALONG_CAP;
+        let as_asked = if two_sided {
+            oblique_holds(&holds) == 0
+        } else {
+            oblique_holds(&holds) <= ALONG_CAP
+        };
         if !as_asked {
             holds.iter_mut().flatten().for_each(|h| h.along = None);
         }
@@ -40,6 +66,7 @@ impl Core {
                 displacement,
                 along: Some(n),
             }) = *h
+                && !two_sided
             {
                 contacts.push(PushContact {
                     node: node as usize,

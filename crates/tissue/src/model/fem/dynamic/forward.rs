@@ -37,6 +37,13 @@ macro_rules! forward_deformable {
             ) -> Result<bool, crate::error::SimError> {
                 self.core.set_constraints_along(c, normals)
             }
+            fn set_constraints_two_sided(
+                &mut self,
+                c: &crate::interact::Constraints,
+                normals: &[Option<crate::math::Vec3>],
+            ) -> Result<bool, crate::error::SimError> {
+                self.core.set_constraints_two_sided(c, normals)
+            }
             fn contacts_push_only(&self) -> bool {
                 true
             }
