@@ -14,7 +14,7 @@ pub mod cg;
 pub mod chooser;
 pub mod lcp;
 pub mod ordering;
-mod points;
+pub(crate) mod points;
 pub mod schur;
 mod small_dense;
 pub mod sparse;
