@@ -13,6 +13,7 @@ mod along;
 pub mod cg;
 pub mod chooser;
 pub mod lcp;
+mod lemke;
 pub mod ordering;
 pub(crate) mod points;
 pub mod schur;
