@@ -324,10 +324,9 @@ fn symmetric_columns(m: MatRef<'_, Real>) -> Option<Vec<&[Real]>> {
 /// A first guess of the pushing unilateral rows (for `solve_mixed`'s `pushing`): the
 /// penetrating ones (b < 0), deepest first, each only if it names a vertex (`names(i)`) no
 /// row taken before names. Several points on one coarse triangle are tied by its three
-/// vertices' motions, so about one per vertex can push independently. The dual active set
-/// (`solve_mixed`) would drop the dependent ones itself (it was written for the block
-/// pivoting of session 16, which did not recover from a guess of 58 points where 4 push);
-/// a guess of one point per vertex now only saves rounds.
+/// vertices' motions, so about one per vertex can push independently. `solve_mixed` keeps
+/// only the guessed rows that are independent and push, so any guess is safe; this one
+/// saves it the rows it would add and drop one at a time.
 pub fn first_guess<N: AsRef<[usize]>>(
     b: &[Real],
     bilateral: usize,

@@ -88,9 +88,9 @@ pub(crate) struct PointRows {
 #[cfg(test)]
 const REFINE_BLOCK_TRIES: usize = 3;
 
-/// Rounds of `split` before the step is reported capped (the liver's probes need a few:
-/// `bem::points::tests::exact_points_cost_study`).
-const SPLIT_ROUNDS: usize = 100;
+/// Rounds of `split` before Lemke's method takes over (the liver's probes need up to ~10
+/// when the splitting converges at all, random problems with ρ up to 1.4 up to 16).
+const SPLIT_ROUNDS: usize = 25;
 
 /// A pushing row's λ below −this times the largest |λ| is a wrong sign (roundoff above it).
 const SIGN_TOLERANCE: Real = 1e-12;
@@ -344,7 +344,8 @@ impl PointRows {
     }
 
     /// `split`'s fallback: Lemke's method (`lemke`) on M, the held rows eliminated first
-    /// (M' = M_UU − M_UB M_BB⁻¹ M_BU, q' = b_U − M_UB M_BB⁻¹ b_B), its pushing rows then
+    /// (M' = M_UU − M_UB M_BB⁻¹ M_BU, q' = b_U − M_UB M_BB⁻¹ b_B), on a working set of
+    /// points grown until no other penetrates, its pushing rows then
     /// solved again by `exact` (Lemke's tableau gathers roundoff over its pivots). True with
     /// `self.lambda` set when the answer is complementary (to 1e-9 of the largest |b| if
     /// `exact` does not confirm it); false, `self.lambda` untouched, on a ray or its cap.
@@ -364,22 +365,55 @@ impl PointRows {
             });
         }
         let through = |i: usize, j: usize| (0..nb).map(|k| m[(nb + i, k)] * x[(k, j)]).sum::<Real>();
-        let reduced = Mat::<Real>::from_fn(nu, nu, |i, j| m[(nb + i, nb + j)] - through(i, j));
-        let q: Vec<Real> = (0..nu).map(|i| b[nb + i] - through(i, nu)).collect();
-        let Some((z, pivots)) = lemke(&reduced, &q, 10 * n + 50) else {
-            self.rounds += 10 * n + 50;
-            return Ok(false);
-        };
-        self.rounds += pivots;
-        let mut lambda: Vec<Real> = (0..nb)
-            .map(|k| -x[(k, nu)] - (0..nu).map(|j| x[(k, j)] * z[j]).sum::<Real>())
+        let q_all: Vec<Real> = (0..nu).map(|i| b[nb + i] - through(i, nu)).collect();
+        let tol_w = GAP_TOLERANCE * b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+        // Lemke's tableau is dense in all its rows, so it works on the points that matter:
+        // those that penetrate with no push and those the splitting pushed last, joined by
+        // any other the answer leaves penetrating (the set only grows: at most nu rounds).
+        let mut set: Vec<usize> = (0..nu)
+            .filter(|&i| q_all[i] < 0.0 || self.lambda.get(nb + i).is_some_and(|&l| l > 0.0))
             .collect();
-        lambda.extend_from_slice(&z);
-        let last = std::mem::replace(&mut self.lambda, lambda);
-        if self.exact(m, b) || violation(m, b, nb, &self.lambda) <= LEMKE_TOLERANCE {
-            return Ok(true);
+        for _ in 0..=nu {
+            let k = set.len();
+            let reduced = Mat::<Real>::from_fn(k, k, |p, r| {
+                let (i, j) = (set[p], set[r]);
+                m[(nb + i, nb + j)] - through(i, j)
+            });
+            let q: Vec<Real> = set.iter().map(|&i| q_all[i]).collect();
+            let Some((z, pivots)) = lemke(&reduced, &q, 10 * k + 50) else {
+                self.rounds += 10 * k + 50;
+                return Ok(false);
+            };
+            self.rounds += pivots;
+            let mut lambda = vec![0.0; n];
+            for (&i, &zi) in set.iter().zip(&z) {
+                lambda[nb + i] = zi;
+            }
+            for (h, l) in lambda[..nb].iter_mut().enumerate() {
+                *l = -x[(h, nu)] - set.iter().zip(&z).map(|(&j, &zj)| x[(h, j)] * zj).sum::<Real>();
+            }
+            let pushing: Vec<usize> = (0..n).filter(|&j| lambda[j] != 0.0).collect();
+            let mut in_set = vec![false; nu];
+            set.iter().for_each(|&i| in_set[i] = true);
+            let missed: Vec<usize> = (0..nu)
+                .filter(|&i| {
+                    !in_set[i]
+                        && b[nb + i]
+                            + pushing.iter().map(|&j| m[(nb + i, j)] * lambda[j]).sum::<Real>()
+                            < -tol_w
+                })
+                .collect();
+            if missed.is_empty() {
+                let last = std::mem::replace(&mut self.lambda, lambda);
+                if self.exact(m, b) || violation(m, b, nb, &self.lambda) <= LEMKE_TOLERANCE {
+                    return Ok(true);
+                }
+                self.lambda = last;
+                return Ok(false);
+            }
+            set.extend(missed);
+            set.sort_unstable();
         }
-        self.lambda = last;
         Ok(false)
     }
 
