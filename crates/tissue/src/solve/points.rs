@@ -114,6 +114,10 @@ fn violation(m: &Mat<Real>, b: &[Real], bilateral: usize, lambda: &[Real]) -> Re
         .fold(0.0, Real::max)
 }
 
+/// Points Lemke's working set starts with beyond the splitting's pushing ones, and takes in
+/// per round (the deepest).
+const LEMKE_GROWTH: usize = 16;
+
 /// Lemke's answer is taken as it is when `exact` cannot confirm it and it is complementary
 /// to this much of the largest |b|.
 const LEMKE_TOLERANCE: Real = 1e-9;
@@ -367,12 +371,18 @@ impl PointRows {
         let through = |i: usize, j: usize| (0..nb).map(|k| m[(nb + i, k)] * x[(k, j)]).sum::<Real>();
         let q_all: Vec<Real> = (0..nu).map(|i| b[nb + i] - through(i, nu)).collect();
         let tol_w = GAP_TOLERANCE * b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
-        // Lemke's tableau is dense in all its rows, so it works on the points that matter:
-        // those that penetrate with no push and those the splitting pushed last, joined by
-        // any other the answer leaves penetrating (the set only grows: at most nu rounds).
+        // Lemke's tableau is dense in all its rows (and its pivots wander among degenerate
+        // ones), so it works on the points that matter: those the splitting pushed last and
+        // the `LEMKE_GROWTH` deepest, joined each round by the `LEMKE_GROWTH` that the answer
+        // leaves deepest (the set only grows: finitely many rounds).
         let mut set: Vec<usize> = (0..nu)
-            .filter(|&i| q_all[i] < 0.0 || self.lambda.get(nb + i).is_some_and(|&l| l > 0.0))
+            .filter(|&i| self.lambda.get(nb + i).is_some_and(|&l| l > 0.0))
             .collect();
+        let mut deepest: Vec<usize> = (0..nu).filter(|&i| q_all[i] < 0.0).collect();
+        deepest.sort_by(|&i, &j| q_all[i].total_cmp(&q_all[j]));
+        set.extend(deepest.iter().take(LEMKE_GROWTH));
+        set.sort_unstable();
+        set.dedup();
         for _ in 0..=nu {
             let k = set.len();
             let reduced = Mat::<Real>::from_fn(k, k, |p, r| {
@@ -395,14 +405,16 @@ impl PointRows {
             let pushing: Vec<usize> = (0..n).filter(|&j| lambda[j] != 0.0).collect();
             let mut in_set = vec![false; nu];
             set.iter().for_each(|&i| in_set[i] = true);
-            let missed: Vec<usize> = (0..nu)
-                .filter(|&i| {
-                    !in_set[i]
-                        && b[nb + i]
-                            + pushing.iter().map(|&j| m[(nb + i, j)] * lambda[j]).sum::<Real>()
-                            < -tol_w
+            let mut missed: Vec<(Real, usize)> = (0..nu)
+                .filter(|&i| !in_set[i])
+                .map(|i| {
+                    let w = b[nb + i]
+                        + pushing.iter().map(|&j| m[(nb + i, j)] * lambda[j]).sum::<Real>();
+                    (w, i)
                 })
+                .filter(|&(w, _)| w < -tol_w)
                 .collect();
+            missed.sort_by(|a, b| a.0.total_cmp(&b.0));
             if missed.is_empty() {
                 let last = std::mem::replace(&mut self.lambda, lambda);
                 if self.exact(m, b) || violation(m, b, nb, &self.lambda) <= LEMKE_TOLERANCE {
@@ -411,7 +423,7 @@ impl PointRows {
                 self.lambda = last;
                 return Ok(false);
             }
-            set.extend(missed);
+            set.extend(missed.iter().take(LEMKE_GROWTH).map(|&(_, i)| i));
             set.sort_unstable();
         }
         Ok(false)
