@@ -172,8 +172,7 @@ pub fn solve_mixed(
             (0..n).map(|j| copy.col_as_slice(j)).collect()
         }
     };
-    if b.iter().any(|v| !v.is_finite()) || cols.iter().any(|c| c.iter().any(|v| !v.is_finite()))
-    {
+    if b.iter().any(|v| !v.is_finite()) || cols.iter().any(|c| c.iter().any(|v| !v.is_finite())) {
         return Err(SimError::BadParameter {
             name: "contact problem",
             value: format!("{n} rows"),

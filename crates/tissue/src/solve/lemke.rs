@@ -54,7 +54,11 @@ pub(crate) fn lemke(m: &Mat<Real>, q: &[Real], max_pivots: usize) -> Option<(Vec
             }
             return Some((z, pivots));
         }
-        enter = if leaving < n { leaving + n } else { leaving - n };
+        enter = if leaving < n {
+            leaving + n
+        } else {
+            leaving - n
+        };
         r = leaving_row(&t, width, n, enter, scale)?;
     }
     None
@@ -66,10 +70,16 @@ fn pivot(t: &mut [Real], width: usize, r: usize, c: usize) {
     let (row, after) = rest.split_at_mut(width);
     let p = row[c];
     row.iter_mut().for_each(|v| *v /= p);
-    for other in before.chunks_exact_mut(width).chain(after.chunks_exact_mut(width)) {
+    for other in before
+        .chunks_exact_mut(width)
+        .chain(after.chunks_exact_mut(width))
+    {
         let f = other[c];
         if f != 0.0 {
-            other.iter_mut().zip(row.iter()).for_each(|(o, v)| *o -= f * v);
+            other
+                .iter_mut()
+                .zip(row.iter())
+                .for_each(|(o, v)| *o -= f * v);
             other[c] = 0.0;
         }
     }
@@ -121,12 +131,17 @@ mod tests {
     /// and a ray where no solution exists (w₀ = −z₀ − 1 < 0 for every z ≥ 0).
     #[test]
     fn solves_an_indefinite_problem_and_reports_a_ray() {
-        let m = Mat::<Real>::from_fn(3, 3, |i, j| [[1.0, 3.0, 0.0], [-2.0, 1.0, 1.0], [0.5, 0.0, 2.0]][i][j]);
+        let m = Mat::<Real>::from_fn(3, 3, |i, j| {
+            [[1.0, 3.0, 0.0], [-2.0, 1.0, 1.0], [0.5, 0.0, 2.0]][i][j]
+        });
         let q = [-1.0, -2.0, 0.5];
         let (z, _) = lemke(&m, &q, 50).unwrap();
         for i in 0..3 {
             let w = q[i] + (0..3).map(|j| m[(i, j)] * z[j]).sum::<Real>();
-            assert!(z[i] >= 0.0 && w > -1e-12 && (z[i] * w).abs() < 1e-12, "{z:?}");
+            assert!(
+                z[i] >= 0.0 && w > -1e-12 && (z[i] * w).abs() < 1e-12,
+                "{z:?}"
+            );
         }
         let m = Mat::<Real>::from_fn(1, 1, |_, _| -1.0);
         assert!(lemke(&m, &[-1.0], 50).is_none());

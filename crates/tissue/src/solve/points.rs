@@ -101,7 +101,9 @@ fn violation(m: &Mat<Real>, b: &[Real], bilateral: usize, lambda: &[Real]) -> Re
     let n = b.len();
     let scale = b.iter().fold(Real::MIN_POSITIVE, |a, v| a.max(v.abs()));
     let pushing: Vec<usize> = (0..n).filter(|&j| lambda[j] != 0.0).collect();
-    let top = lambda.iter().fold(Real::MIN_POSITIVE, |a, v| a.max(v.abs()));
+    let top = lambda
+        .iter()
+        .fold(Real::MIN_POSITIVE, |a, v| a.max(v.abs()));
     (0..n)
         .map(|i| {
             let w = b[i] + pushing.iter().map(|&j| m[(i, j)] * lambda[j]).sum::<Real>();
@@ -368,7 +370,8 @@ impl PointRows {
                 hint: "the contact rows held exactly depend on each other".into(),
             });
         }
-        let through = |i: usize, j: usize| (0..nb).map(|k| m[(nb + i, k)] * x[(k, j)]).sum::<Real>();
+        let through =
+            |i: usize, j: usize| (0..nb).map(|k| m[(nb + i, k)] * x[(k, j)]).sum::<Real>();
         let q_all: Vec<Real> = (0..nu).map(|i| b[nb + i] - through(i, nu)).collect();
         let tol_w = GAP_TOLERANCE * b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
         // Lemke's tableau is dense in all its rows (and its pivots wander among degenerate
@@ -400,7 +403,12 @@ impl PointRows {
                 lambda[nb + i] = zi;
             }
             for (h, l) in lambda[..nb].iter_mut().enumerate() {
-                *l = -x[(h, nu)] - set.iter().zip(&z).map(|(&j, &zj)| x[(h, j)] * zj).sum::<Real>();
+                *l = -x[(h, nu)]
+                    - set
+                        .iter()
+                        .zip(&z)
+                        .map(|(&j, &zj)| x[(h, j)] * zj)
+                        .sum::<Real>();
             }
             let pushing: Vec<usize> = (0..n).filter(|&j| lambda[j] != 0.0).collect();
             let mut in_set = vec![false; nu];
@@ -409,7 +417,10 @@ impl PointRows {
                 .filter(|&i| !in_set[i])
                 .map(|i| {
                     let w = b[nb + i]
-                        + pushing.iter().map(|&j| m[(nb + i, j)] * lambda[j]).sum::<Real>();
+                        + pushing
+                            .iter()
+                            .map(|&j| m[(nb + i, j)] * lambda[j])
+                            .sum::<Real>();
                     (w, i)
                 })
                 .filter(|&(w, _)| w < -tol_w)
@@ -670,8 +681,12 @@ pub(crate) fn contraction(m: &Mat<Real>) -> (Real, Real, Real, Real) {
     let null: Vec<usize> = (0..n).filter(|&i| s[i] <= 1e-12 * top).collect();
     let q = Mat::<Real>::from_fn(n, range.len(), |i, c| u[(i, range[c])] / s[range[c]].sqrt());
     let c = q.transpose() * &k * &q;
-    let rho = c.singular_values().map_or(Real::NAN, |v| v.first().copied().unwrap_or(0.0));
-    let knorm = k.singular_values().map_or(Real::NAN, |v| v.first().copied().unwrap_or(0.0));
+    let rho = c
+        .singular_values()
+        .map_or(Real::NAN, |v| v.first().copied().unwrap_or(0.0));
+    let knorm = k
+        .singular_values()
+        .map_or(Real::NAN, |v| v.first().copied().unwrap_or(0.0));
     let z = Mat::<Real>::from_fn(n, null.len(), |i, c| u[(i, null[c])]);
     let leak = if null.is_empty() || knorm == 0.0 {
         0.0
@@ -849,7 +864,11 @@ mod tests {
             let l = l.unwrap_or_else(|| panic!("trial {trial}: capped"));
             let top = found[0].iter().fold(1.0, |a: Real, v| a.max(v.abs()));
             let off = (0..n).fold(0.0, |a: Real, i| a.max((l[i] - found[0][i]).abs()));
-            assert!(off < 1e-9 * top, "trial {trial}: {l:?} against {:?}", found[0]);
+            assert!(
+                off < 1e-9 * top,
+                "trial {trial}: {l:?} against {:?}",
+                found[0]
+            );
             let v = violations(&m, &b, bilateral, &l);
             assert!(v.iter().all(|&x| x < 1e-12), "trial {trial}: {v:?}");
         }
@@ -911,7 +930,11 @@ mod tests {
             for _ in 0..60 {
                 let t = triangles[(3.0 * rng.next()) as usize % 3];
                 let (a, c) = (rng.next(), rng.next());
-                let (a, c) = if a + c > 1.0 { (1.0 - a, 1.0 - c) } else { (a, c) };
+                let (a, c) = if a + c > 1.0 {
+                    (1.0 - a, 1.0 - c)
+                } else {
+                    (a, c)
+                };
                 let normal = Vec3::new(rng.next() - 0.5, rng.next() - 0.5, 2.0).normalize();
                 let reach = 0.3 * rng.next() - 0.05;
                 rows.push_point(t.map(Some), [1.0 - a - c, a, c], normal, reach);
@@ -919,7 +942,10 @@ mod tests {
             let (m, b) = rows.matrix(&response);
             let l = rows.solve(&response).unwrap().to_vec();
             let (_, _, rho, leak) = contraction(&m);
-            eprintln!("trial {trial}: rounds {}, rho {rho:.3}, leak {leak:.1e}", rows.rounds);
+            eprintln!(
+                "trial {trial}: rounds {}, rho {rho:.3}, leak {leak:.1e}",
+                rows.rounds
+            );
             assert!(!rows.capped, "trial {trial}");
             let v = violations(&m, &b, 1, &l);
             assert!(v.iter().all(|&x| x < 1e-11), "trial {trial}: {v:?}");
@@ -931,11 +957,20 @@ mod tests {
             };
             assert!(lemke.by_lemke(&m, &b).unwrap(), "trial {trial}: Lemke");
             let v = violations(&m, &b, 1, &lemke.lambda);
-            assert!(v.iter().all(|&x| x < LEMKE_TOLERANCE), "trial {trial}: {v:?}");
-            let gap = |l: &[Real], i: usize| b[i] + (0..b.len()).map(|j| m[(i, j)] * l[j]).sum::<Real>();
+            assert!(
+                v.iter().all(|&x| x < LEMKE_TOLERANCE),
+                "trial {trial}: {v:?}"
+            );
+            let gap =
+                |l: &[Real], i: usize| b[i] + (0..b.len()).map(|j| m[(i, j)] * l[j]).sum::<Real>();
             let scale = b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
-            let off = (0..b.len()).fold(0.0, |a: Real, i| a.max((gap(&l, i) - gap(&lemke.lambda, i)).abs()));
-            assert!(off < 1e-9 * scale, "trial {trial}: Lemke's gaps differ by {off:e}");
+            let off = (0..b.len()).fold(0.0, |a: Real, i| {
+                a.max((gap(&l, i) - gap(&lemke.lambda, i)).abs())
+            });
+            assert!(
+                off < 1e-9 * scale,
+                "trial {trial}: Lemke's gaps differ by {off:e}"
+            );
             let (old, _) = PointRows::solve_by_pivoting(&m, &b, 1).unwrap();
             if let Some(old) = old {
                 compared += 1;
@@ -946,11 +981,17 @@ mod tests {
                 };
                 let (w, w_old) = (gaps(&l), gaps(&old));
                 let scale = b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
-                let off = w.iter().zip(&w_old).fold(0.0, |a: Real, (x, y)| a.max((x - y).abs()));
+                let off = w
+                    .iter()
+                    .zip(&w_old)
+                    .fold(0.0, |a: Real, (x, y)| a.max((x - y).abs()));
                 // The old solver's regularisation (1e-9 of the largest diagonal) moves it.
                 assert!(off < 1e-7 * scale, "trial {trial}: gaps differ by {off:e}");
             }
         }
-        assert!(compared >= 20, "the pivoting solver answered {compared} of 50");
+        assert!(
+            compared >= 20,
+            "the pivoting solver answered {compared} of 50"
+        );
     }
 }

@@ -245,10 +245,10 @@ fn bem_point_contact_study() {
 fn exact_points_cost_study() {
     use std::time::Instant;
 
+    use crate::compare::Settings;
     use crate::compare::drive::{ContactLaw, Stepping, indent_sim};
     use crate::compare::measure::settling;
     use crate::compare::setup::{Organ, Scenario};
-    use crate::compare::Settings;
     use crate::interact::MappedSurface;
     use crate::material::Material;
     use crate::sim::Simulation;
@@ -343,7 +343,10 @@ fn exact_points_cost_study() {
         );
         if let (Some(a), Some(c)) = (&new, &old) {
             let (wa, wc) = (gaps(a), gaps(c));
-            let off = wa.iter().zip(&wc).fold(0.0, |x: Real, (p, q)| x.max((p - q).abs()));
+            let off = wa
+                .iter()
+                .zip(&wc)
+                .fold(0.0, |x: Real, (p, q)| x.max((p - q).abs()));
             println!("  gaps differ by {:.1e} of the largest |b|", off / scale);
         }
     }
