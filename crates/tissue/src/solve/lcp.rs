@@ -57,7 +57,7 @@ pub const REGULARISATION: Real = 1e-9;
 pub const DEPENDENT: Real = 1e-9;
 
 /// A free row is violated when its gap is below −`GAP_TOLERANCE` times the largest |b|.
-const GAP_TOLERANCE: Real = 1e-11;
+pub(crate) const GAP_TOLERANCE: Real = 1e-11;
 
 /// A solved LCP: the multipliers and how many active-set changes it took (rows added
 /// and dropped).
@@ -137,7 +137,8 @@ impl Active {
     }
 }
 
-/// Solves the mixed LCP above for `m` (only its lower triangle is read) and `b`, the first
+/// Solves the mixed LCP above for `m` (its lower triangle is what counts: an exactly
+/// symmetric `m` stored by columns is read in place, any other is mirrored into a copy) and `b`, the first
 /// `bilateral` rows held exactly. `pushing` guesses, per unilateral row, which rows push
 /// (a warm start: the last solve's pushing rows; missing entries: not pushing). Errors
 /// (never panics) on mismatched sizes, non-finite data, held rows that depend on each
@@ -160,11 +161,18 @@ pub fn solve_mixed(
             reason: "the response must be square with one row per gap (internal)".into(),
         });
     }
-    // The full symmetric matrix once: its columns are then contiguous.
-    let m = Mat::<Real>::from_fn(n, n, |i, j| if i >= j { m[(i, j)] } else { m[(j, i)] });
-    if b.iter().any(|v| !v.is_finite())
-        || (0..n).any(|j| m.col_as_slice(j).iter().any(|v| !v.is_finite()))
-    {
+    // The columns of the full symmetric matrix, contiguous: `m`'s own when it is stored by
+    // columns and exactly symmetric (no copy: 114 MB at 3,774 rows), else the lower
+    // triangle mirrored into a copy.
+    let copy: Mat<Real>;
+    let cols: Vec<&[Real]> = match symmetric_columns(m) {
+        Some(cols) => cols,
+        None => {
+            copy = Mat::<Real>::from_fn(n, n, |i, j| if i >= j { m[(i, j)] } else { m[(j, i)] });
+            (0..n).map(|j| copy.col_as_slice(j)).collect()
+        }
+    };
+    if b.iter().any(|v| !v.is_finite()) || cols.iter().any(|c| c.iter().any(|v| !v.is_finite())) {
         return Err(SimError::BadParameter {
             name: "contact problem",
             value: format!("{n} rows"),
@@ -180,10 +188,11 @@ pub fn solve_mixed(
     let mut held = vec![false; n];
     let guessed = (bilateral..n).filter(|&i| pushing.get(i - bilateral).copied().unwrap_or(false));
     for i in (0..bilateral).chain(guessed) {
-        let mut y: Vec<Real> = active.rows.iter().map(|&j| m[(j, i)]).collect();
+        let ci = cols[i];
+        let mut y: Vec<Real> = active.rows.iter().map(|&j| ci[j]).collect();
         active.forward(&mut y);
-        let delta = m[(i, i)] - y.iter().map(|v| v * v).sum::<Real>();
-        if delta > DEPENDENT * m[(i, i)] && delta > 0.0 {
+        let delta = ci[i] - y.iter().map(|v| v * v).sum::<Real>();
+        if delta > DEPENDENT * ci[i] && delta > 0.0 {
             active.push(i, y, delta);
             held[i] = true;
         } else if i < bilateral {
@@ -215,7 +224,7 @@ pub fn solve_mixed(
         w.copy_from_slice(b);
         for (&j, &uj) in active.rows.iter().zip(&u) {
             if uj != 0.0 {
-                let cj = m.col_as_slice(j);
+                let cj = cols[j];
                 w.iter_mut().zip(cj).for_each(|(wi, mij)| *wi += mij * uj);
             }
         }
@@ -234,7 +243,7 @@ pub fn solve_mixed(
             });
         }
         added += 1;
-        let cp = m.col_as_slice(p);
+        let cp = cols[p];
         let mut up = 0.0;
         loop {
             rounds += 1;
@@ -301,13 +310,22 @@ pub fn solve_mixed(
     Ok(LcpSolution { lambda, rounds })
 }
 
+/// The columns of `m` as slices when it is stored by columns and exactly symmetric.
+fn symmetric_columns(m: MatRef<'_, Real>) -> Option<Vec<&[Real]>> {
+    let n = m.ncols();
+    let cols: Vec<&[Real]> = (0..n)
+        .map(|j| m.col(j).try_as_col_major().map(|c| c.as_slice()))
+        .collect::<Option<_>>()?;
+    let symmetric = (0..n).all(|j| (j + 1..n).all(|i| cols[j][i] == cols[i][j]));
+    symmetric.then_some(cols)
+}
+
 /// A first guess of the pushing unilateral rows (for `solve_mixed`'s `pushing`): the
 /// penetrating ones (b < 0), deepest first, each only if it names a vertex (`names(i)`) no
 /// row taken before names. Several points on one coarse triangle are tied by its three
-/// vertices' motions, so about one per vertex can push independently. The dual active set
-/// (`solve_mixed`) would drop the dependent ones itself (it was written for the block
-/// pivoting of session 16, which did not recover from a guess of 58 points where 4 push);
-/// a guess of one point per vertex now only saves rounds.
+/// vertices' motions, so about one per vertex can push independently. `solve_mixed` keeps
+/// only the guessed rows that are independent and push, so any guess is safe; this one
+/// saves it the rows it would add and drop one at a time.
 pub fn first_guess<N: AsRef<[usize]>>(
     b: &[Real],
     bilateral: usize,

@@ -19,8 +19,9 @@
 //!
 //! The compliances of `fem-condensed` and `fem-precomputed-tensors` are symmetric (Betti),
 //! so M is; the BEM's collocation response is only nearly so. For it, the symmetric part
-//! of M guesses the pushing points, then the rows are solved with M itself, swapping the
-//! rows whose sign is wrong until none is (`refine`): the answer is complementary for the
+//! of M solves the problem with the rest of M lagged a round (a splitting that contracts
+//! when the unsymmetric part is the smaller), and each round's pushing rows are solved with
+//! M itself until their answer is complementary (`split`): the answer is the LCP's for the
 //! response the model actually has, not for its symmetric part.
 
 use faer::Mat;
@@ -29,7 +30,10 @@ use faer::linalg::solvers::Solve;
 use crate::error::SimError;
 use crate::math::{Mat3, Real, Vec3};
 
-use super::lcp::{REGULARISATION, first_guess, solve_mixed};
+#[cfg(test)]
+use super::lcp::REGULARISATION;
+use super::lcp::{GAP_TOLERANCE, first_guess, solve_mixed};
+use super::lemke::lemke;
 
 /// A force's origin: a vertex, and whether it is a held contact's multiplier (else a load).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,7 +85,57 @@ pub(crate) struct PointRows {
 }
 
 /// Block swaps `refine` tries without fewer wrong rows before swapping one at a time.
+#[cfg(test)]
 const REFINE_BLOCK_TRIES: usize = 3;
+
+/// Rounds of `split` before Lemke's method takes over (the liver's probes need up to ~10
+/// when the splitting converges at all, random problems with ρ up to 1.4 up to 16).
+const SPLIT_ROUNDS: usize = 25;
+
+/// A pushing row's λ below −this times the largest |λ| is a wrong sign (roundoff above it).
+const SIGN_TOLERANCE: Real = 1e-12;
+
+/// The largest relative violation of complementarity by `lambda` (a held row's gap, a
+/// point's penetration, a pushing point's gap or pull), of the largest |b|.
+fn violation(m: &Mat<Real>, b: &[Real], bilateral: usize, lambda: &[Real]) -> Real {
+    let n = b.len();
+    let scale = b.iter().fold(Real::MIN_POSITIVE, |a, v| a.max(v.abs()));
+    let pushing: Vec<usize> = (0..n).filter(|&j| lambda[j] != 0.0).collect();
+    let top = lambda
+        .iter()
+        .fold(Real::MIN_POSITIVE, |a, v| a.max(v.abs()));
+    (0..n)
+        .map(|i| {
+            let w = b[i] + pushing.iter().map(|&j| m[(i, j)] * lambda[j]).sum::<Real>();
+            if i < bilateral || lambda[i] > 0.0 {
+                w.abs() / scale
+            } else {
+                (-w / scale).max(-lambda[i] / top)
+            }
+        })
+        .fold(0.0, Real::max)
+}
+
+/// Points Lemke's working set starts with beyond the splitting's pushing ones, and takes in
+/// per round (the deepest).
+const LEMKE_GROWTH: usize = 16;
+
+/// Lemke's answer is taken as it is when `exact` cannot confirm it and it is complementary
+/// to this much of the largest |b|.
+const LEMKE_TOLERANCE: Real = 1e-9;
+
+/// q = b + K λ, K = (M − Mᵀ)/2: the unsymmetric part's gaps from the pushes `lambda`.
+fn add_skew(m: &Mat<Real>, b: &[Real], lambda: &[Real], q: &mut [Real]) {
+    q.copy_from_slice(b);
+    for (j, &l) in lambda.iter().enumerate() {
+        if l != 0.0 {
+            let (col, row) = (m.col(j), m.row(j));
+            for (i, qi) in q.iter_mut().enumerate() {
+                *qi += 0.5 * (col[i] - row[i]) * l;
+            }
+        }
+    }
+}
 
 impl PointRows {
     /// Starts a new problem (keeps the last pushing set as the next guess).
@@ -144,25 +198,31 @@ impl PointRows {
     pub fn solve<R: VertexResponse>(&mut self, response: &R) -> Result<&[Real], SimError> {
         let n = self.rows.len();
         let (m, b) = self.matrix(response);
+        #[cfg(test)]
+        capture::offer(&m, &b, self.bilateral);
         let points = n - self.bilateral;
         if self.pushing.len() != points {
             self.guess_pushing(&b);
         }
-        let guess = if R::SYMMETRIC {
-            solve_mixed(m.as_ref(), &b, self.bilateral, &self.pushing)?
-        } else {
-            let sym = Mat::<Real>::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] + m[(j, i)]));
-            solve_mixed(sym.as_ref(), &b, self.bilateral, &self.pushing)?
-        };
-        self.rounds = guess.rounds;
-        self.lambda = guess.lambda;
         self.capped = false;
-        if !R::SYMMETRIC {
-            let symmetric = self.lambda.clone();
-            if !self.refine(&m, &b)? {
-                // Not silent: the step says it is capped (`StepInfo::capped`).
-                self.lambda = symmetric;
-                self.capped = true;
+        self.rounds = 0;
+        if R::SYMMETRIC {
+            let solved = solve_mixed(m.as_ref(), &b, self.bilateral, &self.pushing)?;
+            self.rounds = solved.rounds;
+            self.lambda = solved.lambda;
+        } else {
+            match self.split(&m, &b) {
+                Ok(true) => {}
+                split => {
+                    // The splitting cannot answer (its symmetric part is indefinite, or it
+                    // does not contract): Lemke's method on M itself.
+                    if !self.by_lemke(&m, &b)? {
+                        // Not silent: the step says it is capped (`StepInfo::capped`) and
+                        // keeps the splitting's last answer, or the error says why none.
+                        split?;
+                        self.capped = true;
+                    }
+                }
             }
         }
         self.pushing.clear();
@@ -252,13 +312,226 @@ impl PointRows {
         (m, b)
     }
 
+    /// The rows solved with the (not symmetric) M = H + K itself, H = (M + Mᵀ)/2 its
+    /// symmetric part and K = (M − Mᵀ)/2 the rest, by the splitting λₜ₊₁ = LCP(H, b + K λₜ):
+    /// each round a warm-started dual active-set solve of the symmetric problem
+    /// (`solve_mixed`, usually a few rows added or dropped), then its pushing rows solved
+    /// with M itself by one LU (`exact`): done when their pushes are ≥ 0 and every other
+    /// row's gap ≥ 0, the LCP's exact answer. Why it converges: with z = the forces
+    /// the pushes apply, two rounds' changes obey |Δz|_H ≤ ρ |Δz_prev|_H with ρ the largest
+    /// singular value of H^(−½) K H^(−½) on H's range, below 1 when the response's
+    /// unsymmetric part is smaller than its symmetric part (Betti up to the collocation's
+    /// error; the liver's: `bem::points::tests::exact_points_cost_study`); the λ's
+    /// themselves need not converge (dependent rows), the forces and the gaps do, and the
+    /// pushing set with them. False when `SPLIT_ROUNDS` pass without an exact answer (the
+    /// last round's λ kept).
+    fn split(&mut self, m: &Mat<Real>, b: &[Real]) -> Result<bool, SimError> {
+        let n = b.len();
+        // Exactly symmetric (a + b = b + a in floating point): `solve_mixed` reads it in place.
+        let h = Mat::<Real>::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] + m[(j, i)]));
+        let mut q = b.to_vec();
+        if self.lambda.len() == n {
+            // The last step's answer starts the splitting (same rows: nearly the same λ).
+            add_skew(m, b, &self.lambda, &mut q);
+        }
+        for _ in 0..SPLIT_ROUNDS {
+            let solved = solve_mixed(h.as_ref(), &q, self.bilateral, &self.pushing)?;
+            self.rounds += solved.rounds + 1;
+            self.lambda = solved.lambda;
+            if self.exact(m, b) {
+                return Ok(true);
+            }
+            self.pushing.clear();
+            self.pushing
+                .extend(self.lambda[self.bilateral..].iter().map(|&l| l > 0.0));
+            add_skew(m, b, &self.lambda, &mut q);
+        }
+        Ok(false)
+    }
+
+    /// `split`'s fallback: Lemke's method (`lemke`) on M, the held rows eliminated first
+    /// (M' = M_UU − M_UB M_BB⁻¹ M_BU, q' = b_U − M_UB M_BB⁻¹ b_B), on a working set of
+    /// points grown until no other penetrates, its pushing rows then
+    /// solved again by `exact` (Lemke's tableau gathers roundoff over its pivots). True with
+    /// `self.lambda` set when the answer is complementary (to 1e-9 of the largest |b| if
+    /// `exact` does not confirm it); false, `self.lambda` untouched, on a ray or its cap.
+    fn by_lemke(&mut self, m: &Mat<Real>, b: &[Real]) -> Result<bool, SimError> {
+        let (n, nb) = (b.len(), self.bilateral);
+        let nu = n - nb;
+        // X = M_BB⁻¹ [M_BU | b_B]: the held rows' multipliers per unit push, and for none.
+        let x = Mat::<Real>::from_fn(nb, nb, |i, j| m[(i, j)])
+            .partial_piv_lu()
+            .solve(Mat::<Real>::from_fn(nb, nu + 1, |i, j| {
+                if j < nu { m[(i, nb + j)] } else { b[i] }
+            }));
+        if (0..nu + 1).any(|j| (0..nb).any(|i| !x[(i, j)].is_finite())) {
+            return Err(SimError::NotPositiveDefinite {
+                row: 0,
+                hint: "the contact rows held exactly depend on each other".into(),
+            });
+        }
+        let through =
+            |i: usize, j: usize| (0..nb).map(|k| m[(nb + i, k)] * x[(k, j)]).sum::<Real>();
+        let q_all: Vec<Real> = (0..nu).map(|i| b[nb + i] - through(i, nu)).collect();
+        let tol_w = GAP_TOLERANCE * b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+        // Lemke's tableau is dense in all its rows (and its pivots wander among degenerate
+        // ones), so it works on the points that matter: those the splitting pushed last and
+        // the `LEMKE_GROWTH` deepest, joined each round by the `LEMKE_GROWTH` that the answer
+        // leaves deepest (the set only grows: finitely many rounds).
+        let mut set: Vec<usize> = (0..nu)
+            .filter(|&i| self.lambda.get(nb + i).is_some_and(|&l| l > 0.0))
+            .collect();
+        let mut deepest: Vec<usize> = (0..nu).filter(|&i| q_all[i] < 0.0).collect();
+        deepest.sort_by(|&i, &j| q_all[i].total_cmp(&q_all[j]));
+        set.extend(deepest.iter().take(LEMKE_GROWTH));
+        set.sort_unstable();
+        set.dedup();
+        for _ in 0..=nu {
+            let k = set.len();
+            let reduced = Mat::<Real>::from_fn(k, k, |p, r| {
+                let (i, j) = (set[p], set[r]);
+                m[(nb + i, nb + j)] - through(i, j)
+            });
+            let q: Vec<Real> = set.iter().map(|&i| q_all[i]).collect();
+            let Some((z, pivots)) = lemke(&reduced, &q, 10 * k + 50) else {
+                self.rounds += 10 * k + 50;
+                return Ok(false);
+            };
+            self.rounds += pivots;
+            let mut lambda = vec![0.0; n];
+            for (&i, &zi) in set.iter().zip(&z) {
+                lambda[nb + i] = zi;
+            }
+            for (h, l) in lambda[..nb].iter_mut().enumerate() {
+                *l = -x[(h, nu)]
+                    - set
+                        .iter()
+                        .zip(&z)
+                        .map(|(&j, &zj)| x[(h, j)] * zj)
+                        .sum::<Real>();
+            }
+            let pushing: Vec<usize> = (0..n).filter(|&j| lambda[j] != 0.0).collect();
+            let mut in_set = vec![false; nu];
+            set.iter().for_each(|&i| in_set[i] = true);
+            let mut missed: Vec<(Real, usize)> = (0..nu)
+                .filter(|&i| !in_set[i])
+                .map(|i| {
+                    let w = b[nb + i]
+                        + pushing
+                            .iter()
+                            .map(|&j| m[(nb + i, j)] * lambda[j])
+                            .sum::<Real>();
+                    (w, i)
+                })
+                .filter(|&(w, _)| w < -tol_w)
+                .collect();
+            missed.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if missed.is_empty() {
+                let last = std::mem::replace(&mut self.lambda, lambda);
+                if self.exact(m, b) || violation(m, b, nb, &self.lambda) <= LEMKE_TOLERANCE {
+                    return Ok(true);
+                }
+                self.lambda = last;
+                return Ok(false);
+            }
+            set.extend(missed.iter().take(LEMKE_GROWTH).map(|&(_, i)| i));
+            set.sort_unstable();
+        }
+        Ok(false)
+    }
+
+    /// The held rows and those `self.lambda` pushes, solved with M itself (one LU): true,
+    /// with `self.lambda` replaced, when their pushes are ≥ 0 and every other point's gap
+    /// ≥ 0 (within `SIGN_TOLERANCE` of the largest push, `GAP_TOLERANCE` of the largest |b|).
+    fn exact(&mut self, m: &Mat<Real>, b: &[Real]) -> bool {
+        let n = b.len();
+        let rows: Vec<usize> = (0..n)
+            .filter(|&i| i < self.bilateral || self.lambda[i] > 0.0)
+            .collect();
+        let k = rows.len();
+        let mut lambda = vec![0.0; n];
+        if k > 0 {
+            let a = Mat::<Real>::from_fn(k, k, |p, q| m[(rows[p], rows[q])]);
+            let x = a
+                .partial_piv_lu()
+                .solve(Mat::<Real>::from_fn(k, 1, |p, _| -b[rows[p]]));
+            for (p, &i) in rows.iter().enumerate() {
+                lambda[i] = x[(p, 0)];
+            }
+        }
+        if lambda.iter().any(|l| !l.is_finite()) {
+            return false;
+        }
+        let scale_l = lambda.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+        if rows
+            .iter()
+            .any(|&i| i >= self.bilateral && lambda[i] < -SIGN_TOLERANCE * scale_l)
+        {
+            return false;
+        }
+        let tol_w = GAP_TOLERANCE * b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+        let mut pushed = vec![false; n];
+        rows.iter().for_each(|&i| pushed[i] = true);
+        let penetrates = (self.bilateral..n).filter(|&i| !pushed[i]).any(|i| {
+            let w: Real = b[i] + rows.iter().map(|&j| m[(i, j)] * lambda[j]).sum::<Real>();
+            w < -tol_w
+        });
+        if penetrates {
+            return false;
+        }
+        // Within the tolerance, a pushing row's λ may be a roundoff below 0.
+        lambda[self.bilateral..]
+            .iter_mut()
+            .for_each(|l| *l = l.max(0.0));
+        self.lambda = lambda;
+        true
+    }
+
+    /// `solve`'s path for an unsymmetric response on a given M and b (`bilateral` held rows
+    /// first), cold (no last answer): the multipliers, or None when capped.
+    #[cfg(test)]
+    pub(crate) fn solve_matrix(
+        m: &Mat<Real>,
+        b: &[Real],
+        bilateral: usize,
+    ) -> Result<(Option<Vec<Real>>, usize), SimError> {
+        let mut rows = Self {
+            bilateral,
+            pushing: vec![false; b.len() - bilateral],
+            ..Self::default()
+        };
+        let exact = rows.split(m, b)?;
+        Ok((exact.then_some(rows.lambda), rows.rounds))
+    }
+
+    /// The solver `split` replaced (session 17): the symmetric part's answer, then the rows
+    /// solved with M by block principal pivoting with a regularised LU per round. Kept as
+    /// the second implementation the tests and the cost study compare with.
+    #[cfg(test)]
+    pub(crate) fn solve_by_pivoting(
+        m: &Mat<Real>,
+        b: &[Real],
+        bilateral: usize,
+    ) -> Result<(Option<Vec<Real>>, usize), SimError> {
+        let n = b.len();
+        let mut rows = Self {
+            bilateral,
+            ..Self::default()
+        };
+        let sym = Mat::<Real>::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] + m[(j, i)]));
+        let solved = solve_mixed(sym.as_ref(), b, bilateral, &[])?;
+        rows.rounds = solved.rounds;
+        rows.lambda = solved.lambda;
+        let exact = rows.refine(m, b)?;
+        Ok((exact.then_some(rows.lambda), rows.rounds))
+    }
+
     /// From the symmetric part's answer, the rows solved with the (not symmetric) M itself:
-    /// the pushing rows' equalities by LU (the unilateral diagonal raised as `solve_mixed`
-    /// does, for more points than directions), every row whose sign is then wrong swapped
-    /// (one at a time, the last, once block swaps stop reducing them: Murty's rule, as
-    /// `solve_mixed` does), until none is. False when none is found within 10 n + 50
-    /// rounds (an unsymmetric M need not be a P-matrix: the liver's BEM with a fine surface
-    /// cycled on 9 points under a block-only rule).
+    /// the pushing rows' equalities by LU (the unilateral diagonal raised by
+    /// `REGULARISATION`), every row whose sign is then wrong swapped (one at a time, the
+    /// last, once block swaps stop reducing them: Murty's rule) until none is. False when
+    /// none is found within 10 n + 50 rounds.
+    #[cfg(test)]
     fn refine(&mut self, m: &Mat<Real>, b: &[Real]) -> Result<bool, SimError> {
         let n = b.len();
         let max_diag = (0..n).map(|i| m[(i, i)].abs()).fold(0.0, Real::max);
@@ -333,6 +606,97 @@ impl PointRows {
         self.rounds += 10 * n + 50;
         Ok(false)
     }
+}
+
+/// The largest problem `solve` builds while a study listens (`start`, then `take`), on
+/// this thread: the cost study solves it again by both solvers.
+#[cfg(test)]
+pub(crate) mod capture {
+    use std::cell::RefCell;
+
+    use faer::Mat;
+
+    use crate::math::Real;
+
+    /// One problem: M, b and the held rows' count.
+    pub(crate) struct Problem {
+        pub m: Mat<Real>,
+        pub b: Vec<Real>,
+        pub bilateral: usize,
+        /// Problems built while listening, and their rows in all.
+        pub solves: usize,
+        pub rows: usize,
+    }
+
+    thread_local! {
+        static LARGEST: RefCell<Option<Option<Problem>>> = const { RefCell::new(None) };
+    }
+
+    /// Listens from now on.
+    pub(crate) fn start() {
+        LARGEST.with(|l| *l.borrow_mut() = Some(None));
+    }
+
+    /// Stops listening: the largest problem heard.
+    pub(crate) fn take() -> Option<Problem> {
+        LARGEST.with(|l| l.borrow_mut().take().flatten())
+    }
+
+    pub(super) fn offer(m: &Mat<Real>, b: &[Real], bilateral: usize) {
+        LARGEST.with(|l| {
+            if let Some(slot) = l.borrow_mut().as_mut() {
+                let (solves, rows) = slot.as_ref().map_or((0, 0), |p| (p.solves, p.rows));
+                let (solves, rows) = (solves + 1, rows + b.len());
+                if slot.as_ref().is_none_or(|p| p.b.len() <= b.len()) {
+                    *slot = Some(Problem {
+                        m: m.clone(),
+                        b: b.to_vec(),
+                        bilateral,
+                        solves,
+                        rows,
+                    });
+                } else if let Some(p) = slot.as_mut() {
+                    (p.solves, p.rows) = (solves, rows);
+                }
+            }
+        });
+    }
+}
+
+/// The splitting's contraction on a problem (`split`'s notes): H's smallest and largest
+/// eigenvalue, ρ = ‖H^(−½) K H^(−½)‖ on H's range (eigenvalues above 1e-12 of the largest),
+/// and how much of K acts on H's null space (‖K N‖ / ‖K‖, N its null vectors).
+#[cfg(test)]
+pub(crate) fn contraction(m: &Mat<Real>) -> (Real, Real, Real, Real) {
+    let n = m.nrows();
+    let h = Mat::<Real>::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] + m[(j, i)]));
+    let k = Mat::<Real>::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] - m[(j, i)]));
+    let Ok(eig) = h.self_adjoint_eigen(faer::Side::Lower) else {
+        return (Real::NAN, Real::NAN, Real::NAN, Real::NAN);
+    };
+    let s: Vec<Real> = (0..n).map(|i| eig.S()[i]).collect();
+    let u = eig.U();
+    let top = s.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+    let range: Vec<usize> = (0..n).filter(|&i| s[i] > 1e-12 * top).collect();
+    let null: Vec<usize> = (0..n).filter(|&i| s[i] <= 1e-12 * top).collect();
+    let q = Mat::<Real>::from_fn(n, range.len(), |i, c| u[(i, range[c])] / s[range[c]].sqrt());
+    let c = q.transpose() * &k * &q;
+    let rho = c
+        .singular_values()
+        .map_or(Real::NAN, |v| v.first().copied().unwrap_or(0.0));
+    let knorm = k
+        .singular_values()
+        .map_or(Real::NAN, |v| v.first().copied().unwrap_or(0.0));
+    let z = Mat::<Real>::from_fn(n, null.len(), |i, c| u[(i, null[c])]);
+    let leak = if null.is_empty() || knorm == 0.0 {
+        0.0
+    } else {
+        (&k * &z)
+            .singular_values()
+            .map_or(Real::NAN, |v| v.first().copied().unwrap_or(0.0))
+            / knorm
+    };
+    (s[0], top, rho, leak)
 }
 
 #[cfg(test)]
@@ -418,5 +782,216 @@ mod tests {
                 "{pushed} {below:e} {off:e}"
             );
         }
+    }
+
+    /// A seeded generator in [0, 1).
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> Real {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as Real / (1u64 << 53) as Real
+        }
+    }
+
+    /// The largest penetration, the largest |gap| of a pushing row, the smallest push and
+    /// the largest |gap| of a held row, over the largest |b|.
+    fn violations(m: &Mat<Real>, b: &[Real], bilateral: usize, l: &[Real]) -> [Real; 3] {
+        let n = b.len();
+        let scale = b.iter().fold(Real::MIN_POSITIVE, |a, v| a.max(v.abs()));
+        let mut worst = [0.0 as Real; 3];
+        for i in 0..n {
+            let w = b[i] + (0..n).map(|j| m[(i, j)] * l[j]).sum::<Real>();
+            if i < bilateral {
+                worst[2] = worst[2].max(w.abs() / scale);
+            } else {
+                worst[0] = worst[0].max(-w / scale);
+                if l[i] > 0.0 {
+                    worst[1] = worst[1].max(w.abs() / scale);
+                }
+                assert!(l[i] >= 0.0, "row {i} pulls: {}", l[i]);
+            }
+        }
+        worst
+    }
+
+    /// Small unsymmetric problems whose symmetric part is positive definite (P-matrices:
+    /// one solution), a few held rows among them: `split` gives the one answer brute force
+    /// finds among every pushing set, to 1e-9 of the largest push.
+    #[test]
+    fn small_unsymmetric_problems_agree_with_brute_force() {
+        let mut rng = Rng(11);
+        for trial in 0..200 {
+            let n = 1 + trial % 8;
+            let bilateral = if trial % 3 == 0 { n / 3 } else { 0 };
+            let g = Mat::<Real>::from_fn(n, n, |_, _| rng.next() - 0.5);
+            let e = Mat::<Real>::from_fn(n, n, |_, _| rng.next() - 0.5);
+            let skew = 0.05 * (trial % 4) as Real;
+            let m = Mat::<Real>::from_fn(n, n, |i, j| {
+                (0..n).map(|k| g[(i, k)] * g[(j, k)]).sum::<Real>()
+                    + if i == j { 0.05 } else { 0.0 }
+                    + skew * (e[(i, j)] - e[(j, i)])
+            });
+            let b: Vec<Real> = (0..n).map(|_| rng.next() - 0.6).collect();
+            // Brute force: the pushing sets whose equalities give pushes ≥ 0 and gaps ≥ 0.
+            let mut found: Vec<Vec<Real>> = Vec::new();
+            for set in 0..1usize << (n - bilateral) {
+                let rows: Vec<usize> = (0..n)
+                    .filter(|&i| i < bilateral || set >> (i - bilateral) & 1 == 1)
+                    .collect();
+                let k = rows.len();
+                let mut l = vec![0.0; n];
+                if k > 0 {
+                    let a = Mat::<Real>::from_fn(k, k, |p, q| m[(rows[p], rows[q])]);
+                    let x = a
+                        .partial_piv_lu()
+                        .solve(Mat::<Real>::from_fn(k, 1, |p, _| -b[rows[p]]));
+                    rows.iter().enumerate().for_each(|(p, &i)| l[i] = x[(p, 0)]);
+                }
+                let ok = (0..n).all(|i| {
+                    let w = b[i] + (0..n).map(|j| m[(i, j)] * l[j]).sum::<Real>();
+                    i < bilateral || (l[i] >= -1e-12 && w >= -1e-12)
+                });
+                if ok {
+                    found.push(l);
+                }
+            }
+            // A P-matrix may have the one answer twice (a row at λ = 0, w = 0).
+            assert!(!found.is_empty(), "trial {trial}: brute force found none");
+            let (l, _) = PointRows::solve_matrix(&m, &b, bilateral).unwrap();
+            let l = l.unwrap_or_else(|| panic!("trial {trial}: capped"));
+            let top = found[0].iter().fold(1.0, |a: Real, v| a.max(v.abs()));
+            let off = (0..n).fold(0.0, |a: Real, i| a.max((l[i] - found[0][i]).abs()));
+            assert!(
+                off < 1e-9 * top,
+                "trial {trial}: {l:?} against {:?}",
+                found[0]
+            );
+            let v = violations(&m, &b, bilateral, &l);
+            assert!(v.iter().all(|&x| x < 1e-12), "trial {trial}: {v:?}");
+        }
+    }
+
+    /// A random vertex response: symmetric positive definite blocks plus an antisymmetric
+    /// part scaled by `skew` (the BEM's collocation error is a few %).
+    struct Random {
+        blocks: Vec<Mat3>,
+        vertices: usize,
+    }
+
+    impl Random {
+        fn new(rng: &mut Rng, vertices: usize, skew: Real) -> Self {
+            let d = 3 * vertices;
+            let g = Mat::<Real>::from_fn(d, d, |_, _| rng.next() - 0.5);
+            let e = Mat::<Real>::from_fn(d, d, |_, _| rng.next() - 0.5);
+            let r = Mat::<Real>::from_fn(d, d, |i, j| {
+                (0..d).map(|k| g[(i, k)] * g[(j, k)]).sum::<Real>() / d as Real
+                    + if i == j { 0.1 } else { 0.0 }
+                    + skew * 0.1 * (e[(i, j)] - e[(j, i)])
+            });
+            let blocks = (0..vertices * vertices)
+                .map(|q| {
+                    let (j, k) = (q / vertices, q % vertices);
+                    Mat3::from_cols_array(&std::array::from_fn(|e| {
+                        r[(3 * j + e % 3, 3 * k + e / 3)]
+                    }))
+                })
+                .collect();
+            Self { blocks, vertices }
+        }
+    }
+
+    impl VertexResponse for Random {
+        const SYMMETRIC: bool = false;
+        fn response(&self, j: usize, s: Source) -> Mat3 {
+            self.blocks[j * self.vertices + s.vertex]
+        }
+        fn free(&self, _j: usize) -> Vec3 {
+            Vec3::ZERO
+        }
+    }
+
+    /// Many points on a few triangles (far more rows than directions: singular M), an
+    /// unsymmetric response, a held vertex: the splitting's answer is complementary for M
+    /// to 1e-12 of the largest |b|, and its gaps are those of the pivoting solver it
+    /// replaced (unique: the forces are), where that one finds an answer.
+    #[test]
+    fn singular_unsymmetric_problems_agree_with_the_pivoting_solver() {
+        let mut rng = Rng(23);
+        let mut compared = 0;
+        for trial in 0..50 {
+            // Up to ρ ≈ 3 (the last: the splitting gives up, Lemke answers).
+            let response = Random::new(&mut rng, 6, [0.0, 0.1, 0.3, 0.6, 2.0][trial % 5]);
+            let triangles = [[0, 1, 2], [1, 2, 3], [2, 3, 4]];
+            let mut rows = PointRows::default();
+            rows.push_held(5, Vec3::new(rng.next(), 1.0, rng.next()).normalize(), 0.01);
+            for _ in 0..60 {
+                let t = triangles[(3.0 * rng.next()) as usize % 3];
+                let (a, c) = (rng.next(), rng.next());
+                let (a, c) = if a + c > 1.0 {
+                    (1.0 - a, 1.0 - c)
+                } else {
+                    (a, c)
+                };
+                let normal = Vec3::new(rng.next() - 0.5, rng.next() - 0.5, 2.0).normalize();
+                let reach = 0.3 * rng.next() - 0.05;
+                rows.push_point(t.map(Some), [1.0 - a - c, a, c], normal, reach);
+            }
+            let (m, b) = rows.matrix(&response);
+            let l = rows.solve(&response).unwrap().to_vec();
+            let (_, _, rho, leak) = contraction(&m);
+            eprintln!(
+                "trial {trial}: rounds {}, rho {rho:.3}, leak {leak:.1e}",
+                rows.rounds
+            );
+            assert!(!rows.capped, "trial {trial}");
+            let v = violations(&m, &b, 1, &l);
+            assert!(v.iter().all(|&x| x < 1e-11), "trial {trial}: {v:?}");
+            // Lemke's method on the same M (`by_lemke`, the splitting's fallback): the same
+            // gaps (unique), complementary to its tolerance.
+            let mut lemke = PointRows {
+                bilateral: 1,
+                ..PointRows::default()
+            };
+            assert!(lemke.by_lemke(&m, &b).unwrap(), "trial {trial}: Lemke");
+            let v = violations(&m, &b, 1, &lemke.lambda);
+            assert!(
+                v.iter().all(|&x| x < LEMKE_TOLERANCE),
+                "trial {trial}: {v:?}"
+            );
+            let gap =
+                |l: &[Real], i: usize| b[i] + (0..b.len()).map(|j| m[(i, j)] * l[j]).sum::<Real>();
+            let scale = b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+            let off = (0..b.len()).fold(0.0, |a: Real, i| {
+                a.max((gap(&l, i) - gap(&lemke.lambda, i)).abs())
+            });
+            assert!(
+                off < 1e-9 * scale,
+                "trial {trial}: Lemke's gaps differ by {off:e}"
+            );
+            let (old, _) = PointRows::solve_by_pivoting(&m, &b, 1).unwrap();
+            if let Some(old) = old {
+                compared += 1;
+                let gaps = |l: &[Real]| -> Vec<Real> {
+                    (0..b.len())
+                        .map(|i| b[i] + (0..b.len()).map(|j| m[(i, j)] * l[j]).sum::<Real>())
+                        .collect()
+                };
+                let (w, w_old) = (gaps(&l), gaps(&old));
+                let scale = b.iter().fold(0.0, |a: Real, v| a.max(v.abs()));
+                let off = w
+                    .iter()
+                    .zip(&w_old)
+                    .fold(0.0, |a: Real, (x, y)| a.max((x - y).abs()));
+                // The old solver's regularisation (1e-9 of the largest diagonal) moves it.
+                assert!(off < 1e-7 * scale, "trial {trial}: gaps differ by {off:e}");
+            }
+        }
+        assert!(
+            compared >= 20,
+            "the pivoting solver answered {compared} of 50"
+        );
     }
 }
