@@ -10,8 +10,9 @@
 use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
-    Contact, PENETRATION_TOLERANCE, hold_points, is_adhesive, project_to_sphere, pulls,
-    settle_carried_faces, vertices_in_ball, vertices_in_shape, vertices_near_shape,
+    Contact, PENETRATION_TOLERANCE, PushOnly, hold_points, is_adhesive, owed_depth,
+    project_to_sphere, pulls, settle_carried_faces, vertices_in_ball, vertices_in_shape,
+    vertices_near_shape,
 };
 use crate::interact::fine_points;
 use crate::interact::fine_surface::MappedSurface;
@@ -77,7 +78,8 @@ pub struct Simulation {
     constraints: Constraints,
     normals: Vec<Option<Vec3>>,
     /// Whether the model held the last constraints' directions (false: it held every entry in
-    /// all three directions, and frictionless contacts slide by relaxation).
+    /// all three directions, and frictionless contacts slide by relaxation); before the first
+    /// solve, whether its contacts only push (`Simulation::new`).
     along: bool,
     /// How many of their prescribed entries each instrument gave, in order. When the
     /// contact loop stops at its cap, the instruments' contact sets have moved on from
@@ -105,6 +107,10 @@ impl Simulation {
         let s = model.surface();
         let bvh = Bvh::build(s.positions, s.triangles);
         let is_static = model.info().is_static;
+        // A model whose contacts only push holds them along their normals: assumed before its
+        // first solve says so, so that the first step hands it the near faces and owes it a
+        // penetration it starts with (`interact::contact::PushOnly`), as every later step does.
+        let along = model.contacts_push_only();
         let plausibility = Plausibility::for_body(model.rest_surface());
         Ok(Self {
             model,
@@ -125,7 +131,7 @@ impl Simulation {
             plausibility,
             fine: None,
             normals: Vec::new(),
-            along: false,
+            along,
         })
     }
 
@@ -501,6 +507,21 @@ impl Simulation {
                                 + 2.0 * inst.position.distance(old.position);
                             inst.points =
                                 fine_points::gather(fine, now, &shape, inst.position, margin);
+                            // A dynamic model's step gives a plane's move as velocity: a
+                            // point the step starts inside the instrument gets its plane
+                            // through where it is, moved with the instrument, taking the
+                            // depth back no faster than the instrument moves (as the face
+                            // planes, `contact::owed_depth`). A static solve has no inertia
+                            // and puts it on the instrument.
+                            if !self.is_static {
+                                for p in &mut inst.points {
+                                    let Some(&q) = now.get(p.fine as usize) else {
+                                        continue;
+                                    };
+                                    let owed = owed_depth(&shape, old.position, inst.position, q);
+                                    p.contact.target -= p.contact.normal * owed;
+                                }
+                            }
                         }
                         inst.reactions.clear();
                         continue;
@@ -796,7 +817,7 @@ impl Simulation {
                 .collect();
             let held: Vec<u32> = kept.iter().map(|k| k.vertex).collect();
             let released = kept.len() != before;
-            let moved = surface.find(&shape, c, &mut kept, taken, &resting, 0.0);
+            let moved = surface.find(&shape, c, &mut kept, taken, &resting, None);
             for k in &kept {
                 if held.binary_search(&k.vertex).is_err() {
                     returned.take(k.vertex);
@@ -867,7 +888,7 @@ fn keep_and_find(
             })
             .collect();
         mark(taken, &contacts);
-        surface.find(shape, c, &mut contacts, taken, &[], 0.0);
+        surface.find(shape, c, &mut contacts, taken, &[], None);
         return contacts;
     }
     let slack = PENETRATION_TOLERANCE * shape.size();
@@ -955,7 +976,10 @@ fn keep_and_find(
         &mut contacts,
         taken,
         &resting,
-        margin.unwrap_or(0.0),
+        margin.map(|margin| PushOnly {
+            margin,
+            from: old.position,
+        }),
     );
     if let (Some(margin), None) = (margin, surface.fine) {
         let near = vertices_near_shape(
@@ -987,9 +1011,10 @@ struct Surface<'a> {
 impl Surface<'_> {
     /// Adds to `contacts` (this instrument's) what newly touches `shape` at `at`: the fine
     /// surface's vertices when there is one, else the model's vertices. `resting`: sorted
-    /// face-contact vertices of the last solve that did not pull; `margin`: on a fine
-    /// surface, how far outside the instrument its faces are handed over free
-    /// (`contact::hold_points`; 0 for none). Returns the largest move of a face target, in m.
+    /// face-contact vertices of the last solve that did not pull; `push_only`: on a fine
+    /// surface, for a model whose contacts only push, how far outside the instrument its
+    /// faces are handed over free and where the instrument started the step
+    /// (`contact::hold_points`). Returns the largest move of a face target, in m.
     fn find(
         &self,
         shape: &Shape,
@@ -997,7 +1022,7 @@ impl Surface<'_> {
         contacts: &mut Vec<Contact>,
         taken: &mut [bool],
         resting: &[u32],
-        margin: Real,
+        push_only: Option<PushOnly>,
     ) -> Real {
         let kept = |v: u32| resting.binary_search(&v).is_ok();
         let moved = if let Some(fine) = self.fine {
@@ -1010,7 +1035,7 @@ impl Surface<'_> {
                 contacts,
                 &|v| is_taken(taken, v),
                 &kept,
-                margin,
+                push_only,
             )
         } else {
             let fresh =
