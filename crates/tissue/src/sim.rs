@@ -11,7 +11,7 @@ use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
     Contact, PENETRATION_TOLERANCE, PushOnly, hold_points, is_adhesive, owed_depth,
-    project_to_sphere, pulls, settle_carried_faces, vertices_in_ball, vertices_in_shape,
+    project_to_sphere, pulls, recovery, settle_carried_faces, vertices_in_ball, vertices_in_shape,
     vertices_near_shape,
 };
 use crate::interact::fine_points;
@@ -489,6 +489,7 @@ impl Simulation {
     fn place_contacts(&self, t1: Real, next: &mut [Instrument], taken: &mut [bool]) {
         let s = self.model.contact_surface();
         let (positions, triangles) = (s.positions, s.triangles);
+        let dt = t1 - self.time;
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             let (c, r) = (inst.position, inst.radius());
             inst.slider.begin_step();
@@ -518,7 +519,8 @@ impl Simulation {
                                     let Some(&q) = now.get(p.fine as usize) else {
                                         continue;
                                     };
-                                    let owed = owed_depth(&shape, old.position, inst.position, q);
+                                    let recover = recovery(old.position, inst.position, dt);
+                                    let owed = owed_depth(&shape, old.position, q, recover);
                                     p.contact.target -= p.contact.normal * owed;
                                 }
                             }
@@ -534,12 +536,15 @@ impl Simulation {
                         fine: self.fine.as_ref().map(|(m, _)| m),
                     };
                     // Near vertices (or a fine surface's near faces) are handed over free.
-                    let margin = self.pushes_only(inst).then(|| {
-                        CONTACT_MARGIN * shape.size() + 2.0 * inst.position.distance(old.position)
+                    let push_only = self.pushes_only(inst).then(|| PushOnly {
+                        margin: CONTACT_MARGIN * shape.size()
+                            + 2.0 * inst.position.distance(old.position),
+                        from: old.position,
+                        recover: recovery(old.position, inst.position, dt),
                     });
                     let carry = self.carries_faces(inst, old, &shape);
                     inst.contacts =
-                        keep_and_find(&surface, inst, old, &shape, taken, margin, carry);
+                        keep_and_find(&surface, inst, old, &shape, taken, push_only, carry);
                 }
                 InstrumentKind::Grasper {
                     grasp_at,
@@ -842,18 +847,19 @@ impl Simulation {
 /// and did not pull, moved with the instrument (sticking, μ > 0) or projected onto it
 /// (frictionless), then the vertices newly inside it.
 ///
-/// With a `margin` (contacts held as pushes only) the previous contacts and the vertices
-/// outside the instrument by less than it are kept or added too, targets at the instrument's
-/// nearest point.
+/// With `push_only` (contacts held as pushes only) the previous contacts and the vertices
+/// outside the instrument by less than its margin are kept or added too, targets at the
+/// instrument's nearest point.
 fn keep_and_find(
     surface: &Surface,
     inst: &Instrument,
     old: &Instrument,
     shape: &Shape,
     taken: &mut [bool],
-    margin: Option<Real>,
+    push_only: Option<PushOnly>,
     carry_faces: bool,
 ) -> Vec<Contact> {
+    let margin = push_only.map(|o| o.margin);
     let positions = surface.positions;
     let c = inst.position;
     if let (None, Shape::Sphere { radius: r }, None) = (inst.friction(), shape, surface.fine) {
@@ -970,17 +976,7 @@ fn keep_and_find(
         .collect();
     resting.sort_unstable();
     mark(taken, &contacts);
-    surface.find(
-        shape,
-        c,
-        &mut contacts,
-        taken,
-        &resting,
-        margin.map(|margin| PushOnly {
-            margin,
-            from: old.position,
-        }),
-    );
+    surface.find(shape, c, &mut contacts, taken, &resting, push_only);
     if let (Some(margin), None) = (margin, surface.fine) {
         let near = vertices_near_shape(
             surface.bvh,

@@ -124,7 +124,8 @@ fn the_liver_pressed_at_1ms_has_no_one_step_force_spike() {
         let scale: Real = window.map(|i| exact[i].powi(2)).sum();
         let off = (off / scale).sqrt();
         eprintln!(
-            "{model}: largest {:.4} N, end {end:.5} N, RMS off fem-semi-implicit {off:.3}",
+            "{}: largest {:.4} N, end {end:.5} N, RMS off fem-semi-implicit {off:.3}",
+            model.replace('\n', ", "),
             force.iter().copied().fold(0.0, Real::max)
         );
         if model.contains("tensor-mass") {

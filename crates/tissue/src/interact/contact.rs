@@ -122,6 +122,22 @@ pub struct PushOnly {
     /// already inside it there is a penetration the last step left, not this step's motion
     /// (`owed_depth`).
     pub from: Vec3,
+    /// How much of such a penetration the step may take back (m): the instrument's move in
+    /// the step, at least `RECOVERY_SPEED` times the step (`recovery`).
+    pub recover: Real,
+}
+
+/// The least speed (m/s) at which a push-only model's tissue is taken back out of an
+/// instrument it was found inside at a step's start (`owed_depth`): 10 mm/s, a probe's
+/// ordinary speed (the demo's). A faster instrument takes it back at its own speed. Without
+/// a floor a still instrument kept what it owed for good: a probe held on a block settled
+/// 0.4 % off the static answer (`tests/hybrid_points.rs`, 1.6e-5 with the floor).
+pub const RECOVERY_SPEED: Real = 0.01;
+
+/// The depth a step of `dt` s may take back of a penetration it starts with (m), the
+/// instrument moved from `from` to `at` (`PushOnly::recover`).
+pub fn recovery(from: Vec3, at: Vec3, dt: Real) -> Real {
+    at.distance(from).max(RECOVERY_SPEED * dt)
 }
 
 /// Contact on a fine surface mapped onto the model's surface (`MappedSurface`): every
@@ -229,8 +245,8 @@ pub fn hold_points(
             {
                 closest = exit_along(shape, at, p, -outward);
             }
-            let push =
-                -closest.depth - push_only.map_or(0.0, |o| owed_depth(shape, o.from, at, now[j]));
+            let push = -closest.depth
+                - push_only.map_or(0.0, |o| owed_depth(shape, o.from, now[j], o.recover));
             if push <= tolerance {
                 // Inside, but owed less than the step gives back: its free vertices are
                 // handed over with planes behind them, where the point reaches the depth
@@ -255,9 +271,10 @@ pub fn hold_points(
 }
 
 /// How deep a fine point at `q` (where the last step left it) may still be inside `shape`
-/// placed at `at` at the end of this step, for a model whose contacts only push: the depth
-/// it already had with the instrument where the step starts (`from`), less the instrument's
-/// move in the step. Zero for a point that was outside.
+/// at the end of this step, for a model whose contacts only push: the depth it already had
+/// with the instrument where the step starts (`from`), less `recover` (`recovery`: the
+/// instrument's move in the step, at least `RECOVERY_SPEED` times the step). Zero for a
+/// point that was outside.
 ///
 /// Such a penetration is the last step's, not this step's motion: the instrument starts
 /// inside the tissue (the demo's probe starts 0.4 mm into the smooth liver), or the point
@@ -265,12 +282,12 @@ pub fn hold_points(
 /// the step must give the vertex that whole move as velocity, and an implicit step reports
 /// the reaction in full (the liver's 0.137 N first step at 1 ms, against 0.02 N after).
 /// So the plane goes through where the point is, moves with the instrument from there,
-/// and takes back the owed depth no faster than the instrument moves: the force it costs is
-/// the instrument's own (a surface met at its speed), and it is counted, not hidden. A
-/// still instrument takes nothing back.
-pub fn owed_depth(shape: &Shape, from: Vec3, at: Vec3, q: Vec3) -> Real {
+/// and takes back the owed depth no faster than the instrument moves (or `RECOVERY_SPEED`):
+/// the force it costs is that of a surface met at such a speed, and it is counted, not
+/// hidden.
+pub fn owed_depth(shape: &Shape, from: Vec3, q: Vec3, recover: Real) -> Real {
     let before = -shape.closest(from, q, Vec3::ZERO).depth;
-    (before - at.distance(from)).max(0.0)
+    (before - recover).max(0.0)
 }
 
 /// Per vertex of a closed triangle surface, its unit normal pointing out of the enclosed
@@ -719,7 +736,7 @@ mod tests {
     /// The instrument starts the step 0.4 mm into the tissue and moves 10 µm further: a
     /// model whose contacts only push gets planes 20 µm in front of its vertices (the
     /// step's move, and as much of the owed depth again), not the 0.41 mm a static model's
-    /// active set takes in one solve; a still instrument leaves the planes through them.
+    /// active set takes in one solve; with nothing to take back, planes through them.
     #[test]
     fn a_penetration_the_step_starts_with_is_taken_back_no_faster_than_the_instrument() {
         let (rest, _, fine) = flat_triangle();
@@ -741,18 +758,29 @@ mod tests {
             );
             ahead(&contacts, &rest)
         };
-        let push_only = Some(PushOnly { margin: 1e-4, from });
-        for a in hold(push_only, at) {
+        // A 1 ms step: the move (10 µm) is RECOVERY_SPEED's.
+        let recover = recovery(from, at, 1e-3);
+        assert!((recover - 1e-5).abs() < 1e-15);
+        let push_only = |recover| {
+            Some(PushOnly {
+                margin: 1e-4,
+                from,
+                recover,
+            })
+        };
+        for a in hold(push_only(recover), at) {
             assert!((a - 2e-5).abs() < 1e-12, "{a}");
         }
-        for a in hold(push_only, from) {
+        for a in hold(push_only(0.0), from) {
             assert!(a.abs() < 1e-12, "{a}");
         }
         for a in hold(None, at) {
             assert!((a - 4.1e-4).abs() < 1e-12, "{a}");
         }
-        assert!((owed_depth(&plane, from, at, Vec3::ZERO) - 3.9e-4).abs() < 1e-15);
-        assert_eq!(owed_depth(&plane, from, at, Vec3::Z * 1e-3), 0.0);
+        assert!((owed_depth(&plane, from, Vec3::ZERO, recover) - 3.9e-4).abs() < 1e-15);
+        assert_eq!(owed_depth(&plane, from, Vec3::Z * -1e-3, recover), 0.0);
+        // A still instrument takes it back at RECOVERY_SPEED.
+        assert!((recovery(from, from, 2e-3) - 2e-5).abs() < 1e-15);
     }
 
     /// A vertex whose plane (carried, drawn back) lies 3 mm behind it is free where it is:
@@ -772,6 +800,7 @@ mod tests {
         let push_only = Some(PushOnly {
             margin: 1e-4,
             from: at,
+            recover: 0.0,
         });
         let mut contacts = start.clone();
         let moved = hold_points(
