@@ -127,6 +127,16 @@ pub enum MeshCommand {
         /// smaller than the tetrahedra do not count; default: size/2 (0 for none).
         #[arg(long)]
         smooth: Option<f64>,
+        /// Radius (m) of a closing by a ball before the other cleaning of an image's
+        /// selected voxels: cracks narrower than twice this are filled, and every guarantee
+        /// is measured against the filtered voxels (0 for none).
+        #[arg(long, default_value_t = 0.0)]
+        close: f64,
+        /// Radius (m) of an opening by a ball after --close: sheets and strands thinner than
+        /// twice this are removed, and every guarantee is measured against the filtered
+        /// voxels (0 for none).
+        #[arg(long, default_value_t = 0.0)]
+        open: f64,
         /// Radius in voxels of the morphological opening then closing that cleans an
         /// image's selected voxels before meshing (0 for none).
         #[arg(long, default_value_t = 1)]

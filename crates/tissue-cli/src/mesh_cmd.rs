@@ -83,6 +83,8 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             threshold,
             scale,
             smooth,
+            open,
+            close,
             open_close,
             all_parts,
             keep_holes,
@@ -97,6 +99,8 @@ pub fn mesh(cmd: &MeshCommand) -> anyhow::Result<()> {
             scale: *scale,
             smooth: *smooth,
             cleaning: tissue::image::Cleaning {
+                open: *open,
+                close: *close,
                 open_close: *open_close,
                 largest_component: !*all_parts,
                 fill_holes: !*keep_holes,

@@ -154,3 +154,68 @@ fn a_segmentation_is_inspected_and_meshed_by_segment_names() {
         "{e}"
     );
 }
+
+/// `--close` and `--open` (the ball filters a scene declares with `tet_close`, `tet_open`):
+/// four bundles 1 × 1 × 2 mm voxels parted by cracks one voxel wide, with a strand one voxel
+/// thick, become one body (the cracks' 720 voxels filled, the strand's 3 removed), the JSON
+/// report says so, and a negative radius is refused with its name.
+#[test]
+fn ball_filters_are_asked_for_reported_and_a_bad_radius_is_named() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cli_image_balls");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (nx, ny, nz) = (28usize, 28usize, 16usize);
+    let mut raw = vec![0u8; nx * ny * nz];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let block = (4..24).contains(&i) && (4..24).contains(&j) && (2..14).contains(&k);
+                let crack = [9, 14, 19].contains(&j);
+                let strand = (24..27).contains(&i) && j == 12 && k == 8;
+                if block && !crack || strand {
+                    raw[i + nx * (j + ny * k)] = 1;
+                }
+            }
+        }
+    }
+    std::fs::write(dir.join("bundles.raw"), raw).unwrap();
+    let header = dir.join("bundles.mhd");
+    std::fs::write(
+        &header,
+        "ObjectType = Image\nNDims = 3\nDimSize = 28 28 16\nElementSpacing = 1 1 2\n\
+         Position = 0 0 0\nElementType = MET_UCHAR\nElementDataFile = bundles.raw\n",
+    )
+    .unwrap();
+    let run = |close: &str| {
+        Command::new(env!("CARGO_BIN_EXE_tissue"))
+            .args(["mesh", "tetrahedralize"])
+            .arg(&header)
+            .arg(dir.join("bundles.vtu"))
+            .args(["--threshold", "1,1", "--size", "0.004", "--smooth", "0"])
+            .args(["--open-close", "0", "--open", "0.0015", "--json", "--force"])
+            .arg(format!("--close={close}"))
+            .output()
+            .unwrap()
+    };
+    let out = run("0.0015");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let c = &v["cleaning"];
+    assert_eq!(
+        (
+            &c["closed_voxels"],
+            &c["opened_voxels"],
+            &c["parts_dropped"],
+            &c["voxels_after"]
+        ),
+        (&720.into(), &3.into(), &0.into(), &4800.into()),
+        "{v}"
+    );
+    let out = run("-0.001");
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("closing radius") && e.contains("-0.001"), "{e}");
+}

@@ -319,10 +319,13 @@ fn the_brain_image_becomes_a_manifold_tet_organ_a_surface_kind_builds_on() {
     );
 }
 
-/// The hip muscle meshed into tetrahedra by `pelvis-fem-image.toml`: at a lattice every kind
-/// builds on in seconds the mesh cannot follow the muscle's cracks of fat (the boundary
-/// and volume promises are broken, and said), but it is one piece with a closed 2-manifold
-/// boundary, and the probe pressed into the back of the gluteal muscles is pushed back.
+/// The hip muscle meshed into tetrahedra by `pelvis-fem-image.toml` keeps every guarantee
+/// without `tet_force` (issue 25, session 18) against the input the scene declares: the
+/// muscle's voxels closed by a ball of radius 9 mm (fat between bundles narrower than 18 mm
+/// counted in) then opened by one (strands thinner than 18 mm out), which the report says.
+/// Until then it was meshed with a blur and broke two promises (boundary 1.08 h, volume
+/// −4.15 %). It is one piece with a closed 2-manifold boundary, and the probe pressed into
+/// the back of the gluteal muscles is pushed back.
 #[test]
 fn the_hip_muscle_becomes_one_manifold_tet_organ_that_pushes_the_probe_back() {
     let s = scene("pelvis-fem-image.toml");
@@ -333,10 +336,28 @@ fn the_hip_muscle_becomes_one_manifold_tet_organ_that_pushes_the_probe_back() {
         (report.manifold.edges_left, report.manifold.vertices_left),
         (0, 0)
     );
-    let v = report.violations();
+    assert!(report.violations().is_empty(), "{report}");
+    let h = report.size;
     assert!(
-        v.len() == 2 && v[0].contains("more than h/2") && v[1].contains("volume"),
-        "{v:?}"
+        report.mesh_to_input <= 0.5 * h
+            && report.resolved_input_to_mesh.is_some_and(|d| d <= 0.5 * h),
+        "{report}"
+    );
+    assert!(
+        report.volume_error.is_some_and(|e| e.abs() < 0.01),
+        "{report}"
+    );
+    assert!(report.min_dihedral_deg >= 10.0, "{report}");
+    // The filter is said, and what it changed: about a third more voxels than the
+    // threshold's part (measured +35.7 % for the mesh against them), beside the guarantee.
+    let c = report.cleaning.as_ref().expect("the cleaning is reported");
+    assert_eq!((c.close, c.open, c.open_close), (0.009, 0.009, 0));
+    assert!(c.closed_voxels > 100_000 && c.opened_voxels > 0, "{c:?}");
+    assert!(
+        report
+            .uncleaned_volume_error
+            .is_some_and(|e| (0.25..0.45).contains(&e)),
+        "{report}"
     );
     let mut sim = s.build().unwrap();
     let mut peak = Vec3::ZERO;
@@ -348,8 +369,7 @@ fn the_hip_muscle_becomes_one_manifold_tet_organ_that_pushes_the_probe_back() {
         }
     }
     // The probe moves along −y into the muscle: the tissue pushes it back, mostly along +y
-    // (the sticking probe on the muscle's sloped back also feels it sideways: measured
-    // (−0.47, 0.74, −0.20) N).
+    // (the sticking probe on the muscle's sloped back also feels it sideways).
     assert!(
         peak.y > 0.1 && peak.y > peak.x.abs().max(peak.z.abs()),
         "{peak}"

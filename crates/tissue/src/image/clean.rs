@@ -6,9 +6,20 @@
 
 use serde::Serialize;
 
+use crate::math::Real;
+
 /// What `clean_mask` does. `Default` is what the CLI and scenes use.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cleaning {
+    /// Radius (m) of a closing by a ball before everything else: cracks and channels of the
+    /// background narrower than twice this are selected, nothing selected is removed; 0 for
+    /// none. Done by `ImageDomain::cleaned`, which knows the voxel spacing
+    /// (`image::close_ball`); `clean_mask` ignores it.
+    pub close: Real,
+    /// Radius (m) of an opening by a ball after `close`: sheets and strands thinner than
+    /// twice this are unselected, nothing unselected is added; 0 for none
+    /// (`image::open_ball`, by `ImageDomain::cleaned`; `clean_mask` ignores it).
+    pub open: Real,
     /// Radius (voxels, 6-neighbourhood steps) of the opening then closing; 0 for none.
     pub open_close: usize,
     /// Keep only the largest 6-connected part.
@@ -20,6 +31,8 @@ pub struct Cleaning {
 impl Default for Cleaning {
     fn default() -> Self {
         Self {
+            open: 0.0,
+            close: 0.0,
             open_close: 1,
             largest_component: true,
             fill_holes: true,
@@ -30,6 +43,8 @@ impl Default for Cleaning {
 impl Cleaning {
     /// Leaves the mask as it is.
     pub const NONE: Self = Self {
+        open: 0.0,
+        close: 0.0,
         open_close: 0,
         largest_component: false,
         fill_holes: false,
@@ -40,6 +55,14 @@ impl Cleaning {
 /// user's choice that changes the input every guarantee is measured against, so it is said).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct CleanReport {
+    /// `Cleaning::open`: radius (m) of the ball opening; 0 for none.
+    pub open: Real,
+    /// Voxels the ball opening unselected (sheets and strands it removed).
+    pub opened_voxels: usize,
+    /// `Cleaning::close`: radius (m) of the ball closing; 0 for none.
+    pub close: Real,
+    /// Voxels the ball closing selected (cracks of the background it filled).
+    pub closed_voxels: usize,
     /// `Cleaning::open_close`: radius in voxels of the opening then closing; 0 for none.
     pub open_close: usize,
     pub voxels_before: usize,

@@ -22,7 +22,7 @@ use std::path::Path;
 
 use crate::error::{IoError, Location};
 
-pub use ball::open_close_ball;
+pub use ball::{close_ball, open_ball, open_close_ball};
 pub use clean::{CleanReport, Cleaning, clean_mask};
 pub use grid::{ByteOrder, ImageStats, LabelRef, Segment, SourceType, VoxelImage};
 

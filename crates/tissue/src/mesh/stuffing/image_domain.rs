@@ -4,7 +4,9 @@
 //! one, so the meshed volume follows the selected voxels' volume.
 
 use crate::error::MeshError;
-use crate::image::{CleanReport, Cleaning, VoxelImage, clean_mask, open_close_ball};
+use crate::image::{
+    CleanReport, Cleaning, VoxelImage, clean_mask, close_ball, open_ball, open_close_ball,
+};
 use crate::math::{Real, Vec3};
 use crate::voxel::VoxelGrid;
 
@@ -185,17 +187,37 @@ impl ImageDomain {
         })
     }
 
-    /// Cleans the selected voxels (`image::clean_mask`: opening and closing, the largest
-    /// part, enclosed holes filled) before any blur. The reference volume becomes the
-    /// cleaned voxels'; the report also gives the volume against the voxels as selected.
-    /// A voxel added by the cleaning takes the label of a selected neighbour.
+    /// Cleans the selected voxels (a closing by a ball of radius `c.close` when asked, then
+    /// `image::clean_mask`: opening and closing, the largest part, enclosed holes filled)
+    /// before any blur. The reference volume becomes the cleaned voxels'; the report also
+    /// gives the volume against the voxels as selected. A voxel added by the cleaning takes
+    /// the label of a selected neighbour.
     pub fn cleaned(mut self, c: Cleaning) -> Result<Self, MeshError> {
         if c == Cleaning::NONE {
             return Ok(self);
         }
+        for (what, r) in [("opening", c.open), ("closing", c.close)] {
+            if !(r.is_finite() && r >= 0.0) {
+                return Err(MeshError::Invalid(format!(
+                    "the {what} radius must be a length of 0 m or more, not {r}"
+                )));
+            }
+        }
         let before: Vec<bool> = self.mask.iter().map(|&m| m >= 0.5).collect();
-        let mut mask = before.clone();
-        let report = clean_mask(&mut mask, self.dims, c);
+        // The ball filters first, in metres whatever the voxels' shape (the voxel-step
+        // opening-closing of `clean_mask` reaches 3 times farther along a 2.5 mm axis than
+        // along a 0.78 mm one): the closing first, so that bundles parted by cracks become
+        // one body before the opening looks for what is thin.
+        let closed = close_ball(&before, self.dims, self.spacing, c.close);
+        let mut mask = open_ball(&closed, self.dims, self.spacing, c.open);
+        let (closed_voxels, opened_voxels) =
+            (mask_added(&before, &closed), mask_added(&mask, &closed));
+        let mut report = clean_mask(&mut mask, self.dims, c);
+        report.voxels_before = selected_in(&before);
+        report.close = c.close;
+        report.closed_voxels = closed_voxels;
+        report.open = c.open;
+        report.opened_voxels = opened_voxels;
         if report.voxels_after == 0 {
             return Err(MeshError::Invalid(format!(
                 "cleaning removed all {} selected voxels (an opening of {} voxel(s) erases \
@@ -277,6 +299,8 @@ impl ImageDomain {
                 &mut resolved,
                 self.dims,
                 Cleaning {
+                    open: 0.0,
+                    close: 0.0,
                     open_close: 0,
                     largest_component: true,
                     fill_holes: false,
@@ -450,4 +474,18 @@ fn blur(field: &mut [f32], dims: [usize; 3], spacing: Vec3, sigma: Real) {
             }
         }
     }
+}
+
+/// Number of voxels `after` selects that `before` did not.
+fn mask_added(before: &[bool], after: &[bool]) -> usize {
+    before
+        .iter()
+        .zip(after)
+        .filter(|(b, a)| **a && !**b)
+        .count()
+}
+
+/// Number of voxels `mask` selects.
+fn selected_in(mask: &[bool]) -> usize {
+    mask.iter().filter(|&&m| m).count()
 }

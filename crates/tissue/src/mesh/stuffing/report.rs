@@ -69,6 +69,9 @@ pub struct MeshingReport {
     /// and channels thinner than h that no lattice of spacing h can follow) to the mesh
     /// boundary (m). The boundary guarantee is checked with this when it is given.
     pub resolved_input_to_mesh: Option<Real>,
+    /// Where `resolved_input_to_mesh` is reached (m): the sample of the input at resolution
+    /// h farthest from the mesh, so a broken boundary promise says where.
+    pub farthest_resolved_sample: Option<[Real; 3]>,
     /// max of `mesh_to_input` and the checked input→mesh distance (`resolved_input_to_mesh`
     /// when given, else `input_to_mesh`): the (sampled) Hausdorff distance the guarantee
     /// holds to h/2.
@@ -233,11 +236,24 @@ impl fmt::Display for MeshingReport {
             self.uncleaned_volume,
             self.uncleaned_volume_error,
         ) {
+            let mut closing = String::new();
+            if c.close > 0.0 {
+                closing.push_str(&format!(
+                    "closed by a ball of radius {:.3e} m ({} voxels of cracks filled), ",
+                    c.close, c.closed_voxels
+                ));
+            }
+            if c.open > 0.0 {
+                closing.push_str(&format!(
+                    "opened by a ball of radius {:.3e} m ({} voxels of strands removed), ",
+                    c.open, c.opened_voxels
+                ));
+            }
             writeln!(
                 f,
-                "cleaned image:   {} → {} voxels (opened then closed by {} voxels, {} parts \
-                 dropped, {} hole voxels filled); volume against the voxels before cleaning \
-                 {:.6e} m³: {:+.3} %",
+                "cleaned image:   {} → {} voxels ({closing}opened then closed by {} voxels, {} \
+                 parts dropped, {} hole voxels filled); volume against the voxels before \
+                 cleaning {:.6e} m³: {:+.3} %",
                 c.voxels_before,
                 c.voxels_after,
                 c.open_close,
@@ -253,10 +269,10 @@ impl fmt::Display for MeshingReport {
             self.mesh_to_input,
             self.distance_method,
             self.resolved_input_to_mesh.unwrap_or(self.input_to_mesh),
-            if self.resolved_input_to_mesh.is_some() {
-                " (from the input at resolution h)"
+            if let Some([x, y, z]) = self.farthest_resolved_sample {
+                format!(" (from the input at resolution h; farthest at {x:.4}, {y:.4}, {z:.4} m)")
             } else {
-                ""
+                String::new()
             },
             self.hausdorff,
             self.hausdorff / self.size
@@ -542,12 +558,13 @@ pub fn measure_against(
             (input_to_mesh, farthest) = (d, p);
         }
     }
-    let resolved_input_to_mesh = resolved.map(|r| {
+    let resolved_far = resolved.map(|r| {
         r.boundary_samples(0.25 * size)
             .iter()
-            .map(|&p| index.distance(p))
-            .fold(0.0, Real::max)
+            .map(|&p| (index.distance(p), p))
+            .fold((0.0, Vec3::ZERO), |a, b| if b.0 > a.0 { b } else { a })
     });
+    let resolved_input_to_mesh = resolved_far.map(|(d, _)| d);
     // Without the exact surface, the first-order estimate, bounded above by the distance to
     // the nearest boundary sample (which is on the boundary, so never an underestimate);
     // the samples are indexed as one-point triangles.
@@ -610,6 +627,7 @@ pub fn measure_against(
         input_beyond_half_size: beyond as Real / samples.len().max(1) as Real,
         farthest_input_sample: farthest.to_array(),
         resolved_input_to_mesh,
+        farthest_resolved_sample: resolved_far.map(|(_, p)| p.to_array()),
         hausdorff: mesh_to_input.max(resolved_input_to_mesh.unwrap_or(input_to_mesh)),
         distance_method: if exact_distance.is_some() {
             "exact"

@@ -292,6 +292,8 @@ fn a_part_cut_off_at_resolution_h_is_reported_not_held_against_the_mesh() {
         segments: Vec::new(),
     };
     let one_piece = Cleaning {
+        open: 0.0,
+        close: 0.0,
         open_close: 0,
         largest_component: true,
         fill_holes: false,
@@ -330,6 +332,101 @@ fn a_part_cut_off_at_resolution_h_is_reported_not_held_against_the_mesh() {
     assert!(
         v.iter().any(|v| v.contains("volume")) && !v.iter().any(|v| v.contains("boundary")),
         "{r}"
+    );
+}
+
+/// A scene's declared ball filters (`Cleaning::close`, `open`; issue 25, the pelvis's
+/// bundles of muscle parted by cracks of fat): a block of four bundles parted by cracks one
+/// voxel wide, anisotropic voxels (1 × 1 × 2 mm), with a strand one voxel thick sticking out.
+/// Without the filters the largest bundle alone is meshed (3 parts dropped); closed by a
+/// ball of radius 1.5 mm then opened by one, the cracks (3 × 20 × 12 voxels) are filled
+/// and the strand (3 voxels) goes, the block is one part, the report says both, and every
+/// guarantee is measured against the filtered voxels: the reference volume is theirs, the
+/// boundary is within h/2 of them both ways, and the volume before the filter is beside it.
+#[test]
+fn declared_ball_filters_join_bundles_and_the_guarantees_use_the_filtered_voxels() {
+    use crate::image::{ByteOrder, Cleaning, SourceType, VoxelImage};
+    let (n, h) = ([28, 28, 16], 0.004);
+    let spacing = Vec3::new(0.001, 0.001, 0.002);
+    let mut values = vec![0f32; n[0] * n[1] * n[2]];
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                let block = (4..24).contains(&i) && (4..24).contains(&j) && (2..14).contains(&k);
+                let crack = [9, 14, 19].contains(&j);
+                let strand = (24..27).contains(&i) && j == 12 && k == 8;
+                if block && !crack || strand {
+                    values[i + n[0] * (j + n[1] * k)] = 1.0;
+                }
+            }
+        }
+    }
+    let image = VoxelImage {
+        dims: n,
+        spacing,
+        origin: Vec3::ZERO,
+        values,
+        source_type: SourceType::U8,
+        byte_order: ByteOrder::Little,
+        segments: Vec::new(),
+    };
+    let plain = Cleaning {
+        open_close: 0,
+        ..Cleaning::default()
+    };
+    let domain = |c: Cleaning| {
+        ImageDomain::from_threshold(&image, 0.5, 1.5)
+            .and_then(|d| d.cleaned(c))
+            .unwrap_or_else(|e| panic!("{e}"))
+    };
+    let bundle = domain(plain);
+    let c = bundle
+        .cleaning()
+        .unwrap_or_else(|| panic!("a cleaning report"))
+        .0;
+    assert_eq!((c.parts_dropped, c.voxels_after), (3, 1200), "{c:?}");
+    let filtered = domain(Cleaning {
+        close: 0.0015,
+        open: 0.0015,
+        ..plain
+    });
+    let c = filtered
+        .cleaning()
+        .unwrap_or_else(|| panic!("a cleaning report"))
+        .0;
+    assert_eq!(
+        (
+            c.voxels_before,
+            c.closed_voxels,
+            c.opened_voxels,
+            c.parts_dropped,
+            c.voxels_after
+        ),
+        (4083, 720, 3, 0, 4800),
+        "{c:?}"
+    );
+    assert_eq!((c.close, c.open), (0.0015, 0.0015));
+    let s = stuff(&filtered, h, &Progress::silent()).unwrap_or_else(|e| panic!("{e}"));
+    let r = &s.report;
+    let voxel = spacing.x * spacing.y * spacing.z;
+    let reference = r.reference_volume.unwrap_or(0.0);
+    assert!((reference - 4800.0 * voxel).abs() < 1e-12, "{r}");
+    let before = r.uncleaned_volume.unwrap_or(0.0);
+    assert!((before - 4083.0 * voxel).abs() < 1e-12, "{r}");
+    assert!(
+        r.mesh_to_input <= 0.5 * h && r.resolved_input_to_mesh.unwrap_or(Real::INFINITY) <= 0.5 * h,
+        "{r}"
+    );
+    // The box's edges are rounded by the voxels' trilinear level set and cut by the chords
+    // at a lattice of 4 voxels (measured −3.55 %); the volume guarantee itself is held on
+    // the pelvis scene (`voxel_image_scenes`).
+    assert!(r.volume_error.unwrap_or(1.0).abs() < 0.05, "{r}");
+    assert_eq!((r.inverted, r.degenerate), (0, 0), "{r}");
+    let text = r.to_string();
+    assert!(
+        text.contains("closed by a ball of radius 1.500e-3 m (720 voxels")
+            && text.contains("opened by a ball of radius 1.500e-3 m (3 voxels"),
+        "{text}"
     );
 }
 

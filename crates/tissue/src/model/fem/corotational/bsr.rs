@@ -12,7 +12,7 @@
 use crate::math::{Mat3, Real};
 use crate::solve::BlockPattern;
 
-use super::force::{ElementRest, Lames};
+use super::force::{ElementRest, Lame, Lames};
 
 /// The slot of a block below the diagonal (not stored).
 const SKIP: u32 = u32::MAX;
@@ -54,10 +54,34 @@ pub struct BlockStiffness {
     /// reach rows `split..spill_end` of the second.
     split: usize,
     spill_end: usize,
-    /// The parallel assembly's scratch: each element's rotated gradients R g_a, computed
-    /// once per element before the blocks gather them (a block's terms recomputing them
-    /// did five times the rotations' work: 2 per term, 10 terms per element, against 4).
-    rotated: Vec<[[Real; 3]; 4]>,
+    /// The parallel assembly's scratch, one per element, filled before the blocks gather
+    /// their terms (a block's terms recomputing them did five times the rotations' work:
+    /// 2 per term, 10 terms per element, against 4).
+    prepared: Vec<Prepared>,
+}
+
+/// What an element's terms share in one assembly: the rotated gradients ĝ = R g, λV, μV
+/// and d = μV g_a·g_b per block k = 4a + b, each computed by the serial scatter's
+/// expression so that the gathered sums have its bits.
+#[derive(Clone, Copy, Debug, Default)]
+struct Prepared {
+    rg: [[Real; 3]; 4],
+    l: Real,
+    m: Real,
+    d: [Real; 16],
+}
+
+impl Prepared {
+    fn new(e: &ElementRest, r: &Mat3, pair: Lame) -> Self {
+        let g = e.shape_gradients();
+        let (l, m) = (pair.lambda * e.volume, pair.mu * e.volume);
+        Self {
+            rg: g.map(|ga| (*r * ga).to_array()),
+            l,
+            m,
+            d: std::array::from_fn(|k| m * g[k / 4].dot(g[k % 4])),
+        }
+    }
 }
 
 impl BlockStiffness {
@@ -142,7 +166,7 @@ impl BlockStiffness {
             diag,
             term_start,
             terms,
-            rotated: Vec::new(),
+            prepared: Vec::new(),
         }
     }
 
@@ -153,7 +177,7 @@ impl BlockStiffness {
             + self.slots.len() * 64
             + self.diag.len() * 4
             + (self.term_start.len() + self.terms.len()) * 4
-            + self.rotated.len() * 96
+            + self.prepared.len() * std::mem::size_of::<Prepared>()
     }
 
     /// K = Σ R K_e Rᵀ for the given element rotations. On large meshes (and the `parallel`
@@ -166,13 +190,13 @@ impl BlockStiffness {
             && self.slots.len() == elements.len()
         {
             use rayon::prelude::*;
-            self.rotated.resize(elements.len(), [[0.0; 3]; 4]);
-            self.rotated
+            self.prepared.resize(elements.len(), Prepared::default());
+            self.prepared
                 .par_iter_mut()
-                .zip(elements.par_iter().zip(rotations.par_iter()))
+                .enumerate()
                 .with_min_len(1024)
-                .for_each(|(rg, (e, r))| *rg = e.shape_gradients().map(|ga| (*r * ga).to_array()));
-            let (start, terms, rotated) = (&self.term_start, &self.terms, &self.rotated);
+                .for_each(|(e, p)| *p = Prepared::new(&elements[e], &rotations[e], lame.at(e)));
+            let (start, terms, prepared) = (&self.term_start, &self.terms, &self.prepared);
             self.blocks
                 .par_iter_mut()
                 .enumerate()
@@ -181,19 +205,8 @@ impl BlockStiffness {
                     *blk = [0.0; 9];
                     for &t in &terms[start[s] as usize..start[s + 1] as usize] {
                         let (e, k) = (t as usize / 16, t as usize % 16);
-                        let el = &elements[e];
-                        let g = el.shape_gradients();
-                        let (a, b) = (k / 4, k % 4);
-                        let pair = lame.at(e);
-                        let (l, m) = (pair.lambda * el.volume, pair.mu * el.volume);
-                        add_term(
-                            blk,
-                            &rotated[e][a],
-                            &rotated[e][b],
-                            l,
-                            m,
-                            m * g[a].dot(g[b]),
-                        );
+                        let p = &prepared[e];
+                        add_term(blk, &p.rg[k / 4], &p.rg[k % 4], p.l, p.m, p.d[k]);
                     }
                 });
             return;
@@ -201,23 +214,18 @@ impl BlockStiffness {
         self.blocks.iter_mut().for_each(|b| *b = [0.0; 9]);
         let blocks = &mut self.blocks;
         for (i, ((e, r), slots)) in elements.iter().zip(rotations).zip(&self.slots).enumerate() {
-            let g = e.shape_gradients();
-            let rg = g.map(|ga| (*r * ga).to_array());
-            let pair = lame.at(i);
-            let (l, m) = (pair.lambda * e.volume, pair.mu * e.volume);
+            let p = Prepared::new(e, r, lame.at(i));
             for (k, &s) in slots.iter().enumerate() {
-                if s == SKIP {
-                    continue;
+                if s != SKIP {
+                    add_term(
+                        &mut blocks[s as usize],
+                        &p.rg[k / 4],
+                        &p.rg[k % 4],
+                        p.l,
+                        p.m,
+                        p.d[k],
+                    );
                 }
-                let (a, b) = (k / 4, k % 4);
-                add_term(
-                    &mut blocks[s as usize],
-                    &rg[a],
-                    &rg[b],
-                    l,
-                    m,
-                    m * g[a].dot(g[b]),
-                );
             }
         }
     }
