@@ -10,8 +10,9 @@
 use crate::error::SimError;
 use crate::interact::bvh::Bvh;
 use crate::interact::contact::{
-    Contact, PENETRATION_TOLERANCE, hold_points, is_adhesive, project_to_sphere, pulls,
-    settle_carried_faces, vertices_in_ball, vertices_in_shape, vertices_near_shape,
+    Contact, PENETRATION_TOLERANCE, PushOnly, hold_points, is_adhesive, owed_depth,
+    project_to_sphere, pulls, recovery, settle_carried_faces, vertices_in_ball, vertices_in_shape,
+    vertices_near_shape,
 };
 use crate::interact::fine_points;
 use crate::interact::fine_surface::MappedSurface;
@@ -77,7 +78,8 @@ pub struct Simulation {
     constraints: Constraints,
     normals: Vec<Option<Vec3>>,
     /// Whether the model held the last constraints' directions (false: it held every entry in
-    /// all three directions, and frictionless contacts slide by relaxation).
+    /// all three directions, and frictionless contacts slide by relaxation); before the first
+    /// solve, whether its contacts only push (`Simulation::new`).
     along: bool,
     /// How many of their prescribed entries each instrument gave, in order. When the
     /// contact loop stops at its cap, the instruments' contact sets have moved on from
@@ -105,6 +107,10 @@ impl Simulation {
         let s = model.surface();
         let bvh = Bvh::build(s.positions, s.triangles);
         let is_static = model.info().is_static;
+        // A model whose contacts only push holds them along their normals: assumed before its
+        // first solve says so, so that the first step hands it the near faces and owes it a
+        // penetration it starts with (`interact::contact::PushOnly`), as every later step does.
+        let along = model.contacts_push_only();
         let plausibility = Plausibility::for_body(model.rest_surface());
         Ok(Self {
             model,
@@ -125,7 +131,7 @@ impl Simulation {
             plausibility,
             fine: None,
             normals: Vec::new(),
-            along: false,
+            along,
         })
     }
 
@@ -483,6 +489,7 @@ impl Simulation {
     fn place_contacts(&self, t1: Real, next: &mut [Instrument], taken: &mut [bool]) {
         let s = self.model.contact_surface();
         let (positions, triangles) = (s.positions, s.triangles);
+        let dt = t1 - self.time;
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             let (c, r) = (inst.position, inst.radius());
             inst.slider.begin_step();
@@ -501,6 +508,22 @@ impl Simulation {
                                 + 2.0 * inst.position.distance(old.position);
                             inst.points =
                                 fine_points::gather(fine, now, &shape, inst.position, margin);
+                            // A dynamic model's step gives a plane's move as velocity: a
+                            // point the step starts inside the instrument gets its plane
+                            // through where it is, moved with the instrument, taking the
+                            // depth back no faster than the instrument moves (as the face
+                            // planes, `contact::owed_depth`). A static solve has no inertia
+                            // and puts it on the instrument.
+                            if !self.is_static {
+                                for p in &mut inst.points {
+                                    let Some(&q) = now.get(p.fine as usize) else {
+                                        continue;
+                                    };
+                                    let recover = recovery(old.position, inst.position, dt);
+                                    let owed = owed_depth(&shape, old.position, q, recover);
+                                    p.contact.target -= p.contact.normal * owed;
+                                }
+                            }
                         }
                         inst.reactions.clear();
                         continue;
@@ -513,12 +536,15 @@ impl Simulation {
                         fine: self.fine.as_ref().map(|(m, _)| m),
                     };
                     // Near vertices (or a fine surface's near faces) are handed over free.
-                    let margin = self.pushes_only(inst).then(|| {
-                        CONTACT_MARGIN * shape.size() + 2.0 * inst.position.distance(old.position)
+                    let push_only = self.pushes_only(inst).then(|| PushOnly {
+                        margin: CONTACT_MARGIN * shape.size()
+                            + 2.0 * inst.position.distance(old.position),
+                        from: old.position,
+                        recover: recovery(old.position, inst.position, dt),
                     });
                     let carry = self.carries_faces(inst, old, &shape);
                     inst.contacts =
-                        keep_and_find(&surface, inst, old, &shape, taken, margin, carry);
+                        keep_and_find(&surface, inst, old, &shape, taken, push_only, carry);
                 }
                 InstrumentKind::Grasper {
                     grasp_at,
@@ -796,7 +822,7 @@ impl Simulation {
                 .collect();
             let held: Vec<u32> = kept.iter().map(|k| k.vertex).collect();
             let released = kept.len() != before;
-            let moved = surface.find(&shape, c, &mut kept, taken, &resting, 0.0);
+            let moved = surface.find(&shape, c, &mut kept, taken, &resting, None);
             for k in &kept {
                 if held.binary_search(&k.vertex).is_err() {
                     returned.take(k.vertex);
@@ -821,18 +847,19 @@ impl Simulation {
 /// and did not pull, moved with the instrument (sticking, μ > 0) or projected onto it
 /// (frictionless), then the vertices newly inside it.
 ///
-/// With a `margin` (contacts held as pushes only) the previous contacts and the vertices
-/// outside the instrument by less than it are kept or added too, targets at the instrument's
-/// nearest point.
+/// With `push_only` (contacts held as pushes only) the previous contacts and the vertices
+/// outside the instrument by less than its margin are kept or added too, targets at the
+/// instrument's nearest point.
 fn keep_and_find(
     surface: &Surface,
     inst: &Instrument,
     old: &Instrument,
     shape: &Shape,
     taken: &mut [bool],
-    margin: Option<Real>,
+    push_only: Option<PushOnly>,
     carry_faces: bool,
 ) -> Vec<Contact> {
+    let margin = push_only.map(|o| o.margin);
     let positions = surface.positions;
     let c = inst.position;
     if let (None, Shape::Sphere { radius: r }, None) = (inst.friction(), shape, surface.fine) {
@@ -867,7 +894,7 @@ fn keep_and_find(
             })
             .collect();
         mark(taken, &contacts);
-        surface.find(shape, c, &mut contacts, taken, &[], 0.0);
+        surface.find(shape, c, &mut contacts, taken, &[], None);
         return contacts;
     }
     let slack = PENETRATION_TOLERANCE * shape.size();
@@ -949,14 +976,7 @@ fn keep_and_find(
         .collect();
     resting.sort_unstable();
     mark(taken, &contacts);
-    surface.find(
-        shape,
-        c,
-        &mut contacts,
-        taken,
-        &resting,
-        margin.unwrap_or(0.0),
-    );
+    surface.find(shape, c, &mut contacts, taken, &resting, push_only);
     if let (Some(margin), None) = (margin, surface.fine) {
         let near = vertices_near_shape(
             surface.bvh,
@@ -987,9 +1007,10 @@ struct Surface<'a> {
 impl Surface<'_> {
     /// Adds to `contacts` (this instrument's) what newly touches `shape` at `at`: the fine
     /// surface's vertices when there is one, else the model's vertices. `resting`: sorted
-    /// face-contact vertices of the last solve that did not pull; `margin`: on a fine
-    /// surface, how far outside the instrument its faces are handed over free
-    /// (`contact::hold_points`; 0 for none). Returns the largest move of a face target, in m.
+    /// face-contact vertices of the last solve that did not pull; `push_only`: on a fine
+    /// surface, for a model whose contacts only push, how far outside the instrument its
+    /// faces are handed over free and where the instrument started the step
+    /// (`contact::hold_points`). Returns the largest move of a face target, in m.
     fn find(
         &self,
         shape: &Shape,
@@ -997,7 +1018,7 @@ impl Surface<'_> {
         contacts: &mut Vec<Contact>,
         taken: &mut [bool],
         resting: &[u32],
-        margin: Real,
+        push_only: Option<PushOnly>,
     ) -> Real {
         let kept = |v: u32| resting.binary_search(&v).is_ok();
         let moved = if let Some(fine) = self.fine {
@@ -1010,7 +1031,7 @@ impl Surface<'_> {
                 contacts,
                 &|v| is_taken(taken, v),
                 &kept,
-                margin,
+                push_only,
             )
         } else {
             let fresh =
