@@ -49,6 +49,9 @@ trap cleanup EXIT
 # sets URL to the printed address and SERVER to its pid.
 serve() {
     local log="$OUT/$2.log"
+    # Emptied here, not by the background start's redirection: the loop below must never
+    # read an address an earlier run left in the file (the new server may not have started).
+    : >"$log"
     (cd "$EMPTY" && exec env -u TISSUE_VIEWER_DIR "$OUT/install/bin/tissue" view \
         "$ROOT/scenes/$1" --port 0) >"$log" 2>&1 &
     SERVER=$!

@@ -1186,12 +1186,8 @@ impl Hybrid {
                 let coupling = self
                     .rest
                     .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-                let iterations = if std::env::var("HYB_ITERS").is_ok() {
-                    30
-                } else {
-                    CONTACT_RECHECK_ITERATIONS
-                };
-                self.tm.recheck_stability(&coupling, iterations);
+                self.tm
+                    .recheck_stability(&coupling, CONTACT_RECHECK_ITERATIONS);
             }
         }
         self.rest_contact = vertices;
