@@ -25,8 +25,8 @@
 //! How it stays safe when the state stiffens: the integrator re-measures every
 //! `RECHECK_STEPS` steps at the current state (a few warm-started iterations, never below the
 //! rest estimate), and a step the divergence guard refuses is re-measured at once and
-//! retried with twice the stiffness margin (up to three times) before the refusal reaches
-//! the caller.
+//! retried with four times the stiffness margin, twice the substeps (up to three times),
+//! before the refusal reaches the caller.
 
 use serde::Deserialize;
 
