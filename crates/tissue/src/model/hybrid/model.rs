@@ -1286,11 +1286,40 @@ impl Hybrid {
         let mut solves = 0;
         loop {
             solves += 1;
-            let mut info = {
+            let tried = {
                 let coupling = self
                     .rest
                     .coupling(&self.region_iface, &self.split.region.mesh.vertices);
-                self.tm.advance_coupled(dt, Some(&coupling))?
+                self.tm.advance_coupled(dt, Some(&coupling))
+            };
+            let mut info = match tried {
+                Ok(info) => info,
+                Err(e) => {
+                    // A held contact whose instrument left within the step (a probe lifted
+                    // away in one step) pulls its node toward a target far off before the
+                    // pull can be seen, and the region's step diverges. Such a contact can
+                    // only let go: the step is taken again without the held frictionless
+                    // contacts (the ones still past their planes are taken next step), and
+                    // says so (`capped`). Without any to let go, the error stands.
+                    let held: Vec<usize> = (0..self.rest_cands.len())
+                        .filter(|&i| self.rest_active[i] && self.rest_cands[i].normal.is_some())
+                        .collect();
+                    if held.is_empty() || solves > MAX_CONTACT_SOLVES {
+                        return Err(e);
+                    }
+                    for &i in &held {
+                        self.rest_active[i] = false;
+                        released[i] = true;
+                    }
+                    self.tm.roll_back(&start);
+                    self.install_rest_set()?;
+                    let coupling = self
+                        .rest
+                        .coupling(&self.region_iface, &self.split.region.mesh.vertices);
+                    let mut info = self.tm.advance_coupled(dt, Some(&coupling))?;
+                    info.capped = true;
+                    info
+                }
             };
             let u = self.interface_u();
             let z = self.rest.contact_forces(&u);
