@@ -437,6 +437,24 @@ fn hybrid_survives_a_probe_that_starts_inside_the_liver() {
             largest = largest.max(f.length());
         }
     }
-    eprintln!("largest probe force over 0.6 s: {largest:.4} N");
+    // Push-only contact: the tissue pushes the probe back against its press, never along it.
+    let press = (Vec3::new(-0.0191033, 0.0312656, 0.00840351)
+        - Vec3::new(-0.0200368, 0.0260494, 0.018043))
+    .normalize();
+    let end = sim.instruments()[0]
+        .contact_reactions()
+        .iter()
+        .copied()
+        .sum::<Vec3>();
+    let last = sim.step(0.01).unwrap();
+    let against = -last.forces[0].dot(press);
+    eprintln!(
+        "largest probe force over 0.6 s: {largest:.4} N; at the end {:.4} N against the press",
+        against
+    );
     assert!(largest > 0.0, "the probe must touch the liver");
+    assert!(
+        against > 0.0,
+        "the probe force must oppose its press: {against}"
+    );
 }
