@@ -441,11 +441,6 @@ fn hybrid_survives_a_probe_that_starts_inside_the_liver() {
     let press = (Vec3::new(-0.0191033, 0.0312656, 0.00840351)
         - Vec3::new(-0.0200368, 0.0260494, 0.018043))
     .normalize();
-    let end = sim.instruments()[0]
-        .contact_reactions()
-        .iter()
-        .copied()
-        .sum::<Vec3>();
     let last = sim.step(0.01).unwrap();
     let against = -last.forces[0].dot(press);
     eprintln!(
