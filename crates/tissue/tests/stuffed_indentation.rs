@@ -267,3 +267,39 @@ fn stuffed_liver_plate_study() {
         press_plate(h, depth, steps);
     }
 }
+
+#[test]
+#[ignore = "study: the held patch of the stuffed liver at several sizes"]
+fn stuffed_liver_held_patch_study() {
+    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
+    for h in [0.003, 0.0025, 0.002, 0.0015] {
+        let text = std::fs::read_to_string(format!("{root}/scenes/liver-fem-stuffed.toml"))
+            .unwrap()
+            .replace("../assets", &format!("{root}/assets"))
+            .replace("tet_size = 0.003 ", &format!("tet_size = {h} "));
+        let path = std::env::temp_dir().join(format!("tissue-held-{}-{h}.toml", std::process::id()));
+        std::fs::write(&path, text).unwrap();
+        let sim = tissue::scene::Scene::load(&path).unwrap().build().unwrap();
+        let rest = sim.model().rest_surface();
+        let held: std::collections::HashSet<u32> = sim.fixed().iter().copied().collect();
+        let area: Real = sim
+            .model()
+            .surface()
+            .triangles
+            .iter()
+            .filter(|t| t.iter().all(|v| held.contains(v)))
+            .map(|t| {
+                let [a, b, c] = t.map(|v| rest[v as usize]);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum();
+        let top = held.iter().map(|&v| rest[v as usize].y).fold(Real::MIN, Real::max);
+        eprintln!(
+            "h {:.1} mm: {} held, held area {:.3} cm², highest held {:.3} mm",
+            h * 1e3,
+            held.len(),
+            area * 1e4,
+            top * 1e3
+        );
+    }
+}
