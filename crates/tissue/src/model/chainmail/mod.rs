@@ -32,7 +32,8 @@
 //!
 //! A prescribed vertex is held in full: the lattice pins a moved element in all three
 //! directions through the propagation and the relaxation, so the model cannot hold a
-//! vertex along a direction only (a frictionless plate); see docs/compare.md, "chainmail".
+//! vertex along a direction only (a frictionless plate); docs/compare.md, "Session 19:
+//! `chainmail`".
 //!
 //! - `lattice`: elements, links, limits, propagation, relaxation, link edits
 //! - `deformable`: the `Deformable` interface, cut, carve and join
@@ -285,13 +286,14 @@ impl ChainMail {
         self.distance.depth_at(p)
     }
 
-    /// The force on the instrument holding vertex `v` at `target`: `force_stiffness` · (how much deeper the target lies than the
-    /// vertex's own rest position, in the rest depth map) · the vertex's area, pointing
-    /// back toward its rest position. The depth is measured from the
-    /// vertex's rest depth, not from zero: the map's zero is the voxel surface, which lies up
-    /// to a voxel from the given surface (−2.2 to +3.9 mm at the liver's vertices, voxel
-    /// 2.7 mm), and reading the target's depth alone charged a vertex moved by a micrometre
-    /// for millimetres, pushing also where the vertex lies outside the voxel surface.
+    /// The force on the instrument holding vertex `v` at `target`: `force_stiffness` · (how
+    /// much deeper the target lies than the vertex's own rest position, in the rest depth
+    /// map) · the vertex's area, pointing back toward its rest position. The depth is
+    /// measured from the vertex's rest depth, not from zero: the map's zero is the voxel
+    /// surface, which lies up to a voxel from the given surface (−2.2 to +3.9 mm at the
+    /// liver's vertices, voxel 2.7 mm), and reading the target's depth alone charged a
+    /// vertex moved by a micrometre for millimetres, and one outside the voxel surface
+    /// less the further it was pressed.
     fn instrument_force(&self, v: usize, target: Vec3) -> Vec3 {
         if self.fixed_vertex[v] {
             return Vec3::ZERO;
