@@ -277,7 +277,8 @@ fn stuffed_liver_held_patch_study() {
             .unwrap()
             .replace("../assets", &format!("{root}/assets"))
             .replace("tet_size = 0.003 ", &format!("tet_size = {h} "));
-        let path = std::env::temp_dir().join(format!("tissue-held-{}-{h}.toml", std::process::id()));
+        let path =
+            std::env::temp_dir().join(format!("tissue-held-{}-{h}.toml", std::process::id()));
         std::fs::write(&path, text).unwrap();
         let sim = tissue::scene::Scene::load(&path).unwrap().build().unwrap();
         let rest = sim.model().rest_surface();
@@ -293,7 +294,10 @@ fn stuffed_liver_held_patch_study() {
                 0.5 * (b - a).cross(c - a).length()
             })
             .sum();
-        let top = held.iter().map(|&v| rest[v as usize].y).fold(Real::MIN, Real::max);
+        let top = held
+            .iter()
+            .map(|&v| rest[v as usize].y)
+            .fold(Real::MIN, Real::max);
         eprintln!(
             "h {:.1} mm: {} held, held area {:.3} cm², highest held {:.3} mm",
             h * 1e3,
@@ -301,5 +305,79 @@ fn stuffed_liver_held_patch_study() {
             area * 1e4,
             top * 1e3
         );
+    }
+}
+
+/// The liver's input surface cut flat at y = 8 mm (the domain: inside the surface and above
+/// the plane), stuffed at `h`, held on its flat underside (every vertex the cut put on the
+/// plane), pressed from above by a plate lowered `depth` from the mesh's top in `steps`
+/// steps: the held face is a mesh face at every size, so the support is the same problem.
+fn press_cut_liver(h: Real, depth: Real, steps: usize, order: &str) -> Vec3 {
+    use tissue::mesh::stuffing::{Domain, Implicit, SurfaceDomain, stuff};
+    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
+    let mut input = tissue::io::read(format!("{root}/assets/meshes/liver-smooth.obj")).unwrap();
+    input.vertices.iter_mut().for_each(|v| *v *= 0.01);
+    let surface = tissue::mesh::SurfaceMesh::new(input.vertices.clone(), input.triangles.clone());
+    let liver = SurfaceDomain::new(&surface).unwrap();
+    let floor = 0.008;
+    let (lo, hi) = liver.bounds();
+    let cut = Implicit {
+        f: |p: Vec3| liver.value(p).max(floor - p.y),
+        lo: Vec3::new(lo.x, floor - 1e-3, lo.z),
+        hi,
+        volume: None,
+    };
+    let stuffed = stuff(&cut, h, &tissue::model::Progress::silent()).unwrap();
+    let mesh = stuffed.to_mesh_data();
+    let top = mesh.vertices.iter().fold(Real::MIN, |a, p| a.max(p.y));
+    let on_floor = mesh
+        .vertices
+        .iter()
+        .filter(|p| (p.y - floor).abs() < 1e-9)
+        .count();
+    let text = format!(
+        "[mesh]\nfile = \"{root}/assets/meshes/liver-smooth.obj\"\n\n[material]\n\
+         young_modulus = 3000.0\npoisson_ratio = 0.3\ndensity = 1000.0\n\n[model]\n\
+         kind = \"fem-static\"\norder = \"{order}\"\n\n[[fixed]]\nname = \"floor\"\n\
+         box = {{ min = [-1.0, -1.0, -1.0], max = [1.0, {}, 1.0] }}\n\n[[instrument]]\n\
+         kind = \"plane\"\nnormal = [0.0, -1.0, 0.0]\ncontact = \"sliding\"\n\
+         path = [ {{ t = 0.0, position = [0.0, {top}, 0.0] }}, {{ t = 1.0, position = [0.0, {}, 0.0] }} ]\n\n\
+         [run]\nduration = 1.0\ndt = {}\n\n[contact]\nmax_iterations = 30\n",
+        floor + 1e-9,
+        top - depth,
+        1.0 / steps as Real
+    );
+    let path = std::env::temp_dir().join(format!("tissue-cut-{}-{h}.toml", std::process::id()));
+    std::fs::write(&path, text).unwrap();
+    let scene = tissue::scene::Scene::load(&path).unwrap();
+    let mut sim = scene.build_with_mesh(mesh, "the cut liver").unwrap();
+    let mut line = String::new();
+    for _ in 0..scene.run.step_count() {
+        let r = sim.step(scene.run.dt).unwrap();
+        assert!(r.contact_converged, "h = {h}, t = {}", r.time);
+        line += &format!(" {:.2}:{:.4}", r.time, 1e3 * r.forces[0].length());
+    }
+    let f = sim.instruments()[0].force();
+    eprintln!(
+        "cut liver, {order}, tet_size {:.2} mm: {} tets, {} held ({on_floor} on the floor), \
+         min dihedral {:.1}°: |F| = {:.6} N\n  mN by t:{line}",
+        h * 1e3,
+        sim.model().info().elements,
+        sim.fixed().len(),
+        stuffed.report.min_dihedral_deg,
+        f.length()
+    );
+    f
+}
+
+#[test]
+#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation cut_liver -- --ignored --nocapture"]
+fn stuffed_cut_liver_plate_study() {
+    let sizes: Vec<Real> = std::env::var("SIZES")
+        .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
+        .unwrap_or(vec![0.003, 0.0025, 0.002]);
+    let order = std::env::var("ORDER").unwrap_or("linear".into());
+    for h in sizes {
+        press_cut_liver(h, 0.004, 4, &order);
     }
 }
