@@ -6,33 +6,68 @@
 
 use tissue::math::{Real, Vec3};
 
-/// The probe force at the end of `liver-fem-stuffed.toml` with `tet_size = h` (m), and the
-/// number of tetrahedra.
-fn press(h: Real) -> (Vec3, usize) {
-    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(format!("{root}/scenes/liver-fem-stuffed.toml"))
+fn root() -> String {
+    format!("{}/../..", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `liver-fem-stuffed.toml` with `tet_size = h` (m), its paths made absolute.
+fn stuffed_scene_text(h: Real) -> String {
+    let root = root();
+    std::fs::read_to_string(format!("{root}/scenes/liver-fem-stuffed.toml"))
         .unwrap()
         .replace("../assets", &format!("{root}/assets"))
-        .replace("tet_size = 0.003 ", &format!("tet_size = {h} "));
-    let dir = std::env::temp_dir().join(format!("tissue-stuffed-press-{}-{h}", std::process::id()));
+        .replace("tet_size = 0.003 ", &format!("tet_size = {h} "))
+}
+
+/// `text` written to a file of its own (`tag`, h) and loaded.
+fn load(text: &str, tag: &str, h: Real) -> tissue::scene::Scene {
+    let dir = std::env::temp_dir().join(format!("tissue-{tag}-{}-{h}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("press.toml");
+    let path = dir.join("scene.toml");
     std::fs::write(&path, text).unwrap();
-    let scene = tissue::scene::Scene::load(&path).unwrap();
-    let mut sim = scene.build().unwrap();
-    let mut pulls = 0;
+    tissue::scene::Scene::load(&path).unwrap()
+}
+
+/// The scene's steps, asserting each contact loop converged and the first instrument is
+/// never pulled in (it goes down, −y); the force after each step, in mN, as one line.
+fn run_checked(sim: &mut tissue::sim::Simulation, scene: &tissue::scene::Scene, h: Real) -> String {
+    let mut line = String::new();
     for _ in 0..scene.run.step_count() {
         let r = sim.step(scene.run.dt).unwrap();
-        // The probe goes down (−y): the liver pushes it up, never pulls it in.
-        pulls += usize::from(r.forces[0].y < 0.0);
-        // Every step's contact loop settled (the scene's cap is set for it).
         assert!(
             r.contact_converged,
             "h = {h}, t = {}: the contact loop capped",
             r.time
         );
+        assert!(r.forces[0].y >= 0.0, "h = {h}, t = {}: pulls", r.time);
+        line += &format!(
+            " {:.2}:{:.4}[{}]",
+            r.time,
+            1e3 * r.forces[0].length(),
+            r.contact_iterations
+        );
     }
-    assert_eq!(pulls, 0, "h = {h}");
+    line
+}
+
+/// Sizes from `SIZES` (comma-separated, m), or these.
+fn sizes_or(default: &[Real]) -> Vec<Real> {
+    std::env::var("SIZES").map_or(default.to_vec(), |s| {
+        s.split(',').map(|x| x.parse().unwrap()).collect()
+    })
+}
+
+/// A study's number from the environment, or `default`.
+fn var_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name).map_or(default, |s| s.parse().ok().unwrap())
+}
+
+/// The probe force at the end of `liver-fem-stuffed.toml` with `tet_size = h` (m), and the
+/// number of tetrahedra.
+fn press(h: Real) -> (Vec3, usize) {
+    let scene = load(&stuffed_scene_text(h), "stuffed-press", h);
+    let mut sim = scene.build().unwrap();
+    run_checked(&mut sim, &scene, h);
     let f = sim.instruments()[0].force();
     let tets = sim.model().info().elements;
     eprintln!(
@@ -86,201 +121,121 @@ fn stuffed_liver_indentation_under_refinement() {
     assert!(d.iter().all(|&x| x < 0.10), "{d:?}");
 }
 
-/// The press of `press`, the probe touching the stuffed mesh's own boundary cut flat into
-/// n² triangles per face (`MappedSurface::subdivided`, n chosen so the fine edges are at most
-/// a quarter of the probe's radius), printed step by step.
-fn press_on_faces(h: Real, dt: Real) -> Vec3 {
-    use tissue::interact::fine_surface::MappedSurface;
-    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(format!("{root}/scenes/liver-fem-stuffed.toml"))
-        .unwrap()
-        .replace("../assets", &format!("{root}/assets"))
-        .replace("tet_size = 0.003 ", &format!("tet_size = {h} "))
-        .replace("dt = 0.1 ", &format!("dt = {dt} "))
-        .replace(
-            "position = [-0.005, 0.0455, 0.0067]",
-            &format!(
-                "position = [-0.005, {}, 0.0067]",
-                0.0555 - std::env::var("PRESS").map_or(0.01, |s| s.parse::<Real>().unwrap())
-            ),
-        )
-        .replace(
-            "max_iterations = 30",
-            &format!(
-                "max_iterations = {}",
-                std::env::var("ITER").unwrap_or("30".into())
-            ),
-        );
-    let dir = std::env::temp_dir().join(format!("tissue-faces-press-{}-{h}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("press.toml");
-    std::fs::write(&path, text).unwrap();
-    let scene = tissue::scene::Scene::load(&path).unwrap();
-    let mut sim = scene.build().unwrap();
-    let (rest, triangles) = (
-        sim.model().rest_surface().to_vec(),
-        sim.model().surface().triangles.to_vec(),
-    );
-    let mut edges: Vec<Real> = triangles
-        .iter()
-        .flat_map(|t| (0..3).map(move |i| (t[i], t[(i + 1) % 3])))
-        .map(|(a, b)| rest[a as usize].distance(rest[b as usize]))
-        .collect();
-    edges.sort_by(Real::total_cmp);
-    let edge = edges[edges.len() * 9 / 10];
-    let n = (edge / (0.25 * 0.005)).ceil() as usize;
-    let fine = match std::env::var("VISUAL") {
-        // The input surface itself, cut flat into n² per triangle, tied to the mesh.
-        Ok(v) => {
-            let mut input =
-                tissue::io::read(format!("{root}/assets/meshes/liver-smooth.obj")).unwrap();
-            input.vertices.iter_mut().for_each(|v| *v *= 0.01);
-            let cut =
-                MappedSurface::subdivided(&input.vertices, &input.triangles, v.parse().unwrap())
-                    .unwrap();
-            MappedSurface::new(cut.rest, cut.triangles, &rest, &triangles).unwrap()
-        }
-        Err(_) => MappedSurface::subdivided(&rest, &triangles, n).unwrap(),
-    };
-    sim.set_fine_surface(fine).unwrap();
-    let mut line = String::new();
-    for _ in 0..scene.run.step_count() {
-        let r = sim.step(scene.run.dt).unwrap();
-        let capped = if r.contact_converged { "" } else { "(capped)" };
-        line += &format!(
-            " {:.3}:{:.3}{capped}[{} it, {} held]",
-            r.time,
-            1e3 * r.forces[0].length(),
-            r.contact_iterations,
-            r.contacts[0]
-        );
-    }
-    let f = sim.instruments()[0].force();
-    eprintln!(
-        "tet_size {:.2} mm, n = {n} (edge p90 {:.2} mm), {} tets: |F| = {:.5} N, F = {f:.5}\n  mN by t:{line}",
-        h * 1e3,
-        edge * 1e3,
-        sim.model().info().elements,
-        f.length()
-    );
-    f
-}
-
+/// Session 19's studies (docs/meshing.md, "Why it does not converge here"): the force at
+/// several sizes with the contact, the elements and the support changed one at a time.
+///
+/// The scene's probe pressed `PRESS` m (default its 1 cm) in steps of `DT` s, its contact
+/// loop capped at `ITER`, touching the stuffed mesh's own boundary cut flat into n² triangles
+/// per face (n so that the fine edges are at most a quarter of the probe's radius), or with
+/// `VISUAL = k` the input surface itself cut into k² per triangle.
 #[test]
-#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation faces -- --ignored --nocapture"]
+#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation on_faces -- --ignored --nocapture"]
 fn stuffed_liver_indentation_on_faces_study() {
-    let sizes: Vec<Real> = std::env::var("SIZES")
-        .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
-        .unwrap_or(vec![0.003, 0.0025, 0.002]);
-    let dt: Real = std::env::var("DT")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(0.1);
-    for h in sizes {
-        press_on_faces(h, dt);
+    use tissue::interact::fine_surface::MappedSurface;
+    let (dt, press, iterations): (Real, Real, usize) = (
+        var_or("DT", 0.1),
+        var_or("PRESS", 0.01),
+        var_or("ITER", 400),
+    );
+    for h in sizes_or(&[0.003, 0.0025, 0.002]) {
+        let text = stuffed_scene_text(h)
+            .replace("dt = 0.1 ", &format!("dt = {dt} "))
+            .replace(
+                "position = [-0.005, 0.0455, 0.0067]",
+                &format!("position = [-0.005, {}, 0.0067]", 0.0555 - press),
+            )
+            .replace(
+                "max_iterations = 30",
+                &format!("max_iterations = {iterations}"),
+            );
+        let scene = load(&text, "faces-press", h);
+        let mut sim = scene.build().unwrap();
+        let (rest, triangles) = (
+            sim.model().rest_surface().to_vec(),
+            sim.model().surface().triangles.to_vec(),
+        );
+        let mut edges: Vec<Real> = triangles
+            .iter()
+            .flat_map(|t| (0..3).map(move |i| (t[i], t[(i + 1) % 3])))
+            .map(|(a, b)| rest[a as usize].distance(rest[b as usize]))
+            .collect();
+        edges.sort_by(Real::total_cmp);
+        let n = (edges[edges.len() * 9 / 10] / (0.25 * 0.005)).ceil() as usize;
+        let fine = match std::env::var("VISUAL") {
+            Ok(k) => {
+                let root = root();
+                let mut input =
+                    tissue::io::read(format!("{root}/assets/meshes/liver-smooth.obj")).unwrap();
+                input.vertices.iter_mut().for_each(|v| *v *= 0.01);
+                let cut = MappedSurface::subdivided(
+                    &input.vertices,
+                    &input.triangles,
+                    k.parse().unwrap(),
+                )
+                .unwrap();
+                MappedSurface::new(cut.rest, cut.triangles, &rest, &triangles).unwrap()
+            }
+            Err(_) => MappedSurface::subdivided(&rest, &triangles, n).unwrap(),
+        };
+        sim.set_fine_surface(fine).unwrap();
+        let line = run_checked(&mut sim, &scene, h);
+        let f = sim.instruments()[0].force();
+        eprintln!(
+            "tet_size {:.2} mm (boundary cut in {n}), {} tets: |F| = {:.5} N, F = {f:.5}\n  mN [solves] by t:{line}",
+            h * 1e3,
+            sim.model().info().elements,
+            f.length()
+        );
     }
 }
 
-/// The liver of `liver-fem-stuffed.toml` at `tet_size = h` pressed from above by a flat
-/// frictionless plate (`kind = "plane"`) lowered `depth` m below its highest point in
-/// `steps` steps: the force at full depth, printed step by step.
-fn press_plate(h: Real, depth: Real, steps: usize) -> Vec3 {
-    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(format!("{root}/scenes/liver-fem-stuffed.toml"))
-        .unwrap()
-        .replace("../assets", &format!("{root}/assets"))
-        .replace("tet_size = 0.003 ", &format!("tet_size = {h} "))
-        .replace(
+/// The same liver pressed from above by a flat frictionless plate (`kind = "plane"`)
+/// lowered `PRESS` m (default 4 mm) from the mesh's own highest point in `STEPS` steps,
+/// `ORDER` linear or quadratic tetrahedra.
+#[test]
+#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation plate_study -- --ignored --nocapture"]
+fn stuffed_liver_plate_study() {
+    let (press, steps): (Real, usize) = (var_or("PRESS", 0.004), var_or("STEPS", 4));
+    let order: String = var_or("ORDER", "linear".to_string());
+    for h in sizes_or(&[0.003, 0.0025, 0.002]) {
+        let text = stuffed_scene_text(h).replace(
             "kind = \"fem-static\"",
-            &format!(
-                "kind = \"fem-static\"\norder = \"{}\"",
-                std::env::var("ORDER").unwrap_or("linear".into())
-            ),
+            &format!("kind = \"fem-static\"\norder = \"{order}\""),
         );
-    let (head, tail) = text.split_once("[[instrument]]").unwrap();
-    let (_, tail) = tail.split_once("[run]").unwrap();
-    // The plate starts where it first touches: the highest point of this mesh (FROM_MESH),
-    // or of the input surface.
-    let top = if std::env::var_os("FROM_MESH").is_some() {
-        let scene = {
-            let path = std::env::temp_dir()
-                .join(format!("tissue-plate-top-{}-{h}.toml", std::process::id()));
-            std::fs::write(&path, &text).unwrap();
-            tissue::scene::Scene::load(&path).unwrap()
-        };
-        let sim = scene.build().unwrap();
-        let top = sim
+        let top = load(&text, "plate-top", h)
+            .build()
+            .unwrap()
             .model()
             .rest_surface()
             .iter()
             .fold(Real::MIN, |a, p| a.max(p.y));
+        let (head, tail) = text.split_once("[[instrument]]").unwrap();
+        let (_, tail) = tail.split_once("[run]").unwrap();
+        let text = format!(
+            "{head}[[instrument]]\nkind = \"plane\"\nnormal = [0.0, -1.0, 0.0]\ncontact = \"sliding\"\n\
+             path = [ {{ t = 0.0, position = [0.0, {top}, 0.0] }}, {{ t = 1.0, position = [0.0, {}, 0.0] }} ]\n\n[run]{}",
+            top - press,
+            tail.replace("dt = 0.1 ", &format!("dt = {} ", 1.0 / steps as Real))
+        );
+        let scene = load(&text, "plate-press", h);
+        let mut sim = scene.build().unwrap();
+        let line = run_checked(&mut sim, &scene, h);
         eprintln!(
-            "mesh top {:.4} mm below the input's",
-            (0.0517195 - top) * 1e3
+            "plate, {order}, tet_size {:.2} mm, {} tets, top {:.4} mm below the input's: |F| = {:.6} N\n  mN [solves] by t:{line}",
+            h * 1e3,
+            sim.model().info().elements,
+            (0.0517195 - top) * 1e3,
+            sim.instruments()[0].force().length()
         );
-        top
-    } else {
-        0.0517195
-    };
-    let text = format!(
-        "{head}[[instrument]]\nkind = \"plane\"\nnormal = [0.0, -1.0, 0.0]\ncontact = \"sliding\"\n\
-         path = [ {{ t = 0.0, position = [0.0, {top}, 0.0] }}, {{ t = 1.0, position = [0.0, {}, 0.0] }} ]\n\n[run]{}",
-        top - depth,
-        tail.replace("dt = 0.1 ", &format!("dt = {} ", 1.0 / steps as Real))
-    );
-    let dir = std::env::temp_dir().join(format!("tissue-plate-press-{}-{h}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("press.toml");
-    std::fs::write(&path, text).unwrap();
-    let scene = tissue::scene::Scene::load(&path).unwrap();
-    let mut sim = scene.build().unwrap();
-    let mut line = String::new();
-    for _ in 0..scene.run.step_count() {
-        let r = sim.step(scene.run.dt).unwrap();
-        let capped = if r.contact_converged { "" } else { "(capped)" };
-        line += &format!(
-            " {:.2}:{:.3}{capped}[{} it, {} held]",
-            r.time,
-            1e3 * r.forces[0].length(),
-            r.contact_iterations,
-            r.contacts[0]
-        );
-    }
-    let f = sim.instruments()[0].force();
-    eprintln!(
-        "plate, tet_size {:.2} mm, {} tets: |F| = {:.6} N, F = {f:.6}\n  mN by t:{line}",
-        h * 1e3,
-        sim.model().info().elements,
-        f.length()
-    );
-    f
-}
-
-#[test]
-#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation plate -- --ignored --nocapture"]
-fn stuffed_liver_plate_study() {
-    let sizes: Vec<Real> = std::env::var("SIZES")
-        .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
-        .unwrap_or(vec![0.003, 0.0025, 0.002]);
-    let depth: Real = std::env::var("PRESS").map_or(0.004, |s| s.parse().unwrap());
-    let steps: usize = std::env::var("STEPS").map_or(4, |s| s.parse().unwrap());
-    for h in sizes {
-        press_plate(h, depth, steps);
     }
 }
 
+/// The held patch (the surface triangles whose corners `box y < 8 mm` holds) at each size.
 #[test]
-#[ignore = "study: the held patch of the stuffed liver at several sizes"]
+#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation held_patch -- --ignored --nocapture"]
 fn stuffed_liver_held_patch_study() {
-    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
-    for h in [0.003, 0.0025, 0.002, 0.0015] {
-        let text = std::fs::read_to_string(format!("{root}/scenes/liver-fem-stuffed.toml"))
-            .unwrap()
-            .replace("../assets", &format!("{root}/assets"))
-            .replace("tet_size = 0.003 ", &format!("tet_size = {h} "));
-        let path =
-            std::env::temp_dir().join(format!("tissue-held-{}-{h}.toml", std::process::id()));
-        std::fs::write(&path, text).unwrap();
-        let sim = tissue::scene::Scene::load(&path).unwrap().build().unwrap();
+    for h in sizes_or(&[0.003, 0.0025, 0.002, 0.0015]) {
+        let sim = load(&stuffed_scene_text(h), "held", h).build().unwrap();
         let rest = sim.model().rest_surface();
         let held: std::collections::HashSet<u32> = sim.fixed().iter().copied().collect();
         let area: Real = sim
@@ -309,12 +264,15 @@ fn stuffed_liver_held_patch_study() {
 }
 
 /// The liver's input surface cut flat at y = 8 mm (the domain: inside the surface and above
-/// the plane), stuffed at `h`, held on its flat underside (every vertex the cut put on the
-/// plane), pressed from above by a plate lowered `depth` from the mesh's top in `steps`
-/// steps: the held face is a mesh face at every size, so the support is the same problem.
-fn press_cut_liver(h: Real, depth: Real, steps: usize, order: &str) -> Vec3 {
+/// the plane), stuffed at each size, held on its flat underside (every vertex the cut put on
+/// the plane), pressed from above by a plate lowered 4 mm from the mesh's top in 4 steps:
+/// the held face is a mesh face at every size.
+#[test]
+#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation cut_liver -- --ignored --nocapture"]
+fn stuffed_cut_liver_plate_study() {
     use tissue::mesh::stuffing::{Domain, Implicit, SurfaceDomain, stuff};
-    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
+    let root = root();
+    let order: String = var_or("ORDER", "linear".to_string());
     let mut input = tissue::io::read(format!("{root}/assets/meshes/liver-smooth.obj")).unwrap();
     input.vertices.iter_mut().for_each(|v| *v *= 0.01);
     let surface = tissue::mesh::SurfaceMesh::new(input.vertices.clone(), input.triangles.clone());
@@ -327,57 +285,32 @@ fn press_cut_liver(h: Real, depth: Real, steps: usize, order: &str) -> Vec3 {
         hi,
         volume: None,
     };
-    let stuffed = stuff(&cut, h, &tissue::model::Progress::silent()).unwrap();
-    let mesh = stuffed.to_mesh_data();
-    let top = mesh.vertices.iter().fold(Real::MIN, |a, p| a.max(p.y));
-    let on_floor = mesh
-        .vertices
-        .iter()
-        .filter(|p| (p.y - floor).abs() < 1e-9)
-        .count();
-    let text = format!(
-        "[mesh]\nfile = \"{root}/assets/meshes/liver-smooth.obj\"\n\n[material]\n\
-         young_modulus = 3000.0\npoisson_ratio = 0.3\ndensity = 1000.0\n\n[model]\n\
-         kind = \"fem-static\"\norder = \"{order}\"\n\n[[fixed]]\nname = \"floor\"\n\
-         box = {{ min = [-1.0, -1.0, -1.0], max = [1.0, {}, 1.0] }}\n\n[[instrument]]\n\
-         kind = \"plane\"\nnormal = [0.0, -1.0, 0.0]\ncontact = \"sliding\"\n\
-         path = [ {{ t = 0.0, position = [0.0, {top}, 0.0] }}, {{ t = 1.0, position = [0.0, {}, 0.0] }} ]\n\n\
-         [run]\nduration = 1.0\ndt = {}\n\n[contact]\nmax_iterations = 30\n",
-        floor + 1e-9,
-        top - depth,
-        1.0 / steps as Real
-    );
-    let path = std::env::temp_dir().join(format!("tissue-cut-{}-{h}.toml", std::process::id()));
-    std::fs::write(&path, text).unwrap();
-    let scene = tissue::scene::Scene::load(&path).unwrap();
-    let mut sim = scene.build_with_mesh(mesh, "the cut liver").unwrap();
-    let mut line = String::new();
-    for _ in 0..scene.run.step_count() {
-        let r = sim.step(scene.run.dt).unwrap();
-        assert!(r.contact_converged, "h = {h}, t = {}", r.time);
-        line += &format!(" {:.2}:{:.4}", r.time, 1e3 * r.forces[0].length());
-    }
-    let f = sim.instruments()[0].force();
-    eprintln!(
-        "cut liver, {order}, tet_size {:.2} mm: {} tets, {} held ({on_floor} on the floor), \
-         min dihedral {:.1}°: |F| = {:.6} N\n  mN by t:{line}",
-        h * 1e3,
-        sim.model().info().elements,
-        sim.fixed().len(),
-        stuffed.report.min_dihedral_deg,
-        f.length()
-    );
-    f
-}
-
-#[test]
-#[ignore = "study: cargo test --release -p tissue --test stuffed_indentation cut_liver -- --ignored --nocapture"]
-fn stuffed_cut_liver_plate_study() {
-    let sizes: Vec<Real> = std::env::var("SIZES")
-        .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
-        .unwrap_or(vec![0.003, 0.0025, 0.002]);
-    let order = std::env::var("ORDER").unwrap_or("linear".into());
-    for h in sizes {
-        press_cut_liver(h, 0.004, 4, &order);
+    for h in sizes_or(&[0.003, 0.0025, 0.002]) {
+        let stuffed = stuff(&cut, h, &tissue::model::Progress::silent()).unwrap();
+        let mesh = stuffed.to_mesh_data();
+        let top = mesh.vertices.iter().fold(Real::MIN, |a, p| a.max(p.y));
+        let text = format!(
+            "[mesh]\nfile = \"{root}/assets/meshes/liver-smooth.obj\"\n\n[material]\n\
+             young_modulus = 3000.0\npoisson_ratio = 0.3\ndensity = 1000.0\n\n[model]\n\
+             kind = \"fem-static\"\norder = \"{order}\"\n\n[[fixed]]\nname = \"floor\"\n\
+             box = {{ min = [-1.0, -1.0, -1.0], max = [1.0, {}, 1.0] }}\n\n[[instrument]]\n\
+             kind = \"plane\"\nnormal = [0.0, -1.0, 0.0]\ncontact = \"sliding\"\n\
+             path = [ {{ t = 0.0, position = [0.0, {top}, 0.0] }}, {{ t = 1.0, position = [0.0, {}, 0.0] }} ]\n\n\
+             [run]\nduration = 1.0\ndt = 0.25\n\n[contact]\nmax_iterations = 30\n",
+            floor + 1e-9,
+            top - 0.004,
+        );
+        let scene = load(&text, "cut-liver", h);
+        let mut sim = scene.build_with_mesh(mesh, "the cut liver").unwrap();
+        let line = run_checked(&mut sim, &scene, h);
+        eprintln!(
+            "cut liver, {order}, tet_size {:.2} mm: {} tets, {} held, min dihedral {:.1}°: \
+             |F| = {:.6} N\n  mN [solves] by t:{line}",
+            h * 1e3,
+            sim.model().info().elements,
+            sim.fixed().len(),
+            stuffed.report.min_dihedral_deg,
+            sim.instruments()[0].force().length()
+        );
     }
 }
