@@ -389,6 +389,13 @@ pub(crate) fn exit_along(shape: &Shape, at: Vec3, p: Vec3, d: Vec3) -> Closest {
 /// late and deep (the vertex contacts' `sim::CONTACT_MARGIN`). The nearest points go first,
 /// and a vertex already held keeps its plane (the more demanding one). `now`: the fine
 /// vertices where the coarse `positions` put them (`hold_points` has them).
+///
+/// Only the vertices a point follows by more than `SETTLE_WEIGHT` are handed over, each
+/// plane as far behind its vertex as the point is from the instrument (where the point
+/// touches if its face moves whole; `settle_carried_faces` draws a plane back so too). The
+/// least move's share, wᵢ·gap/Σw², put the plane of a vertex of weight 0 (every corner and
+/// edge point of a flat-subdivided surface has one) through the vertex: held where it
+/// stood, 7 mm from the probe, it kept `linked-volumes`' liver off the probe.
 #[allow(clippy::too_many_arguments)]
 fn hand_over_near_faces(
     fine: &crate::interact::fine_surface::MappedSurface,
@@ -422,14 +429,13 @@ fn hand_over_near_faces(
         if tri.iter().any(|&v| positions.get(v as usize).is_none()) {
             continue;
         }
-        for i in 0..3 {
-            if w[i] <= SETTLE_WEIGHT || skip(tri[i]) || contacts.iter().any(|k| k.vertex == tri[i])
-            {
+        for (&v, &wv) in tri.iter().zip(&w) {
+            if wv <= SETTLE_WEIGHT || skip(v) || contacts.iter().any(|k| k.vertex == v) {
                 continue;
             }
             contacts.push(Contact {
-                vertex: tri[i],
-                target: positions[tri[i] as usize] - gap * n,
+                vertex: v,
+                target: positions[v as usize] - gap * n,
                 face: Some(n),
             });
         }
