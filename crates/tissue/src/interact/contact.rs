@@ -191,7 +191,14 @@ pub fn hold_points(
                 continue;
             }
             let index = tri.map(|v| contacts.iter().position(|k| k.vertex == v));
-            let movable = [0, 1, 2].map(|i| index[i].is_some() || !skip(tri[i]));
+            // A free vertex the point does not follow (weight 0: the point lies on the
+            // opposite edge, as every vertex and edge point of a flat-subdivided surface
+            // does) takes no part in it. Where contacts only push, handed its plane (through
+            // itself, the least move giving it none), it was held where it stood: vertices
+            // 7 mm from the probe stopped the pressed liver from coming back to it.
+            let movable = [0, 1, 2].map(|i| {
+                index[i].is_some() || (!skip(tri[i]) && (push_only.is_none() || w[i] > 0.0))
+            });
             if !movable.iter().any(|&m| m) {
                 continue;
             }
@@ -382,6 +389,13 @@ pub(crate) fn exit_along(shape: &Shape, at: Vec3, p: Vec3, d: Vec3) -> Closest {
 /// late and deep (the vertex contacts' `sim::CONTACT_MARGIN`). The nearest points go first,
 /// and a vertex already held keeps its plane (the more demanding one). `now`: the fine
 /// vertices where the coarse `positions` put them (`hold_points` has them).
+///
+/// Only the vertices a point follows by more than `SETTLE_WEIGHT` are handed over, each
+/// plane as far behind its vertex as the point is from the instrument (where the point
+/// touches if its face moves whole; `settle_carried_faces` draws a plane back so too). The
+/// least move's share, wᵢ·gap/Σw², put the plane of a vertex of weight 0 (every corner and
+/// edge point of a flat-subdivided surface has one) through the vertex: held where it
+/// stood, 7 mm from the probe, it kept `linked-volumes`' liver off the probe.
 #[allow(clippy::too_many_arguments)]
 fn hand_over_near_faces(
     fine: &crate::interact::fine_surface::MappedSurface,
@@ -415,18 +429,13 @@ fn hand_over_near_faces(
         if tri.iter().any(|&v| positions.get(v as usize).is_none()) {
             continue;
         }
-        let free = [0, 1, 2].map(|i| !skip(tri[i]) && !contacts.iter().any(|k| k.vertex == tri[i]));
-        let norm: Real = (0..3).filter(|&i| free[i]).map(|i| w[i] * w[i]).sum();
-        if norm <= 1e-12 {
-            continue;
-        }
-        for i in (0..3).filter(|&i| free[i]) {
-            if contacts.iter().any(|k| k.vertex == tri[i]) {
+        for (&v, &wv) in tri.iter().zip(&w) {
+            if wv <= SETTLE_WEIGHT || skip(v) || contacts.iter().any(|k| k.vertex == v) {
                 continue;
             }
             contacts.push(Contact {
-                vertex: tri[i],
-                target: positions[tri[i] as usize] - (w[i] * gap / norm) * n,
+                vertex: v,
+                target: positions[v as usize] - gap * n,
                 face: Some(n),
             });
         }
@@ -832,6 +841,54 @@ mod tests {
                 .iter()
                 .all(|a| (a + 1e-3).abs() < 1e-12)
         );
+    }
+
+    /// A fine point on a coarse vertex (weights 1, 0, 0, as every corner and edge point of
+    /// a flat-subdivided surface has a zero weight) near a probe: where contacts only push,
+    /// that vertex alone is handed over, its plane as far behind it as the point is from the
+    /// probe; the other two, which the point does not follow, get no plane (before, planes
+    /// through themselves: held where they stood, 7 mm from the probe on the liver), whether
+    /// the point is near the probe or inside it. A static model's active set still takes
+    /// the whole face of a point inside.
+    #[test]
+    fn a_vertex_a_fine_point_does_not_follow_gets_no_plane_from_it() {
+        let (rest, _, fine) = flat_triangle();
+        let r = 0.05;
+        let probe = Shape::Sphere { radius: r };
+        let push_only = |at| {
+            Some(PushOnly {
+                margin: 3e-4,
+                from: at,
+                recover: 1.0,
+            })
+        };
+        let hold = |at: Vec3, push_only: Option<PushOnly>| {
+            let mut contacts = Vec::new();
+            hold_points(
+                &fine,
+                &rest,
+                &rest,
+                &probe,
+                at,
+                &mut contacts,
+                &|_| false,
+                &|_| false,
+                push_only,
+            );
+            contacts
+        };
+        // Corner 0 is 0.2 mm from the probe, the rest of the triangle beyond the margin.
+        let near = rest[0] + Vec3::Z * (r + 2e-4);
+        let contacts = hold(near, push_only(near));
+        assert_eq!(contacts.len(), 1, "{contacts:?}");
+        assert_eq!(contacts[0].vertex, 0);
+        assert!((ahead(&contacts, &rest)[0] + 2e-4).abs() < 1e-12);
+        // Corner 0 0.1 mm inside: its plane 0.1 mm in front of it, no other vertex held.
+        let inside = rest[0] + Vec3::Z * (r - 1e-4);
+        let contacts = hold(inside, push_only(rest[0] + Vec3::Z * 0.1));
+        assert_eq!(contacts.len(), 1, "{contacts:?}");
+        assert!((ahead(&contacts, &rest)[0] - 1e-4).abs() < 1e-12);
+        assert_eq!(hold(inside, None).len(), 3);
     }
 
     #[test]
