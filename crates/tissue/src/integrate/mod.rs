@@ -651,6 +651,8 @@ pub struct Integrator {
     measured: bool,
     /// Extra factor on the measured ω² after a refused step (1 until then; ×4 per refusal).
     margin: Real,
+    /// Steps the divergence guard refused and that were taken again with more substeps.
+    refused: u64,
     last_substeps: u32,
     saved: Saved,
     sub_holds: Vec<Hold>,
@@ -681,6 +683,12 @@ impl Integrator {
     /// Steps taken successfully (each made of `last_substeps` internal steps).
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Steps the divergence guard refused so far that were taken again with more substeps
+    /// (automatic substeps): a stiff mode the stability measure had missed.
+    pub fn refused_steps(&self) -> u64 {
+        self.refused
     }
 
     /// Factorisations of implicit Euler's rest-matrix preconditioner so far.
@@ -842,13 +850,18 @@ impl Integrator {
     /// stiffness that is local and leaves the damping as it was (the `hybrid` model's
     /// contact set on its rest). A few iterations instead of a cold `measure`'s
     /// `stable_step::ITERATIONS`; nothing when the limit was never measured (the next
-    /// step measures it in full) or the scheme has none.
+    /// step measures it in full) or the scheme has none. `added`: an upper bound of the
+    /// largest eigenvalue of M⁻¹ΔK for a ΔK ⪰ 0 with the stiffness now at most the last
+    /// full measure's plus ΔK (0 if unknown): the rate is then at least the full measure
+    /// plus it (Weyl's inequality), which a stiff mode the few warm iterations miss cannot
+    /// exceed.
     pub fn recheck_stiffness<S: ParticleSystem + ?Sized>(
         &mut self,
         system: &mut S,
         state: &ParticleState,
         holds: &[Hold],
         iterations: usize,
+        added: Real,
     ) {
         self.forget_forces();
         if !self.measured
@@ -865,6 +878,10 @@ impl Integrator {
             &self.scratch_inv_mass,
             iterations,
         );
+        if added.is_finite() && added > 0.0 {
+            let bound = self.rates.rest_omega_sq + added;
+            self.rates.omega_sq = self.rates.omega_sq.max(bound);
+        }
     }
 
     /// The stable step (as `stable_dt`, margin 1) that a cold measurement gives at `state`:
@@ -1009,6 +1026,7 @@ impl Integrator {
             match substeps_for(dt, stable) {
                 Some(m) if m > n => {
                     n = m;
+                    self.refused += 1;
                     result = self.substepped(system, state, holds, dt, n);
                 }
                 _ => break,
