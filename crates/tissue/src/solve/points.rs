@@ -95,6 +95,23 @@ const SPLIT_ROUNDS: usize = 25;
 /// A pushing row's λ below −this times the largest |λ| is a wrong sign (roundoff above it).
 const SIGN_TOLERANCE: Real = 1e-12;
 
+/// The multipliers that make the gaps of `rows` zero (M restricted to them, one LU),
+/// zero on every other row: a candidate answer whose pushing set is `rows`.
+fn pushes_on(m: &Mat<Real>, b: &[Real], rows: &[usize]) -> Vec<Real> {
+    let k = rows.len();
+    let mut lambda = vec![0.0; b.len()];
+    if k > 0 {
+        let a = Mat::<Real>::from_fn(k, k, |p, q| m[(rows[p], rows[q])]);
+        let x = a
+            .partial_piv_lu()
+            .solve(Mat::<Real>::from_fn(k, 1, |p, _| -b[rows[p]]));
+        for (p, &i) in rows.iter().enumerate() {
+            lambda[i] = x[(p, 0)];
+        }
+    }
+    lambda
+}
+
 /// The largest relative violation of complementarity by `lambda` (a held row's gap, a
 /// point's penetration, a pushing point's gap or pull), of the largest |b|.
 fn violation(m: &Mat<Real>, b: &[Real], bilateral: usize, lambda: &[Real]) -> Real {
@@ -448,17 +465,7 @@ impl PointRows {
         let rows: Vec<usize> = (0..n)
             .filter(|&i| i < self.bilateral || self.lambda[i] > 0.0)
             .collect();
-        let k = rows.len();
-        let mut lambda = vec![0.0; n];
-        if k > 0 {
-            let a = Mat::<Real>::from_fn(k, k, |p, q| m[(rows[p], rows[q])]);
-            let x = a
-                .partial_piv_lu()
-                .solve(Mat::<Real>::from_fn(k, 1, |p, _| -b[rows[p]]));
-            for (p, &i) in rows.iter().enumerate() {
-                lambda[i] = x[(p, 0)];
-            }
-        }
+        let mut lambda = pushes_on(m, b, &rows);
         if lambda.iter().any(|l| !l.is_finite()) {
             return false;
         }
@@ -841,15 +848,7 @@ mod tests {
                 let rows: Vec<usize> = (0..n)
                     .filter(|&i| i < bilateral || set >> (i - bilateral) & 1 == 1)
                     .collect();
-                let k = rows.len();
-                let mut l = vec![0.0; n];
-                if k > 0 {
-                    let a = Mat::<Real>::from_fn(k, k, |p, q| m[(rows[p], rows[q])]);
-                    let x = a
-                        .partial_piv_lu()
-                        .solve(Mat::<Real>::from_fn(k, 1, |p, _| -b[rows[p]]));
-                    rows.iter().enumerate().for_each(|(p, &i)| l[i] = x[(p, 0)]);
-                }
+                let l = pushes_on(&m, &b, &rows);
                 let ok = (0..n).all(|i| {
                     let w = b[i] + (0..n).map(|j| m[(i, j)] * l[j]).sum::<Real>();
                     i < bilateral || (l[i] >= -1e-12 && w >= -1e-12)
