@@ -850,18 +850,13 @@ impl Integrator {
     /// stiffness that is local and leaves the damping as it was (the `hybrid` model's
     /// contact set on its rest). A few iterations instead of a cold `measure`'s
     /// `stable_step::ITERATIONS`; nothing when the limit was never measured (the next
-    /// step measures it in full) or the scheme has none. `added`: an upper bound of the
-    /// largest eigenvalue of M⁻¹ΔK for a ΔK ⪰ 0 with the stiffness now at most the last
-    /// full measure's plus ΔK (0 if unknown): the rate is then at least the full measure
-    /// plus it (Weyl's inequality), which a stiff mode the few warm iterations miss cannot
-    /// exceed.
+    /// step measures it in full) or the scheme has none.
     pub fn recheck_stiffness<S: ParticleSystem + ?Sized>(
         &mut self,
         system: &mut S,
         state: &ParticleState,
         holds: &[Hold],
         iterations: usize,
-        added: Real,
     ) {
         self.forget_forces();
         if !self.measured
@@ -878,10 +873,6 @@ impl Integrator {
             &self.scratch_inv_mass,
             iterations,
         );
-        if added.is_finite() && added > 0.0 {
-            let bound = self.rates.rest_omega_sq + added;
-            self.rates.omega_sq = self.rates.omega_sq.max(bound);
-        }
     }
 
     /// The stable step (as `stable_dt`, margin 1) that a cold measurement gives at `state`:

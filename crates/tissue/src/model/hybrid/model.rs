@@ -7,8 +7,8 @@ use std::time::Instant;
 use faer::Mat;
 
 use crate::error::{Error, SimError};
+use crate::integrate::Scheme;
 use crate::integrate::coupling::NodeCoupling;
-use crate::integrate::{ParticleSystem, Scheme};
 use crate::interact::{Constraints, Loads, PointContact, Prescribed, SurfaceHold};
 use crate::material::Material;
 use crate::math::{Mat3, Real, Vec3, closest_point_on_triangle};
@@ -1186,18 +1186,11 @@ impl Hybrid {
                 // contacts' G_cᵀ P G_c): the stability limit is re-measured from the last
                 // dominant vector in a few iterations, never below the last full measure
                 // (which the build and every growth or cut take), instead of 30 cold ones.
-                // The contacts' own share (G_cᵀPG_c per unit mass at the interface, exact)
-                // added to the last full measure bounds the rate from above (Weyl): a stiff
-                // mode of new contacts that the warm iterations miss is counted before the
-                // first try. (The warm measure alone came within 1.5 % of a cold one, from
-                // either side; on the demo liver the contacts' share is 2 % of the rate, and
-                // the first-step refusals there have another cause: docs/hybrid.md.)
-                let added = self.contact_rate_bound();
                 let coupling = self
                     .rest
                     .coupling(&self.region_iface, &self.split.region.mesh.vertices);
                 self.tm
-                    .recheck_stability(&coupling, CONTACT_RECHECK_ITERATIONS, added);
+                    .recheck_stability(&coupling, CONTACT_RECHECK_ITERATIONS);
             }
         }
         self.rest_contact = vertices;
@@ -1259,25 +1252,6 @@ impl Hybrid {
             self.install_rest_set()?;
         }
         Ok(())
-    }
-
-    /// `RestPart::contact_rate_bound` with the region's masses at the interface nodes (the
-    /// rest's share included: the region carries it).
-    pub(super) fn contact_rate_bound(&self) -> Real {
-        let masses = self.tm.system().masses();
-        let inv: Vec<Real> = self
-            .region_iface
-            .iter()
-            .map(|&r| {
-                let m = masses.get(r as usize).copied().unwrap_or(0.0);
-                if m > 0.0 && m.is_finite() {
-                    1.0 / m
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        self.rest.contact_rate_bound(&inv)
     }
 
     /// Splits the loads: gravity on each part's own tetrahedra, point loads on the part of

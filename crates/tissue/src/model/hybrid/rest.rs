@@ -851,54 +851,6 @@ impl RestPart {
             + 8 * (self.gt.nrows() * self.gt.ncols() + self.columns.len() * 3 * self.gt.ncols())
     }
 
-    /// The largest eigenvalue of M_I⁻¹ G_cᵀ P G_c, the contacts' share of the interface
-    /// stiffness per unit mass (`inv_mass`: 1/m per interface node; 0 for one that does not
-    /// move): an upper bound of what the contacts add to the coupled system's stiffness
-    /// rate (`Integrator::recheck_stiffness`). Computed on the contacts' small side: with
-    /// H = G_c M_I⁻¹ G_cᵀ (3m × 3m, m contacts), it is the largest eigenvalue of
-    /// H^½ P H^½ (the same nonzero eigenvalues), two symmetric eigenproblems of 3m rows
-    /// instead of one of 3n_I. Raised by 1e-9 of itself for rounding; 0 without contacts;
-    /// infinite when an eigensolver fails (the caller then ignores it).
-    pub fn contact_rate_bound(&self, inv_mass: &[Real]) -> Real {
-        let c = &self.contacts;
-        let (m3, ni) = (c.g.nrows(), c.g.ncols());
-        if m3 == 0 || inv_mass.len() * 3 != ni {
-            return 0.0;
-        }
-        let h = Mat::<Real>::from_fn(m3, m3, |a, b| {
-            let (ra, rb) = (
-                &c.g_rows[a * ni..(a + 1) * ni],
-                &c.g_rows[b * ni..(b + 1) * ni],
-            );
-            (0..ni).map(|j| ra[j] * rb[j] * inv_mass[j / 3]).sum()
-        });
-        let Ok(eig) = h.self_adjoint_eigen(faer::Side::Lower) else {
-            return Real::INFINITY;
-        };
-        let (q, s) = (eig.U(), eig.S().column_vector());
-        // H^½ = Q Λ^½ Qᵀ (H is a Gram matrix: negative eigenvalues are rounding).
-        let half = Mat::<Real>::from_fn(m3, m3, |a, b| {
-            (0..m3)
-                .map(|k| q[(a, k)] * s[k].max(0.0).sqrt() * q[(b, k)])
-                .sum()
-        });
-        let x = &half * &c.w_inv * &half;
-        let x = Mat::<Real>::from_fn(m3, m3, |a, b| 0.5 * (x[(a, b)] + x[(b, a)]));
-        match x.self_adjoint_eigenvalues(faer::Side::Lower) {
-            Ok(v) => v.iter().copied().fold(0.0, Real::max) * (1.0 + 1e-9),
-            Err(_) => Real::INFINITY,
-        }
-    }
-
-    /// G_cᵀ P G_c u: the contacts' share of the interface stiffness times `u` (3n_I).
-    #[cfg(test)]
-    pub fn contact_stiffness_product(&self, u: &Mat<Real>) -> Mat<Real> {
-        let c = &self.contacts;
-        let y = &c.g * u;
-        let z = &c.w_inv * &y;
-        c.g.transpose() * &z
-    }
-
     /// The coupling seen from the region: interface node `i` is region node `region_node[i]`,
     /// at rest at `region_rest[region_node[i]]`.
     pub fn coupling<'a>(&'a self, region_node: &'a [u32], region_rest: &'a [Vec3]) -> Coupling<'a> {

@@ -186,25 +186,14 @@ impl TensorMass {
     /// from the last dominant vector, with `coupling`'s forces added (never below the last
     /// full measurement), after forgetting the kept forces: the `hybrid` model's contact set
     /// on its rest changed, a low-rank change of the interface stiffness that a cold measure
-    /// (30 iterations) overpays. `added`: an upper bound of the stiffness rate the change
-    /// added (`Integrator::recheck_stiffness`; 0 if unknown).
-    pub fn recheck_stability(
-        &mut self,
-        coupling: &dyn NodeCoupling,
-        iterations: usize,
-        added: Real,
-    ) {
+    /// (30 iterations) overpays.
+    pub fn recheck_stability(&mut self, coupling: &dyn NodeCoupling, iterations: usize) {
         let mut coupled = Coupled {
             system: &mut self.system,
             coupling,
         };
-        self.integrator.recheck_stiffness(
-            &mut coupled,
-            &self.state,
-            &self.step_holds,
-            iterations,
-            added,
-        );
+        self.integrator
+            .recheck_stiffness(&mut coupled, &self.state, &self.step_holds, iterations);
     }
 
     /// The stable step a cold measurement (`iterations` power iterations, nothing kept)
