@@ -73,6 +73,8 @@ pub struct Simulation {
     bvh_topology: u32,
     is_static: bool,
     max_contact_iterations: usize,
+    /// Whether the static loop accelerates the fine points' planes (`PlaneRelaxation`).
+    accelerate_planes: bool,
     /// The constraints the model holds now (restored when a step fails), with the direction
     /// each prescribed entry is held along only (`Deformable::set_constraints_along`).
     constraints: Constraints,
@@ -125,6 +127,7 @@ impl Simulation {
             bvh_topology: 0,
             is_static,
             max_contact_iterations: DEFAULT_CONTACT_ITERATIONS,
+            accelerate_planes: true,
             constraints,
             held: Vec::new(),
             returned: Returned::default(),
@@ -221,6 +224,13 @@ impl Simulation {
 
     pub fn max_contact_iterations(&self) -> usize {
         self.max_contact_iterations
+    }
+
+    /// Whether a static model's contact loop moves its fine points' planes by Aitken's
+    /// acceleration (the default) or one plain round at a time: the same fixed point, by
+    /// fewer solves (`interact::fine_points::PlaneRelaxation`). Off, for comparisons.
+    pub fn set_accelerated_planes(&mut self, on: bool) {
+        self.accelerate_planes = on;
     }
 
     /// Replaces the loads (gravity, point loads).
@@ -493,6 +503,7 @@ impl Simulation {
         for (inst, old) in next.iter_mut().zip(&self.instruments) {
             let (c, r) = (inst.position, inst.radius());
             inst.slider.begin_step();
+            inst.relaxation.reset();
             match *inst.kind() {
                 InstrumentKind::Probe
                 | InstrumentKind::Capsule { .. }
@@ -760,10 +771,16 @@ impl Simulation {
                 continue;
             }
             let margin = CONTACT_MARGIN * shape.size();
-            let new = fine_points::gather(fine, &positions, &shape, inst.position, margin);
+            let mut new = fine_points::gather(fine, &positions, &shape, inst.position, margin);
             let (moved, entered) = fine_points::change(&inst.points, &new, &positions);
             if entered || moved > POINT_MOVE * shape.size() {
                 changed = true;
+                if entered || !self.accelerate_planes {
+                    inst.relaxation.reset();
+                } else {
+                    inst.relaxation
+                        .relax(&inst.points, &mut new, &shape, inst.position);
+                }
                 inst.points = new;
                 inst.point_pushes = vec![0.0; inst.points.len()];
             }

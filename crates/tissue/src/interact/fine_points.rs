@@ -117,6 +117,84 @@ pub fn change(old: &[FinePoint], new: &[FinePoint], positions: &[Vec3]) -> (Real
     (moved, entered)
 }
 
+/// Aitken's acceleration of a static loop's planes (Irons and Tuck's vector form, as used
+/// for partitioned fluid–structure coupling). The loop is a fixed-point iteration: each
+/// solve leaves the points where the planes let them slide, and each plane moves to the
+/// instrument's surface nearest its point again. On a curved instrument every round takes
+/// back only part of the last move (about 0.6 of it on the stuffed liver under a 5 mm
+/// probe), so the loop converges linearly and a press took 20 to 130 solves per step. The
+/// relaxation moves each target by ω times what the round asked, ω estimated from the
+/// last two rounds' moves (a secant on the whole set), then puts it back on the instrument.
+/// It changes the path to the fixed point, not the fixed point: the loop still stops only
+/// when a round moves no plane by more than its tolerance.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PlaneRelaxation {
+    /// The last round's asked moves, point by point (empty: no round yet this set).
+    last: Vec<Vec3>,
+    /// The last round's ids, to know the set is the same.
+    ids: Vec<u32>,
+    omega: Real,
+}
+
+/// ω's bounds: no step backwards or smaller than a tenth of the asked one, and no more than
+/// five times it (a rate of 0.8); beyond, the secant is trusted less than the plain round.
+const OMEGA_RANGE: (Real, Real) = (0.1, 5.0);
+
+impl PlaneRelaxation {
+    /// Forgets the rounds: a new step, or a point set that changed.
+    pub fn reset(&mut self) {
+        self.last.clear();
+        self.ids.clear();
+        self.omega = 1.0;
+    }
+
+    /// `new` are the planes a round asks for, `old` those of the solve just taken, for the
+    /// same instrument (`shape` at `at`). When both hold the same points as the last round,
+    /// each target of `new` is moved to old + ω (new − old) and put back on the instrument
+    /// (its nearest surface point, with that point's normal); otherwise the round is taken
+    /// as asked and the relaxation starts again from it.
+    pub fn relax(&mut self, old: &[FinePoint], new: &mut [FinePoint], shape: &Shape, at: Vec3) {
+        let same =
+            old.len() == new.len() && old.iter().zip(new.iter()).all(|(o, n)| o.fine == n.fine);
+        if !same {
+            self.reset();
+            return;
+        }
+        let asked: Vec<Vec3> = old
+            .iter()
+            .zip(new.iter())
+            .map(|(o, n)| n.contact.target - o.contact.target)
+            .collect();
+        let continues = self.ids.len() == new.len()
+            && self.ids.iter().zip(new.iter()).all(|(&i, n)| i == n.fine);
+        if continues {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (r, l) in asked.iter().zip(&self.last) {
+                let d = *r - *l;
+                num += l.dot(d);
+                den += d.dot(d);
+            }
+            if den > 0.0 {
+                self.omega = (-self.omega * num / den).clamp(OMEGA_RANGE.0, OMEGA_RANGE.1);
+            }
+        } else {
+            self.omega = 1.0;
+        }
+        self.ids = new.iter().map(|n| n.fine).collect();
+        self.last = asked;
+        if self.omega == 1.0 {
+            return;
+        }
+        for ((n, o), r) in new.iter_mut().zip(old).zip(&self.last) {
+            let near = shape.closest(at, o.contact.target + self.omega * *r, n.contact.normal);
+            if (near.normal.length() - 1.0).abs() <= 1e-6 {
+                n.contact.target = near.point;
+                n.contact.normal = near.normal;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,7 +6,7 @@
 
 use crate::error::SimError;
 use crate::interact::contact::Contact;
-use crate::interact::fine_points::FinePoint;
+use crate::interact::fine_points::{FinePoint, PlaneRelaxation};
 use crate::interact::shape::Shape;
 use crate::interact::sliding::Slider;
 use crate::interact::trajectory::Trajectory;
@@ -75,6 +75,8 @@ pub struct Instrument {
     /// (`interact::fine_points`), and the push on each after the last solve, in N.
     pub(crate) points: Vec<FinePoint>,
     pub(crate) point_pushes: Vec<Real>,
+    /// A static loop's acceleration of the points' planes within a step.
+    pub(crate) relaxation: PlaneRelaxation,
 }
 
 impl Instrument {
@@ -186,6 +188,7 @@ impl Instrument {
             friction: None,
             slider: Slider::default(),
             points: Vec::new(),
+            relaxation: PlaneRelaxation::default(),
             point_pushes: Vec::new(),
         }
         .frictionless())

@@ -176,6 +176,23 @@ impl Scene {
                 }
                 tets::check_tet_size(mesh.tet_size, &model_kind)
                     .map_err(|m| invalid(format!("[mesh] {m}")))?;
+                match (mesh.visual_levels, &mesh.visual) {
+                    (Some(_), None) => {
+                        return Err(invalid(
+                            "[mesh] visual_levels cuts the `visual` surface, but there is no \
+                             `visual`: name one or remove visual_levels"
+                                .into(),
+                        ));
+                    }
+                    (Some(k), Some(_)) if k > spec::MAX_VISUAL_LEVELS => {
+                        return Err(invalid(format!(
+                            "[mesh] visual_levels = {k}: at most {} (each level makes four \
+                             times the contact points)",
+                            spec::MAX_VISUAL_LEVELS
+                        )));
+                    }
+                    _ => {}
+                }
                 BodySpec::Mesh(mesh)
             }
             (None, Some(image)) => {
@@ -720,6 +737,13 @@ impl Scene {
         let scale = self.mesh_spec().map_or(1.0, |m| m.scale);
         for v in &mut mesh.vertices {
             *v *= scale;
+        }
+        let levels = self.mesh_spec().and_then(|m| m.visual_levels).unwrap_or(0);
+        if levels > 0 {
+            // The visual surface cut flat: the same shape, with points on its faces.
+            let cut = MappedSurface::subdivided(&mesh.vertices, &mesh.triangles, 1 << levels)
+                .ok_or_else(|| named("a triangle names a vertex the file does not have".into()))?;
+            (mesh.vertices, mesh.triangles) = (cut.rest, cut.triangles);
         }
         MappedSurface::new(
             mesh.vertices,

@@ -21,7 +21,14 @@ pub struct MeshSpec {
     /// A finer surface (same units as `file`, scaled alike) that instruments touch, mapped
     /// onto the model's surface (`interact::fine_surface`); relative to the scene file.
     pub visual: Option<PathBuf>,
+    /// Cut each `visual` triangle flat into 4^k similar ones before it is tied to the model
+    /// (k ≤ `MAX_VISUAL_LEVELS`): contact points on its faces as well as its vertices, for
+    /// an instrument smaller than a few of the visual surface's edges.
+    pub visual_levels: Option<u32>,
 }
+
+/// The most `visual_levels` a scene may ask for (4⁴ = 256 triangles per visual triangle).
+pub const MAX_VISUAL_LEVELS: u32 = 4;
 
 fn one() -> Real {
     1.0

@@ -19,10 +19,21 @@
 //!
 //! Instrument force (ChainMail has no stresses): the force on a prescribed vertex is
 //! `force_stiffness` · depth · (the vertex's share of surface area), pointing back toward
-//! the vertex's rest position, where depth is the |signed distance| of the target in the
-//! rest configuration, looked up in the distance map computed at build. The default
+//! the vertex's rest position, where depth is how much deeper (or shallower) the target
+//! lies than the vertex's own rest position in the rest configuration's distance map,
+//! computed at build (a Winkler bed: pressure proportional to penetration). The default
 //! stiffness is E / (largest depth of the body) in Pa/m: pressing a body in by its whole
-//! half-thickness costs about E. Fixed reactions are reported as zero (no stresses).
+//! half-thickness costs about E, which is right for a slab pressed from both faces and
+//! twice E·strain for one pressed against a fixed base (`tests_probe`: a block on a fixed
+//! base reads 2.20 times E·A·strain). The force lives on the surface that the prescribed
+//! vertex moves: a coarse surface's vertex carries its whole area share into the contact
+//! (the liver's cone point, 9.1e-5 m², where the elastic reference's patch is about 3 mm
+//! across). Fixed reactions are reported as zero (no stresses).
+//!
+//! A prescribed vertex is held in full: the lattice pins a moved element in all three
+//! directions through the propagation and the relaxation, so the model cannot hold a
+//! vertex along a direction only (a frictionless plate); docs/compare.md, "Session 19:
+//! `chainmail`".
 //!
 //! - `lattice`: elements, links, limits, propagation, relaxation, link edits
 //! - `deformable`: the `Deformable` interface, cut, carve and join
@@ -31,6 +42,8 @@ mod deformable;
 pub mod lattice;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_probe;
 
 use std::time::Instant;
 
@@ -271,6 +284,24 @@ impl ChainMail {
     /// The depth map's value at a point of the rest configuration (m, positive inside).
     pub fn rest_depth(&self, p: Vec3) -> Real {
         self.distance.depth_at(p)
+    }
+
+    /// The force on the instrument holding vertex `v` at `target`: `force_stiffness` · (how
+    /// much deeper the target lies than the vertex's own rest position, in the rest depth
+    /// map) · the vertex's area, pointing back toward its rest position. The depth is
+    /// measured from the vertex's rest depth, not from zero: the map's zero is the voxel
+    /// surface, which lies up to a voxel from the given surface (−2.2 to +3.9 mm at the
+    /// liver's vertices, voxel 2.7 mm), and reading the target's depth alone charged a
+    /// vertex moved by a micrometre for millimetres, and one outside the voxel surface
+    /// less the further it was pressed.
+    fn instrument_force(&self, v: usize, target: Vec3) -> Vec3 {
+        if self.fixed_vertex[v] {
+            return Vec3::ZERO;
+        }
+        let rest = self.embedding.rest[v];
+        let back = rest - target;
+        let depth = (self.distance.depth_at(target) - self.distance.depth_at(rest)).abs();
+        self.force_stiffness * depth * self.vertex_area[v] * back.normalize_or_zero()
     }
 
     fn refresh_surface(&mut self) {

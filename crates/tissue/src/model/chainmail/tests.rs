@@ -314,7 +314,8 @@ fn the_liver_is_pressed_released_and_returns() {
     assert!(m.last_propagation().converged && m.last_propagation().moved > 0);
     assert!(m.lattice().violated_links(1e-12).is_empty());
     let f = m.reactions().prescribed[0];
-    let expect = m.force_stiffness * m.rest_depth(target).abs() * m.vertex_area[top];
+    let gained = m.rest_depth(target) - m.rest_depth(rest[top]);
+    let expect = m.force_stiffness * gained.abs() * m.vertex_area[top];
     assert!(f.y > 0.0 && (f.length() - expect).abs() < 1e-12 * expect.max(1e-300));
     assert!(m.rest_depth(target) > 0.002);
     // Released: relaxation brings it back to rest.
