@@ -453,3 +453,192 @@ fn hybrid_survives_a_probe_that_starts_inside_the_liver() {
         "the probe force must oppose its press: {against}"
     );
 }
+
+/// The demo liver (`liver-probe.toml`: the 1 cm liver, its smooth surface as the contact
+/// surface, ligaments held, a 5 mm frictionless probe) as `hybrid`, the probe on `path` (a
+/// TOML array of keyframes).
+fn demo_liver_hybrid(path: &str) -> Simulation {
+    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
+    let text = format!(
+        "[mesh]\nfile = \"{root}/assets/meshes/liver.msh\"\nscale = 0.01\n\
+         visual = \"{root}/assets/meshes/liver-smooth.obj\"\n\
+         [material]\nyoung_modulus = 3000.0\npoisson_ratio = 0.3\ndensity = 1000.0\n\
+         [model]\nkind = \"hybrid\"\n\
+         [[fixed]]\nname = \"ligaments\"\nfile_vertices = [3, 39, 64]\n\
+         [[instrument]]\nkind = \"probe\"\nradius = 0.005\npath = {path}\n\
+         [run]\nduration = 1.0\ndt = 0.01\n"
+    );
+    let base = std::path::Path::new(&root).join("scenes/liver-probe.toml");
+    let scene = tissue::scene::Scene::from_toml(&text, base.parent().unwrap(), &base).unwrap();
+    scene.build().unwrap()
+}
+
+/// The viewer releasing its probe: a press into the demo liver (a random vertex's press
+/// that diverged, `udr16`), held, then the probe moved 0.3 m away within one 10 ms step.
+/// The rest's frictionless contacts that pushed at the end of the last step were guessed
+/// held with targets on the probe's new place; the region's step diverged before the pull
+/// could be seen after it (session 18 took the step again without them, said as capped).
+/// Now a contact whose force pulls where the step starts is let go before the step: the
+/// run goes on, no step is capped, and the probe holds nothing after the lift.
+#[test]
+fn hybrid_lets_go_of_a_probe_lifted_away_within_one_step() {
+    let mut sim = demo_liver_hybrid(
+        "[ { t = 0.0, position = [-0.048077, 0.00555944, -0.00719626] },\n\
+         { t = 0.3, position = [-0.0404262, 0.0124708, -0.00336242] },\n\
+         { t = 0.5, position = [-0.0404262, 0.0124708, -0.00336242] },\n\
+         { t = 0.51, position = [0.0, 0.3, 0.0] } ]",
+    );
+    let (mut held, mut lift, mut capped) = (0.0 as Real, 0.0 as Real, Vec::new());
+    while sim.time() < 0.7 - 1e-9 {
+        let r = sim
+            .step(0.01)
+            .unwrap_or_else(|e| panic!("at t = {}: {e}", sim.time()));
+        assert!(r.forces[0].is_finite(), "at t = {}", r.time);
+        if r.info.capped {
+            capped.push(r.time);
+        }
+        if r.time < 0.5 + 1e-9 {
+            held = r.forces[0].length();
+        } else if r.time < 0.51 + 1e-9 {
+            // The lift's own step: the push of the planes it started with (0.48 mN of the
+            // 0.125 N held with main at 756577c merged; 0 on 74b582c), a mean over the step.
+            lift = r.forces[0].length();
+        } else {
+            assert_eq!(r.forces[0], Vec3::ZERO, "at t = {}: after the lift", r.time);
+        }
+    }
+    eprintln!(
+        "probe force before the lift {held:.4} N, in the lift's step {lift:.2e} N; capped \
+         steps at {capped:?}"
+    );
+    assert!(lift < 0.01 * held, "{lift} N in the lift's step");
+    assert!(held > 1e-3, "the probe must press the liver: {held} N");
+    assert!(capped.is_empty(), "capped steps at {capped:?}");
+}
+
+/// `tissue compare --quick`'s deep press on `hybrid` (the liver, the probe of half the
+/// organ's height pressed 9.9 mm over 0.15 s by a smooth ramp, then held, `DT` = 1 ms
+/// steps, no mass damping, kinetic damping: velocities zeroed at each kinetic-energy peak,
+/// none with `NOSTOP`), traced step by step from `FROM` s for `STEPS` steps: the probe
+/// force, the kinetic energy, each touching contact (R: on the rest, G: on the region;
+/// vertex, push in N) and the four surface vertices that moved most in the step (label:
+/// 0 rest, 1 the region's border, 2 the region; how far from the probe's surface). A study
+/// (prints only): `FROM=1.2 STEPS=4 cargo test --release -p tissue --test hybrid_sliding
+/// deep_press_trace -- --ignored --nocapture`; docs/hybrid.md, "Session 19".
+#[test]
+#[ignore = "study: traces the comparison's deep press on hybrid"]
+fn hybrid_deep_press_trace_study() {
+    use tissue::compare::drive::{ContactLaw, probe_instrument, probe_simulation, smooth_ramp};
+    use tissue::compare::{Organ, Scenario};
+    use tissue::material::Material;
+    let var = |k: &str, d: Real| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
+    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
+    let mut mesh = tissue::io::read(format!("{root}/assets/meshes/liver.msh")).unwrap();
+    for v in &mut mesh.vertices {
+        *v *= 0.01;
+    }
+    let material = Material::new(3000.0, 0.3).unwrap();
+    let organ = Organ::new(mesh, "liver".into(), material, 0.0, 800).unwrap();
+    let sc = Scenario::of(&organ.mesh).unwrap();
+    let model = organ.build("hybrid", material).unwrap();
+    let fixed = sc.fixed(model.rest_surface());
+    let mut sim = probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
+    sim.add_instrument(
+        probe_instrument(
+            sc.probe(),
+            sc.probe_radius,
+            0.0,
+            1.0,
+            ContactLaw::FineSurface,
+        )
+        .unwrap(),
+    );
+    let (dt, ramp) = (var("DT", 1e-3), 0.15);
+    let (from, steps) = (var("FROM", 0.9), var("STEPS", 12.0) as usize);
+    let end = var("T_END", 1.5);
+    let top = sc.probe() + Vec3::Y * sc.probe_radius;
+    let (mut last, mut peak, mut stops) = (0.0, 0.0 as Real, 0);
+    let mut prev: Vec<Vec3> = sim.model().surface().positions.to_vec();
+    let mut k = 0;
+    while sim.time() < end - 1e-9 {
+        k += 1;
+        let t = k as Real * dt;
+        let f = smooth_ramp(t / ramp);
+        sim.set_instrument_position(0, Some(top - Vec3::Y * (f * sc.deep)))
+            .unwrap();
+        let trace = t >= from && t < from + steps as Real * dt;
+        if trace {
+            prev = sim.model().surface().positions.to_vec();
+        }
+        let r = sim.step(dt).unwrap();
+        let e = sim.model().kinetic_energy().unwrap_or(0.0);
+        peak = peak.max(e);
+        let stopped = std::env::var("NOSTOP").is_err() && e < last && sim.model_mut().stop_motion();
+        if stopped {
+            stops += 1;
+            last = 0.0;
+        } else {
+            last = e;
+        }
+        if trace {
+            let probe = &sim.instruments()[0];
+            let shape = probe.shape().unwrap();
+            let labels = sim.model().vertex_labels();
+            let held: Vec<String> = probe
+                .contacts()
+                .iter()
+                .zip(probe.contact_reactions())
+                .filter(|(_, g)| **g != Vec3::ZERO)
+                .map(|(c, g)| {
+                    let part = labels.as_ref().map_or(9, |l| l[c.vertex as usize]);
+                    format!(
+                        "{}{}:{:.2e}",
+                        if part == 0 { "R" } else { "G" },
+                        c.vertex,
+                        -g.dot(c.normal(&shape, probe.position()))
+                    )
+                })
+                .collect();
+            let now = sim.model().surface().positions.to_vec();
+            let mut moved: Vec<(Real, usize)> = now
+                .iter()
+                .zip(&prev)
+                .map(|(a, b)| (a - b).length())
+                .enumerate()
+                .map(|(i, d)| (d, i))
+                .collect();
+            moved.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let c = sim.instruments()[0].position();
+            let most: Vec<String> = moved[..4]
+                .iter()
+                .map(|&(d, i)| {
+                    format!(
+                        "v{i}[{}] {:.2}mm (from probe {:.1}mm)",
+                        labels.as_ref().map_or(9, |l| l[i]),
+                        1e3 * d,
+                        1e3 * ((now[i] - c).length() - sc.probe_radius)
+                    )
+                })
+                .collect();
+            println!("   moved most: {}", most.join(", "));
+            let d = sim.model().info().details;
+            let solves = d
+                .iter()
+                .find(|(k, _)| k == "rest_contact_solves")
+                .map_or("", |(_, v)| v.as_str());
+            println!(
+                "t {t:.4} F {:.5e} KE {e:.3e} KE/peak {:.2e}{} stops {stops} substeps {} solves [{solves}] held {}",
+                r.forces[0].y,
+                e / peak.max(1e-300),
+                if stopped { " (stopped)" } else { "" },
+                r.info.substeps,
+                held.join(" ")
+            );
+        }
+    }
+}

@@ -651,6 +651,8 @@ pub struct Integrator {
     measured: bool,
     /// Extra factor on the measured ω² after a refused step (1 until then; ×4 per refusal).
     margin: Real,
+    /// Steps the divergence guard refused and that were taken again with more substeps.
+    refused: u64,
     last_substeps: u32,
     saved: Saved,
     sub_holds: Vec<Hold>,
@@ -681,6 +683,12 @@ impl Integrator {
     /// Steps taken successfully (each made of `last_substeps` internal steps).
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Steps the divergence guard refused so far that were taken again with more substeps
+    /// (automatic substeps): a stiff mode the stability measure had missed.
+    pub fn refused_steps(&self) -> u64 {
+        self.refused
     }
 
     /// Factorisations of implicit Euler's rest-matrix preconditioner so far.
@@ -1009,6 +1017,7 @@ impl Integrator {
             match substeps_for(dt, stable) {
                 Some(m) if m > n => {
                     n = m;
+                    self.refused += 1;
                     result = self.substepped(system, state, holds, dt, n);
                 }
                 _ => break,

@@ -205,6 +205,10 @@ impl Deformable for Hybrid {
                 "rest_contact_capped_steps".into(),
                 self.contact_stats.capped_steps.to_string(),
             ),
+            (
+                "region_refused_steps".into(),
+                self.tm.integrator().refused_steps().to_string(),
+            ),
         ];
         if self.is_whole_organ() {
             details.push(("whole_organ".into(), WHOLE_ORGAN_NOTICE.into()));

@@ -999,7 +999,10 @@ impl Hybrid {
             std::mem::replace(&mut self.rest_cands, cands),
             std::mem::replace(&mut self.rest_active, active),
         );
-        if let Err(e) = self.install_rest_set() {
+        if let Err(e) = self
+            .install_rest_set()
+            .and_then(|()| self.let_go_of_pulls_at_start())
+        {
             (self.rest_cands, self.rest_active) = before;
             return Err(e);
         }
@@ -1197,6 +1200,60 @@ impl Hybrid {
         Ok(())
     }
 
+    /// Each candidate's push on the rest for the contact forces `z` of the active set (λ·n,
+    /// positive pushing; infinite for one held in full, 0 for one not held), and the sum of
+    /// the finite ones' sizes: the scale below which a pull is rounding.
+    fn pushes(&self, z: &Mat<Real>) -> (Vec<Real>, Real) {
+        let mut pushes = Vec::with_capacity(self.rest_cands.len());
+        let mut row = 0;
+        for (k, &a) in self.rest_cands.iter().zip(&self.rest_active) {
+            let push = if a && 3 * row + 2 < z.nrows() {
+                let f = Vec3::new(z[(3 * row, 0)], z[(3 * row + 1, 0)], z[(3 * row + 2, 0)]);
+                row += 1;
+                k.normal.map_or(Real::INFINITY, |n| n.dot(f))
+            } else {
+                0.0
+            };
+            pushes.push(push);
+        }
+        let scale = pushes
+            .iter()
+            .filter(|p| p.is_finite())
+            .map(|p| p.abs())
+            .sum();
+        (pushes, scale)
+    }
+
+    /// Lets go, before the step, of the frictionless contacts of the first guess that pull
+    /// where the step starts (their force with the new targets at the current interface
+    /// displacements): their instrument moved away from them. A contact that pushed at the
+    /// end of the last step is guessed held, and when its instrument left within one step
+    /// (the viewer lifting its probe 0.3 m away in 10 ms) its target is far behind its site:
+    /// held, it pulled the site toward the instrument's new place with a force the region's
+    /// step could not take, and the step diverged before the pull was seen after it. Let go
+    /// here, such a contact is free for the step and taken again only if its site ends past
+    /// its plane (`advance_settling`). A contact that pushes at the start is kept, as are
+    /// the supports.
+    fn let_go_of_pulls_at_start(&mut self) -> Result<(), SimError> {
+        let held = |(k, a): (&RestCandidate, &bool)| *a && k.normal.is_some();
+        if !self.rest_cands.iter().zip(&self.rest_active).any(held) {
+            return Ok(());
+        }
+        let z = self.rest.contact_forces(&self.interface_u());
+        let (pushes, scale) = self.pushes(&z);
+        let mut changed = false;
+        for (i, k) in self.rest_cands.iter().enumerate() {
+            if self.rest_active[i] && k.normal.is_some() && pushes[i] < -1e-9 * scale {
+                self.rest_active[i] = false;
+                changed = true;
+            }
+        }
+        if changed {
+            self.install_rest_set()?;
+        }
+        Ok(())
+    }
+
     /// Splits the loads: gravity on each part's own tetrahedra, point loads on the part of
     /// their vertex's node. Nothing changes on error.
     pub(super) fn set_loads_checked(&mut self, loads: &Loads) -> Result<(), SimError> {
@@ -1324,23 +1381,7 @@ impl Hybrid {
             let u = self.interface_u();
             let z = self.rest.contact_forces(&u);
             // Pulls and penetrations below roundoff of the pushes and of the motion are none.
-            let mut pushes = Vec::with_capacity(self.rest_cands.len());
-            let mut row = 0;
-            for (k, &a) in self.rest_cands.iter().zip(&self.rest_active) {
-                let push = if a {
-                    let f = Vec3::new(z[(3 * row, 0)], z[(3 * row + 1, 0)], z[(3 * row + 2, 0)]);
-                    row += 1;
-                    k.normal.map_or(Real::INFINITY, |n| n.dot(f))
-                } else {
-                    0.0
-                };
-                pushes.push(push);
-            }
-            let scale: Real = pushes
-                .iter()
-                .filter(|p| p.is_finite())
-                .map(|p| p.abs())
-                .sum();
+            let (pushes, scale) = self.pushes(&z);
             let depth = 1e-12 * self.edge;
             let mut next = self.rest_active.clone();
             for (i, k) in self.rest_cands.iter().enumerate() {
