@@ -9,9 +9,13 @@
 //! reaches it in one more (sub)step; one that stays out is left free. Along its normal the
 //! point moves as a particle of mass M = 1 / Σ wᵢ²/mᵢ (the inverse of its response), so a
 //! point on one particle (weights 1, 0, 0) is exactly `Hold::contact` on that particle.
-//! Points sharing particles are settled by projected Gauss-Seidel sweeps (positions, then
-//! velocities), each point's total push kept ≥ 0: the push over the step (its momentum /
-//! dt) is never negative.
+//! Points sharing particles are settled together (positions, then velocities), each point's
+//! total push kept ≥ 0: the push over the step (its momentum / dt) is never negative. Each
+//! stage is solved exactly, as a complementarity problem on the points' response to each
+//! other (`solve::lcp`, which takes the many dependent rows of a fine surface); projected
+//! Gauss-Seidel sweeps are the fallback where it refuses. The sweeps alone stopped at their
+//! cap on the liver's k = 3 fine surface with up to 1e-7 m left past the planes every
+//! substep, a chatter that kept `fem-explicit`'s deep press from settling.
 //!
 //! The energy ledger counts a point's normal coordinate as `place_holds` counts a contact
 //! particle's: the change of ½ M q̇² over the (sub)step and the work of the generalized force
@@ -25,8 +29,9 @@ use crate::math::{Real, Vec3, is_finite_vec};
 use super::Workspace;
 
 /// Projected Gauss-Seidel sweeps over the points at most per (sub)step, for the positions
-/// and again for the velocities. Points on one coarse face share all three particles; a
-/// sweep that moves nothing (to round-off) ends it.
+/// and again for the velocities, where the exact solve refuses (`PointProjection::exact`).
+/// Points on one coarse face share all three particles; a sweep that moves nothing (to
+/// round-off) ends it.
 const SWEEPS: usize = 50;
 
 /// A point tied to three particles that a plane may push but not pull, frictionless:
@@ -180,40 +185,135 @@ impl PointProjection {
             let gap = pt.gap(x);
             [if gap < 0.0 { 0.0 } else { -gap / h }, 0.0, 0.0]
         }));
-        // Projected Gauss-Seidel: a point's total push may shrink again (never below zero)
-        // when its neighbours' pushes did its work, so that points sharing particles end on
-        // their planes without over-correcting them; accumulated pushes only, a sweep that
-        // moved a point's particles the wrong way left them moving into the tissue, and the
-        // mass damping of that motion read as 3 % less push on a block under a flat plane.
         for stage in [1, 2] {
-            for _ in 0..SWEEPS {
-                let mut largest: Real = 0.0;
-                for (k, pt) in points.iter().enumerate() {
-                    let inverse = pt.inverse_mass(inv_mass);
-                    if inverse <= 0.0 {
+            let y: &mut [Vec3] = if stage == 1 { &mut *x } else { &mut *v };
+            if !self.exact(points, y, inv_mass, stage) {
+                self.sweeps(points, y, inv_mass, h, stage);
+            }
+        }
+    }
+
+    /// What point `k` still lacks at stage 1 (its gap below zero, positions `y`) or stage 2
+    /// (its normal velocity below the least it may keep, velocities `y`): negative when
+    /// short.
+    fn excess(&self, pt: &PointHold, k: usize, y: &[Vec3], stage: usize) -> Real {
+        if stage == 1 {
+            pt.gap(y)
+        } else {
+            pt.coordinate(y) - self.lambda[k][0]
+        }
+    }
+
+    /// One stage solved exactly: the least mass-weighted change of `y` (positions at stage
+    /// 1, velocities at stage 2) that leaves no point short, each point's total push ≥ 0
+    /// and zero where it ends beyond what it needs. Its optimality conditions are a linear
+    /// complementarity problem on the points' response to each other's pushes,
+    /// M_ab = Σ over shared particles p of w_a w_b (n_a·n_b) / m_p, singular when many
+    /// points ride on one coarse face (a fine surface's), which `solve::lcp::solve_mixed`
+    /// takes by construction. False (nothing changed) when the solver refuses it.
+    fn exact(
+        &mut self,
+        points: &[PointHold],
+        y: &mut [Vec3],
+        inv_mass: &[Real],
+        stage: usize,
+    ) -> bool {
+        let rows: Vec<usize> = (0..points.len())
+            .filter(|&k| points[k].inverse_mass(inv_mass) > 0.0)
+            .collect();
+        let b: Vec<Real> = rows
+            .iter()
+            .map(|&k| self.excess(&points[k], k, y, stage))
+            .collect();
+        if b.iter().all(|g| *g >= 0.0) {
+            return true;
+        }
+        // The points on each particle, with their weights there.
+        let mut on: std::collections::BTreeMap<usize, Vec<(usize, Real)>> =
+            std::collections::BTreeMap::new();
+        for (a, &k) in rows.iter().enumerate() {
+            let pt = &points[k];
+            for i in 0..3 {
+                if pt.weights[i] != 0.0 && inv_mass[pt.particles[i]] > 0.0 {
+                    on.entry(pt.particles[i])
+                        .or_default()
+                        .push((a, pt.weights[i]));
+                }
+            }
+        }
+        let n = rows.len();
+        let mut m = faer::Mat::<Real>::zeros(n, n);
+        for (&p, list) in &on {
+            for &(a, wa) in list {
+                for &(c, wc) in list {
+                    if c < a {
                         continue;
                     }
-                    let lambda = &mut self.lambda[k];
-                    let (y, short) = if stage == 1 {
-                        let short = -pt.gap(x);
-                        (&mut *x, short)
-                    } else {
-                        let short = lambda[0] - pt.coordinate(v);
-                        (&mut *v, short)
-                    };
-                    let total = (lambda[stage] + short / inverse).max(0.0);
-                    let delta = total - lambda[stage];
-                    if delta != 0.0 {
-                        lambda[stage] = total;
-                        pt.shift(y, inv_mass, inverse, delta * inverse);
-                        largest = largest.max((delta * inverse).abs());
+                    let na = points[rows[a]].normal;
+                    let nc = points[rows[c]].normal;
+                    let add = wa * wc * inv_mass[p] * na.dot(nc);
+                    m[(a, c)] += add;
+                    if c != a {
+                        m[(c, a)] += add;
                     }
                 }
-                // Round-off, in m (positions) or m per (sub)step (velocities).
-                let tolerance = if stage == 1 { 1e-15 } else { 1e-15 / h };
-                if largest <= tolerance {
-                    break;
+            }
+        }
+        let Ok(solved) = crate::solve::lcp::solve_mixed(m.as_ref(), &b, 0, &[]) else {
+            return false;
+        };
+        for (a, &k) in rows.iter().enumerate() {
+            let mu = solved.lambda[a];
+            self.lambda[k][stage] = mu;
+            if mu != 0.0 {
+                let pt = &points[k];
+                for i in 0..3 {
+                    let p = pt.particles[i];
+                    y[p] += pt.normal * (pt.weights[i] * inv_mass[p] * mu);
                 }
+            }
+        }
+        true
+    }
+
+    /// One stage by projected Gauss-Seidel sweeps (`exact`'s fallback): a point's total
+    /// push may shrink again (never below zero) when its neighbours' pushes did its work,
+    /// so that points sharing particles end on their planes without over-correcting them;
+    /// accumulated pushes only, a sweep that moved a point's particles the wrong way left
+    /// them moving into the tissue, and the mass damping of that motion read as 3 % less
+    /// push on a block under a flat plane.
+    fn sweeps(
+        &mut self,
+        points: &[PointHold],
+        y: &mut [Vec3],
+        inv_mass: &[Real],
+        h: Real,
+        stage: usize,
+    ) {
+        for k in 0..points.len() {
+            self.lambda[k][stage] = 0.0;
+        }
+        for _ in 0..SWEEPS {
+            let mut largest: Real = 0.0;
+            for (k, pt) in points.iter().enumerate() {
+                let inverse = pt.inverse_mass(inv_mass);
+                if inverse <= 0.0 {
+                    continue;
+                }
+                let short = -self.excess(pt, k, y, stage);
+                let lambda = &mut self.lambda[k];
+                let total = (lambda[stage] + short / inverse).max(0.0);
+                let delta = total - lambda[stage];
+                if delta != 0.0 {
+                    lambda[stage] = total;
+                    pt.shift(y, inv_mass, inverse, delta * inverse);
+                    largest = largest.max((delta * inverse).abs());
+                }
+            }
+            // Round-off, in m (positions) or m per (sub)step (velocities).
+            let tolerance = if stage == 1 { 1e-15 } else { 1e-15 / h };
+            if largest <= tolerance {
+                break;
             }
         }
     }
