@@ -28,6 +28,10 @@ use crate::math::{Real, Vec3, is_finite_vec};
 
 use super::Workspace;
 
+/// Rounds of `PointProjection::exact` (rows added that the last solution left short) at
+/// most per stage before the sweeps take over.
+const ROUNDS: usize = 20;
+
 /// Projected Gauss-Seidel sweeps over the points at most per (sub)step, for the positions
 /// and again for the velocities, where the exact solve refuses (`PointProjection::exact`).
 /// Points on one coarse face share all three particles; a sweep that moves nothing (to
@@ -218,62 +222,108 @@ impl PointProjection {
         inv_mass: &[Real],
         stage: usize,
     ) -> bool {
-        let rows: Vec<usize> = (0..points.len())
-            .filter(|&k| points[k].inverse_mass(inv_mass) > 0.0)
-            .collect();
-        let b: Vec<Real> = rows
+        use std::collections::BTreeMap;
+        let b_all: Vec<Real> = points
             .iter()
-            .map(|&k| self.excess(&points[k], k, y, stage))
+            .enumerate()
+            .map(|(k, pt)| {
+                if pt.inverse_mass(inv_mass) > 0.0 {
+                    self.excess(pt, k, y, stage)
+                } else {
+                    Real::INFINITY
+                }
+            })
             .collect();
-        if b.iter().all(|g| *g >= 0.0) {
+        if b_all.iter().all(|g| *g >= 0.0) {
             return true;
         }
-        // The points on each particle, with their weights there.
-        let mut on: std::collections::BTreeMap<usize, Vec<(usize, Real)>> =
-            std::collections::BTreeMap::new();
-        for (a, &k) in rows.iter().enumerate() {
-            let pt = &points[k];
-            for i in 0..3 {
-                if pt.weights[i] != 0.0 && inv_mass[pt.particles[i]] > 0.0 {
-                    on.entry(pt.particles[i])
-                        .or_default()
-                        .push((a, pt.weights[i]));
-                }
-            }
-        }
-        let n = rows.len();
-        let mut m = faer::Mat::<Real>::zeros(n, n);
-        for (&p, list) in &on {
-            for &(a, wa) in list {
-                for &(c, wc) in list {
-                    if c < a {
-                        continue;
-                    }
-                    let na = points[rows[a]].normal;
-                    let nc = points[rows[c]].normal;
-                    let add = wa * wc * inv_mass[p] * na.dot(nc);
-                    m[(a, c)] += add;
-                    if c != a {
-                        m[(c, a)] += add;
-                    }
-                }
-            }
-        }
-        let Ok(solved) = crate::solve::lcp::solve_mixed(m.as_ref(), &b, 0, &[]) else {
-            return false;
-        };
-        for (a, &k) in rows.iter().enumerate() {
-            let mu = solved.lambda[a];
-            self.lambda[k][stage] = mu;
-            if mu != 0.0 {
+        let largest = b_all
+            .iter()
+            .filter(|g| g.is_finite())
+            .fold(0.0, |m: Real, g| m.max(g.abs()));
+        let tolerance = crate::solve::lcp::GAP_TOLERANCE * largest;
+        // The rows solved: the points short now, then those the solution leaves short (a
+        // few rounds; a fine surface gives a hundred points near an instrument, of which a
+        // handful push: solving them all, densely, cost 20 times the step of `spring-mass`).
+        let mut rows: Vec<usize> = (0..points.len()).filter(|&k| b_all[k] < 0.0).collect();
+        let mut pushing: Vec<bool> = Vec::new();
+        for _ in 0..ROUNDS {
+            // The rows on each particle, with their weights there.
+            let mut on: BTreeMap<usize, Vec<(usize, Real)>> = BTreeMap::new();
+            for (a, &k) in rows.iter().enumerate() {
                 let pt = &points[k];
                 for i in 0..3 {
-                    let p = pt.particles[i];
-                    y[p] += pt.normal * (pt.weights[i] * inv_mass[p] * mu);
+                    if pt.weights[i] != 0.0 && inv_mass[pt.particles[i]] > 0.0 {
+                        on.entry(pt.particles[i])
+                            .or_default()
+                            .push((a, pt.weights[i]));
+                    }
                 }
             }
+            let n = rows.len();
+            let mut m = faer::Mat::<Real>::zeros(n, n);
+            for (&p, list) in &on {
+                for &(a, wa) in list {
+                    for &(c, wc) in list {
+                        if c < a {
+                            continue;
+                        }
+                        let na = points[rows[a]].normal;
+                        let nc = points[rows[c]].normal;
+                        let add = wa * wc * inv_mass[p] * na.dot(nc);
+                        m[(a, c)] += add;
+                        if c != a {
+                            m[(c, a)] += add;
+                        }
+                    }
+                }
+            }
+            let b: Vec<Real> = rows.iter().map(|&k| b_all[k]).collect();
+            let Ok(solved) = crate::solve::lcp::solve_mixed(m.as_ref(), &b, 0, &pushing) else {
+                return false;
+            };
+            // The particles' moves, and the rows left out that they leave short.
+            let mut moved: BTreeMap<usize, Vec3> = BTreeMap::new();
+            for (a, &k) in rows.iter().enumerate() {
+                let mu = solved.lambda[a];
+                if mu != 0.0 {
+                    let pt = &points[k];
+                    for i in 0..3 {
+                        let p = pt.particles[i];
+                        *moved.entry(p).or_insert(Vec3::ZERO) +=
+                            pt.normal * (pt.weights[i] * inv_mass[p] * mu);
+                    }
+                }
+            }
+            let mut solved_row = vec![false; points.len()];
+            rows.iter().for_each(|&k| solved_row[k] = true);
+            let short: Vec<usize> = (0..points.len())
+                .filter(|&k| !solved_row[k] && b_all[k].is_finite())
+                .filter(|&k| {
+                    let pt = &points[k];
+                    let shift: Real = (0..3)
+                        .map(|i| {
+                            moved
+                                .get(&pt.particles[i])
+                                .map_or(0.0, |d| pt.weights[i] * pt.normal.dot(*d))
+                        })
+                        .sum();
+                    b_all[k] + shift < -tolerance
+                })
+                .collect();
+            if short.is_empty() {
+                for (a, &k) in rows.iter().enumerate() {
+                    self.lambda[k][stage] = solved.lambda[a];
+                }
+                for (p, d) in moved {
+                    y[p] += d;
+                }
+                return true;
+            }
+            pushing = solved.lambda.iter().map(|mu| *mu > 0.0).collect();
+            rows.extend(short);
         }
-        true
+        false
     }
 
     /// One stage by projected Gauss-Seidel sweeps (`exact`'s fallback): a point's total
