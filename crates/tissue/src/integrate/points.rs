@@ -28,6 +28,12 @@ use crate::math::{Real, Vec3, is_finite_vec};
 
 use super::Workspace;
 
+/// The largest particle move of `PointProjection::exact`, in units of the deepest
+/// shortfall it corrects: tilting a face so that points an eighth of it apart both reach
+/// their planes moves its corners about 10 times their shortfall; a solution past this
+/// is an ill-conditioned set of nearly dependent rows, not a geometry.
+const SANE_MOVE: Real = 1e3;
+
 /// Rounds of `PointProjection::exact` (rows added that the last solution left short) at
 /// most per stage before the sweeps take over.
 const ROUNDS: usize = 20;
@@ -311,6 +317,15 @@ impl PointProjection {
                     b_all[k] + shift < -tolerance
                 })
                 .collect();
+            // A near-dependent set of rows (within `lcp::DEPENDENT` of its span) may be
+            // solved with pushes far larger than the shortfall needs: a move beyond
+            // `SANE_MOVE` times the deepest shortfall is refused, and the sweeps take the
+            // stage.
+            let reach = moved.values().fold(0.0, |m: Real, d| m.max(d.length()));
+            let deepest = b.iter().fold(0.0, |m: Real, g| m.max(-g));
+            if !(reach <= SANE_MOVE * deepest) {
+                return false;
+            }
             if short.is_empty() {
                 for (a, &k) in rows.iter().enumerate() {
                     self.lambda[k][stage] = solved.lambda[a];
