@@ -67,10 +67,9 @@ pub struct Settings {
     pub random_step_cap: usize,
     /// Ramp time and time limit of quasi-static runs of dynamic models, s. The limit is the
     /// full run's with `--quick` too: on the k = 3 fine surface (`drive::fine_levels`) the
-    /// deep press of `fem-explicit` and `tensor-mass` comes to rest at 1.9–2.0 s (within
-    /// 0.01 % of `fem-static`'s force), where 1.5 s left them 0.4 % and 0.1 % off, moving
-    /// (`compare::tests_settle`). A run that settles stops early: only the unsettled ones
-    /// pay for it.
+    /// shallow press of `fem-explicit` comes to rest after 1.48 s, at the edge of the former
+    /// 1.5 s (`compare::tests_settle`). A run that settles stops early: only the unsettled
+    /// ones pay for it.
     pub ramp: Real,
     pub settle_time: Real,
     /// Load increments of static models.
