@@ -90,10 +90,16 @@ fn load_organ(args: &CompareArgs, settings: &Settings) -> anyhow::Result<Organ> 
 }
 
 /// A kind's cache key: the shared inputs and the kind with its probe's contact law (every
-/// kind's: frictionless on the fine contact surface).
+/// kind's: frictionless on the fine contact surface) and the fine surface's rule (its edge
+/// in probe radii): a record cached under another rule is measured again.
 fn kind_key(kind: &str, base: u64) -> u64 {
-    let law = tissue::compare::drive::ContactLaw::FineSurface.name();
-    fnv(law.as_bytes(), fnv(kind.as_bytes(), base))
+    use tissue::compare::drive::{ContactLaw, FINE_EDGE_PER_RADIUS};
+    let law = ContactLaw::FineSurface.name();
+    let rule = format!("fine edge {FINE_EDGE_PER_RADIUS:e} of the radius");
+    fnv(
+        rule.as_bytes(),
+        fnv(law.as_bytes(), fnv(kind.as_bytes(), base)),
+    )
 }
 
 /// FNV-1a: a stable hash of a kind's inputs for the cache.

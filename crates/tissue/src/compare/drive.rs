@@ -73,23 +73,20 @@ impl ContactLaw {
 
 /// The fine contact surface's subdivision for a probe of `radius` on a surface whose
 /// median edge is `edge` (both m): the fewest levels k (each triangle into 4^k) that bring
-/// the fine edge, edge / 2^k, to at most a quarter of the radius (`FINE_EDGE_PER_RADIUS`).
-/// The sphere then sags e²/(8 R) ≤ R/128 between neighbouring points, so it cannot pass
-/// between them, and the shallow indentation's patch (radius √(2 R d) ≈ 0.44 R at a depth of
-/// a tenth of R) holds about π (0.44 R)² / (0.87 (R/4)²) ≈ 11 fine points, the deep one
-/// (d = 0.4 R, radius 0.8 R) about 37, where the coarse liver's patch holds 1 to 3 vertices.
-/// Not finer: on a flat-subdivided face the points add no direction its three vertices do
-/// not have, only dependent rows, and at an eighth of the radius (16 triangles per coarse
-/// one on the liver) a deep random probe gathered 347 points and `fem-static`'s and the
-/// condensed kinds' complementarity solver found no solution within its cap. At most
-/// `MAX_FINE_LEVELS`, and fewer while the fine surface would have more than
-/// `MAX_FINE_TRIANGLES` (a finely meshed organ needs little or no subdivision).
+/// the fine edge, edge / 2^k, to at most a sixteenth of the radius (`FINE_EDGE_PER_RADIUS`).
 ///
-/// The patch estimate is Hertz's, for a smooth surface. The built-in liver's probe presses
-/// a cone point of the coarse polyhedron, whose patch is about 3 mm across, and there k = 1
-/// is not converged (`reference::tests::fine_surface_refinement_study`, `fem-condensed`,
-/// shallow: k = 0 and 1 give the vertex law's 1.307 mN, k = 2 1.726 mN, k = 3 1.640 mN;
-/// deep: k = 1 19.3 mN, k = 2 15.8 mN, k = 3 14.4 mN; k = 4 1.619 / 14.6 mN; docs/compare.md).
+/// Why so fine: the contact answer must be the model's, not the contact surface's. On the
+/// built-in liver the probe presses a cone point of the coarse polyhedron, whose patch is
+/// about 3 mm across (R = 24.7 mm), and the press converges only at k = 3
+/// (`reference::tests::fine_surface_refinement_study`, the linear FEM kinds, shallow:
+/// k = 1 1.307 mN, k = 2 1.726, k = 3 1.640, k = 4 1.619; deep: 19.3, 15.8, 14.4, 14.6 mN);
+/// k = 3's deep press is within 1 % of the full reference's 14.29 mN. A quarter of the
+/// radius (k = 1, the rule until session 18) was 19 % off in the shallow press. Finer
+/// surfaces give many dependent rows (a flat-subdivided face adds no direction its three
+/// vertices do not have), which `solve::lcp`'s dual active set and the BEM's splitting with
+/// Lemke's method take in milliseconds (docs/contact.md). At most `MAX_FINE_LEVELS`, and
+/// fewer while the fine surface would have more than `MAX_FINE_TRIANGLES` (a finely meshed
+/// organ needs little or no subdivision).
 pub fn fine_levels(edge: Real, radius: Real, coarse_triangles: usize) -> u32 {
     let mut k = 0;
     while k < MAX_FINE_LEVELS && edge / Real::from(1u32 << k) > radius * FINE_EDGE_PER_RADIUS {
@@ -102,7 +99,7 @@ pub fn fine_levels(edge: Real, radius: Real, coarse_triangles: usize) -> u32 {
 }
 
 /// The fine contact surface's longest median edge, in probe radii (`fine_levels`).
-pub const FINE_EDGE_PER_RADIUS: Real = 0.25;
+pub const FINE_EDGE_PER_RADIUS: Real = 1.0 / 16.0;
 /// The most subdivision levels of the fine contact surface.
 pub const MAX_FINE_LEVELS: u32 = 4;
 /// The most triangles of the fine contact surface.
