@@ -79,7 +79,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         if outcome.capped_steps > 0 {
             eprintln!(
                 "{} steps stopped at their iteration cap before their tolerance \
-                 (worst residual {:.2e}): raise the model's iteration cap or loosen its tolerance",
+                 (worst residual {:.2e}; an iterative solver's, or the fine points' projection \
+                 sweeps, which leave a point more than a nanometre past its plane): raise the \
+                 model's iteration cap or loosen its tolerance, or use a kind that solves its \
+                 points exactly (fem-semi-implicit, fem-static)",
                 outcome.capped_steps, outcome.worst_residual
             );
         }

@@ -1267,6 +1267,7 @@ impl Integrator {
             target: target_at(hold, 1),
             ..*hold
         }));
+        self.work.points.take_capped();
         let result = self.run_substeps(system, state, holds, &mut sub, h, n, &target_at);
         self.sub_holds = sub;
         let (energy, watch) = result?;
@@ -1274,6 +1275,7 @@ impl Integrator {
         self.watch = watch;
         Ok(StepInfo {
             substeps: n,
+            capped: self.work.points.take_capped(),
             ..StepInfo::default()
         })
     }
@@ -1374,6 +1376,8 @@ impl Integrator {
         } else {
             start
         });
+        // A refused step's cap is not this step's.
+        self.work.points.take_capped();
         self.begin(system, state, holds, dt)?;
         let info = match self.scheme {
             Scheme::ExplicitEuler => schemes::explicit_euler(&mut self.work, dt),
@@ -1403,7 +1407,10 @@ impl Integrator {
         let (energy, watch) = self.check_energy(system, holds, dt)?;
         self.commit(state, holds, energy);
         self.watch = watch;
-        Ok(info)
+        Ok(StepInfo {
+            capped: info.capped || self.work.points.take_capped(),
+            ..info
+        })
     }
 
     /// Validates the input and fills x0, v0 (held particles moving at their step velocity),

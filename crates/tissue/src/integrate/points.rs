@@ -29,6 +29,11 @@ use super::Workspace;
 /// sweep that moves nothing (to round-off) ends it.
 const SWEEPS: usize = 50;
 
+/// A point left further than this past its plane when the position sweeps reach `SWEEPS`
+/// makes the run capped (`PointProjection::take_capped`): a nanometre, far below what any
+/// tissue scale resolves, so that a cap reached only by round-off is not reported.
+pub const CAPPED_DEPTH: Real = 1e-9;
+
 /// A point tied to three particles that a plane may push but not pull, frictionless:
 /// Σ wᵢ n·xᵢ ≥ `level`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -159,9 +164,19 @@ pub struct PointProjection {
     /// speed that reaches the plane in one more (sub)step), and what its position and
     /// velocity projections have given so far (≥ 0), in the point's mass units.
     lambda: Vec<[Real; 3]>,
+    /// Whether a run since the last `take_capped` stopped its position sweeps at `SWEEPS`
+    /// with a point more than `CAPPED_DEPTH` past its plane.
+    capped: bool,
 }
 
 impl PointProjection {
+    /// Whether a run since the last call stopped at its sweep cap with a point left past
+    /// its plane (by more than `CAPPED_DEPTH`), and forgets it: the step that ran them says
+    /// so in `StepInfo::capped` rather than passing the points off as held.
+    pub fn take_capped(&mut self) -> bool {
+        std::mem::take(&mut self.capped)
+    }
+
     /// Projects `points` after a (sub)step of length `h` on the positions `x` and velocities
     /// `v` of their particles, whose inverse masses are `inv_mass` (0 for a held particle,
     /// which takes none of a point's move): see the module documentation. Only the points'
@@ -186,6 +201,7 @@ impl PointProjection {
         // moved a point's particles the wrong way left them moving into the tissue, and the
         // mass damping of that motion read as 3 % less push on a block under a flat plane.
         for stage in [1, 2] {
+            let mut converged = false;
             for _ in 0..SWEEPS {
                 let mut largest: Real = 0.0;
                 for (k, pt) in points.iter().enumerate() {
@@ -212,8 +228,13 @@ impl PointProjection {
                 // Round-off, in m (positions) or m per (sub)step (velocities).
                 let tolerance = if stage == 1 { 1e-15 } else { 1e-15 / h };
                 if largest <= tolerance {
+                    converged = true;
                     break;
                 }
+            }
+            if stage == 1 && !converged {
+                let deepest = points.iter().fold(0.0, |d: Real, pt| d.max(-pt.gap(x)));
+                self.capped |= deepest > CAPPED_DEPTH;
             }
         }
     }
@@ -273,4 +294,33 @@ pub(super) fn work(w: &Workspace, points: &[PointHold]) -> (Real, Real) {
         a += dw.abs();
     }
     (s, a)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One point on one particle, past its plane: projected onto it in one sweep, not
+    /// capped. Two points on the same particle with opposite planes 1 mm apart (no position
+    /// satisfies both): the sweeps reach their cap with a point still 1 mm past its plane,
+    /// and the run says so (once: `take_capped` forgets it).
+    #[test]
+    fn a_projection_that_stops_at_its_sweep_cap_says_so() {
+        let on = |normal: Vec3, level: Real| PointHold {
+            particles: [0, 0, 0],
+            weights: [1.0, 0.0, 0.0],
+            normal,
+            level,
+        };
+        let mut p = PointProjection::default();
+        let (mut x, mut v) = (vec![Vec3::ZERO], vec![Vec3::ZERO]);
+        p.run(&[on(Vec3::Z, 1e-3)], &mut x, &mut v, &[1.0], 1e-3);
+        assert!((x[0].z - 1e-3).abs() < 1e-15, "{}", x[0]);
+        assert!(!p.take_capped());
+        let (mut x, mut v) = (vec![Vec3::ZERO], vec![Vec3::ZERO]);
+        let clash = [on(Vec3::Z, 1e-3), on(-Vec3::Z, 0.0)];
+        p.run(&clash, &mut x, &mut v, &[1.0], 1e-3);
+        assert!(p.take_capped());
+        assert!(!p.take_capped());
+    }
 }

@@ -253,6 +253,8 @@ impl FemExplicit {
     /// The elastic central-difference substeps of `advance`.
     fn advance_elastic(&mut self, dt: Real) -> Result<StepInfo, SimError> {
         self.core.clear_impulses();
+        // A refused step's sweep cap is not this step's.
+        self.core.projection.take_capped();
         let n = match self.substeps {
             Substeps::Fixed(n) => n.max(1),
             Substeps::Auto => {
@@ -273,6 +275,7 @@ impl FemExplicit {
             self.last_substeps = 1;
             return Ok(StepInfo {
                 substeps: 1,
+                capped: self.core.projection.take_capped(),
                 ..StepInfo::default()
             });
         }
@@ -322,6 +325,7 @@ impl FemExplicit {
         self.last_substeps = n;
         Ok(StepInfo {
             substeps: n,
+            capped: c.projection.take_capped(),
             ..StepInfo::default()
         })
     }
