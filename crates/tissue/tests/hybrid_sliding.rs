@@ -522,9 +522,13 @@ fn hybrid_lets_go_of_a_probe_lifted_away_within_one_step() {
 /// none with `NOSTOP`), traced step by step from `FROM` s for `STEPS` steps: the probe
 /// force, the kinetic energy, each touching contact (R: on the rest, G: on the region;
 /// vertex, push in N) and the four surface vertices that moved most in the step (label:
-/// 0 rest, 1 the region's border, 2 the region; how far from the probe's surface). A study
-/// (prints only): `FROM=1.2 STEPS=4 cargo test --release -p tissue --test hybrid_sliding
-/// deep_press_trace -- --ignored --nocapture`; docs/hybrid.md, "Session 19".
+/// 0 rest, 1 the region's border, 2 the region; how far from the probe's surface). With
+/// `PLANES`, each face plane: its vertex's distance in front of it at the step's end and
+/// start (µm; `*`: it pushed). With `FREEZE` = t, from t on the model steps by itself under
+/// the last planes the simulation placed (none placed again). `T_END` ends the run (1.5 s).
+/// A study (prints only): `FROM=1.2 STEPS=4 cargo test --release -p tissue --test
+/// hybrid_sliding deep_press_trace -- --ignored --nocapture`; docs/hybrid.md, "Session 19"
+/// and "Session 20".
 #[test]
 #[ignore = "study: traces the comparison's deep press on hybrid"]
 fn hybrid_deep_press_trace_study() {
@@ -565,7 +569,7 @@ fn hybrid_deep_press_trace_study() {
     let (mut last, mut peak, mut stops) = (0.0, 0.0 as Real, 0);
     let mut prev: Vec<Vec3> = sim.model().surface().positions.to_vec();
     let mut k = 0;
-    while sim.time() < end - 1e-9 {
+    while (k as Real + 1.0) * dt < end + 1e-9 {
         k += 1;
         let t = k as Real * dt;
         let f = smooth_ramp(t / ramp);
@@ -574,6 +578,32 @@ fn hybrid_deep_press_trace_study() {
         let trace = t >= from && t < from + steps as Real * dt;
         if trace {
             prev = sim.model().surface().positions.to_vec();
+        }
+        let freeze = var("FREEZE", 1e9);
+        if t > freeze + 0.5 * dt {
+            // The planes as the last simulation step placed them, held for good.
+            let info = sim.model_mut().step(dt).unwrap();
+            let e = sim.model().kinetic_energy().unwrap_or(0.0);
+            peak = peak.max(e);
+            let stopped =
+                std::env::var("NOSTOP").is_err() && e < last && sim.model_mut().stop_motion();
+            if stopped {
+                stops += 1;
+                last = 0.0;
+            } else {
+                last = e;
+            }
+            let f: Vec3 = sim.model().reactions().prescribed.iter().copied().sum();
+            if trace {
+                println!(
+                    "t {t:.4} F {:.5e} KE {e:.3e} KE/peak {:.2e}{} stops {stops} substeps {} (frozen)",
+                    -f.y,
+                    e / peak.max(1e-300),
+                    if stopped { " (stopped)" } else { "" },
+                    info.substeps
+                );
+            }
+            continue;
         }
         let r = sim.step(dt).unwrap();
         let e = sim.model().kinetic_energy().unwrap_or(0.0);
@@ -605,6 +635,26 @@ fn hybrid_deep_press_trace_study() {
                 })
                 .collect();
             let now = sim.model().surface().positions.to_vec();
+            if std::env::var("PLANES").is_ok() {
+                // Each plane: its vertex's distance in front of it at the step's end (µm)
+                // and how far the plane sits from the vertex's place at the step's start.
+                let planes: Vec<String> = probe
+                    .contacts()
+                    .iter()
+                    .zip(probe.contact_reactions())
+                    .filter_map(|(c, g)| {
+                        let n = c.face?;
+                        let v = c.vertex as usize;
+                        Some(format!(
+                            "{v}:end{:+.2}/start{:+.2}um{}",
+                            1e6 * n.dot(now[v] - c.target),
+                            1e6 * n.dot(prev[v] - c.target),
+                            if *g == Vec3::ZERO { "" } else { "*" }
+                        ))
+                    })
+                    .collect();
+                println!("   planes: {}", planes.join(" "));
+            }
             let mut moved: Vec<(Real, usize)> = now
                 .iter()
                 .zip(&prev)
