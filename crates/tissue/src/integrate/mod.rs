@@ -632,6 +632,7 @@ pub struct Checkpoint {
     steps: u64,
     last_substeps: u32,
     held_forces: Vec<Vec3>,
+    from_rest: bool,
 }
 
 /// Steps a particle system in time with one scheme; see the module documentation.
@@ -654,6 +655,10 @@ pub struct Integrator {
     /// Steps the divergence guard refused and that were taken again with more substeps.
     refused: u64,
     last_substeps: u32,
+    /// The velocities were zeroed (`motion_stopped`) after the last step: the next
+    /// symplectic Euler step starts with half a kick (`schemes::symplectic_euler`), and its
+    /// contacts' pushes are read over the time its kicks cover (`step`).
+    from_rest: bool,
     saved: Saved,
     sub_holds: Vec<Hold>,
     /// Push-only contacts on points tied to particles (`set_points`), and the push on each
@@ -789,6 +794,7 @@ impl Integrator {
             steps: self.steps,
             last_substeps: self.last_substeps,
             held_forces: self.held_forces.clone(),
+            from_rest: self.from_rest,
         }
     }
 
@@ -798,6 +804,7 @@ impl Integrator {
         self.steps = checkpoint.steps;
         self.last_substeps = checkpoint.last_substeps;
         self.held_forces.clone_from(&checkpoint.held_forces);
+        self.from_rest = checkpoint.from_rest;
         self.forget_forces();
     }
 
@@ -815,9 +822,18 @@ impl Integrator {
     /// (the stiffness is the same), and so is the growth watch: its ledger sees the drop
     /// as a loss, and its allowance keeps the recent kinetic-energy peak (a watch started
     /// afresh at rest would read the next steps' normal energy swing as growth).
+    ///
+    /// Under symplectic Euler the next step starts with half a kick (`from_rest`). Its
+    /// velocity runs half a step ahead of its positions; zeroed, with a whole kick next, the
+    /// state restarted moving at (h/2)·a, more energy than the positions' alone, and
+    /// kinetic damping fed a fast mode instead of draining it: a linear oscillator at hω =
+    /// 0.5 with two substeps a step grew 1e2-fold in 400 steps of such stops, and the
+    /// hybrid's deep press in `tissue compare` grew from 3e-9 to 1e-4 J with its contact
+    /// planes frozen (docs/hybrid.md, "Session 20").
     pub fn motion_stopped(&mut self) {
         self.end = None;
         self.implicit.forget_warm_start();
+        self.from_rest = true;
     }
 
     /// Measures the stability limit now at `state` (the models call it when built, so that
@@ -1024,11 +1040,23 @@ impl Integrator {
             }
         }
         if result.is_ok() {
-            self.contact_forces(holds, dt);
+            // The pushes' momentum over the step is their force times the time the kicks
+            // cover: half a substep less after a stop (`from_rest`). Divided by the whole
+            // step, a contact resting on its plane read 0.75 of its force on every step
+            // after a stop (two substeps), and the hybrid's deep press alternated between
+            // 17.2 and 23.1 mN with its planes still to 0.1 µm.
+            let kicked =
+                if std::mem::take(&mut self.from_rest) && self.scheme == Scheme::SymplecticEuler {
+                    dt - 0.5 * dt / Real::from(self.last_substeps.max(1))
+                } else {
+                    dt
+                };
+            self.contact_forces(holds, kicked);
             let impulses = &self.work.point_impulse;
             self.point_pushes.clear();
-            self.point_pushes
-                .extend((0..self.points.len()).map(|k| impulses.get(k).map_or(0.0, |p| p / dt)));
+            self.point_pushes.extend(
+                (0..self.points.len()).map(|k| impulses.get(k).map_or(0.0, |p| p / kicked)),
+            );
         }
         if split && result.is_ok() {
             self.apply_split(system, state, holds, dt);
@@ -1330,7 +1358,10 @@ impl Integrator {
             }
             match self.scheme {
                 Scheme::ExplicitEuler => schemes::explicit_euler(w, h),
-                Scheme::SymplecticEuler => schemes::symplectic_euler(w, h),
+                Scheme::SymplecticEuler => {
+                    let kick = if k == 1 && self.from_rest { 0.5 } else { 1.0 };
+                    schemes::symplectic_euler(w, h, kick)
+                }
                 Scheme::VelocityVerlet => schemes::velocity_verlet(system, w, h),
                 Scheme::Rk4 => schemes::rk4(system, w, h),
                 Scheme::ImplicitEuler => unreachable!("implicit Euler substeps take `single`"),
@@ -1381,7 +1412,11 @@ impl Integrator {
         self.begin(system, state, holds, dt)?;
         let info = match self.scheme {
             Scheme::ExplicitEuler => schemes::explicit_euler(&mut self.work, dt),
-            Scheme::SymplecticEuler => schemes::symplectic_euler(&mut self.work, dt),
+            Scheme::SymplecticEuler => {
+                // `single` is a whole step here (implicit Euler's substeps never come here).
+                let kick = if self.from_rest { 0.5 } else { 1.0 };
+                schemes::symplectic_euler(&mut self.work, dt, kick)
+            }
             Scheme::VelocityVerlet => schemes::velocity_verlet(system, &mut self.work, dt),
             Scheme::Rk4 => schemes::rk4(system, &mut self.work, dt),
             Scheme::ImplicitEuler => self.implicit.step(

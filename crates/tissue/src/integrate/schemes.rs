@@ -16,10 +16,13 @@ pub(super) fn explicit_euler(w: &mut Workspace, h: Real) -> StepInfo {
     StepInfo::default()
 }
 
-/// v1 = v0 + h·M⁻¹f(x0, v0), x1 = x0 + h·v1.
-pub(super) fn symplectic_euler(w: &mut Workspace, h: Real) -> StepInfo {
+/// v1 = v0 + kick·h·M⁻¹f(x0, v0), x1 = x0 + h·v1. `kick` is 1, or ½ for the first
+/// substep after the motion was stopped (`Integrator::motion_stopped`): the scheme's
+/// velocity is the one half a step ahead of its positions (leapfrog's v at t + h/2), and a
+/// state at rest at t is v(t + h/2) = (h/2)·a, not v(t − h/2) = 0 followed by a whole kick.
+pub(super) fn symplectic_euler(w: &mut Workspace, h: Real, kick: Real) -> StepInfo {
     for i in 0..w.x0.len() {
-        w.v1[i] = w.v0[i] + h * w.inv_mass[i] * w.f0[i];
+        w.v1[i] = w.v0[i] + kick * h * w.inv_mass[i] * w.f0[i];
         w.x1[i] = w.x0[i] + h * w.v1[i];
     }
     StepInfo::default()
