@@ -40,7 +40,38 @@ fn unknown_key_in_a_scene_fails_naming_it() {
         err.contains("step_size") && err.contains("bad.toml"),
         "{err}"
     );
-    assert!(err.contains("line 31"), "{err}");
+    assert!(err.contains("line 33"), "{err}");
+}
+
+/// `tissue run` says when a fine contact surface is too coarse for a frictionless probe
+/// (`Simulation::contact_warnings`), naming the `visual_levels` that fixes it: the shipped
+/// liver at `visual_levels = 0` (the 5 mm probe on 2 mm edges), not as shipped (1).
+#[test]
+fn run_warns_of_a_fine_surface_too_coarse_for_the_probe() {
+    let dir = tmp("fine_warning");
+    let shipped = std::fs::read_to_string(repo("scenes/liver-probe.toml"))
+        .unwrap()
+        .replace("../assets", &repo("assets").display().to_string())
+        .replace("duration = 1.0", "duration = 0.02");
+    for (k, warned) in [(0, true), (1, false)] {
+        let scene = dir.join(format!("k{k}.toml"));
+        let text = shipped.replace("\nvisual_levels = 1 ", &format!("\nvisual_levels = {k} "));
+        std::fs::write(&scene, text).unwrap();
+        let out = tissue()
+            .arg("run")
+            .arg(&scene)
+            .arg("--out")
+            .arg(dir.join(format!("out{k}")))
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(
+            err.contains("warning:") && err.contains("give [mesh] visual_levels = 1"),
+            warned,
+            "k = {k}: {err}"
+        );
+    }
 }
 
 #[test]

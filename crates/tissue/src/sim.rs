@@ -23,6 +23,7 @@ use crate::interact::sliding::SlideResidual;
 use crate::interact::{Constraints, Loads, PointContact, Prescribed};
 use crate::math::{Mat3, Real, Vec3};
 use crate::model::{Deformable, StepInfo};
+use std::sync::OnceLock;
 
 /// Default cap of the static contact loop (solves per step).
 pub const DEFAULT_CONTACT_ITERATIONS: usize = 8;
@@ -92,8 +93,10 @@ pub struct Simulation {
     /// The bounds a step's result must stay within to be accepted.
     plausibility: Plausibility,
     /// The fine contact surface mapped onto the model's surface, if the scene gives one,
-    /// and where its vertices are after the last step.
-    fine: Option<(MappedSurface, Vec<Vec3>)>,
+    /// and where all its vertices are after the last step, computed when first asked for
+    /// (`fine_surface`, for drawing): a step itself reads only the fine vertices near its
+    /// instruments (`fine_points::gather`).
+    fine: Option<(MappedSurface, OnceLock<Vec<Vec3>>)>,
 }
 
 impl Simulation {
@@ -155,22 +158,30 @@ impl Simulation {
                 });
             }
         }
-        let mut now = Vec::new();
-        surface.positions(
-            self.model.rest_surface(),
-            self.model.surface().positions,
-            &mut now,
-        );
-        self.fine = Some((surface, now));
+        self.fine = Some((surface, OnceLock::new()));
         Ok(())
     }
 
     /// What the scene should be told about its instruments' contact (`interact::slip`): a
-    /// frictionless probe or capsule small against the surface edges near its path, where
-    /// there is no fine contact surface. Empty when nothing is to be said.
+    /// frictionless probe or capsule small against the surface edges near its path, or,
+    /// with a fine contact surface, against that surface's own edges (with the
+    /// `visual_levels` that would fix it). Empty when nothing is to be said.
     pub fn contact_warnings(&self) -> Vec<String> {
-        if self.fine.is_some() {
-            return Vec::new();
+        if let Some((fine, _)) = &self.fine {
+            return self
+                .instruments
+                .iter()
+                .enumerate()
+                .filter_map(|(i, inst)| {
+                    crate::interact::slip::fine_slip_warning(
+                        i,
+                        inst,
+                        &fine.rest,
+                        &fine.triangles,
+                        fine.levels,
+                    )
+                })
+                .collect();
         }
         let s = self.model.contact_surface();
         self.instruments
@@ -184,7 +195,18 @@ impl Simulation {
 
     /// The fine contact surface and where its vertices are now, if the scene gives one.
     pub fn fine_surface(&self) -> Option<(&MappedSurface, &[Vec3])> {
-        self.fine.as_ref().map(|(m, p)| (m, p.as_slice()))
+        self.fine.as_ref().map(|(m, now)| {
+            let now = now.get_or_init(|| {
+                let mut p = Vec::new();
+                m.positions(
+                    self.model.rest_surface(),
+                    self.model.surface().positions,
+                    &mut p,
+                );
+                p
+            });
+            (m, now.as_slice())
+        })
     }
 
     /// Replaces the plausibility bounds (the scene adds the material's force bound).
@@ -430,12 +452,8 @@ impl Simulation {
             }
         };
         self.returned = returned;
-        if let Some((surface, now)) = &mut self.fine {
-            surface.positions(
-                self.model.rest_surface(),
-                self.model.surface().positions,
-                now,
-            );
+        if let Some((_, now)) = &mut self.fine {
+            now.take();
         }
         Ok(StepReport {
             time: t1,
@@ -514,11 +532,19 @@ impl Simulation {
                         // The fine surface's points near the instrument, each on its plane
                         // (`interact::fine_points`); the model solves which push.
                         inst.contacts.clear();
-                        if let Some((fine, now)) = &self.fine {
+                        if let Some((fine, _)) = &self.fine {
                             let margin = CONTACT_MARGIN * shape.size()
                                 + 2.0 * inst.position.distance(old.position);
-                            inst.points =
-                                fine_points::gather(fine, now, &shape, inst.position, margin);
+                            let (rest, coarse) =
+                                (self.model.rest_surface(), self.model.surface().positions);
+                            inst.points = fine_points::gather(
+                                fine,
+                                rest,
+                                coarse,
+                                &shape,
+                                inst.position,
+                                margin,
+                            );
                             // A dynamic model's step gives a plane's move as velocity: a
                             // point the step starts inside the instrument gets its plane
                             // through where it is, moved with the instrument, taking the
@@ -527,9 +553,7 @@ impl Simulation {
                             // and puts it on the instrument.
                             if !self.is_static {
                                 for p in &mut inst.points {
-                                    let Some(&q) = now.get(p.fine as usize) else {
-                                        continue;
-                                    };
+                                    let q = fine.position(p.fine as usize, rest, coarse);
                                     let recover = recovery(old.position, inst.position, dt);
                                     let owed = owed_depth(&shape, old.position, q, recover);
                                     p.contact.target -= p.contact.normal * owed;
@@ -758,12 +782,8 @@ impl Simulation {
         if !next.iter().any(|i| self.exact_points(i)) {
             return false;
         }
-        let mut positions = Vec::new();
-        fine.positions(
-            self.model.rest_surface(),
-            self.model.surface().positions,
-            &mut positions,
-        );
+        let (rest, coarse) = (self.model.rest_surface(), self.model.surface().positions);
+        let position = |v: u32| fine.position(v as usize, rest, coarse);
         let mut changed = false;
         for inst in next.iter_mut() {
             let Some(shape) = inst.shape() else { continue };
@@ -771,8 +791,8 @@ impl Simulation {
                 continue;
             }
             let margin = CONTACT_MARGIN * shape.size();
-            let mut new = fine_points::gather(fine, &positions, &shape, inst.position, margin);
-            let (moved, entered) = fine_points::change(&inst.points, &new, &positions);
+            let mut new = fine_points::gather(fine, rest, coarse, &shape, inst.position, margin);
+            let (moved, entered) = fine_points::change(&inst.points, &new, &position);
             if entered || moved > POINT_MOVE * shape.size() {
                 changed = true;
                 if entered || !self.accelerate_planes {

@@ -21,9 +21,34 @@ fn liver() -> (Scene, tissue::sim::Simulation) {
     (scene, sim)
 }
 
+/// The shipped scene on its visual vertices alone (`visual_levels = 0`): the probe is held
+/// between them and the force grows smoothly with depth. On the scene's surface cut once the
+/// organ slides off the probe in small jumps as it is pressed (the force along the press
+/// drops by up to 3.5 mN within a 0.1 mm step, docs/contact.md "The shipped liver's fine
+/// surface resolved"), and a secant taken across one predicts worse than holding the force
+/// (measured at 7 mm: 1.7e-3 N against 4.0e-3 N; at k = 2, 4.7e-3 against 4.4e-3): the
+/// local model's prediction is checked where the force is smooth.
+fn liver_on_visual_vertices() -> tissue::sim::Simulation {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+    let text = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
+        .unwrap()
+        .replace("../assets", &format!("{root}/assets"));
+    assert!(text.contains("\nvisual_levels = 1 "));
+    let dir = std::env::temp_dir().join(format!("tissue-haptic-liver-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("liver-k0.toml");
+    std::fs::write(
+        &path,
+        text.replace("\nvisual_levels = 1 ", "\nvisual_levels = 0 "),
+    )
+    .unwrap();
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    scene.build().unwrap_or_else(|e| panic!("{e}"))
+}
+
 #[test]
 fn local_model_predicts_the_full_force_near_the_anchor() {
-    let (_, mut sim) = liver();
+    let mut sim = liver_on_visual_vertices();
     let lp = HapticLoop::start(HapticConfig::default()).unwrap_or_else(|e| panic!("{e}"));
     let h = lp.handle();
     // 7 mm into the top of the liver (the scene's path ends 10 mm in).

@@ -91,12 +91,13 @@ fn the_liver_pressed_under_implicit_euler_never_stops_at_a_cap() {
 /// and the step gives the touched tissue that speed, about 10 mN on `linked-volumes`).
 /// `tensor-mass` is `fem-static`'s linear elasticity with lumped masses: its history
 /// follows `fem-semi-implicit`'s, which holds the fine points exactly (12 % RMS over
-/// 0.2–1 s before, 9 % after), and ends within 12 % of `fem-static`'s 0.112148 N at 1 cm
-/// (docs/contact.md, "Exact fine points on `fem-static`"; the planes approximate the
-/// points, 9 % low here).
+/// 0.2–1 s before, 9 % after), and ends within 12 % of `fem-static`'s force at 1 cm on the
+/// same fine surface (docs/contact.md, "Exact fine points on `fem-static`"): 0.084448 N since
+/// the scene cuts its visual surface once (`visual_levels = 1`, session 20; measured
+/// 0.08972 N, 6.2 % above; on the visual vertices alone it was 0.112148 N and 9 % below).
 #[test]
 fn the_liver_pressed_at_1ms_has_no_one_step_force_spike() {
-    let fem_static = 0.112148;
+    let fem_static = 0.084448;
     let size = |h: &[tissue::math::Vec3]| h.iter().map(|f| f.length()).collect::<Vec<Real>>();
     let (exact, _) = liver_history("kind = \"fem-semi-implicit\"", 1e-3, 1.0);
     let exact = size(&exact);

@@ -442,7 +442,8 @@ fn fine_liver_surface_holds_the_probe_out_and_the_supports_balance() {
     std::fs::write(&path, text).unwrap();
     let scene = tissue::scene::Scene::load(&path).unwrap();
     let mut sim = scene.build().unwrap();
-    assert_eq!(sim.fine_surface().unwrap().0.len(), 2194);
+    // The smooth liver's 2194 vertices and its edges' midpoints (`visual_levels = 1`).
+    assert_eq!(sim.fine_surface().unwrap().0.len(), 8770);
     for _ in 0..scene.run.step_count() {
         sim.step(scene.run.dt).unwrap();
     }
@@ -475,7 +476,7 @@ fn fine_liver_surface_holds_the_probe_out_and_the_supports_balance() {
 /// points are held exactly (`interact::fine_points`: one complementarity problem per solve,
 /// the planes moved to the points until they stop); the per-vertex planes they replaced
 /// carried the contact from step to step and gave 0.0904 / 0.0958 / 0.1135 N. Also: every
-/// step's contact loop converged within the default cap, no point pulls, and the supports
+/// step's contact loop converged (within 400 solves), no point pulls, and the supports
 /// balance the probe (the points' loads on held vertices included).
 #[test]
 fn a_fine_surface_static_press_gives_one_force_at_any_step() {
@@ -492,6 +493,11 @@ fn a_fine_surface_static_press_gives_one_force_at_any_step() {
         let scene = tissue::scene::Scene::load(&path).unwrap();
         assert_eq!(scene.run.dt, dt);
         let mut sim = scene.build().unwrap();
+        // At 1 ms a few steps need more than the scene's 64 solves on the surface cut once
+        // (`visual_levels = 1`; measured: 4 steps over 64, 2 over 128, 1 over 256, none over
+        // 400, against at most 51 at the scene's 10 ms): the loop's rare slow steps, reported
+        // in docs/contact.md, not a different equilibrium.
+        sim.set_max_contact_iterations(400);
         let mut solves = 0;
         for _ in 0..scene.run.step_count() {
             let rep = sim.step(dt).unwrap();
@@ -704,9 +710,12 @@ fn bem_holds_the_fine_liver_surface_on_its_points() {
 /// The static loop's planes moved by Aitken's acceleration (the default) against one plain
 /// round at a time (`Simulation::set_accelerated_planes(false)`): two ways to the same fixed
 /// point. The shipped liver with its fine surface, fem-static, a frictionless probe pressed
-/// 1 cm at 1/60 s: every step's force agrees to 1e-4 of the force, and the accelerated loop
-/// takes fewer solves (measured 258 → 228 over the 60 steps; on a stuffed liver's own
-/// boundary cut in nine, 200 → 125 solves: `stuffed_indentation`'s study).
+/// 1 cm at 1/60 s: every step's force agrees to the loops' stop (each plane still by 1e-4
+/// of the probe, 0.5 µm) and the accelerated loop takes fewer solves. Measured on the
+/// visual vertices alone: 258 → 228 solves over the 60 steps, forces to 1e-4 of the largest;
+/// on the scene's surface cut once (`visual_levels = 1`, session 20): 464 → 354 solves,
+/// forces to 1.1e-4 at step 5 (a point entering the set there); on a stuffed liver's own
+/// boundary cut in nine, 200 → 125 solves (`stuffed_indentation`'s study).
 #[test]
 fn accelerated_planes_reach_the_plain_loops_forces_in_fewer_solves() {
     let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
@@ -736,8 +745,14 @@ fn accelerated_planes_reach_the_plain_loops_forces_in_fewer_solves() {
     let (fast, fast_solves) = run(true);
     eprintln!("solves: plain {plain_solves}, accelerated {fast_solves}");
     let top = plain.iter().fold(0.0, |a: Real, f| a.max(f.length()));
+    let worst = plain
+        .iter()
+        .zip(&fast)
+        .map(|(a, b)| (*a - *b).length() / top)
+        .fold(0.0, Real::max);
+    eprintln!("forces agree to {worst:.2e} of the largest");
     for (k, (a, b)) in plain.iter().zip(&fast).enumerate() {
-        assert!((*a - *b).length() < 1e-4 * top, "step {k}: {a} against {b}");
+        assert!((*a - *b).length() < 2e-4 * top, "step {k}: {a} against {b}");
     }
     assert!(
         fast_solves < plain_solves,
@@ -746,29 +761,36 @@ fn accelerated_planes_reach_the_plain_loops_forces_in_fewer_solves() {
 }
 
 /// `[mesh] visual_levels = k` cuts the visual surface flat into 4^k triangles per triangle
-/// before tying it to the model: on the shipped liver (the smooth surface's edges about 5 mm,
-/// the probe's radius 5 mm) the probe pressed 1 cm is held by points on the visual faces as
-/// well as its vertices. Checked: the fine surface has 4^k times the triangles; no fine point
-/// ends inside the probe; the force converges as the points get finer (k = 0, 1, 2: measured
-/// |F| 0.1121, 0.0844, 0.0843 N, changes 33 % and 0.44 %; k = 3 moves it 0.32 % more, 64
-/// times the points, left out for time): the visual vertices alone, 5 mm apart under a 5 mm
-/// probe, hold it a third too hard. The loop's cap is raised: on these points it takes up to
-/// 51 solves a step. And the key is refused without a `visual`, or beyond its bound, naming
-/// itself.
+/// before tying it to the model: on the shipped liver (the smooth surface's edges about 2 mm
+/// near the probe's path, the probe's radius 5 mm) the probe pressed 1 cm is held by points
+/// on the visual faces as well as its vertices. Checked: the fine surface has 4^k times the
+/// triangles; no fine point ends inside the probe; every step's loop converges within the
+/// scene's cap (64; measured at most 5, 51 and 19 solves a step at k = 0, 1, 2); the force
+/// converges as the points get finer (k = 0, 1, 2: measured |F| 0.1121, 0.0844, 0.0843 N,
+/// the vector changing by 65 % and 0.44 % of it; k = 3 moves it 0.32 % more, 64 times the
+/// points, left out for time): the visual vertices alone hold the probe a third too hard, so the shipped scene
+/// says `visual_levels = 1`, whose force is within 1 % of k = 2's. The warning
+/// (`Simulation::contact_warnings`, `interact::slip::FINE_RATIO`) is given at k = 0, naming
+/// `visual_levels = 1`, and not at k = 1 or 2. And the key is refused without a `visual`, or
+/// beyond its bound, naming itself.
 #[test]
 fn visual_levels_put_contact_points_on_the_visual_faces() {
     let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
     let base = std::fs::read_to_string(format!("{root}/scenes/liver-probe.toml"))
         .unwrap()
         .replace("../assets", &format!("{root}/assets"));
-    assert!(base.contains("visual = "));
+    assert!(base.contains("visual = ") && base.contains("\nvisual_levels = 1 "));
     let dir = std::env::temp_dir().join(format!("tissue-visual-levels-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let with = |k: u32, text: &str| {
         let path = dir.join(format!("levels-{k}.toml"));
         std::fs::write(
             &path,
-            text.replacen("[mesh]\n", &format!("[mesh]\nvisual_levels = {k}\n"), 1),
+            text.replacen(
+                "\nvisual_levels = 1 ",
+                &format!("\nvisual_levels = {k} "),
+                1,
+            ),
         )
         .unwrap();
         tissue::scene::Scene::load(&path)
@@ -781,7 +803,16 @@ fn visual_levels_put_contact_points_on_the_visual_faces() {
             sim.fine_surface().unwrap().0.triangles.len(),
             4384 << (2 * k)
         );
-        sim.set_max_contact_iterations(100);
+        let warnings = sim.contact_warnings();
+        if k == 0 {
+            assert!(
+                warnings.len() == 1 && warnings[0].contains("visual_levels = 1"),
+                "{warnings:?}"
+            );
+        } else {
+            assert!(warnings.is_empty(), "k = {k}: {warnings:?}");
+        }
+        assert_eq!(sim.max_contact_iterations(), 64);
         let mut most = 0;
         for _ in 0..scene.run.step_count() {
             let r = sim.step(scene.run.dt).unwrap();

@@ -11,7 +11,7 @@
 //! instrument is at, whatever the path and the step that brought it there.
 
 use crate::interact::PointContact;
-use crate::interact::contact::{exit_along, on_far_side, outward_normals};
+use crate::interact::contact::{exit_along, on_far_side};
 use crate::interact::fine_surface::MappedSurface;
 use crate::interact::shape::Shape;
 use crate::math::{Real, Vec3};
@@ -23,12 +23,15 @@ pub struct FinePoint {
     pub contact: PointContact,
 }
 
-/// The fine points (at `positions`) inside `shape` placed at `at` or outside it by less
-/// than `margin` m, in fine-vertex order, each on the shape's tangent plane at its nearest
-/// surface point.
+/// The fine points inside `shape` placed at `at` or outside it by less than `margin` m, in
+/// fine-vertex order, each on the shape's tangent plane at its nearest surface point, for
+/// the coarse surface at `coarse` (rest `coarse_rest`). Only the fine vertices near the
+/// shape's bounding ball are placed (`MappedSurface::near`; every one for a half-space):
+/// a step's cost does not grow with the whole fine surface.
 pub fn gather(
     fine: &MappedSurface,
-    positions: &[Vec3],
+    coarse_rest: &[Vec3],
+    coarse: &[Vec3],
     shape: &Shape,
     at: Vec3,
     margin: Real,
@@ -36,18 +39,24 @@ pub fn gather(
     // A cheap test first: a point farther than the shape's bounding ball plus the margin
     // cannot be near it (the half-space has no ball and is tested point by point).
     let ball = shape.bounds(at);
+    let mut candidates = Vec::new();
+    match ball {
+        Some((c, r)) => fine.near(coarse, c, r + margin, &mut candidates),
+        None => candidates.extend(0..fine.len() as u32),
+    }
+    let position = |v: u32| fine.position(v as usize, coarse_rest, coarse);
     let mut out = Vec::new();
-    let mut outward: Option<Vec<Vec3>> = None;
-    for (j, &p) in positions.iter().enumerate() {
+    for j in candidates {
+        let p = position(j);
         if let Some((c, r)) = ball
             && p.distance_squared(c) > (r + margin) * (r + margin)
         {
             continue;
         }
-        let Some((vertices, weights)) = fine.tie(j) else {
+        let Some((vertices, weights)) = fine.tie(j as usize) else {
             continue;
         };
-        let Some(&rest) = fine.rest.get(j) else {
+        let Some(&rest) = fine.rest.get(j as usize) else {
             continue;
         };
         let mut near = shape.closest(at, p, Vec3::ZERO);
@@ -57,13 +66,11 @@ pub fn gather(
         // A point the instrument's nearest surface would push out of the tissue (the
         // instrument arrived past its centre in one move, as the viewer's probe does) leaves
         // along the tissue's inward normal instead (`contact::exit_along`).
-        if near.depth < 0.0
-            && let Some(&outward) = outward
-                .get_or_insert_with(|| outward_normals(positions, &fine.triangles))
-                .get(j)
-            && on_far_side(shape, near.normal, outward)
-        {
-            near = exit_along(shape, at, p, -outward);
+        if near.depth < 0.0 {
+            let outward = fine.outward_normal(j as usize, &position);
+            if on_far_side(shape, near.normal, outward) {
+                near = exit_along(shape, at, p, -outward);
+            }
         }
         // A point on an edge of a box (outside it by round-off) has no direction out: it
         // touches without pushing, and the next gather finds it on one side
@@ -72,7 +79,7 @@ pub fn gather(
             continue;
         }
         out.push(FinePoint {
-            fine: j as u32,
+            fine: j,
             contact: PointContact {
                 vertices,
                 weights,
@@ -86,8 +93,13 @@ pub fn gather(
 }
 
 /// How far the planes of `new` moved from those of `old` for the same fine points, along
-/// their normals (m), and whether `new` holds a penetrating point `old` did not have.
-pub fn change(old: &[FinePoint], new: &[FinePoint], positions: &[Vec3]) -> (Real, bool) {
+/// their normals (m), and whether `new` holds a penetrating point `old` did not have (fine
+/// vertex `v` being at `position(v)`).
+pub fn change(
+    old: &[FinePoint],
+    new: &[FinePoint],
+    position: &dyn Fn(u32) -> Vec3,
+) -> (Real, bool) {
     let mut moved: Real = 0.0;
     let mut entered = false;
     let mut i = 0;
@@ -106,10 +118,7 @@ pub fn change(old: &[FinePoint], new: &[FinePoint], positions: &[Vec3]) -> (Real
                 );
             }
             None => {
-                let p = positions
-                    .get(q.fine as usize)
-                    .copied()
-                    .unwrap_or(Vec3::ZERO);
+                let p = position(q.fine);
                 entered |= q.contact.normal.dot(p - q.contact.target) < 0.0;
             }
         }
@@ -212,7 +221,7 @@ mod tests {
         let m = MappedSurface::new(fine.clone(), vec![[0, 1, 2]], &coarse, &[[0, 1, 2]]).unwrap();
         let ball = Shape::Sphere { radius: 0.1 };
         let at = Vec3::new(0.2, 0.2, 0.09);
-        let got = gather(&m, &fine, &ball, at, 0.02);
+        let got = gather(&m, &coarse, &coarse, &ball, at, 0.02);
         let ids: Vec<u32> = got.iter().map(|p| p.fine).collect();
         assert_eq!(ids, vec![0]);
         let k = got[0].contact;
@@ -220,9 +229,9 @@ mod tests {
         assert!((k.target - Vec3::new(0.2, 0.2, -0.01)).length() < 1e-12);
         // The point must move 1 cm down to reach the plane.
         assert!((k.reach() - 0.01).abs() < 1e-12);
-        let wider = gather(&m, &fine, &ball, at, 0.2);
+        let wider = gather(&m, &coarse, &coarse, &ball, at, 0.2);
         assert_eq!(wider.len(), 2);
-        let (moved, entered) = change(&got, &wider, &fine);
+        let (moved, entered) = change(&got, &wider, &|v| fine[v as usize]);
         assert_eq!(moved, 0.0);
         // The added point is outside the ball: nothing new penetrates.
         assert!(!entered);

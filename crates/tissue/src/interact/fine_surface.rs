@@ -24,6 +24,39 @@ pub struct MappedSurface {
     /// Per fine vertex, the three coarse surface vertices of its triangle and their weights
     /// (`SurfaceMapping::Embedded`, fourth weight 0).
     pub mapping: SurfaceMapping,
+    /// How many times the surface was cut in four before it was tied (`[mesh]
+    /// visual_levels`; 0 for a surface as given), for the messages that suggest a level.
+    pub levels: u32,
+    /// What the local queries read (`near`, `position`, `outward_normal`), built from
+    /// `rest`, `triangles` and `mapping` when the surface is made.
+    local: Local,
+}
+
+/// Built once per surface, so that a step reads only the fine vertices near an instrument
+/// rather than recomputing all of them: the fine vertices each coarse triangle carries, with
+/// how far the farthest lies off it, and the fine triangles around each fine vertex.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct Local {
+    /// One per coarse triangle of the map (its three vertices as the map names them).
+    groups: Vec<Group>,
+    /// The fine triangles around fine vertex j: `around[start[j]..start[j + 1]]`, ascending.
+    start: Vec<u32>,
+    around: Vec<u32>,
+    /// 1 or −1: the rest surface's orientation (its triangles' normals times this point
+    /// out), as `contact::outward_normals` finds it from the enclosed volume's sign.
+    sign: Real,
+    /// The largest coarse index the map names (a cut may have removed it).
+    top: u32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct Group {
+    corners: [u32; 3],
+    /// The largest distance at rest of one of its fine vertices from its point of the
+    /// triangle: a fine vertex is its point of the moved triangle plus this fixed offset
+    /// (displacements are mapped), so it is never farther than this from the triangle.
+    offset: Real,
+    fine: Vec<u32>,
 }
 
 impl MappedSurface {
@@ -75,11 +108,16 @@ impl MappedSurface {
             nodes.push([tri[0], tri[1], tri[2], tri[0]]);
             weights.push([w[0], w[1], w[2], 0.0]);
         }
-        Some(Self {
-            rest,
-            triangles,
-            mapping: SurfaceMapping::Embedded { nodes, weights },
-        })
+        Some(
+            Self {
+                rest,
+                triangles,
+                mapping: SurfaceMapping::Embedded { nodes, weights },
+                levels: 0,
+                local: Local::default(),
+            }
+            .indexed(coarse_rest),
+        )
     }
 
     /// The coarse surface itself with each triangle cut into n² similar ones (n ≥ 1), each
@@ -152,11 +190,139 @@ impl MappedSurface {
                 }
             }
         }
-        Some(Self {
-            rest,
-            triangles,
-            mapping: SurfaceMapping::Embedded { nodes, weights },
-        })
+        Some(
+            Self {
+                rest,
+                triangles,
+                mapping: SurfaceMapping::Embedded { nodes, weights },
+                levels: 0,
+                local: Local::default(),
+            }
+            .indexed(coarse_rest),
+        )
+    }
+
+    /// The surface with its local index built (`Local`), against the coarse rest surface.
+    fn indexed(mut self, coarse_rest: &[Vec3]) -> Self {
+        let mut local = Local {
+            sign: 1.0,
+            ..Local::default()
+        };
+        let mut group_of: std::collections::HashMap<[u32; 3], usize> =
+            std::collections::HashMap::new();
+        for (j, &p) in self.rest.iter().enumerate() {
+            let Some((corners, w)) = self.tie(j) else {
+                continue;
+            };
+            local.top = local.top.max(corners[0]).max(corners[1]).max(corners[2]);
+            let on: Vec3 = (0..3)
+                .map(|k| coarse_rest.get(corners[k] as usize).copied().unwrap_or(p) * w[k])
+                .sum();
+            let g = *group_of.entry(corners).or_insert_with(|| {
+                local.groups.push(Group {
+                    corners,
+                    offset: 0.0,
+                    fine: Vec::new(),
+                });
+                local.groups.len() - 1
+            });
+            local.groups[g].offset = local.groups[g].offset.max(p.distance(on));
+            local.groups[g].fine.push(j as u32);
+        }
+        let mut count = vec![0u32; self.rest.len() + 1];
+        let mut volume: Real = 0.0;
+        for t in &self.triangles {
+            if let Some(x) = corners(&self.rest, t) {
+                volume += x[0].dot(x[1].cross(x[2]));
+                for &v in t {
+                    count[v as usize + 1] += 1;
+                }
+            }
+        }
+        for j in 0..self.rest.len() {
+            count[j + 1] += count[j];
+        }
+        let mut fill = count.clone();
+        local.around = vec![0; count[self.rest.len()] as usize];
+        for (i, t) in self.triangles.iter().enumerate() {
+            if corners(&self.rest, t).is_some() {
+                for &v in t {
+                    local.around[fill[v as usize] as usize] = i as u32;
+                    fill[v as usize] += 1;
+                }
+            }
+        }
+        local.start = count;
+        if volume < 0.0 {
+            local.sign = -1.0;
+        }
+        self.local = local;
+        self
+    }
+
+    /// Into `out` (cleared), ascending: the fine vertices that may lie within `reach` of
+    /// `center` for the coarse surface at `coarse`: those of every coarse triangle that
+    /// comes within `reach` plus its offset (`Group::offset`), so none nearer is left out.
+    /// All of them when the map names a coarse vertex `coarse` does not have.
+    pub fn near(&self, coarse: &[Vec3], center: Vec3, reach: Real, out: &mut Vec<u32>) {
+        out.clear();
+        if self.local.top as usize >= coarse.len() {
+            out.extend(0..self.rest.len() as u32);
+            return;
+        }
+        for g in &self.local.groups {
+            let x = g.corners.map(|c| coarse[c as usize]);
+            let q = closest_point_on_triangle(center, x);
+            if q.distance(center) <= reach + g.offset {
+                out.extend_from_slice(&g.fine);
+            }
+        }
+        out.sort_unstable();
+    }
+
+    /// Where fine vertex `j` is for the coarse surface at `coarse` (rest `coarse_rest`):
+    /// one entry of `positions`, the same sum in the same order.
+    pub fn position(&self, j: usize, coarse_rest: &[Vec3], coarse: &[Vec3]) -> Vec3 {
+        let Some(&rest) = self.rest.get(j) else {
+            return Vec3::ZERO;
+        };
+        let top = self.local.top as usize;
+        if top >= coarse.len() || top >= coarse_rest.len() {
+            return rest;
+        }
+        match &self.mapping {
+            SurfaceMapping::Embedded { nodes, weights } => {
+                let (Some(n), Some(w)) = (nodes.get(j), weights.get(j)) else {
+                    return rest;
+                };
+                let mut d = Vec3::ZERO;
+                for k in 0..4 {
+                    let v = n[k] as usize;
+                    d += (coarse[v] - coarse_rest[v]) * w[k];
+                }
+                d + rest
+            }
+            SurfaceMapping::Nodes(n) => match n.get(j) {
+                Some(&v) => coarse[v as usize] - coarse_rest[v as usize] + rest,
+                None => rest,
+            },
+        }
+    }
+
+    /// The outward unit normal at fine vertex `j` (its triangles' area vectors summed), the
+    /// fine vertices being where `at` puts them: `contact::outward_normals`' entry for `j`.
+    pub fn outward_normal(&self, j: usize, at: &dyn Fn(u32) -> Vec3) -> Vec3 {
+        let (Some(&a), Some(&b)) = (self.local.start.get(j), self.local.start.get(j + 1)) else {
+            return Vec3::ZERO;
+        };
+        let mut n = Vec3::ZERO;
+        for &t in self.local.around.get(a as usize..b as usize).unwrap_or(&[]) {
+            let Some(t) = self.triangles.get(t as usize) else {
+                continue;
+            };
+            n += crate::math::triangle_area_vector(at(t[0]), at(t[1]), at(t[2]));
+        }
+        self.local.sign * n.normalize_or_zero()
     }
 
     /// Number of fine vertices.
@@ -302,5 +468,56 @@ mod tests {
         let same = MappedSurface::subdivided(&coarse, &tris, 1).unwrap();
         assert_eq!(same.rest, coarse);
         assert!(MappedSurface::subdivided(&coarse, &[], 2).is_none());
+    }
+
+    #[test]
+    fn the_local_queries_give_the_whole_surfaces_numbers() {
+        // A tetrahedron's faces cut into 4² each, the surface moved unevenly: each fine
+        // vertex's `position` and `outward_normal` are the whole-surface passes' entries to
+        // the bit, and `near` holds every vertex within reach (found by brute force).
+        let coarse = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        let tris = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let cut = MappedSurface::subdivided(&coarse, &tris, 4).unwrap();
+        // The same points lifted off the coarse faces (by up to 5 %): ties with offsets.
+        let centre = Vec3::splat(0.25);
+        let lifted: Vec<Vec3> = cut
+            .rest
+            .iter()
+            .map(|p| centre + (*p - centre) * 1.05)
+            .collect();
+        let off = MappedSurface::new(lifted, cut.triangles.clone(), &coarse, &tris).unwrap();
+        let moved = vec![
+            Vec3::new(0.01, -0.02, 0.0),
+            Vec3::new(1.1, 0.05, -0.03),
+            Vec3::new(-0.04, 0.9, 0.1),
+            Vec3::new(0.02, 0.03, 1.2),
+        ];
+        for m in [&cut, &off] {
+            let mut all = Vec::new();
+            m.positions(&coarse, &moved, &mut all);
+            let normals = crate::interact::contact::outward_normals(&all, &m.triangles);
+            let at = |v: u32| m.position(v as usize, &coarse, &moved);
+            for j in 0..m.len() {
+                assert_eq!(at(j as u32), all[j]);
+                assert_eq!(m.outward_normal(j, &at), normals[j]);
+            }
+            let mut near = Vec::new();
+            for (c, reach) in [
+                (Vec3::new(0.3, 0.3, 0.3), 0.1),
+                (Vec3::new(0.5, 0.2, -0.1), 0.15),
+                (Vec3::new(2.0, 2.0, 2.0), 0.5),
+            ] {
+                m.near(&moved, c, reach, &mut near);
+                let within: Vec<u32> = (0..m.len() as u32)
+                    .filter(|&j| all[j as usize].distance(c) <= reach)
+                    .collect();
+                assert!(within.iter().all(|j| near.binary_search(j).is_ok()));
+                // Local: far fewer than all of them near a point of one face.
+                assert!(near.len() < m.len());
+            }
+            // A map naming a vertex the coarse surface lacks (after a cut): every vertex.
+            m.near(&moved[..3], Vec3::ZERO, 0.1, &mut near);
+            assert_eq!(near.len(), m.len());
+        }
     }
 }

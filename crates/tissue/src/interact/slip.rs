@@ -15,6 +15,17 @@ use crate::math::{Real, Vec3};
 /// and a 10 mm one on the stuffed liver's 2–3 mm edges.
 pub const SLIP_RATIO: Real = 1.5;
 
+/// A frictionless sphere or capsule on a fine contact surface (`[mesh] visual`) whose
+/// diameter is below this many times the median fine edge near its path can be held between
+/// the fine points: the faces between them pass a little inside it, and the organ, which
+/// cannot slide off a frictionless probe sideways without riding over them, stays put.
+/// Measured on the shipped liver (fem-condensed, the probe pressed 1 cm, cap 200, the force
+/// against 64 times the points; docs/contact.md "The shipped liver's fine surface resolved"):
+/// at diameter / edge 3.1, 3.8 and 5.0 the organ under the probe moved 0.5–0.7 mm sideways
+/// and the force was 64–66 % off; at 6.2 it moved 6.5 mm and was 5 % off, at 6.8 0.9 %, at
+/// 7.5 and above at most 1.6 % (the larger probes' own floor, 0.3–0.8 % at 15–40).
+pub const FINE_RATIO: Real = 8.0;
+
 /// The warning for `inst` (number `index` in the scene) on the surface `positions`,
 /// `triangles`: `None` unless it is a frictionless sphere or capsule whose path passes
 /// within its reach of the surface and whose diameter is below `SLIP_RATIO` times the
@@ -25,6 +36,85 @@ pub fn slip_warning(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
 ) -> Option<String> {
+    let near = near_edges(inst, positions, triangles)?;
+    (2.0 * near.radius < SLIP_RATIO * near.median).then(|| {
+        format!(
+            "instrument {index} (\"{}\"): a frictionless {} of radius {:.3e} m on surface \
+             edges of {:.3e} m near its path (median of {}) can slip between the \
+             vertices; give the scene a finer contact surface ([mesh] visual), a finer mesh, \
+             or contact = \"sticking\" (docs/contact.md)",
+            inst.name,
+            shape_name(inst),
+            near.radius,
+            near.median,
+            near.count
+        )
+    })
+}
+
+/// The warning for `inst` (number `index`) on a fine contact surface already cut `levels`
+/// times (`[mesh] visual_levels`) with rest vertices `positions`, `triangles`: `None`
+/// unless it is a frictionless sphere or capsule whose diameter is below `FINE_RATIO`
+/// times the median fine edge near its path. It names the `visual_levels` that would make
+/// the ratio hold (`fine_levels_needed`), or says the bound is too low for it.
+pub fn fine_slip_warning(
+    index: usize,
+    inst: &Instrument,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    levels: u32,
+) -> Option<String> {
+    let near = near_edges(inst, positions, triangles)?;
+    let more = fine_levels_needed(near.radius, near.median);
+    (more > 0).then(|| {
+        let want = levels + more;
+        let fix = if want <= crate::scene::MAX_VISUAL_LEVELS {
+            format!("give [mesh] visual_levels = {want}")
+        } else {
+            format!(
+                "visual_levels = {want} would be needed, beyond its bound {}: give a finer \
+                 `visual` surface",
+                crate::scene::MAX_VISUAL_LEVELS
+            )
+        };
+        format!(
+            "instrument {index} (\"{}\"): a frictionless {} of radius {:.3e} m on fine \
+             contact surface edges of {:.3e} m near its path (median of {}, visual_levels = \
+             {levels}): its diameter is under {FINE_RATIO} edges, the fine points can hold it \
+             and the organ cannot slide off it (measured: the force up to two thirds too \
+             large); {fix} (docs/contact.md)",
+            inst.name,
+            shape_name(inst),
+            near.radius,
+            near.median,
+            near.count
+        )
+    })
+}
+
+/// How many more times a fine surface whose median edge near the instrument's path is
+/// `median` m must be cut in four (each level halves the edges) for a sphere or capsule of
+/// radius `radius` m to span `FINE_RATIO` edges: 0 when it already does.
+pub fn fine_levels_needed(radius: Real, median: Real) -> u32 {
+    let mut k = 0;
+    let mut edge = median;
+    while 2.0 * radius < FINE_RATIO * edge && k < 32 {
+        edge *= 0.5;
+        k += 1;
+    }
+    k
+}
+
+/// The surface edges near a frictionless sphere's or capsule's path.
+struct NearEdges {
+    radius: Real,
+    median: Real,
+    count: usize,
+}
+
+/// `None` unless `inst` is a frictionless sphere or capsule and some edge's midpoint lies
+/// within its reach of its path: its radius and the median length of those edges.
+fn near_edges(inst: &Instrument, positions: &[Vec3], triangles: &[[u32; 3]]) -> Option<NearEdges> {
     if inst.friction() != Some(0.0) {
         return None;
     }
@@ -62,22 +152,19 @@ pub fn slip_warning(
         return None;
     }
     near.sort_by(Real::total_cmp);
-    let median = near[near.len() / 2];
-    (2.0 * radius < SLIP_RATIO * median).then(|| {
-        format!(
-            "instrument {index} (\"{}\"): a frictionless {} of radius {radius:.3e} m on surface \
-             edges of {median:.3e} m near its path (median of {}) can slip between the \
-             vertices; give the scene a finer contact surface ([mesh] visual), a finer mesh, \
-             or contact = \"sticking\" (docs/contact.md)",
-            inst.name,
-            if matches!(inst.shape(), Some(Shape::Capsule { .. })) {
-                "capsule"
-            } else {
-                "probe"
-            },
-            near.len()
-        )
+    Some(NearEdges {
+        radius,
+        median: near[near.len() / 2],
+        count: near.len(),
     })
+}
+
+fn shape_name(inst: &Instrument) -> &'static str {
+    if matches!(inst.shape(), Some(Shape::Capsule { .. })) {
+        "capsule"
+    } else {
+        "probe"
+    }
 }
 
 /// The distance from `p` to the polyline through `path` (a point for a one-key path).
@@ -160,5 +247,30 @@ mod tests {
         // The same probe on a surface four times finer: no warning.
         let (p, t) = grid(40);
         assert!(slip_warning(0, &probe(0.05, Some(0.0)), &p, &t).is_none());
+    }
+
+    #[test]
+    fn a_fine_surface_too_coarse_for_the_probe_is_warned_of_with_the_level_that_fixes_it() {
+        let (p, t) = grid(10); // edges 0.1: a probe of radius 0.25 spans 5 of them
+        let w = fine_slip_warning(0, &probe(0.25, Some(0.0)), &p, &t, 0);
+        assert!(
+            w.as_deref()
+                .is_some_and(|w| w.contains("visual_levels = 1")),
+            "{w:?}"
+        );
+        // Already cut twice: the fix counts from there.
+        let w = fine_slip_warning(0, &probe(0.06, Some(0.0)), &p, &t, 2).unwrap();
+        assert!(
+            w.contains("visual_levels = 5") && w.contains("beyond"),
+            "{w}"
+        );
+        // Spanning 8 edges, sticking or with friction: nothing.
+        assert!(fine_slip_warning(0, &probe(0.4, Some(0.0)), &p, &t, 0).is_none());
+        assert!(fine_slip_warning(0, &probe(0.25, None), &p, &t, 0).is_none());
+        assert!(fine_slip_warning(0, &probe(0.25, Some(0.3)), &p, &t, 0).is_none());
+        // One level halves the edges.
+        assert_eq!(fine_levels_needed(0.25, 0.1), 1);
+        assert_eq!(fine_levels_needed(0.4, 0.1), 0);
+        assert_eq!(fine_levels_needed(0.06, 0.1), 3);
     }
 }

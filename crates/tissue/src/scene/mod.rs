@@ -31,8 +31,8 @@ use checks::{check_region, check_run, known_kinds, make_instrument, region_label
 pub use image::IMAGE_KINDS;
 use image::{Failure, check_image, check_model, image_grid, voxel_model};
 pub use spec::{
-    BoxSpec, ContactSpec, GravitySpec, ImageSpec, InstrumentSpec, MaterialSpec, MeshSpec,
-    OutputSpec, PlaneSpec, RegionMaterialSpec, RegionSpec, RunSpec, SphereSpec,
+    BoxSpec, ContactSpec, GravitySpec, ImageSpec, InstrumentSpec, MAX_VISUAL_LEVELS, MaterialSpec,
+    MeshSpec, OutputSpec, PlaneSpec, RegionMaterialSpec, RegionSpec, RunSpec, SphereSpec,
 };
 
 #[derive(Deserialize)]
@@ -745,12 +745,14 @@ impl Scene {
                 .ok_or_else(|| named("a triangle names a vertex the file does not have".into()))?;
             (mesh.vertices, mesh.triangles) = (cut.rest, cut.triangles);
         }
-        MappedSurface::new(
+        let mut tied = MappedSurface::new(
             mesh.vertices,
             mesh.triangles,
             model.rest_surface(),
             model.surface().triangles,
         )
-        .ok_or_else(|| named("the model has no surface triangles to tie it to".into()))
+        .ok_or_else(|| named("the model has no surface triangles to tie it to".into()))?;
+        tied.levels = levels;
+        Ok(tied)
     }
 }
