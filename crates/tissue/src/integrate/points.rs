@@ -343,7 +343,7 @@ impl PointProjection {
             // stage.
             let reach = moved.values().fold(0.0, |m: Real, d| m.max(d.length()));
             let deepest = b.iter().fold(0.0, |m: Real, g| m.max(-g));
-            if !(reach <= SANE_MOVE * deepest) {
+            if reach.is_nan() || reach > SANE_MOVE * deepest {
                 return false;
             }
             if short.is_empty() {
