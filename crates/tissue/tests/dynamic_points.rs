@@ -104,9 +104,10 @@ fn a_block_pressed_through_a_fine_surface_settles_on_the_static_answer() {
         twins,
         100.0 * off(coarse, reference)
     );
-    // Measured: 0.12 %, 0.12 %, 5e-8; 6e-6.
+    // Measured: 0.0002 %, 0.0003 %, 5e-8; 1.2e-6 (the points projected exactly; with the
+    // Gauss-Seidel sweeps, before session 20: 0.12 %, 0.12 %, 5e-8; 6e-6).
     assert!(
-        t < 0.01 && e < 0.01,
+        t < 1e-4 && e < 1e-4,
         "{tensor} {explicit} against {reference}"
     );
     assert!(s < 1e-6, "fem-semi-implicit: {semi} against {reference}");
@@ -197,9 +198,9 @@ fn the_fine_liver_pressed_on_the_dynamic_kinds_pushes_only() {
             "{kind}: end |F| = {last:.6} N, largest change in a step {jump:.2e} N, deepest pushed \
              point {worst_gap:.1e} m past its plane"
         );
-        // `fem-explicit` projects after each of its substeps (a few dozen a step here) and
-        // leaves up to 5.2e-9 m (the projection stops at 50 Gauss-Seidel sweeps; the
-        // shared integrator's kinds take one or few substeps): 5e-7 of the press.
+        // `fem-explicit` projects after each of its substeps (a few dozen a step here): up
+        // to 5.2e-9 m when the projection was 50 Gauss-Seidel sweeps at most, 6.5e-18 m
+        // solved exactly (session 20); the bound stays the sweeps' (their fallback).
         // `fem-corotational` holds them to its CG's tolerance (1e-6) and the compliance
         // that matches it in their LCP (`contact::hold_points`): 2.3e-8 m.
         let tolerance = match kind {

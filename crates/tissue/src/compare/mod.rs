@@ -68,8 +68,9 @@ pub struct Settings {
     /// Ramp time and time limit of quasi-static runs of dynamic models, s. The limit is the
     /// full run's with `--quick` too: on the k = 3 fine surface (`drive::fine_levels`) the
     /// shallow press of `fem-explicit` comes to rest after 1.48 s, at the edge of the former
-    /// 1.5 s (`compare::tests_settle`). A run that settles stops early: only the unsettled
-    /// ones pay for it.
+    /// 1.5 s, and the deep presses of `fem-explicit` and `tensor-mass` at 1.85 and 1.93 s
+    /// (`compare::tests_settle`). A run that settles stops early: only the unsettled ones
+    /// pay for it.
     pub ramp: Real,
     pub settle_time: Real,
     /// Load increments of static models.

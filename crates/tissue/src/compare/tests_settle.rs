@@ -329,9 +329,11 @@ fn settling_methods_study() {
 /// as linear `fem-static` (a convex problem: one equilibrium), by a different route
 /// (dynamics to rest against a static solve): each settles, and its probe force and surface
 /// displacement field agree with `fem-static`'s within 1 % (measured at k = 3, session 19:
-/// shallow at most 0.06 % and 0.05 %; at k = 1, 0.053 % and 0.015 %). At k = 3 the deep
-/// press of `fem-explicit` and `tensor-mass` does not settle (the deep test is ignored: its
-/// doc says why). At the shallow depth the
+/// shallow at most 0.06 % and 0.05 %; at k = 1, 0.053 % and 0.015 %; session 20, the points
+/// projected exactly, deep at most 0.011 % and 0.004 %). At k = 3 the deep press of
+/// `fem-explicit` and `tensor-mass` settles only with the points projected exactly
+/// (`integrate::PointProjection`; the Gauss-Seidel sweeps stopped at their cap on every
+/// substep and the pushed set flickered). At the shallow depth the
 /// nonlinear kinds settle within 25 % of their linear twins' force (measured at k = 3:
 /// `fem-corotational` 19.4 % below `fem-explicit`, `tensor-mass-nonlinear` 21.3 % below
 /// `tensor-mass`; at k = 1 12.0 % and 13.6 %): the shallow press pushes two fine points
@@ -386,13 +388,12 @@ fn the_dynamic_kinds_settle_to_the_static_equilibrium() {
     dynamic_kinds_settle_to_the_static_equilibrium(false);
 }
 
-/// Deep at k = 3 `fem-explicit` and `tensor-mass` do not settle with the projection's
+/// Deep at k = 3 `fem-explicit` and `tensor-mass` did not settle with the projection's
 /// Gauss-Seidel sweeps (capped on every substep: 0.96 % and 0.02 % off `fem-static`, moving,
-/// at 1.5 s; +0.66 % and +0.05 % at 3 s); an exact projection settled both within 0.01 %
-/// but made `tests/dynamic_points.rs`'s block press diverge on `tensor-mass` (growth watch),
-/// so it is not in (docs/compare.md, "Session 19").
+/// at 1.5 s); projected exactly they settle (session 20: +0.011 % and +0.009 %, 1846 and
+/// 1933 steps), the energy ledger counting the projection's own work (docs/compare.md,
+/// "Session 20").
 #[test]
-#[ignore = "fails at k = 3: the deep press of fem-explicit and tensor-mass does not settle (docs/compare.md, Session 19)"]
 fn the_dynamic_kinds_settle_to_the_static_equilibrium_deep() {
     dynamic_kinds_settle_to_the_static_equilibrium(true);
 }

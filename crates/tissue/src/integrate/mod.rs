@@ -498,9 +498,8 @@ pub(crate) struct Workspace {
     /// Per hold: the momentum a contact's projections gave its particle along n since the
     /// step began, N·s.
     pub contact_impulse: Vec<Real>,
-    /// Per point contact (`points`): whether it acted in the last (sub)step, and the momentum
-    /// its projections gave along its normal since the step began, N·s.
-    pub point_active: Vec<bool>,
+    /// Per point contact (`points`): the momentum its projections gave along its normal
+    /// since the step began, N·s.
     pub point_impulse: Vec<Real>,
     /// The points' projection (`points::PointProjection`) and its pushes of the last
     /// (sub)step.
@@ -1371,7 +1370,7 @@ impl Integrator {
             system.set_step_time(w.span.1);
             eval_forces(system, &w.x1, &w.v1, &mut w.f1);
             let (dw, dw_abs) = held_work(w, sub);
-            let (pw, pw_abs) = points::work(w, &self.points);
+            let (pw, pw_abs) = points::work(w);
             work += dw + pw;
             work_in += dw_abs + pw_abs;
             if k < n {
@@ -1558,7 +1557,7 @@ impl Integrator {
         // Work the held particles did on the rest: −∫ f·dx along their straight path, by the
         // trapezoid rule (exact for linear forces).
         let (work, work_in) = held_work(w, holds);
-        let (pw, pw_abs) = points::work(w, &self.points);
+        let (pw, pw_abs) = points::work(w);
         let (work, work_in) = (work + pw, work_in + pw_abs);
         let released = self.released_kinetic();
         let (work, work_in) = (work + released, work_in + released);
