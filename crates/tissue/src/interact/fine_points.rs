@@ -11,7 +11,7 @@
 //! instrument is at, whatever the path and the step that brought it there.
 
 use crate::interact::PointContact;
-use crate::interact::contact::{exit_along, on_far_side, outward_normals};
+use crate::interact::contact::{exit_along, outward_normals, passed_to_far_side};
 use crate::interact::fine_surface::MappedSurface;
 use crate::interact::shape::Shape;
 use crate::math::{Real, Vec3};
@@ -61,7 +61,7 @@ pub fn gather(
             && let Some(&outward) = outward
                 .get_or_insert_with(|| outward_normals(positions, &fine.triangles))
                 .get(j)
-            && on_far_side(shape, near.normal, outward)
+            && passed_to_far_side(shape, &near, outward)
         {
             near = exit_along(shape, at, p, -outward);
         }
