@@ -517,8 +517,14 @@ impl Simulation {
                         if let Some((fine, now)) = &self.fine {
                             let margin = CONTACT_MARGIN * shape.size()
                                 + 2.0 * inst.position.distance(old.position);
-                            inst.points =
-                                fine_points::gather(fine, now, &shape, inst.position, margin);
+                            inst.points = fine_points::gather(
+                                fine,
+                                now,
+                                &shape,
+                                inst.position,
+                                margin,
+                                !self.is_static,
+                            );
                             // A dynamic model's step gives a plane's move as velocity: a
                             // point the step starts inside the instrument gets its plane
                             // through where it is, moved with the instrument, taking the
@@ -771,7 +777,8 @@ impl Simulation {
                 continue;
             }
             let margin = CONTACT_MARGIN * shape.size();
-            let mut new = fine_points::gather(fine, &positions, &shape, inst.position, margin);
+            let mut new =
+                fine_points::gather(fine, &positions, &shape, inst.position, margin, false);
             let (moved, entered) = fine_points::change(&inst.points, &new, &positions);
             if entered || moved > POINT_MOVE * shape.size() {
                 changed = true;
