@@ -544,6 +544,7 @@ impl Simulation {
                                 &shape,
                                 inst.position,
                                 margin,
+                                !self.is_static,
                             );
                             // A dynamic model's step gives a plane's move as velocity: a
                             // point the step starts inside the instrument gets its plane
@@ -791,7 +792,8 @@ impl Simulation {
                 continue;
             }
             let margin = CONTACT_MARGIN * shape.size();
-            let mut new = fine_points::gather(fine, rest, coarse, &shape, inst.position, margin);
+            let mut new =
+                fine_points::gather(fine, rest, coarse, &shape, inst.position, margin, false);
             let (moved, entered) = fine_points::change(&inst.points, &new, &position);
             if entered || moved > POINT_MOVE * shape.size() {
                 changed = true;

@@ -871,3 +871,78 @@ fn linked_volumes_shallow_press_holds_its_equilibrium_push() {
     assert!(sk < 2e-2 && sd < 2e-2, "{sk} {sd}");
     assert!((fk / fd - 1.0).abs() < 0.1, "{fk} {fd}");
 }
+
+/// `volumetric-spring-mass` pressed deep through the comparison's fine surface (k = 3,
+/// issue 20): its spring lattice lets the tetrahedra under the probe invert (tetrahedron 65
+/// from 2.5 mm in, at 0.051 s), which folds the surface there, and the fine points 0.1 mm
+/// inside the probe on the fold were sent out through the ball's far side (45 mm away):
+/// at 0.067 s one substep moved a particle 163 mm, the probe read −1.38 N (pulled down)
+/// and the run diverged. A probe only pushes: over the ramp (to 0.12 s, 1 ms steps, no
+/// damping) every step's probe force points up, out of the liver (its horizontal part
+/// under half the vertical), and no surface vertex moves faster than the probe could
+/// push it (under 1 mm in a step; the probe moves 0.1 mm at most).
+#[test]
+fn volumetric_spring_mass_deep_press_pushes_its_folded_surface_the_nearest_way() {
+    use super::drive::smooth_ramp;
+    let (organ, sc) = liver();
+    let s = Settings::quick();
+    let dt = s.settle_dt_max;
+    let base = settling(organ.material, &sc);
+    let mat = Material {
+        damping: 0.0,
+        ..base
+    };
+    let model = organ.build("volumetric-spring-mass", mat).unwrap();
+    let rest: Vec<Vec3> = model.rest_surface().to_vec();
+    let fixed = sc.fixed(&rest);
+    let mut sim = probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
+    let top = sc.probe() + Vec3::Y * sc.probe_radius;
+    sim.add_instrument(
+        probe_instrument(
+            sc.probe(),
+            sc.probe_radius,
+            0.0,
+            1.0,
+            ContactLaw::FineSurface,
+        )
+        .unwrap(),
+    );
+    let mut prev = rest.clone();
+    let (mut peak, mut fastest, mut probe_step, mut tilt): (Real, Real, Real, Real) =
+        (0.0, 0.0, 0.0, 0.0);
+    let mut last_probe = top;
+    for k in 1..=120 {
+        let t = k as Real * dt;
+        let c = top - Vec3::Y * (smooth_ramp(t / s.ramp) * sc.deep);
+        sim.set_instrument_position(0, Some(c)).unwrap();
+        sim.step(dt).unwrap_or_else(|e| panic!("step {k}: {e}"));
+        let f = sim.instrument_forces()[0];
+        assert!(f.y >= -1e-12, "step {k}: the probe is pulled down: {f}");
+        let across = Vec3::new(f.x, 0.0, f.z).length();
+        if f.y > 0.0 {
+            tilt = tilt.max(across / f.y);
+        } else {
+            assert!(across < 1e-12, "step {k}: {f}");
+        }
+        peak = peak.max(f.y);
+        let now = sim.model().surface().positions;
+        let moved = now
+            .iter()
+            .zip(&prev)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, Real::max);
+        fastest = fastest.max(moved);
+        prev.copy_from_slice(now);
+        probe_step = probe_step.max(c.distance(last_probe));
+        last_probe = c;
+    }
+    println!(
+        "peak push {peak:.4e} N, largest horizontal/vertical {tilt:.3}, fastest surface \
+         vertex {:.3} mm per step, probe {:.3} mm per step",
+        1e3 * fastest,
+        1e3 * probe_step
+    );
+    assert!(peak > 0.0);
+    assert!(tilt < 0.5, "{tilt}");
+    assert!(fastest < 1e-3, "{fastest}");
+}
