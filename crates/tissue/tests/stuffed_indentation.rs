@@ -387,6 +387,15 @@ impl tissue::mesh::stuffing::Domain for Anchored<'_> {
 }
 
 impl Anchored<'_> {
+    /// Stuffed at `h`, every guarantee of the mesher kept (asserted).
+    fn stuffed(&self, h: Real) -> tissue::mesh::stuffing::Stuffed {
+        let stuffed =
+            tissue::mesh::stuffing::stuff(self, h, &tissue::model::Progress::silent()).unwrap();
+        let bad = stuffed.report.violations();
+        assert!(bad.is_empty(), "h = {h}: {bad:?}");
+        stuffed
+    }
+
     /// The fixed region: every boundary vertex within a tenth of a millimetre of the core.
     fn fixed(&self) -> String {
         let c = self.centre;
@@ -519,7 +528,7 @@ fn ladder_report(sizes: &[Real], forces: &[Real]) -> Vec<Real> {
 /// it, on the input surface cut in 16 per triangle. Sizes from `SIZES`.
 fn anchored_liver_forces(sizes: &[Real]) -> Vec<Real> {
     use tissue::interact::fine_surface::MappedSurface;
-    use tissue::mesh::stuffing::{SurfaceDomain, stuff};
+    use tissue::mesh::stuffing::SurfaceDomain;
     let root = root();
     let mut input = tissue::io::read(format!("{root}/assets/meshes/liver-smooth.obj")).unwrap();
     input.vertices.iter_mut().for_each(|v| *v *= 0.01);
@@ -541,12 +550,7 @@ fn anchored_liver_forces(sizes: &[Real]) -> Vec<Real> {
     sizes
         .iter()
         .map(|&h| {
-            let stuffed = stuff(&anchor, h, &tissue::model::Progress::silent()).unwrap();
-            assert!(
-                stuffed.report.violations().is_empty(),
-                "{:?}",
-                stuffed.report
-            );
+            let stuffed = anchor.stuffed(h);
             anchored_press(
                 stuffed.to_mesh_data(),
                 &anchor.fixed(),
@@ -600,7 +604,7 @@ fn anchored_liver_ladder() {
 /// small against the 1 cm shell, which still stiffens it somewhat.
 fn anchored_sphere_forces(sizes: &[Real]) -> Vec<Real> {
     use tissue::interact::fine_surface::MappedSurface;
-    use tissue::mesh::stuffing::{Implicit, stuff};
+    use tissue::mesh::stuffing::Implicit;
     let (big, core, probe) = (0.02, 0.01, 0.005);
     let sphere = Implicit {
         f: |p: Vec3| p.length() - big,
@@ -626,12 +630,7 @@ fn anchored_sphere_forces(sizes: &[Real]) -> Vec<Real> {
     sizes
         .iter()
         .map(|&h| {
-            let stuffed = stuff(&anchor, h, &tissue::model::Progress::silent()).unwrap();
-            assert!(
-                stuffed.report.violations().is_empty(),
-                "{:?}",
-                stuffed.report
-            );
+            let stuffed = anchor.stuffed(h);
             let mesh = stuffed.to_mesh_data();
             // The top's rest points: the input sphere's pole (the cut faces' points lie on
             // chords, below it by O(h²)).

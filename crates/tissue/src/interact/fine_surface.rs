@@ -108,16 +108,7 @@ impl MappedSurface {
             nodes.push([tri[0], tri[1], tri[2], tri[0]]);
             weights.push([w[0], w[1], w[2], 0.0]);
         }
-        Some(
-            Self {
-                rest,
-                triangles,
-                mapping: SurfaceMapping::Embedded { nodes, weights },
-                levels: 0,
-                local: Local::default(),
-            }
-            .indexed(coarse_rest),
-        )
+        Some(Self::embedded(rest, triangles, nodes, weights, coarse_rest))
     }
 
     /// The coarse surface itself with each triangle cut into n² similar ones (n ≥ 1), each
@@ -190,16 +181,26 @@ impl MappedSurface {
                 }
             }
         }
-        Some(
-            Self {
-                rest,
-                triangles,
-                mapping: SurfaceMapping::Embedded { nodes, weights },
-                levels: 0,
-                local: Local::default(),
-            }
-            .indexed(coarse_rest),
-        )
+        Some(Self::embedded(rest, triangles, nodes, weights, coarse_rest))
+    }
+
+    /// Fine vertices `rest` and `triangles` tied to the coarse corners `nodes` by `weights`,
+    /// indexed against the coarse rest surface.
+    fn embedded(
+        rest: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        nodes: Vec<[u32; 4]>,
+        weights: Vec<[Real; 4]>,
+        coarse_rest: &[Vec3],
+    ) -> Self {
+        Self {
+            rest,
+            triangles,
+            mapping: SurfaceMapping::Embedded { nodes, weights },
+            levels: 0,
+            local: Local::default(),
+        }
+        .indexed(coarse_rest)
     }
 
     /// The surface with its local index built (`Local`), against the coarse rest surface.
