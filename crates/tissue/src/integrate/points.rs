@@ -249,6 +249,13 @@ impl PointProjection {
         stage: usize,
     ) -> bool {
         use std::collections::BTreeMap;
+        // Most (sub)steps leave no point short: nothing to build then.
+        let short_now = |(k, pt): (usize, &PointHold)| {
+            pt.inverse_mass(inv_mass) > 0.0 && self.excess(pt, k, y, stage) < 0.0
+        };
+        if !points.iter().enumerate().any(short_now) {
+            return true;
+        }
         let b_all: Vec<Real> = points
             .iter()
             .enumerate()
@@ -260,9 +267,6 @@ impl PointProjection {
                 }
             })
             .collect();
-        if b_all.iter().all(|g| *g >= 0.0) {
-            return true;
-        }
         let largest = b_all
             .iter()
             .filter(|g| g.is_finite())
