@@ -23,9 +23,15 @@ pub struct BeamArgs {
     /// Model kinds (default: every dynamic kind).
     #[arg(long, value_delimiter = ',')]
     pub kinds: Vec<String>,
-    /// Worker threads for the models' parallel loops (default: one per core).
-    #[arg(long)]
-    pub threads: Option<usize>,
+    /// Worker threads for the models' parallel loops (default: one per core). Several counts
+    /// (`--threads 1,2`) run each case once per count, taking turns by slices (`--slice`),
+    /// and print each later count's speed-up over the first, slice by slice: the way to
+    /// compare thread counts on a machine whose speed drifts.
+    #[arg(long, value_delimiter = ',')]
+    pub threads: Vec<usize>,
+    /// With several `--threads`: simulated time of one slice, in s.
+    #[arg(long, default_value_t = 0.05)]
+    pub slice: Real,
     /// A `[model]` setting passed to every kind, as key=value in TOML (e.g.
     /// `cg_tolerance=1e-5`); repeatable. Kinds that do not know the key refuse it.
     #[arg(long = "param", value_name = "KEY=VALUE")]
@@ -50,6 +56,9 @@ struct SizeRun {
     tets: usize,
     p1_tip: Real,
     cases: Vec<BeamCase>,
+    /// With several `--threads`: each kind's runs and their slice-by-slice speed-ups.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    interleaved: Vec<beam::Interleaved>,
 }
 
 fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
@@ -74,14 +83,41 @@ fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
     } else {
         args.kinds.clone()
     };
-    let threads = args.threads;
+    if args.threads.contains(&0) {
+        bail!("--threads: counts must be at least 1");
+    }
+    let steps_per_slice = (args.slice / 1e-3).round();
+    if args.threads.len() > 1 && !(steps_per_slice >= 1.0 && args.slice <= args.duration) {
+        bail!(
+            "--slice {}: must be at least one 1 ms step and at most --duration {} s",
+            args.slice,
+            args.duration
+        );
+    }
+    let threads = match args.threads.as_slice() {
+        [] => None,
+        [n] => Some(*n),
+        _ => None,
+    };
+    let interleave = args.threads.len() > 1;
     if !args.json {
         crate::outln!(
             "clamped beam, dt = 1 ms, {} s simulated, threads: {}; cost = wall (process CPU) \
              ms per simulated ms; tip/P1 = settled tip over fem-static's; osc = half the tip's \
              range over the last 0.1 s / |P1|",
             args.duration,
-            threads.map_or("one per core".to_string(), |n| n.to_string()),
+            match args.threads.as_slice() {
+                [] => "one per core".to_string(),
+                [n] => n.to_string(),
+                many => format!(
+                    "{} in turn, slices of {} s",
+                    many.iter()
+                        .map(|n| n.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    args.slice
+                ),
+            },
         );
     }
     let mut runs = Vec::new();
@@ -111,7 +147,38 @@ fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
             );
         }
         let mut cases = Vec::new();
-        for kind in &kinds {
+        let mut interleaved = Vec::new();
+        for kind in interleave.then_some(&kinds).into_iter().flatten() {
+            let run = beam::run_interleaved(
+                kind,
+                &spec,
+                &mesh,
+                &params,
+                p1,
+                &args.threads,
+                steps_per_slice as usize,
+            )?;
+            if !args.json {
+                for (n, case) in run.threads.iter().zip(&run.cases) {
+                    let mut row = case.clone();
+                    row.kind = format!("{} ×{n}", case.kind);
+                    print_row(&row)?;
+                }
+                for (k, n) in run.threads.iter().enumerate().skip(1) {
+                    if let Some([q1, median, q3]) = run.speedup_quartiles(k - 1) {
+                        crate::outln!(
+                            "{:<24} ×{n} over ×{}: median {median:.3} (quartiles {q1:.3}, {q3:.3}) \
+                             over {} slice pairs",
+                            "",
+                            run.threads[0],
+                            run.speedups[k - 1].len()
+                        );
+                    }
+                }
+            }
+            interleaved.push(run);
+        }
+        for kind in (!interleave).then_some(&kinds).into_iter().flatten() {
             let case = tissue::benchmark::with_threads(threads, || {
                 beam::run_case(kind, &spec, &mesh, &params, p1)
             })?;
@@ -125,6 +192,7 @@ fn beam_bench(args: &BeamArgs) -> anyhow::Result<()> {
             tets: mesh.tets.len(),
             p1_tip: p1,
             cases,
+            interleaved,
         });
     }
     if args.json {

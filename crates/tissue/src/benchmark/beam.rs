@@ -246,65 +246,233 @@ pub fn run_case(
     params: &toml::Table,
     p1: Real,
 ) -> BeamCase {
-    let mut case = BeamCase {
-        kind: kind.to_string(),
-        tets: mesh.tets.len(),
-        p1_tip: p1,
-        ..BeamCase::default()
-    };
-    let start = Instant::now();
-    let (mut model, tip) = match build_clamped(kind, spec, mesh, params) {
-        Ok(m) => m,
-        Err(e) => {
-            case.error = Some(e.to_string());
-            return case;
+    match CaseRun::start(kind, spec, mesh, params, p1) {
+        Ok(mut run) => {
+            run.advance(spec.steps());
+            run.finish()
         }
-    };
-    case.build_seconds = start.elapsed().as_secs_f64();
-    let info = model.info();
-    case.dofs = info.dofs;
-    if info.is_static {
-        case.error = Some("a static model: it does not step in time".into());
-        return case;
+        Err(case) => *case,
     }
-    let steps = spec.steps();
-    let window = ((spec.window / spec.dt).round() as usize).clamp(1, steps);
-    let down = spec.gravity.normalize_or_zero();
-    let mut tips = Vec::with_capacity(window);
-    let mut iterations = 0usize;
-    let (wall0, cpu0) = (Instant::now(), process_cpu_seconds());
-    for s in 0..steps {
-        let info: StepInfo = match model.step(spec.dt) {
-            Ok(i) => i,
+}
+
+/// One case in progress: `run_case` in slices, so that cases can take turns
+/// (`run_interleaved`).
+pub struct CaseRun {
+    case: BeamCase,
+    model: Box<dyn Deformable>,
+    tip: Vec<u32>,
+    spec: BeamSpec,
+    /// Steps from the end at which the tip starts being recorded.
+    window: usize,
+    tips: Vec<Real>,
+    iterations: usize,
+    /// Wall and process CPU seconds spent stepping.
+    wall: Real,
+    cpu: Real,
+    stopped: bool,
+}
+
+impl CaseRun {
+    /// Builds the model, clamped and loaded; a case that cannot run comes back as `Err`
+    /// with its reason in `error` (boxed: a case is ten times a pointer).
+    pub fn start(
+        kind: &str,
+        spec: &BeamSpec,
+        mesh: &TetMesh,
+        params: &toml::Table,
+        p1: Real,
+    ) -> Result<Self, Box<BeamCase>> {
+        let mut case = BeamCase {
+            kind: kind.to_string(),
+            tets: mesh.tets.len(),
+            p1_tip: p1,
+            ..BeamCase::default()
+        };
+        let start = Instant::now();
+        let (model, tip) = match build_clamped(kind, spec, mesh, params) {
+            Ok(m) => m,
             Err(e) => {
-                case.error = Some(format!("step {}: {e}", s + 1));
-                break;
+                case.error = Some(e.to_string());
+                return Err(Box::new(case));
             }
         };
-        case.steps += 1;
-        iterations += info.iterations;
-        case.max_substeps = case.max_substeps.max(info.substeps);
-        case.capped_steps += usize::from(info.capped);
-        case.worst_residual = case.worst_residual.max(info.residual);
-        if s + window >= steps {
-            tips.push(tip_deflection(model.as_ref(), &tip, down));
+        case.build_seconds = start.elapsed().as_secs_f64();
+        let info = model.info();
+        case.dofs = info.dofs;
+        if info.is_static {
+            case.error = Some("a static model: it does not step in time".into());
+            return Err(Box::new(case));
+        }
+        let steps = spec.steps();
+        Ok(Self {
+            case,
+            model,
+            tip,
+            spec: spec.clone(),
+            window: ((spec.window / spec.dt).round() as usize).clamp(1, steps),
+            tips: Vec::new(),
+            iterations: 0,
+            wall: 0.0,
+            cpu: 0.0,
+            stopped: false,
+        })
+    }
+
+    /// Steps still to run (0 once finished or stopped by an error).
+    pub fn remaining(&self) -> usize {
+        if self.stopped {
+            0
+        } else {
+            self.spec.steps() - self.case.steps
         }
     }
-    let simulated_ms = (case.steps.max(1) as Real) * spec.dt * 1e3;
-    case.wall_ms_per_ms = wall0.elapsed().as_secs_f64() * 1e3 / simulated_ms;
-    case.cpu_ms_per_ms = (process_cpu_seconds() - cpu0) * 1e3 / simulated_ms;
-    case.mean_iterations = iterations as Real / case.steps.max(1) as Real;
-    if !tips.is_empty() {
-        case.tip = tips.iter().sum::<Real>() / tips.len() as Real;
-        let (lo, hi) = tips
-            .iter()
-            .fold((Real::INFINITY, Real::NEG_INFINITY), |(a, b), &t| {
-                (a.min(t), b.max(t))
-            });
-        case.oscillation = 0.5 * (hi - lo) / p1.abs().max(Real::MIN_POSITIVE);
+
+    /// Runs up to `steps` more steps; returns the wall seconds they took (stepping only).
+    pub fn advance(&mut self, steps: usize) -> Real {
+        let (total, down) = (self.spec.steps(), self.spec.gravity.normalize_or_zero());
+        let (wall0, cpu0) = (Instant::now(), process_cpu_seconds());
+        for _ in 0..steps.min(self.remaining()) {
+            let info: StepInfo = match self.model.step(self.spec.dt) {
+                Ok(i) => i,
+                Err(e) => {
+                    self.case.error = Some(format!("step {}: {e}", self.case.steps + 1));
+                    self.stopped = true;
+                    break;
+                }
+            };
+            let case = &mut self.case;
+            case.steps += 1;
+            self.iterations += info.iterations;
+            case.max_substeps = case.max_substeps.max(info.substeps);
+            case.capped_steps += usize::from(info.capped);
+            case.worst_residual = case.worst_residual.max(info.residual);
+            if case.steps + self.window > total {
+                self.tips
+                    .push(tip_deflection(self.model.as_ref(), &self.tip, down));
+            }
+        }
+        let wall = wall0.elapsed().as_secs_f64();
+        self.wall += wall;
+        self.cpu += process_cpu_seconds() - cpu0;
+        wall
     }
-    case.tip_ratio = case.tip / p1;
-    case
+
+    /// The case's figures over the steps run.
+    pub fn finish(mut self) -> BeamCase {
+        let case = &mut self.case;
+        let simulated_ms = (case.steps.max(1) as Real) * self.spec.dt * 1e3;
+        case.wall_ms_per_ms = self.wall * 1e3 / simulated_ms;
+        case.cpu_ms_per_ms = self.cpu * 1e3 / simulated_ms;
+        case.mean_iterations = self.iterations as Real / case.steps.max(1) as Real;
+        if !self.tips.is_empty() {
+            case.tip = self.tips.iter().sum::<Real>() / self.tips.len() as Real;
+            let (lo, hi) = self
+                .tips
+                .iter()
+                .fold((Real::INFINITY, Real::NEG_INFINITY), |(a, b), &t| {
+                    (a.min(t), b.max(t))
+                });
+            case.oscillation = 0.5 * (hi - lo) / case.p1_tip.abs().max(Real::MIN_POSITIVE);
+        }
+        case.tip_ratio = case.tip / case.p1_tip;
+        self.case
+    }
+}
+
+/// One case run on several thread counts in turn (`run_interleaved`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Interleaved {
+    /// The thread counts, in the order given.
+    pub threads: Vec<usize>,
+    /// Each thread count's case (its wall and CPU figures over its own slices).
+    pub cases: Vec<BeamCase>,
+    /// Steps per slice.
+    pub slice_steps: usize,
+    /// For each later thread count, the first's slice time over its slice time, one per
+    /// slice both ran in full (the same simulated interval, back to back).
+    pub speedups: Vec<Vec<Real>>,
+}
+
+impl Interleaved {
+    /// The median and the quartiles of `speedups[k]`.
+    pub fn speedup_quartiles(&self, k: usize) -> Option<[Real; 3]> {
+        let mut r = self.speedups.get(k)?.clone();
+        if r.is_empty() {
+            return None;
+        }
+        r.sort_by(Real::total_cmp);
+        let at = |q: Real| r[((r.len() - 1) as Real * q).round() as usize];
+        Some([at(0.25), at(0.5), at(0.75)])
+    }
+}
+
+/// Runs `kind` on the beam once per thread count in `threads`, the runs taking turns by
+/// slices of `slice_steps` steps (the order of each round reversed from the last), each on
+/// its own pool of that many workers.
+///
+/// Why: on a shared machine the speed of one core drifts by 20-30% over minutes (another
+/// guest on the host), more than the gap between one thread and two that a benchmark is
+/// after. Runs one after another see different machines; slices back to back see the same
+/// one, so the ratio of paired slices measures the code, and its spread the machine.
+pub fn run_interleaved(
+    kind: &str,
+    spec: &BeamSpec,
+    mesh: &TetMesh,
+    params: &toml::Table,
+    p1: Real,
+    threads: &[usize],
+    slice_steps: usize,
+) -> Result<Interleaved, Error> {
+    let pools = threads
+        .iter()
+        .map(|&n| super::Pool::new(Some(n)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut runs = Vec::new();
+    for pool in &pools {
+        match pool.install(|| CaseRun::start(kind, spec, mesh, params, p1)) {
+            Ok(run) => runs.push(run),
+            // A case that cannot run cannot run on any thread count.
+            Err(case) => {
+                return Ok(Interleaved {
+                    threads: threads.to_vec(),
+                    cases: vec![*case; threads.len()],
+                    slice_steps,
+                    speedups: vec![Vec::new(); threads.len().saturating_sub(1)],
+                });
+            }
+        }
+    }
+    let slice = slice_steps.max(1);
+    let mut speedups = vec![Vec::new(); threads.len().saturating_sub(1)];
+    let mut round = 0;
+    while runs.iter().any(|r| r.remaining() > 0) {
+        let mut took = vec![0.0; runs.len()];
+        let mut full = true;
+        let order: Vec<usize> = if round % 2 == 0 {
+            (0..runs.len()).collect()
+        } else {
+            (0..runs.len()).rev().collect()
+        };
+        for k in order {
+            let want = slice.min(runs[k].remaining());
+            full &= want == slice;
+            let run = &mut runs[k];
+            took[k] = pools[k].install(|| run.advance(want));
+            full &= !run.stopped;
+        }
+        if full {
+            for (k, s) in speedups.iter_mut().enumerate() {
+                s.push(took[0] / took[k + 1]);
+            }
+        }
+        round += 1;
+    }
+    Ok(Interleaved {
+        threads: threads.to_vec(),
+        cases: runs.into_iter().map(CaseRun::finish).collect(),
+        slice_steps: slice,
+        speedups,
+    })
 }
 
 #[cfg(test)]
@@ -329,6 +497,34 @@ mod tests {
         let eb = -q * LENGTH.powi(4) / (8.0 * spec.young_modulus * i);
         let r = p1 / eb;
         assert!(r > 0.3 && r < 1.0, "P1 {p1} vs Euler-Bernoulli {eb}");
+    }
+
+    /// Taking turns changes nothing but the clock: each thread count's run ends where the
+    /// run in one piece does (the same bits on this small beam, whose factor is ordered
+    /// alike on any thread count), and every full round gives one speed-up.
+    #[test]
+    fn interleaved_runs_end_where_single_runs_do() {
+        let mut spec = BeamSpec::new([10, 2, 2]);
+        spec.duration = 0.05;
+        let mesh = spec.mesh();
+        let p1 = p1_tip(&spec, &mesh).unwrap();
+        let params = toml::Table::new();
+        let single = run_case("fem-corotational", &spec, &mesh, &params, p1);
+        let turns =
+            run_interleaved("fem-corotational", &spec, &mesh, &params, p1, &[1, 2], 20).unwrap();
+        assert_eq!(turns.threads, vec![1, 2]);
+        for case in &turns.cases {
+            assert_eq!(case.steps, 50);
+            assert!(case.error.is_none());
+            assert_eq!(case.tip, single.tip);
+            assert_eq!(case.oscillation, single.oscillation);
+        }
+        // Slices of 20, 20, 10 steps: two full rounds.
+        assert_eq!(turns.speedups.len(), 1);
+        assert_eq!(turns.speedups[0].len(), 2);
+        assert!(turns.speedups[0].iter().all(|r| r.is_finite() && *r > 0.0));
+        let c = run_interleaved("fem-static", &spec, &mesh, &params, p1, &[1, 2], 20).unwrap();
+        assert!(c.cases.iter().all(|c| c.error.is_some()));
     }
 
     #[test]

@@ -13,18 +13,48 @@ pub fn with_threads<T: Send>(
     threads: Option<usize>,
     f: impl FnOnce() -> T + Send,
 ) -> Result<T, crate::error::SimError> {
+    Ok(Pool::new(threads)?.install(f))
+}
+
+/// A pool of worker threads kept across calls (`beam::run_interleaved` switches between
+/// several): `None` is the global pool (one thread per core).
+pub struct Pool {
     #[cfg(feature = "parallel")]
-    if let Some(n) = threads {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
-            .build()
-            .map_err(|e| crate::error::SimError::BadParameter {
-                name: "threads",
-                value: n.to_string(),
-                reason: e.to_string(),
-            })?;
-        return Ok(pool.install(f));
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl Pool {
+    pub fn new(threads: Option<usize>) -> Result<Self, crate::error::SimError> {
+        #[cfg(feature = "parallel")]
+        {
+            let pool = match threads {
+                Some(n) => Some(
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(n.max(1))
+                        .build()
+                        .map_err(|e| crate::error::SimError::BadParameter {
+                            name: "threads",
+                            value: n.to_string(),
+                            reason: e.to_string(),
+                        })?,
+                ),
+                None => None,
+            };
+            Ok(Self { pool })
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            let _ = threads;
+            Ok(Self {})
+        }
     }
-    let _ = threads;
-    Ok(f())
+
+    /// Runs `f` with this pool's workers for the library's parallel loops.
+    pub fn install<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
+        #[cfg(feature = "parallel")]
+        if let Some(pool) = &self.pool {
+            return pool.install(f);
+        }
+        f()
+    }
 }

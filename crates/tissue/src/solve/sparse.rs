@@ -210,6 +210,19 @@ pub enum Ordering {
     /// Whichever of the two gives the smaller factor; AMD alone below
     /// `NESTED_DISSECTION_MIN_DIM` unknowns.
     Smaller,
+    /// For a factor solved many times (a preconditioner): `Smaller` when the solves will
+    /// run on one thread; with more (rayon's pool at build), whichever has the shorter
+    /// critical path of a two-thread tree solve, its top counted serial (`TreeSolve::span`).
+    ///
+    /// Why the top counts serial though the tree solve splits it: the split waits about a
+    /// hundred times per solve, and on a virtual machine a wait costs what the work
+    /// saves. Measured on the 20k beam's warp factor (f32, `tree_solve_study`, both
+    /// cores there): AMD 2,104 µs on one thread and 1,313 on two, nested dissection 2,215
+    /// and 846; the spans so counted, 2.37M and 2.07M values, order them right, and those
+    /// with the top split (1.92M and 2.07M) do not. A factor then depends on the thread
+    /// count, so one and two threads agree to the iterative solve's tolerance, not to the
+    /// bit.
+    ForSolves,
 }
 
 /// Patterns with at least this many unknowns also get a nested-dissection analysis: below
@@ -227,6 +240,15 @@ const TREE_MIN_VALUES: usize = 0;
 /// half the solve saves.
 const PARALLEL_MIN_VALUES: usize = 100_000;
 const PARALLEL_SPAN: f64 = 0.75;
+
+/// The threads a factor's solves may run on: rayon's pool at the call (one without the
+/// `parallel` feature).
+fn solve_threads() -> usize {
+    #[cfg(feature = "parallel")]
+    return rayon::current_num_threads();
+    #[cfg(not(feature = "parallel"))]
+    1
+}
 
 /// A node order of the pattern's nodes (`ordering`), expanded to their unknowns, as faer's
 /// (forward: new → original, inverse) pair.
@@ -292,6 +314,11 @@ impl SparseCholesky {
         Self::with_ordering(pattern, positions, Ordering::Smaller)
     }
 
+    /// `with_positions` for a factor solved many times: `Ordering::ForSolves`.
+    pub fn for_solves(pattern: &BlockPattern, positions: &[Vec3]) -> Result<Self, SimError> {
+        Self::with_ordering(pattern, positions, Ordering::ForSolves)
+    }
+
     /// With the ordering chosen by the caller (tests and studies compare them). Nested
     /// dissection needs every node's position; without them it is AMD.
     pub fn with_ordering(
@@ -351,15 +378,23 @@ impl SparseCholesky {
         let symbolic = match ordering {
             Ordering::Amd => analyse_with(sym, SymmetricOrdering::Amd, params)?,
             Ordering::NestedDissection => nested()?,
-            Ordering::Smaller => {
+            Ordering::Smaller | Ordering::ForSolves => {
                 let amd = analyse_with(sym, SymmetricOrdering::Amd, params)?;
                 if n >= NESTED_DISSECTION_MIN_DIM {
                     let nd = nested()?;
-                    if nd.len_val() < amd.len_val() {
-                        nd
-                    } else {
-                        amd
-                    }
+                    let by_span = ordering == Ordering::ForSolves && solve_threads() > 1;
+                    let span = |s: &SymbolicCholesky<usize>| match s.raw() {
+                        SymbolicCholeskyRaw::Supernodal(raw) => {
+                            TreeSolve::new(raw, s.perm().map(|p| p.arrays().0))
+                                .map(|t| t.span(s.len_val()))
+                        }
+                        SymbolicCholeskyRaw::Simplicial(_) => None,
+                    };
+                    let nd_first = match (by_span, span(&nd), span(&amd)) {
+                        (true, Some(a), Some(b)) => a < b,
+                        _ => nd.len_val() < amd.len_val(),
+                    };
+                    if nd_first { nd } else { amd }
                 } else {
                     amd
                 }
@@ -943,6 +978,35 @@ mod tests {
             BlockPattern::from_elements(2 * nodes, 3, &elements, 2),
             positions,
         )
+    }
+
+    /// `ForSolves` is the smaller factor on one thread and the shorter critical path (top
+    /// counted whole) on two: on the issue-24 20k beam, AMD (3.56M values, span 2.37M) on
+    /// one, nested dissection (4.03M, span 2.07M) on two.
+    #[test]
+    fn for_solves_takes_the_smaller_factor_on_one_thread_and_the_shorter_span_on_two() {
+        use crate::benchmark::beam::{BeamSpec, size_cells};
+        let mesh = BeamSpec::new(size_cells("20k").unwrap()).mesh();
+        let flat: Vec<u32> = mesh.tets.iter().flatten().copied().collect();
+        let p = BlockPattern::from_elements(mesh.vertices.len(), 3, &flat, 4);
+        let built = |ordering| SparseCholesky::with_ordering(&p, &mesh.vertices, ordering).unwrap();
+        let (amd, nd) = (built(Ordering::Amd), built(Ordering::NestedDissection));
+        let span = |c: &SparseCholesky| c.tree.as_ref().unwrap().span(c.factor_nnz());
+        assert!(amd.factor_nnz() < nd.factor_nnz());
+        assert!(span(&nd) < span(&amd), "{} {}", span(&nd), span(&amd));
+        for (threads, want) in [(1, &amd), (2, &nd)] {
+            let chosen = crate::benchmark::with_threads(Some(threads), || {
+                SparseCholesky::for_solves(&p, &mesh.vertices).unwrap()
+            })
+            .unwrap();
+            // Without rayon every solve is serial.
+            let want = if cfg!(feature = "parallel") {
+                want
+            } else {
+                &amd
+            };
+            assert_eq!(chosen.factor_nnz(), want.factor_nnz(), "{threads} threads");
+        }
     }
 
     #[test]

@@ -403,6 +403,13 @@ impl TreeSolve {
         (self.work_total, self.work_top, self.work_group)
     }
 
+    /// The critical path of a two-thread solve with the top counted serial (top plus the
+    /// largest group), in factor values: `values` scaled by the work estimates' share
+    /// (`Ordering::ForSolves` says why the top counts whole).
+    pub fn span(&self, values: usize) -> f64 {
+        values as f64 * (self.work_top + self.work_group) as f64 / self.work_total.max(1) as f64
+    }
+
     /// True when the groups carry enough of the work for a second thread to pay: the top
     /// and the largest group together at most `ratio` of the whole.
     pub fn splits(&self, ratio: f64) -> bool {

@@ -53,13 +53,14 @@ pub(super) struct WarpPreconditioner {
 impl WarpPreconditioner {
     /// Symbolic analysis of the node adjacency of `elements` over the nodes at `rest` (no
     /// factorisation yet). The ordering is AMD or nested dissection by the rest positions,
-    /// whichever gives the smaller factor (`SparseCholesky::with_positions`). Solved with
-    /// at every CG iteration, the factor is read from an f32 copy.
+    /// whichever solves faster on the threads at hand (`SparseCholesky::for_solves`: the
+    /// smaller factor on one thread, the shorter critical path on two). Solved with at
+    /// every CG iteration, the factor is read from an f32 copy.
     pub fn new(elements: &[ElementRest], lame: &Lames, rest: &[Vec3]) -> Result<Self, SimError> {
         let nodes = rest.len();
         let flat: Vec<u32> = elements.iter().flat_map(|e| e.nodes).collect();
         let pattern = BlockPattern::from_elements(nodes, 3, &flat, 4);
-        let mut cholesky = SparseCholesky::with_positions(&pattern, rest)?;
+        let mut cholesky = SparseCholesky::for_solves(&pattern, rest)?;
         // A preconditioner needs no f64 factor: half the bytes per solve (`sparse`).
         cholesky.single_precision_solves(true);
         let mut rest_stiffness = BlockStiffness::new(elements, nodes);
