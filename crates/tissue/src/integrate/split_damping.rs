@@ -334,7 +334,9 @@ impl SplitDamping {
     }
 
     /// Conjugate gradients on (M + s K) x = rhs (held rows identity), preconditioned by the
-    /// factorised rest matrix; the answer replaces `rhs`.
+    /// factorised rest matrix read in f32 (`SparseCholesky::precondition_in_place`: half the
+    /// bytes per solve; the rest matrix's own solve, `solve`, stays f64); the answer
+    /// replaces `rhs`.
     fn pcg(&mut self, k: &[Real], s: Real, masses: &[Real]) -> bool {
         const TOLERANCE: Real = 1e-10;
         const MAX_ITERATIONS: usize = 50;
@@ -372,7 +374,7 @@ impl SplitDamping {
         }
         r.copy_from_slice(&self.rhs);
         z.copy_from_slice(r);
-        if chol.solve_in_place(z).is_err() {
+        if chol.precondition_in_place(z).is_err() {
             return false;
         }
         p.copy_from_slice(z);
@@ -396,7 +398,7 @@ impl SplitDamping {
                 break;
             }
             z.copy_from_slice(r);
-            if chol.solve_in_place(z).is_err() {
+            if chol.precondition_in_place(z).is_err() {
                 return false;
             }
             let rz_new = dot(r, z);

@@ -285,6 +285,9 @@ pub struct SparseCholesky {
     /// A single-precision copy of L that the tree solve reads instead of `l_values`
     /// (`single_precision_solves`).
     single: Option<Vec<f32>>,
+    /// Whether every solve reads `single` (`single_precision_solves`), or only
+    /// `precondition_in_place`'s.
+    single_always: bool,
     /// Tests: the tree's groups on rayon's threads always (`Some(true)`), never, or by size.
     #[cfg(test)]
     force_parallel: Option<bool>,
@@ -428,6 +431,7 @@ impl SparseCholesky {
             parallel,
             chooser: Default::default(),
             single: None,
+            single_always: false,
             #[cfg(test)]
             force_parallel: None,
         })
@@ -527,6 +531,19 @@ impl SparseCholesky {
     pub fn single_precision_solves(&mut self, on: bool) {
         let l = &self.l_values;
         self.single = (on && self.tree.is_some()).then(|| l.iter().map(|&v| v as f32).collect());
+        self.single_always = on;
+    }
+
+    /// Solves with the single-precision copy of L (`single_precision_solves`, made at the
+    /// first call and kept with every factorisation) while `solve_in_place` stays exact: for
+    /// a factor that serves both as a direct solver and as a preconditioner (the split
+    /// damping's rest factor, `integrate::split_damping`).
+    pub fn precondition_in_place(&mut self, rhs: &mut [Real]) -> Result<(), SimError> {
+        if self.single.is_none() && self.tree.is_some() {
+            let l = &self.l_values;
+            self.single = Some(l.iter().map(|&v| v as f32).collect());
+        }
+        self.solve_with(rhs, true)
     }
 
     fn small_pivot(&self, values: &[Real], original: &dyn Fn(usize) -> usize) -> Option<usize> {
@@ -563,6 +580,11 @@ impl SparseCholesky {
 
     /// Solves A x = b in place (`rhs` holds b, then x). Allocates nothing.
     pub fn solve_in_place(&mut self, rhs: &mut [Real]) -> Result<(), SimError> {
+        self.solve_with(rhs, self.single_always)
+    }
+
+    /// `solve_in_place`, reading the f32 copy of L when `single` and there is one.
+    fn solve_with(&mut self, rhs: &mut [Real], single: bool) -> Result<(), SimError> {
         if !self.factored {
             return Err(internal("solve before a successful factorisation"));
         }
@@ -577,7 +599,7 @@ impl SparseCholesky {
             let may = false;
             #[cfg(test)]
             let may = may || self.force_parallel == Some(true);
-            let single = self.single.as_deref();
+            let single = self.single.as_deref().filter(|_| single);
             let mut solve = |parallel| match single {
                 Some(l) => tree.solve(l, rhs, parallel),
                 None => tree.solve(&self.l_values, rhs, parallel),
