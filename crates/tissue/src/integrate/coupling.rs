@@ -67,6 +67,10 @@ impl<S: ParticleSystem + ?Sized, C: NodeCoupling + ?Sized> ParticleSystem for Co
         self.system.apply_velocity_split(v, force)
     }
 
+    fn velocity_split_capped(&self) -> bool {
+        self.system.velocity_split_capped()
+    }
+
     fn set_step_time(&mut self, s: Real) {
         self.system.set_step_time(s);
     }

@@ -151,6 +151,12 @@ pub trait ParticleSystem {
         false
     }
 
+    /// Whether the last `apply_velocity_split` stopped its iterative solve at a cap before
+    /// its tolerance (the step then says `capped`).
+    fn velocity_split_capped(&self) -> bool {
+        false
+    }
+
     /// Systems with loads that move during a step (the spline's penalty springs pulling
     /// surface vertices to an instrument's moving targets): the forces and energies asked
     /// for next are those at fraction `s` of the step being taken, 0 at its start and 1 at
@@ -1057,8 +1063,9 @@ impl Integrator {
                 (0..self.points.len()).map(|k| impulses.get(k).map_or(0.0, |p| p / kicked)),
             );
         }
-        if split && result.is_ok() {
+        if split && let Ok(info) = &mut result {
             self.apply_split(system, state, holds, dt);
+            info.capped |= system.velocity_split_capped();
         }
         system.set_step_time(1.0);
         result
