@@ -11,8 +11,8 @@
 //! A calibration compares the median pass of each way, not their sums: one pass that meets
 //! the host running something else on the other core takes several times its usual time,
 //! and a sum carried it into the choice. The first calibration, right after the model is
-//! built (cold caches, workers asleep), chose serial for the 20k beam's solve in about one
-//! run in three, and kept it for the next 2,048 solves, half of a one-second run. So the
+//! built (cold caches, workers asleep), chose serial for the 20k beam's solve in 2 of 5
+//! runs, and kept it for the next 2,048 solves, half of a one-second run. So the
 //! interval between calibrations starts short and doubles while they agree, and falls back
 //! to the shortest when one changes its mind: a wrong choice costs a few dozen passes.
 
