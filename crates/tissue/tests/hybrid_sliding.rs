@@ -532,7 +532,7 @@ fn hybrid_lets_go_of_a_probe_lifted_away_within_one_step() {
 #[test]
 #[ignore = "study: traces the comparison's deep press on hybrid"]
 fn hybrid_deep_press_trace_study() {
-    use tissue::compare::drive::{ContactLaw, probe_instrument, probe_simulation, smooth_ramp};
+    use tissue::compare::drive::{ContactLaw, smooth_ramp, touching_probe};
     use tissue::compare::{Organ, Scenario};
     use tissue::material::Material;
     let var = |k: &str, d: Real| {
@@ -550,18 +550,7 @@ fn hybrid_deep_press_trace_study() {
     let organ = Organ::new(mesh, "liver".into(), material, 0.0, 800).unwrap();
     let sc = Scenario::of(&organ.mesh).unwrap();
     let model = organ.build("hybrid", material).unwrap();
-    let fixed = sc.fixed(model.rest_surface());
-    let mut sim = probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
-    sim.add_instrument(
-        probe_instrument(
-            sc.probe(),
-            sc.probe_radius,
-            0.0,
-            1.0,
-            ContactLaw::FineSurface,
-        )
-        .unwrap(),
-    );
+    let mut sim = touching_probe(model, &sc, ContactLaw::FineSurface).unwrap();
     let (dt, ramp) = (var("DT", 1e-3), 0.15);
     let (from, steps) = (var("FROM", 0.9), var("STEPS", 12.0) as usize);
     let end = var("T_END", 1.5);
@@ -707,7 +696,7 @@ fn hybrid_deep_press_trace_study() {
 /// answer by more than 1 µm (none is).
 #[test]
 fn hybrid_deep_press_settles_by_kinetic_damping_on_fem_static_under_its_planes() {
-    use tissue::compare::drive::{ContactLaw, probe_instrument, probe_simulation, smooth_ramp};
+    use tissue::compare::drive::{ContactLaw, smooth_ramp, touching_probe};
     use tissue::compare::{Organ, Scenario};
     use tissue::interact::{Constraints, Prescribed};
     use tissue::material::Material;
@@ -725,19 +714,7 @@ fn hybrid_deep_press_settles_by_kinetic_damping_on_fem_static_under_its_planes()
     let settle = |params: &str| {
         let params: toml::Table = toml::from_str(params).unwrap();
         let model = organ.build_with("hybrid", material, &params).unwrap();
-        let fixed = sc.fixed(model.rest_surface());
-        let mut sim =
-            probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
-        sim.add_instrument(
-            probe_instrument(
-                sc.probe(),
-                sc.probe_radius,
-                0.0,
-                1.0,
-                ContactLaw::FineSurface,
-            )
-            .unwrap(),
-        );
+        let mut sim = touching_probe(model, &sc, ContactLaw::FineSurface).unwrap();
         let (dt, ramp, freeze, end) = (1e-3, 0.15, 0.5, 2.0);
         let top = sc.probe() + Vec3::Y * sc.probe_radius;
         let (mut last, mut peak, mut quiet) = (0.0, 0.0 as Real, 0);

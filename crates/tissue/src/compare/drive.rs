@@ -152,6 +152,26 @@ pub fn probe_simulation(
     Ok(sim)
 }
 
+/// `probe_simulation` for scenario `sc`: the organ held as `sc` holds it, and its probe
+/// touching the probe point, still (a path of depth 0): for callers that move the probe
+/// themselves (`Simulation::set_instrument_position`), as the settling studies do.
+pub fn touching_probe(
+    model: Box<dyn Deformable>,
+    sc: &super::setup::Scenario,
+    law: ContactLaw,
+) -> Result<Simulation, Error> {
+    let fixed = sc.fixed(model.rest_surface());
+    let mut sim = probe_simulation(model, fixed, sc.probe_radius, law)?;
+    sim.add_instrument(probe_instrument(
+        sc.probe(),
+        sc.probe_radius,
+        0.0,
+        1.0,
+        law,
+    )?);
+    Ok(sim)
+}
+
 /// How a model is stepped through a quasi-static scenario.
 #[derive(Clone, Copy, Debug)]
 pub struct Stepping {

@@ -1,7 +1,9 @@
 //! How the dynamic kinds settle in the comparison's probe indentation (issue 20).
 
 use super::Settings;
-use super::drive::{ContactLaw, Settled, Stepping, indent, probe_instrument, probe_simulation};
+use super::drive::{
+    ContactLaw, Settled, Stepping, indent, probe_instrument, probe_simulation, touching_probe,
+};
 use super::measure::{relaxing, settling, stable_step};
 use super::setup::{Organ, Scenario};
 use crate::material::Material;
@@ -261,21 +263,8 @@ fn settling_methods_study() {
                     ..base
                 };
                 let model = organ.build(kind, mat).unwrap();
-                let fixed = sc.fixed(model.rest_surface());
-                let mut sim =
-                    probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface)
-                        .unwrap();
+                let mut sim = touching_probe(model, &sc, ContactLaw::FineSurface).unwrap();
                 let top = sc.probe() + Vec3::Y * sc.probe_radius;
-                sim.add_instrument(
-                    probe_instrument(
-                        sc.probe(),
-                        sc.probe_radius,
-                        0.0,
-                        1.0,
-                        ContactLaw::FineSurface,
-                    )
-                    .unwrap(),
-                );
                 let steps = (t_end / dt).ceil() as usize;
                 let mut last = 0.0;
                 let mut stops = 0;
@@ -704,20 +693,9 @@ fn contact_trace_study() {
     };
     let model = organ.build(kind.as_str(), mat).unwrap();
     let rest: Vec<Vec3> = model.rest_surface().to_vec();
-    let fixed = sc.fixed(&rest);
     let pressed = nearest(&rest, sc.probe()).unwrap() as usize;
-    let mut sim = probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
+    let mut sim = touching_probe(model, &sc, ContactLaw::FineSurface).unwrap();
     let top = sc.probe() + Vec3::Y * sc.probe_radius;
-    sim.add_instrument(
-        probe_instrument(
-            sc.probe(),
-            sc.probe_radius,
-            0.0,
-            1.0,
-            ContactLaw::FineSurface,
-        )
-        .unwrap(),
-    );
     println!(
         "{kind}: dt {dt}, pressed {pressed} rest {:?} probe {:?} R {}",
         rest[pressed],
@@ -822,20 +800,8 @@ fn linked_volumes_shallow_press_holds_its_equilibrium_push() {
         let model = organ
             .build("linked-volumes", Material { damping, ..base })
             .unwrap();
-        let fixed = sc.fixed(model.rest_surface());
-        let mut sim =
-            probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
+        let mut sim = touching_probe(model, &sc, ContactLaw::FineSurface).unwrap();
         let top = sc.probe() + Vec3::Y * sc.probe_radius;
-        sim.add_instrument(
-            probe_instrument(
-                sc.probe(),
-                sc.probe_radius,
-                0.0,
-                1.0,
-                ContactLaw::FineSurface,
-            )
-            .unwrap(),
-        );
         let dt = s.settle_dt_max;
         let steps = (t_end / dt).round() as usize;
         let (mut last, mut forces) = (0.0, Vec::new());
@@ -894,19 +860,8 @@ fn volumetric_spring_mass_deep_press_pushes_its_folded_surface_the_nearest_way()
     };
     let model = organ.build("volumetric-spring-mass", mat).unwrap();
     let rest: Vec<Vec3> = model.rest_surface().to_vec();
-    let fixed = sc.fixed(&rest);
-    let mut sim = probe_simulation(model, fixed, sc.probe_radius, ContactLaw::FineSurface).unwrap();
+    let mut sim = touching_probe(model, &sc, ContactLaw::FineSurface).unwrap();
     let top = sc.probe() + Vec3::Y * sc.probe_radius;
-    sim.add_instrument(
-        probe_instrument(
-            sc.probe(),
-            sc.probe_radius,
-            0.0,
-            1.0,
-            ContactLaw::FineSurface,
-        )
-        .unwrap(),
-    );
     let mut prev = rest.clone();
     let (mut peak, mut fastest, mut probe_step, mut tilt): (Real, Real, Real, Real) =
         (0.0, 0.0, 0.0, 0.0);
